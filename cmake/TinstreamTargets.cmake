@@ -1,0 +1,71 @@
+# One place that says how every tinstream target is compiled.
+#
+#   tinstream_setup_toolchain()            ccache, sanitizers (global, so gtest and libs agree)
+#   tinstream_configure_target(t)          C++20, warnings, warnings-as-errors
+#   tinstream_add_library(NAME module SOURCES ... [PUBLIC_DEPS ...] [PRIVATE_DEPS ...])
+#       builds target tinstream_<module> (alias tinstream::<module>) with include/ as its public
+#       surface and src/ private.
+#   tinstream_add_test(NAME name SOURCES ... DEPS ...)
+#       a GoogleTest executable registered with CTest (one CTest entry per TEST()).
+
+function(tinstream_setup_toolchain)
+  find_program(CCACHE_PROGRAM ccache)
+  if(CCACHE_PROGRAM AND NOT CMAKE_CXX_COMPILER_LAUNCHER)
+    set(CMAKE_CXX_COMPILER_LAUNCHER ${CCACHE_PROGRAM} PARENT_SCOPE)
+    set(CMAKE_C_COMPILER_LAUNCHER ${CCACHE_PROGRAM} PARENT_SCOPE)
+  endif()
+  if(NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYPES)
+    set(CMAKE_BUILD_TYPE RelWithDebInfo CACHE STRING "Build type" FORCE)
+  endif()
+  if(TINSTREAM_ASAN AND TINSTREAM_TSAN)
+    message(FATAL_ERROR "TINSTREAM_ASAN and TINSTREAM_TSAN cannot be combined")
+  endif()
+  if(TINSTREAM_ASAN)
+    add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+    add_link_options(-fsanitize=address,undefined)
+  endif()
+  if(TINSTREAM_TSAN)
+    add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+    add_link_options(-fsanitize=thread)
+  endif()
+  set(CMAKE_EXPORT_COMPILE_COMMANDS ON PARENT_SCOPE)
+endfunction()
+
+function(tinstream_configure_target target)
+  target_compile_features(${target} PUBLIC cxx_std_20)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wconversion)
+  if(TINSTREAM_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+endfunction()
+
+function(tinstream_add_library module)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  set(target tinstream_${module})
+  add_library(${target} STATIC ${ARG_SOURCES})
+  add_library(tinstream::${module} ALIAS ${target})
+  target_include_directories(${target}
+    PUBLIC $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
+  target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  tinstream_configure_target(${target})
+endfunction()
+
+function(tinstream_add_test name)
+  if(NOT TINSTREAM_BUILD_TESTS)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gmock GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE
+    TINSTREAM_SHARED_DATA="${TINSTREAM_SHARED_DATA}"
+    TINSTREAM_BINARY_DIR="${CMAKE_BINARY_DIR}"
+    TINSTREAM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+  tinstream_configure_target(${name})
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 600)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST PROPERTIES TIMEOUT ${ARG_TIMEOUT})
+endfunction()

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs every build, test and run-time dependency of tinstream from Debian 12 packages.
+# Idempotent: does nothing when everything is already installed. No prompts.
+#   scripts/install-deps.sh            build + test dependencies (what `make test` needs)
+#   scripts/install-deps.sh --bench    also the benchmark peers (wrk, nginx, Node.js for delatin)
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build ccache pkg-config git
+  libboost-dev                     # Beast/Asio (header-only, 1.74; CGAL needs this one)
+  libgeographiclib-dev libproj-dev proj-data libgdal-dev gdal-bin
+  libsqlite3-dev sqlite3 zlib1g-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only
+  libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
+  clang-format clang-tidy curl
+)
+if [[ ${1:-} == --bench ]]; then
+  packages+=(wrk nginx nodejs npm time)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+if ((${#missing[@]} == 0)); then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+echo "install-deps: installing ${missing[*]}"
+# apt lists may be absent on a fresh machine; update when any package is unknown to apt.
+if ! apt-cache show "${missing[@]}" >/dev/null 2>&1; then
+  $SUDO apt-get update -qq
+fi
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
