@@ -1,0 +1,27 @@
+// tinstream/tile/codec.hpp — the native tile blob (docs/tile-format.md is the specification).
+//
+// encode() produces the uncompressed little-endian binary form; the store compresses it with zlib
+// (compress/decompress here too so that the server can send the stored bytes as-is with
+// `Content-Encoding: deflate`). decode() validates everything it reads and never trusts counts:
+// a malformed blob gives an Error naming what was wrong, never a crash or an unbounded allocation.
+// Pure functions, thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::tile {
+
+std::vector<std::uint8_t> encode(const TinTile& tile);
+Result<TinTile> decode(std::span<const std::uint8_t> bytes);
+
+// zlib (RFC 1950) wrappers. decompress() refuses to inflate past max_output bytes.
+std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level = 6);
+Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes,
+                                             std::size_t max_output = 256u << 20);
+
+}  // namespace tinstream::tile
