@@ -1,0 +1,105 @@
+// tinstream/subdivide/sorted_run.hpp — pass 2 of the ingest (DESIGN.md §3): choose the finest
+// level and put every point into Morton (quadkey) order, with bounded memory.
+//
+// Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
+// Output: ONE sorted run file of fixed 32-byte records plus an in-memory tile index (first record
+// and count of every non-empty finest tile, in Morton order) — not one file per tile.
+//
+// Order: records are sorted by (key, x, y) where key is the Morton code of the level-30 cell that
+// holds the point (geo::TileId::containing). Level-30 cells nest exactly inside every coarser
+// tile, so every tile of every level is one contiguous range of the run, and points inside a tile
+// come in Z-order (a good insertion order for the triangulation).
+//
+// Duplicates: points with identical (x, y) are merged into one; the LOWEST z wins (it is the one
+// closest to bare earth; the rule is independent of input order). They are counted.
+//
+// Finest level L: the smallest level at which no tile holds more than max_points points (after
+// merging duplicates), capped by max_level; never below min_level.
+//
+// Memory: at most about `memory_bytes` (sort buffer + merge buffers), whatever the input size;
+// temporary runs go to `tmp_dir` and are removed when done or on failure.
+// Threads: one call runs on the calling thread.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "tinstream/base/progress.hpp"
+#include "tinstream/base/result.hpp"
+#include "tinstream/geo/tile_id.hpp"
+
+namespace tinstream::subdivide {
+
+// One record of the sorted run (and of the temporary runs), 32 bytes, host (little-endian) order.
+struct SortedPoint {
+  std::uint64_t key = 0;  // Morton code of the level-30 cell
+  double x = 0, y = 0;    // normalised Mercator
+  double z = 0;           // metres, ellipsoidal
+};
+static_assert(sizeof(SortedPoint) == 32);
+
+// The level-30 cell key of a point (x, y clamped to the map).
+std::uint64_t cell_key(double x, double y);
+// The tile at `level` containing the level-30 cell `key`.
+geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level);
+
+struct TileRange {
+  geo::TileId id;
+  std::uint64_t first = 0;  // index of the first record in the run
+  std::uint64_t count = 0;
+};
+
+struct SubdivideOptions {
+  std::uint32_t max_points = 16384;        // per finest tile (≤ 65535)
+  std::uint32_t max_level = 24;            // cap for L
+  std::uint32_t min_level = 0;             // floor for L
+  std::size_t memory_bytes = 256u << 20;   // sort + merge buffers
+  std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
+  std::filesystem::path output;            // the sorted run; default: a file in tmp_dir
+};
+
+struct SortedRun {
+  std::filesystem::path path;
+  std::uint64_t points = 0;               // records in the run (distinct points)
+  std::uint64_t input_points = 0;         // points given
+  std::uint64_t duplicates_merged = 0;    // input_points − points
+  std::uint32_t finest_level = 0;         // L
+  std::vector<TileRange> tiles;           // non-empty tiles of level L, Morton order
+  std::vector<std::uint64_t> max_tile_points;  // index z: most points in one tile of level z
+};
+
+// Supplies input in batches: appends points (x, y, z) to `batch` and returns how many it appended;
+// 0 means the input is exhausted.
+struct InputPoint {
+  double x = 0, y = 0, z = 0;
+};
+using PointFeed = std::function<Result<std::size_t>(std::vector<InputPoint>& batch)>;
+
+// Requires: options.max_points ≥ 1, min_level ≤ max_level ≤ 30.
+Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
+                            const ProgressSink& progress = {});
+
+// Random access to a sorted run by record index. Thread-compatible: one reader per thread.
+class SortedRunReader {
+ public:
+  static Result<SortedRunReader> open(const std::filesystem::path& path);
+  SortedRunReader(SortedRunReader&&) noexcept;
+  SortedRunReader& operator=(SortedRunReader&&) noexcept;
+  ~SortedRunReader();
+
+  std::uint64_t size() const { return records_; }
+  // Replaces `out` with records [first, first + count). Errors on I/O failure or range overflow.
+  Status read(std::uint64_t first, std::uint64_t count, std::vector<SortedPoint>& out);
+
+ private:
+  SortedRunReader() = default;
+  std::FILE* file_ = nullptr;
+  std::uint64_t records_ = 0;
+  std::filesystem::path path_;
+};
+
+}  // namespace tinstream::subdivide

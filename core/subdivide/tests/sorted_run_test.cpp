@@ -1,0 +1,252 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+#include <random>
+
+#include "tinstream/subdivide/sorted_run.hpp"
+
+namespace tinstream::subdivide {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("tinstream-subdivide-test-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+             "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  const fs::path& path() const { return path_; }
+  std::size_t entries() const {
+    return static_cast<std::size_t>(std::distance(fs::directory_iterator(path_), fs::directory_iterator()));
+  }
+
+ private:
+  fs::path path_;
+};
+
+PointFeed feed_of(const std::vector<InputPoint>& points, std::size_t batch_size = 1000) {
+  auto pos = std::make_shared<std::size_t>(0);
+  return [&points, pos, batch_size](std::vector<InputPoint>& batch) -> Result<std::size_t> {
+    const std::size_t n = std::min(batch_size, points.size() - *pos);
+    batch.insert(batch.end(), points.begin() + static_cast<std::ptrdiff_t>(*pos),
+                 points.begin() + static_cast<std::ptrdiff_t>(*pos + n));
+    *pos += n;
+    return n;
+  };
+}
+
+// Points around a small area (a few km near Bern), with clusters, like a LiDAR strip.
+std::vector<InputPoint> clustered_points(std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<InputPoint> pts;
+  const double x0 = 0.0414, y0 = 0.3524, span = 2e-4;
+  while (pts.size() < n) {
+    double x, y;
+    if (pts.size() % 3 == 0) {
+      x = x0 + span * (0.3 + 0.02 * g(rng));
+      y = y0 + span * (0.6 + 0.02 * g(rng));
+    } else {
+      x = x0 + span * u(rng);
+      y = y0 + span * u(rng);
+    }
+    pts.push_back({x, y, 500.0 + 100.0 * u(rng)});
+  }
+  return pts;
+}
+
+std::vector<SortedPoint> read_all(const SortedRun& run) {
+  auto reader = SortedRunReader::open(run.path);
+  EXPECT_TRUE(reader.ok());
+  std::vector<SortedPoint> all;
+  EXPECT_TRUE(reader->read(0, reader->size(), all).ok());
+  return all;
+}
+
+// The reference order, computed from the tile module rather than the run's bit tricks:
+// Morton pre-order of the level-30 cell, then x, then y.
+bool reference_less(const InputPoint& a, const InputPoint& b) {
+  const geo::TileId ca = geo::TileId::containing({a.x, a.y}, 30);
+  const geo::TileId cb = geo::TileId::containing({b.x, b.y}, 30);
+  if (ca != cb) return geo::morton_less(ca, cb);
+  if (a.x != b.x) return a.x < b.x;
+  return a.y < b.y;
+}
+
+void expect_matches_reference(std::vector<InputPoint> input, const SortedRun& run) {
+  std::sort(input.begin(), input.end(), reference_less);
+  const auto all = read_all(run);
+  ASSERT_EQ(all.size(), input.size());
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    ASSERT_EQ(all[i].x, input[i].x) << i;
+    ASSERT_EQ(all[i].y, input[i].y) << i;
+    ASSERT_EQ(all[i].z, input[i].z) << i;
+  }
+}
+
+TEST(Subdivide, SortsIntoMortonOrderAndChoosesSmallestFittingLevel) {
+  TempDir tmp;
+  const auto pts = clustered_points(60000, 1);
+  SubdivideOptions opt;
+  opt.max_points = 2000;
+  opt.tmp_dir = tmp.path();
+  auto run = subdivide(feed_of(pts), opt);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  EXPECT_EQ(run->points, pts.size());
+  EXPECT_EQ(run->duplicates_merged, 0u);
+  expect_matches_reference(pts, *run);
+
+  // Independent count of the fullest tile per level.
+  auto fullest = [&](std::uint32_t level) {
+    std::map<geo::TileId, std::uint64_t> counts;
+    for (const auto& p : pts) ++counts[geo::TileId::containing({p.x, p.y}, level)];
+    std::uint64_t m = 0;
+    for (const auto& [id, c] : counts) m = std::max(m, c);
+    return m;
+  };
+  const std::uint32_t L = run->finest_level;
+  EXPECT_LE(fullest(L), opt.max_points);
+  ASSERT_GT(L, 0u);
+  EXPECT_GT(fullest(L - 1), opt.max_points);
+  EXPECT_EQ(run->max_tile_points[L], fullest(L));
+
+  // The index: Morton-ordered tiles whose ranges hold exactly their points.
+  const auto all = read_all(*run);
+  std::uint64_t expected_first = 0;
+  for (std::size_t t = 0; t < run->tiles.size(); ++t) {
+    const TileRange& r = run->tiles[t];
+    EXPECT_EQ(r.first, expected_first);
+    if (t > 0) {
+      EXPECT_TRUE(geo::morton_less(run->tiles[t - 1].id, r.id));
+    }
+    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
+      ASSERT_EQ(geo::TileId::containing({all[i].x, all[i].y}, L), r.id);
+    }
+    expected_first += r.count;
+  }
+  EXPECT_EQ(expected_first, all.size());
+  EXPECT_EQ(tmp.entries(), 1u);  // only the output run remains
+}
+
+TEST(Subdivide, TinyMemoryBudgetForcesMultiPassMergeWithSameResult) {
+  TempDir tmp;
+  const auto pts = clustered_points(300000, 2);
+  SubdivideOptions opt;
+  opt.max_points = 5000;
+  opt.memory_bytes = 4096 * sizeof(SortedPoint);  // 2048-record chunks → ~146 runs > fan-in 64
+  opt.tmp_dir = tmp.path();
+  int merge_reports = 0;
+  auto run = subdivide(feed_of(pts, 777), opt, [&](const Progress& p) {
+    if (p.phase == "merge") ++merge_reports;
+    return true;
+  });
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  expect_matches_reference(pts, *run);
+  EXPECT_GT(merge_reports, 0);
+  EXPECT_EQ(tmp.entries(), 1u);
+}
+
+TEST(Subdivide, DuplicatesMergedLowestZWins) {
+  TempDir tmp;
+  std::vector<InputPoint> pts = {{0.1, 0.2, 10}, {0.1, 0.2, 7}, {0.3, 0.2, 1},
+                                 {0.1, 0.2, 9},  {0.3, 0.2, 1}, {-0.5, -0.5, 3}};
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  opt.memory_bytes = 1;  // even the smallest budget works (runs of a few records)
+  auto run = subdivide(feed_of(pts, 2), opt);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  EXPECT_EQ(run->points, 3u);
+  EXPECT_EQ(run->duplicates_merged, 3u);
+  const auto all = read_all(*run);
+  for (const auto& p : all) {
+    if (p.x == 0.1) {
+      EXPECT_EQ(p.z, 7);
+    }
+  }
+  EXPECT_EQ(run->finest_level, 0u);  // 3 points fit the world tile
+}
+
+TEST(Subdivide, LevelCappedWhenPointsCannotBeSeparated) {
+  TempDir tmp;
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 50; ++i) pts.push_back({0.25 + i * 1e-15, 0.25, 1.0 * i});
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  opt.max_points = 10;
+  opt.max_level = 12;
+  auto run = subdivide(feed_of(pts), opt);
+  ASSERT_TRUE(run.ok());
+  EXPECT_EQ(run->finest_level, 12u);
+  ASSERT_EQ(run->tiles.size(), 1u);
+  EXPECT_EQ(run->tiles[0].count, 50u);
+}
+
+TEST(Subdivide, NonFiniteOrOutOfRangePointRejectedByIndex) {
+  TempDir tmp;
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  std::vector<InputPoint> pts = {{0.1, 0.1, 1}, {0.2, 0.2, 2}, {0.3, NAN, 3}};
+  auto run = subdivide(feed_of(pts), opt);
+  ASSERT_FALSE(run.ok());
+  EXPECT_NE(run.error().message.find("point 2"), std::string::npos) << run.error().message;
+  pts = {{1.5, 0.1, 1}};
+  EXPECT_FALSE(subdivide(feed_of(pts), opt).ok());
+  EXPECT_EQ(tmp.entries(), 0u);  // nothing left behind
+}
+
+TEST(Subdivide, CancelStopsAndCleansUp) {
+  TempDir tmp;
+  const auto pts = clustered_points(20000, 3);
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  opt.memory_bytes = 4096 * sizeof(SortedPoint);
+  auto run = subdivide(feed_of(pts), opt, [](const Progress& p) { return p.done < 5000; });
+  ASSERT_FALSE(run.ok());
+  EXPECT_EQ(run.error().code, ErrorCode::cancelled);
+  EXPECT_EQ(tmp.entries(), 0u);
+}
+
+TEST(Subdivide, KeyToTileMatchesContainment) {
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < 20000; ++i) {
+    const double x = u(rng), y = u(rng);
+    const std::uint64_t key = cell_key(x, y);
+    for (std::uint32_t level : {0u, 3u, 11u, 20u, 30u}) {
+      ASSERT_EQ(tile_of_key(key, level), geo::TileId::containing({x, y}, level));
+    }
+  }
+}
+
+TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
+  TempDir tmp;
+  const fs::path bad = tmp.path() / "bad.run";
+  {
+    std::FILE* f = std::fopen(bad.c_str(), "wb");
+    std::fputs("not a multiple of thirty-two", f);
+    std::fclose(f);
+  }
+  auto r = SortedRunReader::open(bad);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("bad.run"), std::string::npos);
+  const auto pts = clustered_points(100, 5);
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  auto run = subdivide(feed_of(pts), opt);
+  ASSERT_TRUE(run.ok());
+  auto reader = SortedRunReader::open(run->path);
+  ASSERT_TRUE(reader.ok());
+  std::vector<SortedPoint> out;
+  EXPECT_FALSE(reader->read(90, 20, out).ok());
+  EXPECT_TRUE(reader->read(90, 10, out).ok());
+}
+
+}  // namespace
+}  // namespace tinstream::subdivide
