@@ -1,0 +1,68 @@
+// tinstream/terrain/quantized_mesh.hpp — Cesium quantized-mesh-1.0 encoding of a TIN tile.
+//
+// Format: https://github.com/CesiumGS/quantized-mesh (little-endian):
+//   QuantizedMeshHeader (88 bytes): centre (ECEF f64×3), min/max height (f32×2), bounding sphere
+//     (f64×4), horizon occlusion point (ellipsoid-scaled ECEF f64×3)
+//   vertexCount u32; u[], v[], height[] as zig-zag-delta u16 in 0..32767
+//   triangleCount u32; indices high-water-mark encoded (u16, or u32 when vertexCount > 65536,
+//     then aligned to 4 bytes)
+//   west, south, east, north edge index lists (count u32 + indices) — for skirts
+//   extensions: id u8, length u32, bytes (1 = octvertexnormals, 2 oct-encoded bytes per vertex)
+//
+// Tiling: only layers in *spherical* normalised Mercator coincide with Cesium's
+// WebMercatorTilingScheme (EPSG:3857, one root tile, TMS rows y_tms = 2^z − 1 − y). Tiles of
+// ellipsoidal layers cover different latitudes than the EPSG:3857 tile of the same z/x/y, so
+// encode() refuses them with ErrorCode::unsupported instead of producing misplaced terrain.
+//
+// Quantisation (DESIGN.md §5): u = (lon − west)/(east − west), v = (lat − south)/(north − south)
+// in the tile's geodetic rectangle — linear in *latitude*, which is how CesiumJS and
+// cesium-native interpolate v even for Web Mercator tiles. Every vertex keeps its true lon/lat;
+// straight triangle edges in Mercator become straight in lon/lat instead (a sub-pixel change for
+// tiles of level ≥ 6, visible only as slightly different interior shading at coarse levels).
+// Border vertices land exactly on u/v = 0 or 32767, so neighbours share their edge vertices.
+//
+// Vertices are renumbered in order of first use by the triangle list (required by the
+// high-water-mark code). Pure functions, thread-safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/geo/mercator.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::terrain {
+
+struct QuantizedMeshOptions {
+  bool oct_vertex_normals = false;  // append the `octvertexnormals` extension (id 1)
+};
+
+// The uncompressed quantized-mesh bytes of `tile`, a tile of a layer in `projection`.
+// Errors: unsupported for ellipsoidal layers; invalid_argument for a tile without triangles or
+// with out-of-range indices.
+Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& tile,
+                                                        geo::Projection projection,
+                                                        const QuantizedMeshOptions& options = {});
+
+// A flat tile at height 0 (four corners, two triangles) for levels above a layer's coarsest
+// stored level: Cesium needs every level-0 … min-level tile to exist before it refines.
+tile::TinTile flat_tile(const geo::TileId& id);
+
+// The horizon occlusion point (ellipsoid-scaled ECEF) for a set of ECEF points, seen along the
+// direction of `direction_point` — Cesium's EllipsoidalOccluder method ("Horizon culling 2",
+// cesium.com blog 2013). Returns nullopt when no finite point exists (points more than 90° from
+// the direction, e.g. tiles of levels 0–1); encode() then writes NaN coordinates, which CesiumJS
+// treats as "never occluded".
+struct Vec3 {
+  double x = 0, y = 0, z = 0;
+};
+std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points, Vec3 direction_point);
+
+// Cesium's oct encoding of a unit vector into two bytes (AttributeCompression.octEncode, 0..255).
+std::array<std::uint8_t, 2> oct_encode(Vec3 unit_normal);
+
+}  // namespace tinstream::terrain

@@ -1,0 +1,90 @@
+#include "tinstream/terrain/layer_json.hpp"
+
+#include <algorithm>
+#include <map>
+#include <nlohmann/json.hpp>
+
+namespace tinstream::terrain {
+
+std::vector<TileRange> merge_ranges(std::vector<geo::TileId> tiles) {
+  std::vector<TileRange> done;
+  if (tiles.empty()) return done;
+  // Sort by TMS row, then column; drop duplicates.
+  for (auto& t : tiles) t.y = t.tms_row();
+  std::sort(tiles.begin(), tiles.end(),
+            [](const geo::TileId& a, const geo::TileId& b) { return std::tie(a.y, a.x) < std::tie(b.y, b.x); });
+  tiles.erase(std::unique(tiles.begin(), tiles.end()), tiles.end());
+
+  // Runs per row, then extend rectangles of the previous row whose x-span matches exactly.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, TileRange> open;  // (start_x, end_x) → rect
+  std::size_t i = 0;
+  while (i < tiles.size()) {
+    const std::uint32_t row = tiles[i].y;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, TileRange> next;
+    while (i < tiles.size() && tiles[i].y == row) {
+      const std::uint32_t start = tiles[i].x;
+      std::uint32_t end = start;
+      ++i;
+      while (i < tiles.size() && tiles[i].y == row && tiles[i].x == end + 1) end = tiles[i++].x;
+      const auto key = std::make_pair(start, end);
+      auto it = open.find(key);
+      if (it != open.end() && it->second.end_y + 1 == row) {
+        TileRange r = it->second;
+        r.end_y = row;
+        next[key] = r;
+        open.erase(it);
+      } else {
+        next[key] = TileRange{start, row, end, row};
+      }
+    }
+    for (auto& [key, r] : open) done.push_back(r);
+    open = std::move(next);
+  }
+  for (auto& [key, r] : open) done.push_back(r);
+  std::sort(done.begin(), done.end(), [](const TileRange& a, const TileRange& b) {
+    return std::tie(a.start_y, a.start_x) < std::tie(b.start_y, b.start_x);
+  });
+  return done;
+}
+
+std::string layer_json(const LayerJsonInput& in) {
+  using nlohmann::json;
+  std::vector<std::vector<geo::TileId>> by_level(in.max_level + 1);
+  for (const auto& id : in.tile_ids) {
+    if (id.z <= in.max_level) by_level[id.z].push_back(id);
+  }
+  json available = json::array();
+  for (std::uint32_t z = 0; z <= in.max_level; ++z) {
+    json level = json::array();
+    if (z < in.min_level) {
+      // Synthesised flat tiles: the whole level.
+      const std::uint32_t last = (1u << z) - 1;
+      level.push_back({{"startX", 0}, {"startY", 0}, {"endX", last}, {"endY", last}});
+    } else {
+      for (const TileRange& r : merge_ranges(std::move(by_level[z]))) {
+        level.push_back(
+            {{"startX", r.start_x}, {"startY", r.start_y}, {"endX", r.end_x}, {"endY", r.end_y}});
+      }
+    }
+    available.push_back(std::move(level));
+  }
+  json doc = {
+      {"tilejson", "2.1.0"},
+      {"name", in.name},
+      {"description", in.description},
+      {"version", in.version},
+      {"format", "quantized-mesh-1.0"},
+      {"attribution", in.attribution},
+      {"scheme", "tms"},
+      {"tiles", json::array({"{z}/{x}/{y}.terrain?v={version}"})},
+      {"projection", "EPSG:3857"},
+      {"bounds", {in.bounds.west, in.bounds.south, in.bounds.east, in.bounds.north}},
+      {"minzoom", 0},
+      {"maxzoom", in.max_level},
+      {"extensions", in.oct_vertex_normals ? json::array({"octvertexnormals"}) : json::array()},
+      {"available", std::move(available)},
+  };
+  return doc.dump(2);
+}
+
+}  // namespace tinstream::terrain

@@ -1,0 +1,365 @@
+#include "tinstream/terrain/quantized_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+
+#include "tinstream/geo/ecef.hpp"
+
+namespace tinstream::terrain {
+namespace {
+
+constexpr double kQuantMax = 32767.0;
+constexpr std::uint8_t kExtOctVertexNormals = 1;
+
+Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 add(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 scale(Vec3 a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double norm(Vec3 a) { return std::sqrt(dot(a, a)); }
+
+// Little-endian byte writer (the format is little-endian; so are all our targets, but write
+// byte by byte anyway so the encoding does not depend on the host).
+class Writer {
+ public:
+  void u8(std::uint8_t v) { out_.push_back(v); }
+  void u16(std::uint16_t v) {
+    for (int i = 0; i < 2; ++i) out_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void u32(std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) out_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void f32(float f) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, 4);
+    u32(bits);
+  }
+  void f64(double d) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &d, 8);
+    for (int i = 0; i < 8; ++i) out_.push_back(static_cast<std::uint8_t>(bits >> (8 * i)));
+  }
+  void align(std::size_t n) {
+    while (out_.size() % n != 0) out_.push_back(0);
+  }
+  std::size_t size() const { return out_.size(); }
+  std::vector<std::uint8_t> take() { return std::move(out_); }
+
+ private:
+  std::vector<std::uint8_t> out_;
+};
+
+std::uint16_t zigzag(int v) {
+  return static_cast<std::uint16_t>((static_cast<unsigned>(v) << 1) ^
+                                    static_cast<unsigned>(v >> 31));
+}
+
+std::uint16_t quantise(double t) {
+  const double q = std::round(std::clamp(t, 0.0, 1.0) * kQuantMax);
+  return static_cast<std::uint16_t>(q);
+}
+
+struct Sphere {
+  Vec3 centre;
+  double radius = 0;
+};
+
+Sphere bounding_sphere(std::span<const Vec3> pts) {
+  // Two candidates, the smaller wins: the box centre with its farthest point, and Ritter's sphere.
+  Vec3 lo = pts[0], hi = pts[0];
+  for (const Vec3& p : pts) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  Sphere box{scale(add(lo, hi), 0.5), 0};
+  for (const Vec3& p : pts) box.radius = std::max(box.radius, norm(sub(p, box.centre)));
+
+  // Ritter: start from the farthest pair found by two sweeps, then grow.
+  Vec3 a = pts[0];
+  Vec3 b = a;
+  double best = -1;
+  for (const Vec3& p : pts) {
+    const double d = norm(sub(p, a));
+    if (d > best) best = d, b = p;
+  }
+  best = -1;
+  Vec3 c = b;
+  for (const Vec3& p : pts) {
+    const double d = norm(sub(p, b));
+    if (d > best) best = d, c = p;
+  }
+  Sphere ritter{scale(add(b, c), 0.5), norm(sub(b, c)) * 0.5};
+  for (const Vec3& p : pts) {
+    const double d = norm(sub(p, ritter.centre));
+    if (d > ritter.radius) {
+      const double r = (ritter.radius + d) * 0.5;
+      ritter.centre = add(ritter.centre, scale(sub(p, ritter.centre), (r - ritter.radius) / d));
+      ritter.radius = r;
+    }
+  }
+  // Guard against rounding in the growth step.
+  for (const Vec3& p : pts) ritter.radius = std::max(ritter.radius, norm(sub(p, ritter.centre)));
+  return ritter.radius < box.radius ? ritter : box;
+}
+
+}  // namespace
+
+std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points, Vec3 direction_point) {
+  const double a = geo::kWgs84A;
+  const double b = geo::kWgs84A * (1.0 - geo::kWgs84F);
+  auto to_scaled = [&](Vec3 p) { return Vec3{p.x / a, p.y / a, p.z / b}; };
+  Vec3 dir = to_scaled(direction_point);
+  const double dir_len = norm(dir);
+  if (!(dir_len > 0)) return std::nullopt;
+  dir = scale(dir, 1.0 / dir_len);
+  double max_magnitude = 0;
+  for (const Vec3& p : ecef_points) {
+    const Vec3 s = to_scaled(p);
+    double mag2 = dot(s, s);
+    double mag = std::sqrt(mag2);
+    if (!(mag > 0)) return std::nullopt;
+    const Vec3 d = scale(s, 1.0 / mag);
+    // Points below the ellipsoid count as on it.
+    mag2 = std::max(1.0, mag2);
+    mag = std::max(1.0, mag);
+    const double cos_alpha = dot(d, dir);
+    const double sin_alpha = norm(cross(d, dir));
+    const double cos_beta = 1.0 / mag;
+    const double sin_beta = std::sqrt(mag2 - 1.0) * cos_beta;
+    const double denom = cos_alpha * cos_beta - sin_alpha * sin_beta;
+    if (!(denom > 0)) return std::nullopt;
+    max_magnitude = std::max(max_magnitude, 1.0 / denom);
+  }
+  if (!std::isfinite(max_magnitude)) return std::nullopt;
+  return scale(dir, max_magnitude);
+}
+
+std::array<std::uint8_t, 2> oct_encode(Vec3 n) {
+  const double l1 = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
+  double x = n.x / l1;
+  double y = n.y / l1;
+  if (n.z < 0) {
+    const double ox = x, oy = y;
+    x = (1.0 - std::abs(oy)) * (ox < 0 ? -1.0 : 1.0);
+    y = (1.0 - std::abs(ox)) * (oy < 0 ? -1.0 : 1.0);
+  }
+  auto to_snorm = [](double v) {
+    return static_cast<std::uint8_t>(std::round((std::clamp(v, -1.0, 1.0) * 0.5 + 0.5) * 255.0));
+  };
+  return {to_snorm(x), to_snorm(y)};
+}
+
+tile::TinTile flat_tile(const geo::TileId& id) {
+  tile::TinTile t;
+  t.id = id;
+  const geo::MercatorRect r = id.bounds();
+  t.corners[0] = {r.min_x, r.max_y, 0, 0};
+  t.corners[1] = {r.max_x, r.max_y, 0, 0};
+  t.corners[2] = {r.min_x, r.min_y, 0, 0};
+  t.corners[3] = {r.max_x, r.min_y, 0, 0};
+  // NW(0) SW(2) SE(3) and NW(0) SE(3) NE(1): counter-clockwise in x-east, y-north.
+  t.triangles = {{0, 2, 3}, {0, 3, 1}};
+  return t;
+}
+
+Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& tile,
+                                                        geo::Projection projection,
+                                                        const QuantizedMeshOptions& options) {
+  if (projection != geo::Projection::spherical) {
+    return unsupported("tile " + tile.id.to_string() +
+                       ": quantized-mesh needs a spherical-Mercator layer (EPSG:3857 tiling); "
+                       "ellipsoidal-Mercator tiles do not coincide with Cesium's tiles");
+  }
+  if (!tile.id.valid()) return invalid_argument("quantized-mesh: invalid tile id");
+  if (tile.triangles.empty()) {
+    return invalid_argument("tile " + tile.id.to_string() + " has no triangles");
+  }
+
+  // Gather vertices in the tile numbering (tin_tile.hpp) and remember each one's border side.
+  std::vector<tile::Vertex> verts(tile.corners.begin(), tile.corners.end());
+  std::vector<std::uint8_t> side_bits;  // 1 west, 2 south, 4 east, 8 north
+  side_bits = {8 | 1, 8 | 4, 2 | 1, 2 | 4};
+  auto append = [&](const std::vector<tile::Vertex>& list, std::uint8_t bits) {
+    for (const auto& v : list) {
+      verts.push_back(v);
+      side_bits.push_back(bits);
+    }
+  };
+  append(tile.north, 8);
+  append(tile.east, 4);
+  append(tile.south, 2);
+  append(tile.west, 1);
+  append(tile.interior, 0);
+  const std::size_t n = verts.size();
+  if (n > std::numeric_limits<std::uint32_t>::max() / 2) {
+    return invalid_argument("tile " + tile.id.to_string() + ": too many vertices");
+  }
+  for (const auto& t : tile.triangles) {
+    for (std::uint32_t i : t) {
+      if (i >= n) {
+        return invalid_argument("tile " + tile.id.to_string() + ": triangle index " +
+                                std::to_string(i) + " out of range");
+      }
+    }
+  }
+
+  // Renumber by first use in the triangle list (high-water mark needs it); unused vertices last.
+  constexpr std::uint32_t kUnset = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> new_index(n, kUnset);
+  std::vector<std::uint32_t> order;  // new → old
+  order.reserve(n);
+  for (const auto& t : tile.triangles) {
+    for (std::uint32_t i : t) {
+      if (new_index[i] == kUnset) {
+        new_index[i] = static_cast<std::uint32_t>(order.size());
+        order.push_back(i);
+      }
+    }
+  }
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (new_index[i] == kUnset) {
+      new_index[i] = static_cast<std::uint32_t>(order.size());
+      order.push_back(i);
+    }
+  }
+
+  const geo::NormalisedMercator merc(projection);
+  const geo::LonLatRect rect = tile.id.lonlat_bounds(merc);
+  double min_h = std::numeric_limits<double>::infinity();
+  double max_h = -min_h;
+  for (const auto& v : verts) {
+    min_h = std::min(min_h, v.z);
+    max_h = std::max(max_h, v.z);
+  }
+  if (!std::isfinite(min_h) || !std::isfinite(max_h)) {
+    return invalid_argument("tile " + tile.id.to_string() + ": non-finite height");
+  }
+  const double h_range = max_h - min_h;
+
+  std::vector<std::uint16_t> qu(n), qv(n), qh(n);
+  std::vector<Vec3> ecef(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const tile::Vertex& v = verts[order[k]];
+    const std::uint8_t bits = side_bits[order[k]];
+    const double lon = geo::NormalisedMercator::lon_from_x(v.x);
+    const double lat = merc.lat_from_y(v.y);
+    // Border vertices are exactly on the border; pin them so rounding cannot move them off.
+    double u = (lon - rect.west) / (rect.east - rect.west);
+    double vv = (lat - rect.south) / (rect.north - rect.south);
+    if (bits & 1) u = 0;
+    if (bits & 4) u = 1;
+    if (bits & 2) vv = 0;
+    if (bits & 8) vv = 1;
+    qu[k] = quantise(u);
+    qv[k] = quantise(vv);
+    qh[k] = h_range > 0 ? quantise((v.z - min_h) / h_range) : 0;
+    // ECEF of the position Cesium will reconstruct (quantised lon/lat/height), so bounding
+    // volumes and normals match what is drawn.
+    const double dlon = rect.west + (rect.east - rect.west) * qu[k] / kQuantMax;
+    const double dlat = rect.south + (rect.north - rect.south) * qv[k] / kQuantMax;
+    const double dh = min_h + h_range * qh[k] / kQuantMax;
+    const geo::Ecef e = geo::to_ecef({dlon, dlat, dh});
+    ecef[k] = {e.x, e.y, e.z};
+  }
+
+  const geo::Ecef centre_e = geo::to_ecef(
+      {(rect.west + rect.east) / 2, (rect.south + rect.north) / 2, (min_h + max_h) / 2});
+  const Vec3 centre{centre_e.x, centre_e.y, centre_e.z};
+  const Sphere sphere = bounding_sphere(ecef);
+  const std::optional<Vec3> hop = horizon_occlusion_point(ecef, sphere.centre);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+
+  Writer w;
+  w.f64(centre.x);
+  w.f64(centre.y);
+  w.f64(centre.z);
+  w.f32(static_cast<float>(min_h));
+  w.f32(static_cast<float>(max_h));
+  w.f64(sphere.centre.x);
+  w.f64(sphere.centre.y);
+  w.f64(sphere.centre.z);
+  w.f64(sphere.radius);
+  w.f64(hop ? hop->x : nan);
+  w.f64(hop ? hop->y : nan);
+  w.f64(hop ? hop->z : nan);
+
+  w.u32(static_cast<std::uint32_t>(n));
+  for (const auto* q : {&qu, &qv, &qh}) {
+    int prev = 0;
+    for (std::uint16_t value : *q) {
+      w.u16(zigzag(static_cast<int>(value) - prev));
+      prev = value;
+    }
+  }
+
+  const bool wide = n > 65536;
+  auto put_index = [&](std::uint32_t i) {
+    if (wide) {
+      w.u32(i);
+    } else {
+      w.u16(static_cast<std::uint16_t>(i));
+    }
+  };
+  w.align(wide ? 4 : 2);
+  w.u32(static_cast<std::uint32_t>(tile.triangles.size()));
+  std::uint32_t highest = 0;
+  for (const auto& t : tile.triangles) {
+    for (std::uint32_t old : t) {
+      const std::uint32_t i = new_index[old];
+      const std::uint32_t code = highest - i;  // i ≤ highest by construction of the numbering
+      put_index(code);
+      if (code == 0) ++highest;
+    }
+  }
+
+  // Edge lists in the order Cesium's skirt builder sorts them into: west south→north,
+  // south east→west, east north→south, north west→east.
+  auto edge = [&](std::uint8_t bit, auto less) {
+    std::vector<std::uint32_t> list;
+    for (std::uint32_t k = 0; k < n; ++k) {
+      if (side_bits[order[k]] & bit) list.push_back(k);
+    }
+    std::stable_sort(list.begin(), list.end(), less);
+    w.u32(static_cast<std::uint32_t>(list.size()));
+    for (std::uint32_t k : list) put_index(k);
+  };
+  edge(1, [&](std::uint32_t a, std::uint32_t b) { return qv[a] < qv[b]; });
+  edge(2, [&](std::uint32_t a, std::uint32_t b) { return qu[a] > qu[b]; });
+  edge(4, [&](std::uint32_t a, std::uint32_t b) { return qv[a] > qv[b]; });
+  edge(8, [&](std::uint32_t a, std::uint32_t b) { return qu[a] < qu[b]; });
+
+  if (options.oct_vertex_normals) {
+    // Area-weighted face normals in ECEF (relative to the centre for precision), summed per
+    // vertex. CCW in lon/lat seen from above ⇒ the cross product points away from the Earth.
+    std::vector<Vec3> normals(n);
+    for (const auto& t : tile.triangles) {
+      const std::uint32_t i0 = new_index[t[0]], i1 = new_index[t[1]], i2 = new_index[t[2]];
+      const Vec3 p0 = sub(ecef[i0], centre), p1 = sub(ecef[i1], centre), p2 = sub(ecef[i2], centre);
+      const Vec3 f = cross(sub(p1, p0), sub(p2, p0));
+      for (std::uint32_t i : {i0, i1, i2}) normals[i] = add(normals[i], f);
+    }
+    w.u8(kExtOctVertexNormals);
+    w.u32(static_cast<std::uint32_t>(2 * n));
+    for (std::size_t k = 0; k < n; ++k) {
+      Vec3 nv = normals[k];
+      double len = norm(nv);
+      if (!(len > 0)) {
+        // Degenerate fan (or unused vertex): the ellipsoid's geodetic normal.
+        const double a = geo::kWgs84A, b = a * (1.0 - geo::kWgs84F);
+        nv = {ecef[k].x / (a * a), ecef[k].y / (a * a), ecef[k].z / (b * b)};
+        len = norm(nv);
+      }
+      const auto oct = oct_encode(scale(nv, 1.0 / len));
+      w.u8(oct[0]);
+      w.u8(oct[1]);
+    }
+  }
+  return w.take();
+}
+
+}  // namespace tinstream::terrain

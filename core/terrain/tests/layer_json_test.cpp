@@ -1,0 +1,77 @@
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+
+#include "tinstream/terrain/layer_json.hpp"
+
+namespace tinstream::terrain {
+namespace {
+
+TEST(LayerJson, MergedRangesCoverExactlyTheTiles) {
+  std::mt19937 rng(7);
+  for (int round = 0; round < 50; ++round) {
+    const std::uint32_t z = 5;
+    std::set<std::pair<std::uint32_t, std::uint32_t>> want;  // (x, y_tms)
+    std::vector<geo::TileId> ids;
+    std::uniform_int_distribution<std::uint32_t> coord(3, 12);
+    for (int k = 0; k < 60; ++k) {
+      auto id = *geo::TileId::from_zxy(z, coord(rng), coord(rng));
+      ids.push_back(id);
+      want.insert({id.x, id.tms_row()});
+    }
+    const auto ranges = merge_ranges(ids);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> got;
+    std::size_t area = 0;
+    for (const auto& r : ranges) {
+      ASSERT_LE(r.start_x, r.end_x);
+      ASSERT_LE(r.start_y, r.end_y);
+      for (auto x = r.start_x; x <= r.end_x; ++x)
+        for (auto y = r.start_y; y <= r.end_y; ++y) got.insert({x, y}), ++area;
+    }
+    EXPECT_EQ(got, want);
+    EXPECT_EQ(area, want.size()) << "rectangles overlap";
+    EXPECT_LT(ranges.size(), want.size() + 1);
+  }
+}
+
+TEST(LayerJson, ABlockOfTilesIsOneRectangle) {
+  std::vector<geo::TileId> ids;
+  for (std::uint32_t x = 10; x < 14; ++x)
+    for (std::uint32_t y = 20; y < 23; ++y) ids.push_back(*geo::TileId::from_zxy(6, x, y));
+  const auto r = merge_ranges(ids);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0], (TileRange{10, 63 - 22, 13, 63 - 20}));
+}
+
+TEST(LayerJson, DocumentHasTheCesiumKeys) {
+  LayerJsonInput in;
+  in.name = "lux";
+  in.attribution = "© test";
+  in.bounds = {5.7, 49.4, 6.5, 50.2};
+  in.min_level = 2;
+  in.max_level = 3;
+  in.tile_ids = {*geo::TileId::from_zxy(2, 2, 1), *geo::TileId::from_zxy(3, 4, 2),
+                 *geo::TileId::from_zxy(3, 5, 2)};
+  const auto j = nlohmann::json::parse(layer_json(in));
+  EXPECT_EQ(j["tilejson"], "2.1.0");
+  EXPECT_EQ(j["format"], "quantized-mesh-1.0");
+  EXPECT_EQ(j["scheme"], "tms");
+  EXPECT_EQ(j["projection"], "EPSG:3857");
+  EXPECT_EQ(j["tiles"][0], "{z}/{x}/{y}.terrain?v={version}");
+  EXPECT_EQ(j["extensions"][0], "octvertexnormals");
+  EXPECT_EQ(j["maxzoom"], 3);
+  ASSERT_EQ(j["available"].size(), 4u);
+  EXPECT_EQ(j["available"][0][0]["endX"], 0);
+  EXPECT_EQ(j["available"][1][0]["endX"], 1);  // synthesised levels: whole level
+  EXPECT_EQ(j["available"][2].size(), 1u);
+  EXPECT_EQ(j["available"][2][0]["startY"], 2);  // TMS row of y = 1 at z = 2
+  EXPECT_EQ(j["available"][3].size(), 1u);
+  EXPECT_EQ(j["available"][3][0]["startX"], 4);
+  EXPECT_EQ(j["available"][3][0]["endX"], 5);
+  EXPECT_EQ(j["bounds"][2], 6.5);
+}
+
+}  // namespace
+}  // namespace tinstream::terrain

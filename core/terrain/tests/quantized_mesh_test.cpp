@@ -1,0 +1,289 @@
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "grid_tile.hpp"
+#include "qm_decoder.hpp"
+#include "tinstream/terrain/gzip.hpp"
+#include "tinstream/terrain/quantized_mesh.hpp"
+
+namespace tinstream::terrain {
+namespace {
+
+using testing::decode_quantized_mesh;
+using testing::DecodedMesh;
+using testing::make_grid_tile;
+using testing::synthetic_height;
+
+// Independent WGS84 geodetic → ECEF (textbook formula), degrees and metres.
+std::array<double, 3> ecef_of(double lon, double lat, double h) {
+  const double a = 6378137.0, f = 1 / 298.257223563, e2 = f * (2 - f);
+  const double lo = lon * M_PI / 180, la = lat * M_PI / 180;
+  const double nrad = a / std::sqrt(1 - e2 * std::sin(la) * std::sin(la));
+  return {(nrad + h) * std::cos(la) * std::cos(lo), (nrad + h) * std::cos(la) * std::sin(lo),
+          (nrad * (1 - e2) + h) * std::sin(la)};
+}
+
+struct Decoded {
+  DecodedMesh mesh;
+  geo::LonLatRect rect;
+  double lon(std::uint32_t i) const { return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0; }
+  double lat(std::uint32_t i) const { return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0; }
+  double height(std::uint32_t i) const {
+    return mesh.min_height + (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
+  }
+  double height_step() const { return (static_cast<double>(mesh.max_height) - mesh.min_height) / 32767.0; }
+};
+
+const geo::TileId kTile = *geo::TileId::from_zxy(12, 2120, 1400);  // near Luxembourg
+
+Decoded encode_decode(const tile::TinTile& t, bool normals = false) {
+  auto bytes = encode_quantized_mesh(t, geo::Projection::spherical, {normals});
+  EXPECT_TRUE(bytes.ok()) << (bytes.ok() ? "" : bytes.error().message);
+  Decoded d{decode_quantized_mesh(*bytes), t.id.lonlat_bounds(geo::NormalisedMercator())};
+  return d;
+}
+
+TEST(QuantizedMesh, HeaderAndVerticesDecodeToTheTileSurface) {
+  const auto t = make_grid_tile(kTile, 17, synthetic_height);
+  const Decoded d = encode_decode(t);
+  ASSERT_EQ(d.mesh.u.size(), 17u * 17u);
+  EXPECT_FLOAT_EQ(d.mesh.min_height, static_cast<float>(t.min_z));
+  EXPECT_FLOAT_EQ(d.mesh.max_height, static_cast<float>(t.max_z));
+  // Every decoded vertex is one of the tile's vertices: lon/lat within a quantisation step,
+  // height within a height step.
+  const geo::NormalisedMercator merc;
+  std::vector<tile::Vertex> src = {t.corners.begin(), t.corners.end()};
+  for (const auto* l : {&t.north, &t.east, &t.south, &t.west, &t.interior}) src.insert(src.end(), l->begin(), l->end());
+  const double du = (d.rect.east - d.rect.west) / 32767.0, dv = (d.rect.north - d.rect.south) / 32767.0;
+  std::set<std::size_t> matched;
+  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
+    bool found = false;
+    for (std::size_t k = 0; k < src.size() && !found; ++k) {
+      const geo::LonLat ll = merc.inverse({src[k].x, src[k].y});
+      if (std::abs(ll.lon - d.lon(i)) <= du && std::abs(ll.lat - d.lat(i)) <= dv &&
+          std::abs(src[k].z - d.height(i)) <= d.height_step() + 1e-3) {
+        found = true;
+        matched.insert(k);
+      }
+    }
+    EXPECT_TRUE(found) << "vertex " << i;
+  }
+  EXPECT_EQ(matched.size(), src.size());
+  // Centre: the ECEF of the rectangle's centre at mid height.
+  const auto c = ecef_of((d.rect.west + d.rect.east) / 2, (d.rect.south + d.rect.north) / 2,
+                         (t.min_z + t.max_z) / 2);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(d.mesh.centre[k], c[static_cast<std::size_t>(k)], 1e-3);
+}
+
+TEST(QuantizedMesh, VIsLinearInLatitudeNotMercator) {
+  const auto t = make_grid_tile(kTile, 9, synthetic_height);
+  const Decoded d = encode_decode(t);
+  const geo::NormalisedMercator merc;
+  // The middle interior row in Mercator is at y = mid; in latitude it is not the middle.
+  const tile::Vertex& mid = t.interior[3 * 7 + 3];  // i = 4, j = 4 of a 9×9 grid
+  const double lat = merc.lat_from_y(mid.y);
+  const double expected_v = (lat - d.rect.south) / (d.rect.north - d.rect.south) * 32767.0;
+  const double mercator_v = 0.5 * 32767.0;
+  bool found = false;
+  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
+    if (d.mesh.u[i] == 16384 || d.mesh.u[i] == 16383) {
+      if (std::abs(d.mesh.v[i] - expected_v) <= 0.5) found = true;
+    }
+  }
+  EXPECT_TRUE(found);
+  EXPECT_GT(std::abs(expected_v - mercator_v), 1.0) << "test tile too small to tell the two apart";
+}
+
+TEST(QuantizedMesh, TrianglesInRangeAndCounterClockwise) {
+  const auto t = make_grid_tile(kTile, 17, synthetic_height);
+  const Decoded d = encode_decode(t);
+  ASSERT_EQ(d.mesh.indices.size(), t.triangles.size() * 3);
+  for (std::size_t k = 0; k < d.mesh.indices.size(); k += 3) {
+    const std::uint32_t a = d.mesh.indices[k], b = d.mesh.indices[k + 1], c = d.mesh.indices[k + 2];
+    ASSERT_LT(a, d.mesh.u.size());
+    ASSERT_LT(b, d.mesh.u.size());
+    ASSERT_LT(c, d.mesh.u.size());
+    const double cross = (static_cast<double>(d.mesh.u[b]) - d.mesh.u[a]) * (static_cast<double>(d.mesh.v[c]) - d.mesh.v[a]) -
+                         (static_cast<double>(d.mesh.v[b]) - d.mesh.v[a]) * (static_cast<double>(d.mesh.u[c]) - d.mesh.u[a]);
+    EXPECT_GT(cross, 0) << "triangle " << k / 3;
+  }
+}
+
+TEST(QuantizedMesh, EdgeListsHoldExactlyTheBorderVertices) {
+  const auto t = make_grid_tile(kTile, 17, synthetic_height);
+  const Decoded d = encode_decode(t);
+  auto check = [&](const std::vector<std::uint32_t>& list, auto on_side, const char* name) {
+    std::set<std::uint32_t> in(list.begin(), list.end());
+    EXPECT_EQ(in.size(), list.size()) << name << " has duplicates";
+    for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
+      EXPECT_EQ(on_side(i), in.count(i) == 1) << name << " vertex " << i;
+    }
+    EXPECT_EQ(list.size(), 17u) << name;
+  };
+  check(d.mesh.west, [&](std::uint32_t i) { return d.mesh.u[i] == 0; }, "west");
+  check(d.mesh.east, [&](std::uint32_t i) { return d.mesh.u[i] == 32767; }, "east");
+  check(d.mesh.south, [&](std::uint32_t i) { return d.mesh.v[i] == 0; }, "south");
+  check(d.mesh.north, [&](std::uint32_t i) { return d.mesh.v[i] == 32767; }, "north");
+}
+
+// Border vertices of neighbours coincide in lon, lat and (within both height steps) height.
+void expect_shared_border(const Decoded& a, const std::vector<std::uint32_t>& a_list,
+                          const Decoded& b, const std::vector<std::uint32_t>& b_list) {
+  ASSERT_EQ(a_list.size(), b_list.size());
+  for (std::uint32_t i : a_list) {
+    bool found = false;
+    for (std::uint32_t j : b_list) {
+      if (std::abs(a.lon(i) - b.lon(j)) < 1e-9 && std::abs(a.lat(i) - b.lat(j)) < 1e-9) {
+        found = true;
+        EXPECT_NEAR(a.height(i), b.height(j), a.height_step() + b.height_step() + 1e-3);
+      }
+    }
+    EXPECT_TRUE(found) << "border vertex " << i << " at " << a.lon(i) << "," << a.lat(i);
+  }
+}
+
+TEST(QuantizedMesh, NeighbourTilesShareTheirEdgeVertices) {
+  const auto east_id = *kTile.neighbour(geo::Direction::east);
+  const auto south_id = *kTile.neighbour(geo::Direction::south);
+  const Decoded d = encode_decode(make_grid_tile(kTile, 17, synthetic_height));
+  const Decoded e = encode_decode(make_grid_tile(east_id, 17, synthetic_height));
+  const Decoded s = encode_decode(make_grid_tile(south_id, 17, synthetic_height));
+  expect_shared_border(d, d.mesh.east, e, e.mesh.west);
+  expect_shared_border(d, d.mesh.south, s, s.mesh.north);
+}
+
+bool occluded(const double camera[3], const double point[3]) {
+  // Cesium's EllipsoidalOccluder.isScaledSpacePointVisible, negated; all in scaled space.
+  const double cv2 = camera[0] * camera[0] + camera[1] * camera[1] + camera[2] * camera[2];
+  const double vh2 = cv2 - 1.0;
+  const double vt[3] = {point[0] - camera[0], point[1] - camera[1], point[2] - camera[2]};
+  const double vt_dot_vc = -(vt[0] * camera[0] + vt[1] * camera[1] + vt[2] * camera[2]);
+  const double vt2 = vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2];
+  return vt_dot_vc > vh2 && vt_dot_vc * vt_dot_vc / vt2 > vh2;
+}
+
+TEST(QuantizedMesh, BoundingSphereAndHorizonPointAreConservative) {
+  const auto t = make_grid_tile(kTile, 17, synthetic_height);
+  const Decoded d = encode_decode(t);
+  const double a = 6378137.0, b = a * (1 - 1 / 298.257223563);
+  std::vector<std::array<double, 3>> pts;
+  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) pts.push_back(ecef_of(d.lon(i), d.lat(i), d.height(i)));
+  for (const auto& p : pts) {
+    const double dist = std::hypot(p[0] - d.mesh.sphere_centre[0], p[1] - d.mesh.sphere_centre[1],
+                                   p[2] - d.mesh.sphere_centre[2]);
+    EXPECT_LE(dist, d.mesh.sphere_radius + 1e-3);
+  }
+  ASSERT_TRUE(std::isfinite(d.mesh.horizon_point[0]));
+  // Whenever the occlusion point is hidden behind the horizon, every vertex is hidden too.
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), dist(1.0005, 3.0);
+  int hidden = 0;
+  for (int k = 0; k < 20000; ++k) {
+    double c[3] = {unit(rng), unit(rng), unit(rng)};
+    const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    const double r = dist(rng);
+    for (double& x : c) x *= r / len;
+    if (!occluded(c, d.mesh.horizon_point)) continue;
+    ++hidden;
+    for (const auto& p : pts) {
+      const double s[3] = {p[0] / a, p[1] / a, p[2] / b};
+      ASSERT_TRUE(occluded(c, s)) << "a vertex is visible while the occlusion point is hidden";
+    }
+  }
+  EXPECT_GT(hidden, 1000);
+}
+
+TEST(QuantizedMesh, OctVertexNormalsPointAwayFromTheEarth) {
+  const auto t = make_grid_tile(kTile, 17, synthetic_height);
+  const Decoded d = encode_decode(t, true);
+  ASSERT_TRUE(d.mesh.oct_normals.has_value());
+  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
+    double n[3];
+    testing::oct_decode((*d.mesh.oct_normals)[2 * i], (*d.mesh.oct_normals)[2 * i + 1], n);
+    const double lo = d.lon(i) * M_PI / 180, la = d.lat(i) * M_PI / 180;
+    const double up[3] = {std::cos(la) * std::cos(lo), std::cos(la) * std::sin(lo), std::sin(la)};
+    EXPECT_GT(n[0] * up[0] + n[1] * up[1] + n[2] * up[2], 0.95) << "vertex " << i;
+  }
+  // Without the option, no extension.
+  EXPECT_FALSE(encode_decode(t, false).mesh.oct_normals.has_value());
+}
+
+TEST(QuantizedMesh, ThirtyTwoBitIndicesAbove65536Vertices) {
+  const auto t = make_grid_tile(kTile, 258, synthetic_height);  // 66564 vertices
+  const Decoded d = encode_decode(t);
+  EXPECT_TRUE(d.mesh.wide_indices);
+  EXPECT_EQ(d.mesh.u.size(), 258u * 258u);
+  EXPECT_EQ(d.mesh.indices.size(), t.triangles.size() * 3);
+  for (std::uint32_t i : d.mesh.indices) ASSERT_LT(i, d.mesh.u.size());
+  EXPECT_EQ(d.mesh.west.size(), 258u);
+}
+
+TEST(QuantizedMesh, EllipsoidalLayersAreRefused) {
+  const auto t = make_grid_tile(kTile, 5, synthetic_height);
+  auto r = encode_quantized_mesh(t, geo::Projection::ellipsoidal);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::unsupported);
+}
+
+TEST(QuantizedMesh, TileWithoutTrianglesIsAnError) {
+  tile::TinTile t = make_grid_tile(kTile, 3, synthetic_height);
+  t.triangles.clear();
+  EXPECT_FALSE(encode_quantized_mesh(t, geo::Projection::spherical).ok());
+  t = make_grid_tile(kTile, 3, synthetic_height);
+  t.triangles[0][1] = 999;
+  EXPECT_FALSE(encode_quantized_mesh(t, geo::Projection::spherical).ok());
+}
+
+TEST(QuantizedMesh, FlatTileCoversTheTile) {
+  const auto t = flat_tile(*geo::TileId::from_zxy(1, 1, 0));
+  auto bytes = encode_quantized_mesh(t, geo::Projection::spherical);
+  ASSERT_TRUE(bytes.ok());
+  const auto m = decode_quantized_mesh(*bytes);
+  EXPECT_EQ(m.u.size(), 4u);
+  EXPECT_EQ(m.indices.size(), 6u);
+  EXPECT_EQ(m.west.size(), 2u);
+  EXPECT_EQ(m.north.size(), 2u);
+}
+
+std::vector<std::uint8_t> independent_gunzip(const std::vector<std::uint8_t>& gz) {
+  z_stream zs{};
+  EXPECT_EQ(inflateInit2(&zs, 31), Z_OK);
+  std::vector<std::uint8_t> out(1 << 22);
+  zs.next_in = const_cast<Bytef*>(gz.data());
+  zs.avail_in = static_cast<uInt>(gz.size());
+  zs.next_out = out.data();
+  zs.avail_out = static_cast<uInt>(out.size());
+  EXPECT_EQ(inflate(&zs, Z_FINISH), Z_STREAM_END);
+  out.resize(zs.total_out);
+  inflateEnd(&zs);
+  return out;
+}
+
+TEST(Gzip, RoundTripsAndRewrapsZlib) {
+  std::vector<std::uint8_t> data(100000);
+  for (std::size_t i = 0; i < data.size(); ++i) data[i] = static_cast<std::uint8_t>((i * 7) % 251);
+  const auto gz = gzip_compress(data);
+  EXPECT_EQ(independent_gunzip(gz), data);
+  EXPECT_EQ(*gzip_decompress(gz), data);
+
+  std::vector<std::uint8_t> zl(compressBound(static_cast<uLong>(data.size())));
+  uLongf len = static_cast<uLongf>(zl.size());
+  ASSERT_EQ(compress2(zl.data(), &len, data.data(), static_cast<uLong>(data.size()), 6), Z_OK);
+  zl.resize(len);
+  auto rewrapped = zlib_to_gzip(zl);
+  ASSERT_TRUE(rewrapped.ok());
+  EXPECT_EQ(independent_gunzip(*rewrapped), data);
+
+  EXPECT_FALSE(zlib_to_gzip(std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7}).ok());
+  auto truncated = gz;
+  truncated.resize(gz.size() / 2);
+  EXPECT_FALSE(gzip_decompress(truncated).ok());
+  EXPECT_FALSE(gzip_decompress(gz, 1000).ok());
+}
+
+}  // namespace
+}  // namespace tinstream::terrain
