@@ -1,0 +1,70 @@
+// tinstream/transform/pass1.hpp — ingest pass 1 (DESIGN.md §3): read every input, reproject
+// to WGS84, map to normalised Mercator, and stream the points into one run file.
+//
+// Contract:
+// - Inputs are processed in order, each with its own reader options and CRS options; formats
+//   may be mixed. Memory is bounded by TransformOptions::batch_size (a few batches of points),
+//   never by the inputs' sizes.
+// - The run file appears under TransformOptions::output only when every input went through:
+//   it is written under a temporary name and renamed at the end (see run_file.hpp). On any
+//   error, or when the progress sink asks to stop, nothing is left behind and the Error names
+//   the file and the record.
+// - A point outside the Mercator square (|lat| beyond ±85.05° spherical / ±85.08° ellipsoidal)
+//   is an Error naming the record, like any other invalid point; with InvalidPolicy::skip it is
+//   counted as invalid instead.
+// - Progress: phase "transform", unit "records", done = records read over all inputs, total =
+//   the sum of the inputs' record counts when all are known in advance (LAS, rasters), else 0.
+//   The sink is called from the calling thread, at most about 5 times a second, and once at the
+//   end. Returning false cancels (ErrorCode::cancelled).
+// Threads: runs on the calling thread.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "tinstream/base/progress.hpp"
+#include "tinstream/base/result.hpp"
+#include "tinstream/geo/mercator.hpp"
+#include "tinstream/sources/point_source.hpp"
+#include "tinstream/transform/reprojector.hpp"
+#include "tinstream/transform/run_file.hpp"
+
+namespace tinstream::transform {
+
+struct InputSpec {
+  std::filesystem::path path;
+  sources::SourceOptions source;   // format, class filter, text layout, invalid policy
+  ReprojectOptions reproject;      // CRS override, z unit, vertical datum
+  float weight = 1;                // written to every point of this input
+};
+
+struct TransformOptions {
+  std::filesystem::path output;                        // the run file
+  geo::Projection projection = geo::Projection::spherical;
+  std::size_t batch_size = 65536;                      // points per batch; Requires: > 0
+};
+
+struct InputSummary {
+  std::string path;
+  std::string format;
+  ReprojectionPlan plan;            // CRS used, z unit and the rule that chose it, geoid grid
+  sources::SourceCounters counters; // records read / rejected by class, NODATA, invalid
+  std::uint64_t outside_mercator = 0;  // counted in counters.rejected_invalid too
+  std::uint64_t points_written = 0;
+  std::vector<std::string> notes;   // the reader's and reprojector's remarks
+};
+
+struct RunSummary {
+  std::filesystem::path run_file;
+  RunFileHeader header;             // count, Mercator and lon/lat boxes, z range
+  std::vector<InputSummary> inputs;
+};
+
+Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
+                                     const TransformOptions& options,
+                                     const ProgressSink& progress = {});
+
+}  // namespace tinstream::transform

@@ -1,0 +1,85 @@
+// tinstream/transform/reprojector.hpp — source CRS → WGS84 lon/lat + ellipsoidal height (m).
+//
+// Contract:
+// - Built once per input from the CRS the user gave (ReprojectOptions::crs) or else the file's
+//   (SourceInfo::crs): an "EPSG:n" code, WKT (1 or 2, ESRI flavour too) or a PROJ string.
+//   A missing or unknown CRS is an Error naming the file, never a guess.
+// - Horizontal: PROJ (proj_create_crs_to_crs to EPSG:4326, normalised to lon/lat order) on the
+//   horizontal part of the CRS (the first member of a compound CRS). Output longitudes are
+//   wrapped to [-180, 180].
+// - Vertical, the rule (also the CLI's --help):
+//     z unit: the `z_unit` option if given; else the vertical unit the file states (LAS
+//     VerticalUnitsGeoKey, raster unit type); else the unit of the CRS's vertical axis (compound
+//     or 3D CRS); else the linear unit of the horizontal CRS when it is projected (a LAS file in
+//     a feet-based projection has z in feet); else metre.
+//     datum: `vertical_datum` = "ellipsoidal" (default) takes heights as already ellipsoidal;
+//     "egm96", "egm2008" or a PROJ grid file name (…tif/.gtx) takes them as orthometric heights
+//     above that geoid and adds the geoid undulation N from the PROJ grid: h = H + N.
+//   Why not PROJ's own vertical transformation to EPSG:4979: for vertical CRSs such as NAVD88 it
+//   needs grids that are rarely installed and, when they are missing, PROJ silently falls back to
+//   a "ballpark" no-op; an explicit option that fails loudly is safer.
+// - A geoid grid PROJ cannot find is an Error naming the grid file and how to install it.
+// - Not thread-safe (it owns a PROJ context); use one Reprojector per thread. Movable.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/sources/point_source.hpp"
+
+namespace tinstream::transform {
+
+// WGS84 geodetic position: degrees, metres above the ellipsoid.
+struct GeoPoint {
+  double lon = 0;
+  double lat = 0;
+  double h = 0;
+};
+
+struct ReprojectOptions {
+  std::string crs;                             // overrides the file's CRS when not empty
+  std::optional<sources::LinearUnit> z_unit;   // overrides the z unit rule
+  std::string vertical_datum = "ellipsoidal";  // "ellipsoidal", "egm96", "egm2008", or a grid file
+};
+
+// What a Reprojector decided, for logs and run summaries.
+struct ReprojectionPlan {
+  std::string crs;             // the CRS text used
+  std::string crs_name;        // PROJ's name for it
+  std::string horizontal_unit; // "foot", "metre", "degree", …
+  sources::LinearUnit z_unit;  // how z was converted to metres
+  std::string z_unit_rule;     // which rule chose z_unit
+  std::string geoid_grid;      // empty for ellipsoidal heights
+  std::vector<std::string> notes;
+};
+
+class Reprojector {
+ public:
+  // `info` names the file in errors and supplies the file's CRS and z unit.
+  static Result<Reprojector> create(const sources::SourceInfo& info,
+                                    const ReprojectOptions& options);
+  Reprojector(Reprojector&&) noexcept;
+  Reprojector& operator=(Reprojector&&) noexcept;
+  ~Reprojector();
+
+  const ReprojectionPlan& plan() const;
+
+  // Replaces `out` with the transformed points, in order. Errors (a point PROJ cannot
+  // transform, a point outside the geoid grid) name the file and the record.
+  Status transform(std::span<const sources::SourcePoint> in, std::vector<GeoPoint>& out);
+
+ private:
+  struct Impl;
+  explicit Reprojector(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// The PROJ grid file names tried for a vertical datum option ("egm96" → us_nga_egm96_15.tif,
+// egm96_15.gtx); a name ending in .tif/.gtx/.gtg is itself. Empty for "ellipsoidal".
+Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertical_datum);
+
+}  // namespace tinstream::transform

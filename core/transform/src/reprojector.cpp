@@ -1,0 +1,263 @@
+#include "tinstream/transform/reprojector.hpp"
+
+#include <proj.h>
+
+#include <cmath>
+#include <cstring>
+
+namespace tinstream::transform {
+namespace {
+
+struct ContextDeleter {
+  void operator()(PJ_CONTEXT* c) const { proj_context_destroy(c); }
+};
+struct PjDeleter {
+  void operator()(PJ* p) const { proj_destroy(p); }
+};
+using ContextPtr = std::unique_ptr<PJ_CONTEXT, ContextDeleter>;
+using PjPtr = std::unique_ptr<PJ, PjDeleter>;
+
+std::string shorten(const std::string& s, std::size_t n = 120) {
+  return s.size() <= n ? s : s.substr(0, n) + "…";
+}
+
+std::string proj_message(PJ_CONTEXT* ctx) {
+  const int err = proj_context_errno(ctx);
+  const char* m = err != 0 ? proj_context_errno_string(ctx, err) : nullptr;
+  return m != nullptr ? std::string(m) : std::string("PROJ gave no detail");
+}
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+struct AxisUnit {
+  std::string name;
+  double factor = 1;  // to metres (linear) or radians (angular)
+  bool linear = true;
+};
+
+std::optional<AxisUnit> axis_unit(PJ_CONTEXT* ctx, const PJ* crs, int axis) {
+  PjPtr cs(proj_crs_get_coordinate_system(ctx, crs));
+  if (!cs || axis >= proj_cs_get_axis_count(ctx, cs.get())) return std::nullopt;
+  const char* unit_name = nullptr;
+  const char* unit_type = nullptr;
+  double factor = 0;
+  if (proj_cs_get_axis_info(ctx, cs.get(), axis, nullptr, nullptr, nullptr, &factor, &unit_name,
+                            nullptr, nullptr) == 0) {
+    return std::nullopt;
+  }
+  (void)unit_type;
+  const PJ_COORDINATE_SYSTEM_TYPE type = proj_cs_get_type(ctx, cs.get());
+  AxisUnit u;
+  u.name = unit_name != nullptr ? unit_name : "";
+  u.factor = factor;
+  u.linear = !(type == PJ_CS_TYPE_ELLIPSOIDAL && axis < 2);
+  return u;
+}
+
+}  // namespace
+
+struct Reprojector::Impl {
+  ContextPtr ctx;
+  PjPtr horizontal;  // source horizontal CRS → EPSG:4326, lon/lat order
+  PjPtr geoid;       // lon/lat degrees + H → h, or null
+  ReprojectionPlan plan;
+  std::string path;
+};
+
+Reprojector::Reprojector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Reprojector::Reprojector(Reprojector&&) noexcept = default;
+Reprojector& Reprojector::operator=(Reprojector&&) noexcept = default;
+Reprojector::~Reprojector() = default;
+const ReprojectionPlan& Reprojector::plan() const { return impl_->plan; }
+
+Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertical_datum) {
+  if (vertical_datum.empty() || vertical_datum == "ellipsoidal") return std::vector<std::string>{};
+  if (vertical_datum == "egm96") {
+    return std::vector<std::string>{"us_nga_egm96_15.tif", "egm96_15.gtx"};
+  }
+  if (vertical_datum == "egm2008" || vertical_datum == "egm08") {
+    return std::vector<std::string>{"us_nga_egm08_25.tif", "egm08_25.gtx"};
+  }
+  if (ends_with(vertical_datum, ".tif") || ends_with(vertical_datum, ".gtx") ||
+      ends_with(vertical_datum, ".gtg")) {
+    return std::vector<std::string>{vertical_datum};
+  }
+  return invalid_argument("unknown vertical datum '" + vertical_datum +
+                          "': use ellipsoidal, egm96, egm2008 or a PROJ geoid grid file name");
+}
+
+Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
+                                        const ReprojectOptions& options) {
+  auto impl = std::make_unique<Impl>();
+  impl->path = info.path;
+  const std::string& file = info.path;
+  impl->ctx.reset(proj_context_create());
+  PJ_CONTEXT* ctx = impl->ctx.get();
+  if (ctx == nullptr) return Error(ErrorCode::internal, "cannot create a PROJ context");
+  proj_log_level(ctx, PJ_LOG_NONE);
+  ReprojectionPlan& plan = impl->plan;
+
+  plan.crs = !options.crs.empty() ? options.crs : info.crs;
+  if (plan.crs.empty()) {
+    return invalid_argument(file + ": the file has no CRS" +
+                            (info.format == "GDAL AAIGrid"
+                                 ? std::string(" (ESRI ASCII grids carry none without a .prj)")
+                                 : std::string()) +
+                            ": give one with --crs (e.g. --crs EPSG:4326)");
+  }
+  PjPtr crs(proj_create(ctx, plan.crs.c_str()));
+  if (!crs) {
+    return unsupported(file + ": unknown or invalid CRS '" + shorten(plan.crs) +
+                       "': " + proj_message(ctx));
+  }
+  if (proj_is_crs(crs.get()) == 0) {
+    return unsupported(file + ": '" + shorten(plan.crs) + "' is not a CRS");
+  }
+  if (const char* name = proj_get_name(crs.get())) plan.crs_name = name;
+
+  // Split into horizontal and vertical parts.
+  PjPtr horizontal, vertical;
+  PJ_TYPE type = proj_get_type(crs.get());
+  if (type == PJ_TYPE_COMPOUND_CRS) {
+    horizontal.reset(proj_crs_get_sub_crs(ctx, crs.get(), 0));
+    vertical.reset(proj_crs_get_sub_crs(ctx, crs.get(), 1));
+  } else {
+    horizontal = std::move(crs);
+  }
+  if (!horizontal) return unsupported(file + ": cannot take the horizontal part of the CRS");
+  // A BoundCRS (WKT1 with TOWGS84) transforms as itself; its units are those of its base.
+  PjPtr base;
+  const PJ* unit_crs = horizontal.get();
+  if (proj_get_type(horizontal.get()) == PJ_TYPE_BOUND_CRS) {
+    base.reset(proj_get_source_crs(ctx, horizontal.get()));
+    if (base) unit_crs = base.get();
+  }
+  const PJ_TYPE htype = proj_get_type(unit_crs);
+  const bool geographic = htype == PJ_TYPE_GEOGRAPHIC_2D_CRS || htype == PJ_TYPE_GEOGRAPHIC_3D_CRS;
+  if (!geographic && htype != PJ_TYPE_PROJECTED_CRS) {
+    return unsupported(file + ": CRS '" + plan.crs_name +
+                       "' is neither geographic nor projected (geocentric, engineering and "
+                       "vertical-only CRSs cannot be placed on the globe)");
+  }
+  const auto hunit = axis_unit(ctx, unit_crs, 0);
+  plan.horizontal_unit = hunit ? hunit->name : "";
+
+  // z unit rule (see the header).
+  if (options.z_unit) {
+    plan.z_unit = *options.z_unit;
+    plan.z_unit_rule = "given by the user";
+  } else if (info.z_unit) {
+    plan.z_unit = *info.z_unit;
+    plan.z_unit_rule = "stated by the file";
+  } else if (auto vu = vertical ? axis_unit(ctx, vertical.get(), 0)
+                                : (htype == PJ_TYPE_GEOGRAPHIC_3D_CRS ? axis_unit(ctx, unit_crs, 2)
+                                                                      : std::nullopt)) {
+    plan.z_unit = sources::LinearUnit{vu->name, vu->factor};
+    plan.z_unit_rule = "the CRS's vertical axis";
+  } else if (!geographic && hunit && hunit->linear) {
+    plan.z_unit = sources::LinearUnit{hunit->name, hunit->factor};
+    plan.z_unit_rule = "no vertical CRS: z taken in the horizontal CRS's linear unit";
+  } else {
+    plan.z_unit = sources::LinearUnit{"metre", 1.0};
+    plan.z_unit_rule = "no vertical unit known: metre";
+  }
+  if (!(plan.z_unit.to_metre > 0) || !std::isfinite(plan.z_unit.to_metre)) {
+    return unsupported(file + ": z unit '" + plan.z_unit.name + "' has no usable metre factor");
+  }
+  if (vertical || !info.vertical_crs.empty()) {
+    plan.notes.push_back("the source declares a vertical CRS (" +
+                         (vertical ? std::string(proj_get_name(vertical.get()))
+                                   : info.vertical_crs) +
+                         "); heights are converted as vertical_datum=" + options.vertical_datum);
+  }
+
+  // Horizontal operation.
+  PjPtr wgs84(proj_create(ctx, "EPSG:4326"));
+  if (!wgs84) return Error(ErrorCode::internal, "PROJ cannot build EPSG:4326: " + proj_message(ctx));
+  PjPtr op(proj_create_crs_to_crs_from_pj(ctx, horizontal.get(), wgs84.get(), nullptr, nullptr));
+  if (!op) {
+    return unsupported(file + ": no transformation from '" + plan.crs_name + "' to WGS84: " +
+                       proj_message(ctx));
+  }
+  impl->horizontal.reset(proj_normalize_for_visualization(ctx, op.get()));
+  if (!impl->horizontal) {
+    return unsupported(file + ": cannot normalise the transformation axis order: " +
+                       proj_message(ctx));
+  }
+
+  // Geoid.
+  auto grids = geoid_grid_candidates(options.vertical_datum);
+  if (!grids.ok()) return Error(grids.error().code, file + ": " + grids.error().message);
+  if (!grids->empty()) {
+    for (const std::string& g : *grids) {
+      const std::string pipeline =
+          "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
+          "+step +proj=vgridshift +grids=" + g + " +multiplier=1 "
+          "+step +proj=unitconvert +xy_in=rad +xy_out=deg";
+      PjPtr shift(proj_create(ctx, pipeline.c_str()));
+      if (shift) {
+        impl->geoid = std::move(shift);
+        plan.geoid_grid = g;
+        break;
+      }
+    }
+    if (!impl->geoid) {
+      std::string names;
+      for (const auto& g : *grids) names += (names.empty() ? "" : " or ") + g;
+      const PJ_INFO pinfo = proj_info();
+      return not_found(
+          file + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " +
+          names + ", which PROJ cannot find (searched: " +
+          (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
+          "). Install it: `projsync --file " + grids->front() +
+          "` (or download it from https://cdn.proj.org/" + grids->front() +
+          "), or the Debian package proj-data, into a directory listed in PROJ_DATA; or use "
+          "--vertical-datum ellipsoidal if the heights are already ellipsoidal");
+    }
+  }
+  return Reprojector(std::move(impl));
+}
+
+Status Reprojector::transform(std::span<const sources::SourcePoint> in,
+                              std::vector<GeoPoint>& out) {
+  out.resize(in.size());
+  const double zf = impl_->plan.z_unit.to_metre;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    out[i] = GeoPoint{in[i].x, in[i].y, in[i].z * zf};
+  }
+  if (in.empty()) return {};
+  PJ* op = impl_->horizontal.get();
+  proj_errno_reset(op);
+  proj_trans_generic(op, PJ_FWD, &out[0].lon, sizeof(GeoPoint), out.size(), &out[0].lat,
+                     sizeof(GeoPoint), out.size(), nullptr, 0, 0, nullptr, 0, 0);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    GeoPoint& g = out[i];
+    if (!std::isfinite(g.lon) || !std::isfinite(g.lat) || std::abs(g.lat) > 90 ||
+        g.lon == HUGE_VAL) {
+      return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) + ": (" +
+                          std::to_string(in[i].x) + ", " + std::to_string(in[i].y) +
+                          ") cannot be transformed from " + impl_->plan.crs_name +
+                          " to WGS84 (outside the CRS's domain, or wrong CRS?)");
+    }
+    if (g.lon > 180 || g.lon < -180) g.lon = std::remainder(g.lon, 360.0);
+  }
+  if (impl_->geoid) {
+    PJ* geoid = impl_->geoid.get();
+    proj_errno_reset(geoid);
+    proj_trans_generic(geoid, PJ_FWD, &out[0].lon, sizeof(GeoPoint), out.size(), &out[0].lat,
+                       sizeof(GeoPoint), out.size(), &out[0].h, sizeof(GeoPoint), out.size(),
+                       nullptr, 0, 0);
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      if (!std::isfinite(out[i].h) || !std::isfinite(out[i].lon)) {
+        return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) +
+                            ": no geoid undulation from " + impl_->plan.geoid_grid +
+                            " at this position (outside the grid?)");
+      }
+    }
+  }
+  return {};
+}
+
+}  // namespace tinstream::transform

@@ -1,0 +1,284 @@
+#include <GeographicLib/UTMUPS.hpp>
+#include <gdal.h>
+#include <gtest/gtest.h>
+#include <proj.h>
+
+#include <cmath>
+
+#include "tinstream/transform/reprojector.hpp"
+
+namespace tinstream::transform {
+namespace {
+
+using sources::SourceInfo;
+using sources::SourcePoint;
+
+const std::filesystem::path kData = TINSTREAM_SHARED_DATA;
+
+Result<std::vector<SourcePoint>> read_all(sources::PointSource& src) {
+  std::vector<SourcePoint> all;
+  while (true) {
+    auto n = src.read(all, 50000);
+    if (!n.ok()) return n.error();
+    if (*n == 0) break;
+  }
+  return all;
+}
+
+SourceInfo info_with(const std::string& crs, const std::string& path = "test-input") {
+  SourceInfo info;
+  info.path = path;
+  info.crs = crs;
+  return info;
+}
+
+TEST(Reprojector, AutzenLandsInEugeneWithFeetConvertedToMetres) {
+  const auto path = kData / "autzen_trim.las";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
+  auto src = sources::open_source(path);
+  ASSERT_TRUE(src.ok()) << src.error().message;
+  auto pts = read_all(**src);
+  ASSERT_TRUE(pts.ok());
+  ASSERT_EQ(pts->size(), 26107u);
+  auto rp = Reprojector::create((*src)->info(), {});
+  ASSERT_TRUE(rp.ok()) << rp.error().message;
+  EXPECT_EQ(rp->plan().z_unit.to_metre, 0.3048);
+  EXPECT_NE(rp->plan().z_unit_rule.find("horizontal"), std::string::npos);
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(rp->transform(*pts, out).ok());
+  ASSERT_EQ(out.size(), pts->size());
+  double lon0 = 1e9, lon1 = -1e9, lat0 = 1e9, lat1 = -1e9, h0 = 1e9, h1 = -1e9;
+  for (const auto& g : out) {
+    lon0 = std::min(lon0, g.lon), lon1 = std::max(lon1, g.lon);
+    lat0 = std::min(lat0, g.lat), lat1 = std::max(lat1, g.lat);
+    h0 = std::min(h0, g.h), h1 = std::max(h1, g.h);
+  }
+  // SOURCES.md: about -123.0734, 44.0499 to -123.0690, 44.0516 (4 decimals ≈ 10 m).
+  EXPECT_NEAR(lon0, -123.0734, 2e-4);
+  EXPECT_NEAR(lon1, -123.0690, 2e-4);
+  EXPECT_NEAR(lat0, 44.0499, 2e-4);
+  EXPECT_NEAR(lat1, 44.0516, 2e-4);
+  // Ground z 406.26 – 434.06 international feet.
+  EXPECT_NEAR(h0, 406.26 * 0.3048, 0.005);
+  EXPECT_NEAR(h1, 434.06 * 0.3048, 0.005);
+}
+
+TEST(Reprojector, AutzenWktMatchesEpsg2994) {
+  // SOURCES.md: the WKT's parameters are those of EPSG:2994; both must give the same places.
+  const auto path = kData / "autzen_trim.las";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
+  auto src = sources::open_source(path);
+  ASSERT_TRUE(src.ok());
+  std::vector<SourcePoint> pts;
+  ASSERT_TRUE((*src)->read(pts, 100).ok());
+  auto a = Reprojector::create((*src)->info(), {});
+  ReprojectOptions epsg;
+  epsg.crs = "EPSG:2994";
+  auto b = Reprojector::create((*src)->info(), epsg);
+  ASSERT_TRUE(a.ok() && b.ok());
+  std::vector<GeoPoint> ga, gb;
+  ASSERT_TRUE(a->transform(pts, ga).ok());
+  ASSERT_TRUE(b->transform(pts, gb).ok());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(ga[i].lon, gb[i].lon, 1e-7);  // ≈ 1 cm
+    EXPECT_NEAR(ga[i].lat, gb[i].lat, 1e-7);
+  }
+}
+
+TEST(Reprojector, NewMexicoUsSurveyFeet) {
+  const auto path = kData / "nm_4_6_crop.las";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
+  auto src = sources::open_source(path);
+  ASSERT_TRUE(src.ok());
+  auto pts = read_all(**src);
+  ASSERT_TRUE(pts.ok());
+  auto rp = Reprojector::create((*src)->info(), {});
+  ASSERT_TRUE(rp.ok()) << rp.error().message;
+  EXPECT_EQ(rp->plan().z_unit.name, "US survey foot");
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(rp->transform(*pts, out).ok());
+  double h0 = 1e9, h1 = -1e9;
+  for (const auto& g : out) {
+    ASSERT_NEAR(g.lon, -106.252, 0.005);
+    ASSERT_NEAR(g.lat, 34.998, 0.005);
+    h0 = std::min(h0, g.h), h1 = std::max(h1, g.h);
+  }
+  // Ground 7077.92 – 7093.86 ftUS; a US survey foot is 1200/3937 m.
+  EXPECT_NEAR(h0, 7077.92 * 1200.0 / 3937.0, 0.005);
+  EXPECT_NEAR(h1, 7093.86 * 1200.0 / 3937.0, 0.005);
+  // International feet would be off by 2 ppm: 4 mm here. Make sure we did not use them.
+  EXPECT_GT(std::abs(h0 - 7077.92 * 0.3048), 0.003);
+}
+
+TEST(Reprojector, UtmRoundTripAgreesWithGeographicLib) {
+  for (int zone : {33, 10}) {
+    for (bool north : {true, false}) {
+      const std::string crs = "EPSG:" + std::to_string((north ? 32600 : 32700) + zone);
+      SCOPED_TRACE(crs);
+      const double lon_c = -183.0 + 6.0 * zone;
+      std::vector<SourcePoint> in;
+      std::vector<std::pair<double, double>> truth;
+      for (int i = 0; i < 9; ++i) {
+        for (int j = 0; j < 9; ++j) {
+          const double lat = (north ? 1 : -1) * (1.0 + 9.5 * i);
+          const double lon = lon_c - 2.9 + 0.725 * j;
+          int z = 0;
+          bool n = false;
+          double x = 0, y = 0;
+          GeographicLib::UTMUPS::Forward(lat, lon, z, n, x, y, zone);
+          in.push_back(SourcePoint{x, y, 10.0 * i, static_cast<std::uint64_t>(in.size() + 1), 0});
+          truth.emplace_back(lon, lat);
+        }
+      }
+      auto rp = Reprojector::create(info_with(crs), {});
+      ASSERT_TRUE(rp.ok()) << rp.error().message;
+      std::vector<GeoPoint> out;
+      ASSERT_TRUE(rp->transform(in, out).ok());
+      for (std::size_t k = 0; k < in.size(); ++k) {
+        EXPECT_NEAR(out[k].lon, truth[k].first, 1e-9);
+        EXPECT_NEAR(out[k].lat, truth[k].second, 1e-9);
+        EXPECT_DOUBLE_EQ(out[k].h, in[k].z);  // metres, ellipsoidal: unchanged
+      }
+    }
+  }
+}
+
+TEST(Reprojector, GeographicInputKeepsLonLatOrder) {
+  // EPSG:4326's official axis order is lat, lon; sources give x = lon. Must stay lon/lat.
+  auto rp = Reprojector::create(info_with("EPSG:4326"), {});
+  ASSERT_TRUE(rp.ok());
+  std::vector<SourcePoint> in = {{10.5, 0.25, 100, 1, 0}};
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(rp->transform(in, out).ok());
+  EXPECT_NEAR(out[0].lon, 10.5, 1e-12);
+  EXPECT_NEAR(out[0].lat, 0.25, 1e-12);
+  EXPECT_EQ(out[0].h, 100);
+  EXPECT_EQ(rp->plan().z_unit.to_metre, 1.0);
+}
+
+TEST(Reprojector, CompoundCrsTakesTheVerticalAxisUnit) {
+  // NAD83 / UTM 10N + NAVD88 height (ftUS).
+  auto rp = Reprojector::create(info_with("EPSG:26910+6360"), {});
+  ASSERT_TRUE(rp.ok()) << rp.error().message;
+  EXPECT_NEAR(rp->plan().z_unit.to_metre, 1200.0 / 3937.0, 1e-12);
+  EXPECT_EQ(rp->plan().z_unit_rule, "the CRS's vertical axis");
+}
+
+TEST(Reprojector, ZUnitOptionOverrides) {
+  ReprojectOptions o;
+  o.z_unit = sources::LinearUnit{"metre", 1.0};
+  auto rp = Reprojector::create(info_with("EPSG:2994"), o);  // a feet CRS
+  ASSERT_TRUE(rp.ok());
+  EXPECT_EQ(rp->plan().z_unit.to_metre, 1.0);
+  EXPECT_EQ(rp->plan().z_unit_rule, "given by the user");
+}
+
+TEST(Reprojector, UnknownCrsIsAClearErrorNamingTheFile) {
+  for (const std::string bad : {"EPSG:999999", "PROJCS[\"broken\",", "+proj=nonsense",
+                                "not a crs at all"}) {
+    auto rp = Reprojector::create(info_with(bad, "/data/in.las"), {});
+    ASSERT_FALSE(rp.ok()) << bad;
+    EXPECT_EQ(rp.error().code, ErrorCode::unsupported);
+    EXPECT_NE(rp.error().message.find("/data/in.las"), std::string::npos) << rp.error().message;
+    EXPECT_NE(rp.error().message.find("CRS"), std::string::npos) << rp.error().message;
+  }
+}
+
+TEST(Reprojector, MissingCrsAsksForCrsOption) {
+  const auto path = kData / "boulder_srtmgl3.asc";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
+  auto src = sources::open_source(path);
+  ASSERT_TRUE(src.ok());
+  auto rp = Reprojector::create((*src)->info(), {});
+  ASSERT_FALSE(rp.ok());
+  EXPECT_NE(rp.error().message.find("--crs"), std::string::npos) << rp.error().message;
+  EXPECT_NE(rp.error().message.find("boulder_srtmgl3.asc"), std::string::npos);
+  ReprojectOptions o;
+  o.crs = "EPSG:4326";
+  auto ok = Reprojector::create((*src)->info(), o);
+  ASSERT_TRUE(ok.ok()) << ok.error().message;
+  std::vector<SourcePoint> pts;
+  ASSERT_TRUE((*src)->read(pts, 10).ok());
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(ok->transform(pts, out).ok());
+  EXPECT_NEAR(out[0].lon, -105.55, 0.001);
+  EXPECT_NEAR(out[0].lat, 40.21, 0.001);
+}
+
+TEST(Reprojector, GeocentricCrsIsRefused) {
+  auto rp = Reprojector::create(info_with("EPSG:4978"), {});
+  ASSERT_FALSE(rp.ok());
+  EXPECT_EQ(rp.error().code, ErrorCode::unsupported);
+}
+
+TEST(Reprojector, MissingGeoidGridNamesTheGridAndHowToGetIt) {
+  ReprojectOptions o;
+  o.vertical_datum = "tinstream_no_such_geoid.tif";
+  auto rp = Reprojector::create(info_with("EPSG:4326", "/data/x.xyz"), o);
+  ASSERT_FALSE(rp.ok());
+  EXPECT_EQ(rp.error().code, ErrorCode::not_found);
+  const std::string& m = rp.error().message;
+  EXPECT_NE(m.find("tinstream_no_such_geoid.tif"), std::string::npos) << m;
+  EXPECT_NE(m.find("projsync"), std::string::npos) << m;
+  EXPECT_NE(m.find("PROJ_DATA"), std::string::npos) << m;
+  EXPECT_NE(m.find("/data/x.xyz"), std::string::npos) << m;
+}
+
+TEST(Reprojector, Egm2008MissingOrWorking) {
+  ReprojectOptions o;
+  o.vertical_datum = "egm2008";
+  auto rp = Reprojector::create(info_with("EPSG:4326"), o);
+  if (rp.ok()) GTEST_SKIP() << "EGM2008 grid installed here: " << rp->plan().geoid_grid;
+  EXPECT_EQ(rp.error().code, ErrorCode::not_found);
+  EXPECT_NE(rp.error().message.find("us_nga_egm08_25.tif"), std::string::npos);
+}
+
+TEST(Reprojector, UnknownVerticalDatumIsInvalid) {
+  ReprojectOptions o;
+  o.vertical_datum = "navd88-please";
+  auto rp = Reprojector::create(info_with("EPSG:4326"), o);
+  ASSERT_FALSE(rp.ok());
+  EXPECT_EQ(rp.error().code, ErrorCode::invalid_argument);
+}
+
+TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
+  ReprojectOptions o;
+  o.vertical_datum = "egm96";
+  auto rp = Reprojector::create(info_with("EPSG:4326"), o);
+  if (!rp.ok()) GTEST_SKIP() << "EGM96 grid not installed: " << rp.error().message;
+  // Independent reference: sample the installed grid file itself with GDAL (nearest cell;
+  // the 15' grid varies by well under a metre between cells here).
+  const char* gtx = nullptr;
+  for (const char* c : {"/usr/share/proj/egm96_15.gtx", "/usr/share/proj/us_nga_egm96_15.tif"}) {
+    if (std::filesystem::exists(c)) gtx = c;
+  }
+  if (gtx == nullptr) GTEST_SKIP() << "grid file not at a known path for the GDAL reference";
+  GDALAllRegister();
+  GDALDatasetH ds = GDALOpen(gtx, GA_ReadOnly);
+  ASSERT_NE(ds, nullptr);
+  double gt[6];
+  GDALGetGeoTransform(ds, gt);
+  const std::vector<std::pair<double, double>> places = {
+      {-123.071, 44.0507}, {10.5, 0.5}, {-105.45, 40.15}, {6.1, 49.8}};
+  std::vector<SourcePoint> in;
+  for (const auto& [lon, lat] : places) in.push_back(SourcePoint{lon, lat, 100.0, in.size() + 1, 0});
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(rp->transform(in, out).ok());
+  for (std::size_t k = 0; k < places.size(); ++k) {
+    double lon = places[k].first;
+    if (lon < gt[0]) lon += 360;  // .gtx grids run 0…360
+    const int col = static_cast<int>((lon - gt[0]) / gt[1]);
+    const int row = static_cast<int>((places[k].second - gt[3]) / gt[5]);
+    float n = 0;
+    ASSERT_EQ(GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, col, row, 1, 1, &n, 1, 1,
+                           GDT_Float32, 0, 0),
+              CE_None);
+    EXPECT_NEAR(out[k].h, 100.0 + n, 1.0) << places[k].first << ", " << places[k].second;
+  }
+  GDALClose(ds);
+  // Eugene, Oregon: EGM96 N ≈ -22.5 m.
+  EXPECT_NEAR(out[0].h - 100.0, -22.47, 0.5);
+}
+
+}  // namespace
+}  // namespace tinstream::transform
