@@ -1,0 +1,204 @@
+// Constraint segments: walk the triangles crossed by a segment, split it at vertices lying on it
+// and at crossing constraints, remove the crossed edges by flips (Sloan 1993), then restore the
+// constrained Delaunay property around the new edges by Lawson flips.
+#include <cmath>
+#include <deque>
+#include <string>
+
+#include "tinstream/kernel/triangulation.hpp"
+#include "triangulation_detail.hpp"
+
+namespace tinstream::kernel {
+
+namespace {
+std::string seg_name(VertexId a, VertexId b) {
+  return "constraint " + std::to_string(a) + "-" + std::to_string(b);
+}
+}  // namespace
+
+Status Triangulation::insert_constraint(VertexId a, VertexId b) {
+  if (cut_) return unsupported(seg_name(a, b) + ": the mesh was cut, it no longer accepts edits");
+  if (!is_vertex(a) || !is_vertex(b)) return invalid_argument(seg_name(a, b) + ": not a live vertex");
+  if (a == b) return invalid_argument(seg_name(a, b) + ": both ends are the same vertex");
+  if (dimension() < 2) {
+    return unsupported(seg_name(a, b) +
+                       ": needs a two-dimensional triangulation (three non-collinear points)");
+  }
+  segments_.push_back({a, b});
+  return insert_segment(a, b);
+}
+
+Result<std::array<VertexId, 2>> Triangulation::insert_constraint(const Point3& a, const Point3& b) {
+  const InsertResult ra = insert(a);
+  if (ra.vertex == kNone) return invalid_argument("constraint start point is outside the domain or not finite");
+  const InsertResult rb = insert(b);
+  if (rb.vertex == kNone) return invalid_argument("constraint end point is outside the domain or not finite");
+  Status s = insert_constraint(ra.vertex, rb.vertex);
+  if (!s.ok()) return s.error();
+  return std::array<VertexId, 2>{ra.vertex, rb.vertex};
+}
+
+// Inserts the intersection of segment a-b with the constrained edge opposite v[edge] of t; the
+// constrained edge becomes the chain c1-X-c2. Returns X (an existing vertex when X rounds onto
+// one), or kNone when it cannot be inserted.
+VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t, int edge) {
+  const VertexId c1 = mesh_.tri(t).v[next3(edge)], c2 = mesh_.tri(t).v[prev3(edge)];
+  const XY &pa = mesh_.xy(a), &pb = mesh_.xy(b), &p1 = mesh_.xy(c1), &p2 = mesh_.xy(c2);
+  const double dx = pb.x - pa.x, dy = pb.y - pa.y;
+  const double fx = p2.x - p1.x, fy = p2.y - p1.y;
+  const double denom = dx * fy - dy * fx;
+  double s = ((p1.x - pa.x) * fy - (p1.y - pa.y) * fx) / denom;
+  if (!(s >= 0.0)) s = 0.0;
+  if (s > 1.0) s = 1.0;
+  Point3 x{pa.x + s * dx, pa.y + s * dy, mesh_.z(a) + s * (mesh_.z(b) - mesh_.z(a)),
+           std::max(mesh_.weight(a), mesh_.weight(b))};
+  hint_ = t;
+  const InsertResult r = insert(x);
+  if (r.vertex == kNone) return kNone;
+  int i;
+  const TriangleId e = find_edge(c1, c2, &i);
+  if (e != kNone && mesh_.constrained(e, i)) {
+    // X did not land exactly on c1-c2: route that constraint through X instead.
+    mesh_.set_edge_constrained(e, i, false);
+    if (r.vertex != c1 && r.vertex != c2) {
+      Status s1 = insert_segment(c1, r.vertex);
+      Status s2 = insert_segment(r.vertex, c2);
+      if (!s1.ok() || !s2.ok()) return kNone;
+    } else {
+      mesh_.set_edge_constrained(e, i, true);
+    }
+  }
+  return r.vertex;
+}
+
+Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
+  std::vector<std::array<VertexId, 2>> work{{a0, b0}};
+  std::size_t budget = 16 * mesh_.vertex_slots() + 64;
+  while (!work.empty()) {
+    if (--budget == 0) return Error(ErrorCode::internal, seg_name(a0, b0) + ": did not converge");
+    const auto [s, e] = work.back();
+    work.pop_back();
+    if (s == e) continue;
+    int idx;
+    TriangleId t = find_edge(s, e, &idx);
+    if (t != kNone) {
+      mesh_.set_edge_constrained(t, idx, true);
+      continue;
+    }
+    const XY ps = mesh_.xy(s), pe = mesh_.xy(e);
+    // The sector around s that the segment leaves through, or a vertex on the segment.
+    TriangleId cur = kNone;
+    int ci = 0;
+    VertexId on_segment = kNone;
+    for (TriangleId r : incident_triangles(s, false)) {
+      const int k = mesh_.index_of(r, s);
+      const VertexId x = mesh_.tri(r).v[next3(k)], y = mesh_.tri(r).v[prev3(k)];
+      if (x != kInfiniteVertex) {
+        const XY& px = mesh_.xy(x);
+        if (orient2d(ps, pe, px) == 0.0 && (px.x - ps.x) * (pe.x - ps.x) + (px.y - ps.y) * (pe.y - ps.y) > 0.0) {
+          on_segment = x;
+          break;
+        }
+      }
+      if (x == kInfiniteVertex || y == kInfiniteVertex) continue;
+      if (orient2d(ps, mesh_.xy(x), pe) > 0.0 && orient2d(ps, mesh_.xy(y), pe) < 0.0) {
+        cur = r;
+        ci = k;
+      }
+    }
+    if (on_segment != kNone) {
+      work.push_back({on_segment, e});
+      work.push_back({s, on_segment});
+      continue;
+    }
+    if (cur == kNone) return Error(ErrorCode::internal, seg_name(s, e) + ": no triangle around the start vertex faces the end vertex");
+    // Walk along the segment, collecting crossed edges as vertex pairs (right, left).
+    std::deque<std::array<VertexId, 2>> crossed;
+    VertexId end = e;
+    bool split = false;
+    for (;;) {
+      if (mesh_.constrained(cur, ci)) {
+        const VertexId x = insert_intersection(s, e, cur, ci);
+        if (x == kNone) return Error(ErrorCode::internal, seg_name(s, e) + ": could not insert the intersection point");
+        work.push_back({x, e});
+        work.push_back({s, x});
+        split = true;
+        break;
+      }
+      const Triangle& T = mesh_.tri(cur);
+      crossed.push_back({T.v[next3(ci)], T.v[prev3(ci)]});
+      const TriangleId nb = T.n[ci];
+      const int j = mesh_.mirror(cur, ci);
+      const VertexId o = mesh_.tri(nb).v[j];
+      if (o == e) break;
+      if (o == kInfiniteVertex) return Error(ErrorCode::internal, seg_name(s, e) + ": walked out of the hull");
+      const double side = orient2d(ps, pe, mesh_.xy(o));
+      if (side == 0.0) {  // o lies on the segment: finish s-o now, o-e later
+        end = o;
+        work.push_back({o, e});
+        break;
+      }
+      cur = nb;
+      ci = side < 0.0 ? prev3(j) : next3(j);
+    }
+    if (split) continue;
+    // Sloan: flip crossed edges whose quadrilateral is convex until none crosses s-end.
+    const XY pend = mesh_.xy(end);
+    std::vector<std::array<VertexId, 2>> fresh;
+    std::size_t stall = 0;
+    while (!crossed.empty()) {
+      const auto [x, y] = crossed.front();
+      crossed.pop_front();
+      int i;
+      const TriangleId f = find_edge(x, y, &i);
+      if (f == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": lost a crossed edge");
+      const VertexId p = mesh_.tri(f).v[i];
+      const VertexId q = mesh_.tri(mesh_.tri(f).n[i]).v[mesh_.mirror(f, i)];
+      const XY &pp = mesh_.xy(p), &pq = mesh_.xy(q);
+      const double ox = orient2d(pp, pq, mesh_.xy(x)), oy = orient2d(pp, pq, mesh_.xy(y));
+      if (!((ox > 0.0 && oy < 0.0) || (ox < 0.0 && oy > 0.0))) {
+        crossed.push_back({x, y});
+        if (++stall > 4 * crossed.size() + 16) {
+          return Error(ErrorCode::internal, seg_name(s, end) + ": crossed edges cannot be flipped away");
+        }
+        continue;
+      }
+      stall = 0;
+      mesh_.flip(f, i);
+      const bool crossing = p != s && p != end && q != s && q != end &&
+                            ((orient2d(ps, pend, pp) > 0.0 && orient2d(ps, pend, pq) < 0.0) ||
+                             (orient2d(ps, pend, pp) < 0.0 && orient2d(ps, pend, pq) > 0.0));
+      if (crossing) {
+        crossed.push_back({p, q});
+      } else {
+        fresh.push_back({p, q});
+      }
+    }
+    t = find_edge(s, end, &idx);
+    if (t == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
+    mesh_.set_edge_constrained(t, idx, true);
+    // Restore the constrained Delaunay property around the new edges.
+    while (!fresh.empty()) {
+      const auto [x, y] = fresh.back();
+      fresh.pop_back();
+      int i;
+      const TriangleId f = find_edge(x, y, &i);
+      if (f == kNone || mesh_.constrained(f, i)) continue;
+      const TriangleId u = mesh_.tri(f).n[i];
+      if (mesh_.is_ghost(f) || mesh_.is_ghost(u)) continue;
+      const Triangle& F = mesh_.tri(f);
+      const VertexId q = mesh_.tri(u).v[mesh_.mirror(f, i)];
+      if (incircle(mesh_.xy(F.v[0]), mesh_.xy(F.v[1]), mesh_.xy(F.v[2]), mesh_.xy(q)) <= 0.0) continue;
+      const VertexId p = F.v[i], w = F.v[prev3(i)], uu = F.v[next3(i)];
+      mesh_.flip(f, i);
+      fresh.push_back({p, uu});
+      fresh.push_back({uu, q});
+      fresh.push_back({q, w});
+      fresh.push_back({w, p});
+    }
+  }
+  hint_ = mesh_.vertex_triangle(a0);
+  return {};
+}
+
+}  // namespace tinstream::kernel

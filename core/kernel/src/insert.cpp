@@ -1,0 +1,225 @@
+// Incremental insertion: point location by walking, the four insertion cases, Lawson flips with
+// an explicit stack, dimension raising for collinear starts, and bulk insertion in BRIO/Hilbert
+// order.
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "spatial_sort.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+#include "triangulation_detail.hpp"
+
+namespace tinstream::kernel {
+
+using detail::kPendingTriangle;
+
+TriangleId Triangulation::start_triangle(TriangleId hint) const {
+  TriangleId t = hint;
+  if (t == kNone || t >= mesh_.triangle_slots() || !mesh_.is_live(t)) {
+    t = kNone;
+    for (TriangleId s = 0; s < mesh_.triangle_slots(); ++s) {
+      if (mesh_.is_live(s) && !mesh_.is_ghost(s)) {
+        t = s;
+        break;
+      }
+    }
+    return t;
+  }
+  if (mesh_.is_ghost(t)) {
+    const int g = mesh_.index_of(t, kInfiniteVertex);
+    const TriangleId f = mesh_.tri(t).n[g];
+    if (f != kNone && !mesh_.is_ghost(f)) return f;
+    return start_triangle(kNone);
+  }
+  return t;
+}
+
+// Remembering stochastic visibility walk (Devillers, Pion, Teillaud 2002): from the current
+// triangle cross an edge that separates it from p, trying the edges from a random start so that
+// the walk cannot cycle even in non-Delaunay (constrained) triangulations.
+Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) const {
+  TriangleId t = start_triangle(hint);
+  if (t == kNone) return {Where::outside_hull, kNone, 0};
+  TriangleId prev = kNone;
+  for (;;) {
+    const Triangle& T = mesh_.tri(t);
+    rng_ ^= rng_ << 13;
+    rng_ ^= rng_ >> 17;
+    rng_ ^= rng_ << 5;
+    const int start = static_cast<int>(rng_ % 3u);
+    TriangleId next = kNone;
+    for (int k = 0; k < 3; ++k) {
+      const int i = (start + k) % 3;
+      const TriangleId nb = T.n[i];
+      if (nb == prev && prev != kNone) continue;
+      if (orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p) < 0.0) {
+        if (nb == kNone) return {Where::outside_hull, kNone, 0};  // cut mesh: blocked
+        if (mesh_.is_ghost(nb)) return {Where::outside_hull, nb, 0};
+        next = nb;
+        break;
+      }
+    }
+    if (next == kNone) break;
+    prev = t;
+    t = next;
+  }
+  const Triangle& T = mesh_.tri(t);
+  for (int i = 0; i < 3; ++i) {
+    const XY& q = mesh_.xy(T.v[i]);
+    if (q.x == p.x && q.y == p.y) return {Where::on_vertex, t, i};
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p) == 0.0) {
+      return {Where::on_edge, t, i};
+    }
+  }
+  return {Where::inside, t, 0};
+}
+
+bool Triangulation::in_conflict(TriangleId nb, const XY& p) const {
+  const Triangle& T = mesh_.tri(nb);
+  const int g = T.v[0] == kInfiniteVertex   ? 0
+                : T.v[1] == kInfiniteVertex ? 1
+                : T.v[2] == kInfiniteVertex ? 2
+                                            : -1;
+  if (g < 0) return incircle(mesh_.xy(T.v[0]), mesh_.xy(T.v[1]), mesh_.xy(T.v[2]), p) > 0.0;
+  // A ghost triangle (x, y, 0)'s "circle" is the open half-plane left of x->y (outside the hull).
+  return orient2d(mesh_.xy(T.v[next3(g)]), mesh_.xy(T.v[prev3(g)]), p) > 0.0;
+}
+
+void Triangulation::legalize(VertexId p) {
+  const XY pp = mesh_.xy(p);
+  while (!stack_.empty()) {
+    const auto [t, i] = stack_.back();
+    stack_.pop_back();
+    if (mesh_.constrained(t, i)) continue;
+    const TriangleId nb = mesh_.tri(t).n[i];
+    if (nb == kNone || !in_conflict(nb, pp)) continue;
+    const TriangleId u = mesh_.flip(t, i);
+    stack_.emplace_back(t, 0);
+    stack_.emplace_back(u, 2);
+  }
+}
+
+InsertResult Triangulation::insert_vertex(VertexId v, TriangleId hint) {
+  const XY p = mesh_.xy(v);
+  const Location loc = locate(p, hint);
+  switch (loc.where) {
+    case Where::on_vertex:
+      return {InsertOutcome::duplicate, mesh_.tri(loc.t).v[loc.index]};
+    case Where::inside:
+    case Where::outside_hull: {
+      if (loc.t == kNone) return {InsertOutcome::rejected, kNone};
+      const auto ts = mesh_.split_triangle(loc.t, v);
+      stack_.emplace_back(ts[0], 2);
+      stack_.emplace_back(ts[1], 2);
+      stack_.emplace_back(ts[2], 2);
+      break;
+    }
+    case Where::on_edge: {
+      const auto s = mesh_.split_edge(loc.t, loc.index, v);
+      for (int k = 0; k < 4; ++k) stack_.emplace_back(s.t[k], s.p_index[k]);
+      break;
+    }
+  }
+  legalize(v);
+  hint_ = mesh_.vertex_triangle(v);
+  return {InsertOutcome::inserted, v};
+}
+
+bool Triangulation::pending_contains(const XY& p, VertexId* found) const {
+  for (VertexId v : pending_) {
+    const XY& q = mesh_.xy(v);
+    if (q.x == p.x && q.y == p.y) {
+      *found = v;
+      return true;
+    }
+  }
+  return false;
+}
+
+InsertResult Triangulation::insert(const Point3& p) {
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || cut_) return {InsertOutcome::rejected, kNone};
+  if (domain_ && !domain_->contains(p.x, p.y)) return {InsertOutcome::outside_domain, kNone};
+  const XY xy{p.x, p.y};
+  if (mesh_.live_triangles() == 0) {
+    VertexId existing;
+    if (pending_contains(xy, &existing)) return {InsertOutcome::duplicate, existing};
+    const VertexId v = mesh_.add_vertex(p.x, p.y, p.z, p.weight);
+    ++live_vertices_;
+    if (pending_.size() >= 2 &&
+        orient2d(mesh_.xy(pending_[0]), mesh_.xy(pending_[1]), xy) != 0.0) {
+      raise_dimension(v);
+    } else {
+      mesh_.set_vertex_triangle(v, kPendingTriangle);
+      pending_.push_back(v);
+    }
+    return {InsertOutcome::inserted, v};
+  }
+  const Location loc = locate(xy, hint_);
+  if (loc.where == Where::on_vertex) {
+    hint_ = loc.t;
+    return {InsertOutcome::duplicate, mesh_.tri(loc.t).v[loc.index]};
+  }
+  const VertexId v = mesh_.add_vertex(p.x, p.y, p.z, p.weight);
+  ++live_vertices_;
+  return insert_vertex(v, loc.t);
+}
+
+// The pending vertices are distinct and collinear; `off_line` is not on their line. Builds the
+// first triangle and inserts the rest of the line from one end so that every insertion is a
+// plain outside-the-hull case.
+void Triangulation::raise_dimension(VertexId off_line) {
+  std::vector<VertexId> line = std::move(pending_);
+  pending_.clear();
+  std::sort(line.begin(), line.end(), [&](VertexId a, VertexId b) {
+    const XY &p = mesh_.xy(a), &q = mesh_.xy(b);
+    return p.x < q.x || (p.x == q.x && p.y < q.y);
+  });
+  VertexId a = line[0], b = line[1];
+  const VertexId c = off_line;
+  if (orient2d(mesh_.xy(a), mesh_.xy(b), mesh_.xy(c)) < 0.0) std::swap(a, b);
+  const TriangleId f = mesh_.new_triangle(a, b, c);
+  const TriangleId ga = mesh_.new_triangle(c, b, kInfiniteVertex);
+  const TriangleId gb = mesh_.new_triangle(a, c, kInfiniteVertex);
+  const TriangleId gc = mesh_.new_triangle(b, a, kInfiniteVertex);
+  mesh_.link(f, 0, ga, 2);
+  mesh_.link(f, 1, gb, 2);
+  mesh_.link(f, 2, gc, 2);
+  mesh_.link(gc, 0, gb, 1);
+  mesh_.link(gc, 1, ga, 0);
+  mesh_.link(ga, 1, gb, 0);
+  mesh_.set_vertex_triangle(a, f);
+  mesh_.set_vertex_triangle(b, f);
+  mesh_.set_vertex_triangle(c, f);
+  mesh_.set_vertex_triangle(kInfiniteVertex, ga);
+  hint_ = f;
+  for (std::size_t k = 2; k < line.size(); ++k) {
+    mesh_.set_vertex_triangle(line[k], kNone);
+    insert_vertex(line[k], hint_);
+  }
+}
+
+std::vector<InsertResult> Triangulation::insert_bulk(std::span<const Point3> points) {
+  std::vector<InsertResult> out(points.size(), InsertResult{InsertOutcome::rejected, kNone});
+  std::vector<std::uint32_t> valid;
+  valid.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Point3& p = points[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || cut_) continue;
+    if (domain_ && !domain_->contains(p.x, p.y)) {
+      out[i] = {InsertOutcome::outside_domain, kNone};
+      continue;
+    }
+    valid.push_back(static_cast<std::uint32_t>(i));
+  }
+  const std::vector<std::uint32_t> order = detail::brio_hilbert_order(points, valid);
+  mesh_.reserve_vertices(mesh_.vertex_slots() + order.size());
+  mesh_.reserve_triangles(mesh_.triangle_slots() + 2 * order.size() + 8);
+  for (std::uint32_t i : order) out[i] = insert(points[i]);
+  return out;
+}
+
+}  // namespace tinstream::kernel

@@ -1,0 +1,226 @@
+// Exact slow paths of orient2d / incircle: floating-point expansion arithmetic after Shewchuk,
+// "Adaptive Precision Floating-Point Arithmetic and Fast Robust Geometric Predicates" (1996).
+//
+// An expansion is a sum of doubles ordered by increasing magnitude whose components do not
+// overlap; its sign is the sign of its largest (last) nonzero component. Every operation below
+// is error-free (its result represents the exact real value) as long as nothing overflows or
+// underflows, given IEEE-754 round-to-nearest double arithmetic (no x87, no FMA contraction:
+// the kernel target compiles with -ffp-contract=off).
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cstddef>
+
+#include "tinstream/kernel/predicates.hpp"
+
+namespace tinstream::kernel::detail {
+namespace {
+
+// a + b = x + y exactly, |y| <= ulp(x)/2.
+inline void two_sum(double a, double b, double& x, double& y) {
+  x = a + b;
+  const double bv = x - a;
+  const double av = x - bv;
+  y = (a - av) + (b - bv);
+}
+
+// Requires |a| >= |b| (or a == 0).
+inline void fast_two_sum(double a, double b, double& x, double& y) {
+  x = a + b;
+  y = b - (x - a);
+}
+
+inline void two_diff(double a, double b, double& x, double& y) {
+  x = a - b;
+  const double bv = a - x;
+  const double av = x + bv;
+  y = (a - av) + (bv - b);
+}
+
+// Dekker split: a = hi + lo, each with at most 26 significant bits.
+inline void split(double a, double& hi, double& lo) {
+  constexpr double kSplitter = 134217729.0;  // 2^27 + 1
+  const double c = kSplitter * a;
+  const double big = c - a;
+  hi = c - big;
+  lo = a - hi;
+}
+
+// a * b = x + y exactly.
+inline void two_product(double a, double b, double& x, double& y) {
+  x = a * b;
+  double ahi, alo, bhi, blo;
+  split(a, ahi, alo);
+  split(b, bhi, blo);
+  const double err1 = x - ahi * bhi;
+  const double err2 = err1 - alo * bhi;
+  const double err3 = err2 - ahi * blo;
+  y = alo * blo - err3;
+}
+
+constexpr std::size_t kCap = 512;
+
+struct Expansion {
+  std::array<double, kCap> c;
+  std::size_t n = 0;
+
+  double sign_value() const { return n == 0 ? 0.0 : c[n - 1]; }
+};
+
+// h = e + b, zero components removed (Shewchuk's Grow-Expansion).
+void grow(const Expansion& e, double b, Expansion& h) {
+  double q = b;
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < e.n; ++i) {
+    double sum, err;
+    two_sum(q, e.c[i], sum, err);
+    q = sum;
+    if (err != 0.0) h.c[k++] = err;
+  }
+  if (q != 0.0 || k == 0) h.c[k++] = q;
+  h.n = (k == 1 && h.c[0] == 0.0) ? 0 : k;
+  assert(h.n <= kCap);
+}
+
+// h = e * b (Shewchuk's Scale-Expansion), zero components removed.
+void scale(const Expansion& e, double b, Expansion& h) {
+  std::size_t k = 0;
+  if (e.n == 0 || b == 0.0) {
+    h.n = 0;
+    return;
+  }
+  double q, hh;
+  two_product(e.c[0], b, q, hh);
+  if (hh != 0.0) h.c[k++] = hh;
+  for (std::size_t i = 1; i < e.n; ++i) {
+    double p1, p0;
+    two_product(e.c[i], b, p1, p0);
+    double sum, err;
+    two_sum(q, p0, sum, err);
+    if (err != 0.0) h.c[k++] = err;
+    fast_two_sum(p1, sum, q, err);
+    if (err != 0.0) h.c[k++] = err;
+  }
+  if (q != 0.0) h.c[k++] = q;
+  h.n = k;
+  assert(h.n <= kCap);
+}
+
+// Renormalises e in place into an equivalent, usually much shorter, expansion
+// (Shewchuk's Compress). Keeps later sums cheap.
+void compress(Expansion& e) {
+  if (e.n < 2) return;
+  std::array<double, kCap> g;
+  std::size_t bottom = e.n - 1;
+  double q = e.c[e.n - 1];
+  for (std::size_t i = e.n - 1; i-- > 0;) {
+    double big, small;
+    fast_two_sum(q, e.c[i], big, small);
+    if (small != 0.0) {
+      g[bottom--] = big;
+      q = small;
+    } else {
+      q = big;
+    }
+  }
+  g[bottom] = q;
+  std::size_t top = 0;
+  for (std::size_t i = bottom + 1; i < e.n; ++i) {
+    double big, small;
+    fast_two_sum(g[i], q, big, small);
+    q = big;
+    if (small != 0.0) e.c[top++] = small;
+  }
+  e.c[top++] = q;
+  e.n = (top == 1 && e.c[0] == 0.0) ? 0 : top;
+}
+
+// h = e + f.
+void add(const Expansion& e, const Expansion& f, Expansion& h) {
+  Expansion tmp;
+  const Expansion* small = &e;
+  const Expansion* large = &f;
+  if (e.n > f.n) std::swap(small, large);
+  h.n = large->n;
+  std::copy_n(large->c.begin(), large->n, h.c.begin());
+  for (std::size_t i = 0; i < small->n; ++i) {
+    grow(h, small->c[i], tmp);
+    h.n = tmp.n;
+    std::copy_n(tmp.c.begin(), tmp.n, h.c.begin());
+  }
+  compress(h);
+}
+
+void negate(Expansion& e) {
+  for (std::size_t i = 0; i < e.n; ++i) e.c[i] = -e.c[i];
+}
+
+// h = e * f.
+void mul(const Expansion& e, const Expansion& f, Expansion& h) {
+  h.n = 0;
+  Expansion term, acc;
+  for (std::size_t i = 0; i < f.n; ++i) {
+    scale(e, f.c[i], term);
+    compress(term);
+    add(h, term, acc);
+    h.n = acc.n;
+    std::copy_n(acc.c.begin(), acc.n, h.c.begin());
+  }
+}
+
+Expansion from_diff(double a, double b) {
+  Expansion e;
+  double x, y;
+  two_diff(a, b, x, y);
+  if (y != 0.0) e.c[e.n++] = y;
+  if (x != 0.0) e.c[e.n++] = x;
+  return e;
+}
+
+// e1*f1 - e2*f2 for expansions.
+Expansion cross(const Expansion& e1, const Expansion& f1, const Expansion& e2,
+                const Expansion& f2) {
+  Expansion p, q, r;
+  mul(e1, f1, p);
+  mul(e2, f2, q);
+  negate(q);
+  add(p, q, r);
+  return r;
+}
+
+Expansion lift(const Expansion& dx, const Expansion& dy) {
+  Expansion p, q, r;
+  mul(dx, dx, p);
+  mul(dy, dy, q);
+  add(p, q, r);
+  return r;
+}
+
+}  // namespace
+
+double orient2d_exact(const XY& a, const XY& b, const XY& c) {
+  const Expansion acx = from_diff(a.x, c.x), acy = from_diff(a.y, c.y);
+  const Expansion bcx = from_diff(b.x, c.x), bcy = from_diff(b.y, c.y);
+  return cross(acx, bcy, acy, bcx).sign_value();
+}
+
+double incircle_exact(const XY& a, const XY& b, const XY& c, const XY& d) {
+  const Expansion adx = from_diff(a.x, d.x), ady = from_diff(a.y, d.y);
+  const Expansion bdx = from_diff(b.x, d.x), bdy = from_diff(b.y, d.y);
+  const Expansion cdx = from_diff(c.x, d.x), cdy = from_diff(c.y, d.y);
+  // When the differences are exact (nearby points, lattices) every expansion below has one
+  // component per difference and the products stay short; otherwise the tails are carried.
+  const Expansion bc = cross(bdx, cdy, cdx, bdy);
+  const Expansion ca = cross(cdx, ady, adx, cdy);
+  const Expansion ab = cross(adx, bdy, bdx, ady);
+  const Expansion al = lift(adx, ady), bl = lift(bdx, bdy), cl = lift(cdx, cdy);
+  Expansion t1, t2, t3, s12, total;
+  mul(al, bc, t1);
+  mul(bl, ca, t2);
+  mul(cl, ab, t3);
+  add(t1, t2, s12);
+  add(s12, t3, total);
+  return total.sign_value();
+}
+
+}  // namespace tinstream::kernel::detail

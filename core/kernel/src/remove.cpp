@@ -1,0 +1,349 @@
+// Vertex removal: the star of v is re-triangulated in a small local structure (ear clipping on
+// the star-shaped link polygon, then Lawson flips inside the hole only), which both
+// removal_preview (read-only) and remove_vertex (writes it back) use. Expected O(degree).
+//
+// Hole cases:
+//   interior vertex            closed link polygon, ears clipped in the star-shaped order
+//   hull vertex                open link chain, made convex (Graham-like scan) + ghost triangles
+//   straight constraint a-v-b  the link splits at a and b into two open chains, each made convex
+//                              against the segment a-b, which becomes one constrained edge
+#include <algorithm>
+#include <string>
+
+#include "tinstream/kernel/triangulation.hpp"
+#include "triangulation_detail.hpp"
+
+namespace tinstream::kernel {
+
+using detail::kPendingTriangle;
+
+// Local triangles of the re-triangulated hole. adj codes: >= 0 local (triangle * 3 + edge);
+// < 0 boundary edge -(i + 1) of the ring (ring[i] -> ring[i + 1]).
+struct Triangulation::Hole {
+  std::vector<VertexId> ring;
+  std::vector<TriangleId> star;
+  std::vector<TriangleId> outer;
+  std::vector<int> outer_index;
+  std::vector<VertexTriple> tris;
+  std::vector<std::array<int, 3>> adj;
+  std::vector<std::uint8_t> fixed;  // per local triangle: bit i = edge i constrained (re-join)
+  VertexId join_a = kNone, join_b = kNone;
+  bool degenerate = false;  // only collinear vertices remain after the removal
+
+  int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc) {
+    const int L = static_cast<int>(tris.size());
+    tris.push_back({a, b, c});
+    adj.push_back({oa, ob, oc});
+    fixed.push_back(0);
+    for (int i = 0; i < 3; ++i) {
+      const int o = adj[static_cast<std::size_t>(L)][static_cast<std::size_t>(i)];
+      if (o >= 0) adj[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)] = L * 3 + i;
+    }
+    return L;
+  }
+};
+
+namespace {
+
+// Open chain pos[0..m-1] (polygon closed by the edge pos[m-1] -> pos[0] on v's side) made convex
+// as seen from v by clipping ears; `owner[k]` is the owner code of the edge pos[k] -> pos[k+1].
+// Returns the remaining chain; owner is updated for the remaining edges.
+template <typename Mesh_, typename Hole_>
+std::vector<int> convexify(const Mesh_& mesh, Hole_& hole, const std::vector<VertexId>& chain,
+                           std::vector<int>& owner) {
+  std::vector<int> st;  // positions into chain
+  for (int i = 0; i < static_cast<int>(chain.size()); ++i) {
+    while (st.size() >= 2) {
+      const int a = st[st.size() - 2], b = st.back();
+      if (orient2d(mesh.xy(chain[static_cast<std::size_t>(a)]), mesh.xy(chain[static_cast<std::size_t>(b)]),
+                   mesh.xy(chain[static_cast<std::size_t>(i)])) <= 0.0) {
+        break;
+      }
+      // Ear (a, b, i): edges opposite a = (b, i), opposite b = (i, a) new, opposite i = (a, b).
+      const int L = hole.add(chain[static_cast<std::size_t>(a)], chain[static_cast<std::size_t>(b)],
+                             chain[static_cast<std::size_t>(i)], owner[static_cast<std::size_t>(b)], -0x7FFFFFFF,
+                             owner[static_cast<std::size_t>(a)]);
+      owner[static_cast<std::size_t>(a)] = L * 3 + 1;
+      st.pop_back();
+    }
+    st.push_back(i);
+  }
+  return st;
+}
+
+}  // namespace
+
+Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
+  const std::string name = "vertex " + std::to_string(v);
+  if (cut_) return unsupported(name + ": the mesh was cut, it no longer accepts edits");
+  if (!is_vertex(v)) return invalid_argument(name + ": not a live vertex");
+  const std::vector<TriangleId> ring_tris = incident_triangles(v, false);
+  const std::size_t k = ring_tris.size();
+  std::vector<VertexId> spokes_constrained;
+  std::size_t finite_in_star = 0;
+  int ghost_pos = -1;
+  for (std::size_t i = 0; i < k; ++i) {
+    const TriangleId t = ring_tris[i];
+    const int j = mesh_.index_of(t, v);
+    const Triangle& T = mesh_.tri(t);
+    hole.ring.push_back(T.v[next3(j)]);
+    hole.star.push_back(t);
+    hole.outer.push_back(T.n[j]);
+    hole.outer_index.push_back(mesh_.mirror(t, j));
+    if (mesh_.constrained(t, prev3(j))) spokes_constrained.push_back(T.v[next3(j)]);
+    if (mesh_.is_ghost(t)) {
+      if (T.v[next3(j)] == kInfiniteVertex) ghost_pos = static_cast<int>(i);
+    } else {
+      ++finite_in_star;
+    }
+  }
+  if (!spokes_constrained.empty()) {
+    if (spokes_constrained.size() != 2 ||
+        orient2d(mesh_.xy(spokes_constrained[0]), mesh_.xy(v), mesh_.xy(spokes_constrained[1])) != 0.0) {
+      return invalid_argument(name + " is an end or a corner of constrained edges (" +
+                              std::to_string(spokes_constrained.size()) +
+                              " incident); only a vertex splitting a straight constraint can be removed");
+    }
+    hole.join_a = spokes_constrained[0];
+    hole.join_b = spokes_constrained[1];
+  }
+  if (finite_in_star == num_finite_triangles()) {
+    hole.degenerate = true;
+    return true;
+  }
+  auto code = [](std::size_t i) { return -static_cast<int>(i) - 1; };
+  if (ghost_pos >= 0) {
+    // Hull vertex: ring[ghost_pos] == 0; the chain runs from ring[ghost_pos + 1] around to
+    // ring[ghost_pos - 1].
+    std::vector<VertexId> chain;
+    std::vector<int> owner;
+    std::vector<std::size_t> ring_index;
+    for (std::size_t s = 1; s < k; ++s) {
+      const std::size_t r = (static_cast<std::size_t>(ghost_pos) + s) % k;
+      chain.push_back(hole.ring[r]);
+      owner.push_back(code(r));
+      ring_index.push_back(r);
+    }
+    const std::vector<int> hull = convexify(mesh_, hole, chain, owner);
+    // Ghost triangles (c_j, c_{j+1}, 0) along the new hull.
+    int prev_ghost = code(static_cast<std::size_t>(ghost_pos));  // edge (0, chain[0])
+    for (std::size_t j = 0; j + 1 < hull.size(); ++j) {
+      const auto a = static_cast<std::size_t>(hull[j]), b = static_cast<std::size_t>(hull[j + 1]);
+      const int L = hole.add(chain[a], chain[b], kInfiniteVertex, -0x7FFFFFFF, prev_ghost, owner[a]);
+      prev_ghost = L * 3 + 0;
+    }
+    // Last ghost's edge (c_r, 0) is the ring edge ending at the ghost vertex.
+    const std::size_t last_ring = (static_cast<std::size_t>(ghost_pos) + k - 1) % k;
+    const int Llast = prev_ghost / 3;
+    hole.adj[static_cast<std::size_t>(Llast)][0] = code(last_ring);
+    // A straight constraint through a hull vertex lies on the hull line; the new hull edge
+    // join_a-join_b is marked constrained by remove_vertex.
+  } else if (hole.join_a != kNone) {
+    // Two open chains join_a -> ... -> join_b and join_b -> ... -> join_a.
+    const auto ia = static_cast<std::size_t>(std::find(hole.ring.begin(), hole.ring.end(), hole.join_a) - hole.ring.begin());
+    const auto ib = static_cast<std::size_t>(std::find(hole.ring.begin(), hole.ring.end(), hole.join_b) - hole.ring.begin());
+    int last_owner[2];
+    for (int side = 0; side < 2; ++side) {
+      const std::size_t from = side == 0 ? ia : ib, to = side == 0 ? ib : ia;
+      std::vector<VertexId> chain;
+      std::vector<int> owner;
+      for (std::size_t r = from;; r = (r + 1) % k) {
+        chain.push_back(hole.ring[r]);
+        owner.push_back(code(r));
+        if (r == to) break;
+      }
+      const std::vector<int> rest = convexify(mesh_, hole, chain, owner);
+      if (rest.size() != 2) return Error(ErrorCode::internal, name + ": re-joining the constraint failed");
+      last_owner[side] = owner[static_cast<std::size_t>(rest[0])];
+    }
+    if (last_owner[0] < 0 || last_owner[1] < 0) {
+      return Error(ErrorCode::internal, name + ": degenerate star around a constraint");
+    }
+    hole.adj[static_cast<std::size_t>(last_owner[0] / 3)][static_cast<std::size_t>(last_owner[0] % 3)] = last_owner[1];
+    hole.adj[static_cast<std::size_t>(last_owner[1] / 3)][static_cast<std::size_t>(last_owner[1] % 3)] = last_owner[0];
+    hole.fixed[static_cast<std::size_t>(last_owner[0] / 3)] |= static_cast<std::uint8_t>(1u << (last_owner[0] % 3));
+    hole.fixed[static_cast<std::size_t>(last_owner[1] / 3)] |= static_cast<std::uint8_t>(1u << (last_owner[1] % 3));
+  } else {
+    // Interior vertex: clip ears of the closed, star-shaped link polygon. An ear (p, c, n) with a
+    // convex corner at c and v strictly left of p->n lies inside the two star triangles at c,
+    // so it contains no other vertex and the rest stays star-shaped around v.
+    const XY pv = mesh_.xy(v);
+    std::vector<int> nxt(k), prv(k), owner(k);
+    for (std::size_t i = 0; i < k; ++i) {
+      nxt[i] = static_cast<int>((i + 1) % k);
+      prv[i] = static_cast<int>((i + k - 1) % k);
+      owner[i] = code(i);
+    }
+    std::size_t left = k;
+    int c = 0;
+    int misses = 0;
+    bool relaxed = false;
+    while (left > 3) {
+      const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
+      const XY &a = mesh_.xy(hole.ring[static_cast<std::size_t>(p)]), &b = mesh_.xy(hole.ring[static_cast<std::size_t>(c)]),
+               &d = mesh_.xy(hole.ring[static_cast<std::size_t>(n)]);
+      const double side = orient2d(a, d, pv);
+      if (orient2d(a, b, d) > 0.0 && (side > 0.0 || (relaxed && side == 0.0))) {
+        const int L = hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
+                               hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)], -0x7FFFFFFF,
+                               owner[static_cast<std::size_t>(p)]);
+        owner[static_cast<std::size_t>(p)] = L * 3 + 1;
+        nxt[static_cast<std::size_t>(p)] = n;
+        prv[static_cast<std::size_t>(n)] = p;
+        --left;
+        c = p;
+        misses = 0;
+        relaxed = false;
+        continue;
+      }
+      c = n;
+      if (++misses > static_cast<int>(left)) {
+        if (relaxed) return Error(ErrorCode::internal, name + ": no ear in its star polygon");
+        relaxed = true;  // only when v lies on every candidate diagonal (k = 4, a "square")
+        misses = 0;
+      }
+    }
+    const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
+    hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)], hole.ring[static_cast<std::size_t>(n)],
+             owner[static_cast<std::size_t>(c)], owner[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(p)]);
+  }
+
+  // Lawson flips inside the hole (finite local triangles, unfixed local edges only).
+  std::vector<std::pair<int, int>> st;
+  for (std::size_t L = 0; L < hole.tris.size(); ++L) {
+    for (int i = 0; i < 3; ++i) {
+      if (hole.adj[L][static_cast<std::size_t>(i)] >= 0) st.emplace_back(static_cast<int>(L), i);
+    }
+  }
+  auto finite = [&](int L) {
+    const auto& t = hole.tris[static_cast<std::size_t>(L)];
+    return t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex;
+  };
+  std::size_t guard = 0;
+  while (!st.empty()) {
+    const auto [L, i] = st.back();
+    st.pop_back();
+    const auto uL = static_cast<std::size_t>(L);
+    const int o = hole.adj[uL][static_cast<std::size_t>(i)];
+    if (o < 0 || ((hole.fixed[uL] >> i) & 1u) || !finite(L) || !finite(o / 3)) continue;
+    const int U = o / 3, j = o % 3;
+    const auto uU = static_cast<std::size_t>(U);
+    const VertexTriple T = hole.tris[uL], S = hole.tris[uU];
+    if (incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]), mesh_.xy(S[static_cast<std::size_t>(j)])) <= 0.0) continue;
+    if (++guard > 64 * hole.tris.size() * hole.tris.size() + 64) return Error(ErrorCode::internal, name + ": flips do not converge");
+    // Same flip as Mesh::flip: T = (p, u, w), S = (q, w, u) -> T = (p, u, q), S = (q, w, p).
+    const VertexId p = T[static_cast<std::size_t>(i)], u = T[static_cast<std::size_t>(next3(i))],
+                   w = T[static_cast<std::size_t>(prev3(i))], q = S[static_cast<std::size_t>(j)];
+    const int A = hole.adj[uL][static_cast<std::size_t>(next3(i))], B = hole.adj[uL][static_cast<std::size_t>(prev3(i))];
+    const int C = hole.adj[uU][static_cast<std::size_t>(next3(j))], D = hole.adj[uU][static_cast<std::size_t>(prev3(j))];
+    const bool fA = (hole.fixed[uL] >> next3(i)) & 1u, fB = (hole.fixed[uL] >> prev3(i)) & 1u;
+    const bool fC = (hole.fixed[uU] >> next3(j)) & 1u, fD = (hole.fixed[uU] >> prev3(j)) & 1u;
+    hole.tris[uL] = {p, u, q};
+    hole.tris[uU] = {q, w, p};
+    hole.adj[uL] = {C, U * 3 + 1, B};
+    hole.adj[uU] = {A, L * 3 + 1, D};
+    hole.fixed[uL] = static_cast<std::uint8_t>((fC ? 1u : 0u) | (fB ? 4u : 0u));
+    hole.fixed[uU] = static_cast<std::uint8_t>((fA ? 1u : 0u) | (fD ? 4u : 0u));
+    auto relink = [&](int code_, int target) {
+      if (code_ >= 0) hole.adj[static_cast<std::size_t>(code_ / 3)][static_cast<std::size_t>(code_ % 3)] = target;
+    };
+    relink(C, L * 3 + 0);
+    relink(B, L * 3 + 2);
+    relink(A, U * 3 + 0);
+    relink(D, U * 3 + 2);
+    st.emplace_back(L, 0);
+    st.emplace_back(L, 2);
+    st.emplace_back(U, 0);
+    st.emplace_back(U, 2);
+  }
+  return true;
+}
+
+Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) const {
+  Hole hole;
+  Result<bool> planned = plan_removal(v, hole);
+  if (!planned.ok()) return planned.error();
+  std::vector<VertexTriple> out;
+  if (hole.degenerate) return out;
+  for (const auto& t : hole.tris) {
+    if (t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex) out.push_back(t);
+  }
+  return out;
+}
+
+void Triangulation::demote_to_collinear(VertexId removed) {
+  std::vector<VertexId> keep;
+  for (VertexId v = 1; v < mesh_.vertex_slots(); ++v) {
+    if (v != removed && mesh_.vertex_triangle(v) != kNone) keep.push_back(v);
+  }
+  mesh_.clear_triangles();
+  pending_ = keep;
+  for (VertexId v : keep) mesh_.set_vertex_triangle(v, kPendingTriangle);
+  segments_.clear();
+  hint_ = kNone;
+}
+
+Status Triangulation::remove_vertex(VertexId v) {
+  if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
+      mesh_.vertex_triangle(v) == kPendingTriangle) {
+    std::erase(pending_, v);
+    mesh_.set_vertex_triangle(v, kNone);
+    --live_vertices_;
+    return {};
+  }
+  Hole hole;
+  Result<bool> planned = plan_removal(v, hole);
+  if (!planned.ok()) return planned.error();
+  if (hole.degenerate) {
+    demote_to_collinear(v);
+    --live_vertices_;
+    return {};
+  }
+  // Re-use the star's triangle slots for the new triangles and free the two left over.
+  const std::size_t nnew = hole.tris.size();
+  std::vector<TriangleId> id(nnew);
+  for (std::size_t L = 0; L < nnew; ++L) id[L] = hole.star[L];
+  for (std::size_t L = nnew; L < hole.star.size(); ++L) mesh_.free_triangle(hole.star[L]);
+  for (std::size_t L = 0; L < nnew; ++L) {
+    const auto& t = hole.tris[L];
+    mesh_.set_vertices(id[L], t[0], t[1], t[2]);
+  }
+  for (std::size_t L = 0; L < nnew; ++L) {
+    for (int i = 0; i < 3; ++i) {
+      const int o = hole.adj[L][static_cast<std::size_t>(i)];
+      if (o >= 0) {
+        mesh_.set_neighbour(id[L], i, id[static_cast<std::size_t>(o / 3)]);
+        mesh_.set_constrained(id[L], i, (hole.fixed[L] >> i) & 1u);
+      } else {
+        const auto r = static_cast<std::size_t>(-o - 1);
+        const TriangleId out = hole.outer[r];
+        mesh_.link(id[L], i, out, hole.outer_index[r]);
+        mesh_.set_constrained(id[L], i, out != kNone && mesh_.constrained(out, hole.outer_index[r]));
+      }
+    }
+    for (VertexId w : hole.tris[L]) mesh_.set_vertex_triangle(w, id[L]);
+  }
+  mesh_.set_vertex_triangle(v, kNone);
+  --live_vertices_;
+  hint_ = id[0];
+  if (hole.join_a != kNone) {
+    int i;
+    const TriangleId t = find_edge(hole.join_a, hole.join_b, &i);
+    if (t != kNone) mesh_.set_edge_constrained(t, i, true);
+    // Segment records ending at v now end at the re-join vertex on the far side of v.
+    const XY pv = mesh_.xy(v);
+    for (auto& s : segments_) {
+      for (int e = 0; e < 2; ++e) {
+        if (s[static_cast<std::size_t>(e)] != v) continue;
+        const XY& other = mesh_.xy(s[static_cast<std::size_t>(1 - e)]);
+        const XY& pa = mesh_.xy(hole.join_a);
+        const bool a_same_side = (pa.x - pv.x) * (other.x - pv.x) + (pa.y - pv.y) * (other.y - pv.y) > 0.0;
+        s[static_cast<std::size_t>(e)] = a_same_side ? hole.join_b : hole.join_a;
+      }
+    }
+    std::erase_if(segments_, [](const auto& s) { return s[0] == s[1]; });
+  }
+  return {};
+}
+
+}  // namespace tinstream::kernel

@@ -1,0 +1,214 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+#include "test_support.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+
+namespace tinstream::kernel {
+namespace {
+
+using test::sorted;
+
+void expect_valid(const Triangulation& t, CheckLevel level = CheckLevel::expensive) {
+  const Status s = t.check_valid(level);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+}
+
+std::size_t count_containing(const Triangulation& t, VertexId v) {
+  std::size_t n = 0;
+  t.for_each_finite_triangle([&](TriangleId, const Triangle& tr) {
+    if (tr.v[0] == v || tr.v[1] == v || tr.v[2] == v) ++n;
+  });
+  return n;
+}
+
+TEST(Delaunay, InsertInsideMakesThreeTriangles) {
+  Triangulation t;
+  t.insert({0, 0, 0});
+  t.insert({4, 0, 0});
+  t.insert({0, 4, 0});
+  EXPECT_EQ(t.num_finite_triangles(), 1u);
+  const InsertResult r = t.insert({1, 1, 7});
+  ASSERT_EQ(r.outcome, InsertOutcome::inserted);
+  EXPECT_EQ(t.num_finite_triangles(), 3u);
+  EXPECT_EQ(count_containing(t, r.vertex), 3u);
+  EXPECT_EQ(t.z(r.vertex), 7.0);
+  expect_valid(t);
+}
+
+TEST(Delaunay, InsertOnEdgeMakesFourTriangles) {
+  Triangulation t;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{2, 2, 0}, Point3{0, 2, 0}}) t.insert(p);
+  ASSERT_EQ(t.num_finite_triangles(), 2u);
+  const InsertResult r = t.insert({1, 1, 0});  // on whichever diagonal exists
+  ASSERT_EQ(r.outcome, InsertOutcome::inserted);
+  EXPECT_EQ(t.num_finite_triangles(), 4u);
+  EXPECT_EQ(count_containing(t, r.vertex), 4u);
+  expect_valid(t);
+}
+
+TEST(Delaunay, InsertOnHullEdgeSplitsIt) {
+  Triangulation t;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{1, 3, 0}}) t.insert(p);
+  const InsertResult r = t.insert({1, 0, 0});
+  ASSERT_EQ(r.outcome, InsertOutcome::inserted);
+  EXPECT_EQ(t.num_finite_triangles(), 2u);
+  EXPECT_TRUE(t.is_on_hull(r.vertex));
+  expect_valid(t);
+}
+
+TEST(Delaunay, InsertOutsideHullExtendsIt) {
+  Triangulation t;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{1, 0, 0}, Point3{0, 1, 0}}) t.insert(p);
+  t.insert({5, 5, 0});
+  EXPECT_EQ(t.num_finite_triangles(), 2u);
+  t.insert({2, 0, 0});  // collinear with the hull edge (0,0)-(1,0), beyond it
+  expect_valid(t);
+  EXPECT_DOUBLE_EQ(static_cast<double>(test::triangle_area_sum(t)),
+                   static_cast<double>(test::hull_area({{0, 0}, {1, 0}, {0, 1}, {5, 5}, {2, 0}})));
+}
+
+TEST(Delaunay, DuplicateIsRejectedWithExistingId) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 1});
+  t.insert({1, 0, 0});
+  t.insert({0, 1, 0});
+  const auto d = t.insert({0, 0, 99});
+  EXPECT_EQ(d.outcome, InsertOutcome::duplicate);
+  EXPECT_EQ(d.vertex, a.vertex);
+  EXPECT_EQ(t.z(a.vertex), 1.0);
+  EXPECT_EQ(t.num_vertices(), 3u);
+}
+
+TEST(Delaunay, DuplicateWhileCollinearIsRejected) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 1});
+  t.insert({1, 1, 0});
+  EXPECT_EQ(t.insert({0, 0, 5}).vertex, a.vertex);
+  EXPECT_EQ(t.insert({0, 0, 5}).outcome, InsertOutcome::duplicate);
+}
+
+TEST(Delaunay, OutsideDomainIsRejected) {
+  Triangulation t(Rect{0, 0, 1, 1});
+  EXPECT_EQ(t.insert({0.5, 0.5, 0}).outcome, InsertOutcome::inserted);
+  EXPECT_EQ(t.insert({1.0, 1.0, 0}).outcome, InsertOutcome::inserted);  // closed rectangle
+  const auto r = t.insert({1.5, 0.5, 0});
+  EXPECT_EQ(r.outcome, InsertOutcome::outside_domain);
+  EXPECT_EQ(r.vertex, kNone);
+  EXPECT_EQ(t.num_vertices(), 2u);
+}
+
+TEST(Delaunay, NonFinitePointIsRejected) {
+  Triangulation t;
+  EXPECT_EQ(t.insert({std::nan(""), 0, 0}).outcome, InsertOutcome::rejected);
+  EXPECT_EQ(t.num_vertices(), 0u);
+}
+
+TEST(Delaunay, CollinearPointsWaitForAPointOffTheirLine) {
+  Triangulation t;
+  const auto pts = test::collinear_points(50, 1);
+  for (const auto& p : pts) t.insert(p);
+  const std::size_t n = test::distinct_count(pts);
+  EXPECT_EQ(t.num_finite_triangles(), 0u);
+  EXPECT_EQ(t.dimension(), 1);
+  EXPECT_EQ(t.num_vertices(), n);
+  t.insert({0.0, 1.0, 0});
+  EXPECT_EQ(t.dimension(), 2);
+  EXPECT_EQ(t.num_finite_triangles(), n - 1);  // a fan over the n - 1 segments of the line
+  expect_valid(t);
+}
+
+struct Generator {
+  const char* name;
+  std::vector<Point3> (*make)();
+};
+
+const Generator kGenerators[] = {
+    {"uniform", [] { return test::uniform_points(300, 1); }},
+    {"clustered", [] { return test::clustered_points(300, 2); }},
+    {"lattice", [] { return test::lattice_points(17); }},
+    {"circle", [] { return test::circle_points(64); }},
+    {"collinear_then_more", [] {
+       auto p = test::collinear_points(100, 3);
+       auto q = test::uniform_points(100, 4);
+       p.insert(p.end(), q.begin(), q.end());
+       return p;
+     }},
+    {"duplicates", [] { return test::duplicate_heavy_points(400, 5); }},
+    {"ulp_apart", [] { return test::ulp_points(300, 6); }},
+    {"mercator_tile", [] { return test::mercator_tile_points(300, 7); }},
+    {"huge", [] { return test::scaled(test::uniform_points(200, 8), 1e25, 3e25); }},
+    {"tiny", [] { return test::scaled(test::uniform_points(200, 9), 1e-25, -1e-24); }},
+};
+
+class DelaunayProperty : public ::testing::TestWithParam<Generator> {};
+
+TEST_P(DelaunayProperty, EveryInsertionKeepsTheTriangulationValid) {
+  const auto pts = GetParam().make();
+  Triangulation t;
+  std::set<std::pair<double, double>> seen;
+  for (const auto& p : pts) {
+    const InsertResult r = t.insert(p);
+    const bool fresh = seen.insert({p.x, p.y}).second;
+    ASSERT_EQ(r.outcome, fresh ? InsertOutcome::inserted : InsertOutcome::duplicate);
+    ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+  }
+  EXPECT_EQ(t.num_vertices(), seen.size());
+  for (const auto& p : pts) ASSERT_TRUE(t.find_vertex(p.x, p.y).has_value());
+  if (t.dimension() == 2) {
+    const long double hull = test::hull_area(pts);
+    EXPECT_NEAR(static_cast<double>(test::triangle_area_sum(t) / hull), 1.0, 1e-9);
+  }
+}
+
+TEST_P(DelaunayProperty, BulkInsertionGivesAValidTriangulationOfAllPoints) {
+  const auto pts = GetParam().make();
+  Triangulation t;
+  const auto results = t.insert_bulk(pts);
+  ASSERT_EQ(results.size(), pts.size());
+  expect_valid(t);
+  EXPECT_EQ(t.num_vertices(), test::distinct_count(pts));
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_NE(results[i].vertex, kNone);
+    EXPECT_EQ(t.xy(results[i].vertex).x, pts[i].x);
+    EXPECT_EQ(t.xy(results[i].vertex).y, pts[i].y);
+  }
+  if (t.dimension() == 2) {
+    EXPECT_NEAR(static_cast<double>(test::triangle_area_sum(t) / test::hull_area(pts)), 1.0, 1e-9);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Fixtures, DelaunayProperty, ::testing::ValuesIn(kGenerators),
+                         [](const auto& p) { return std::string(p.param.name); });
+
+TEST(Delaunay, GeneralPositionResultDoesNotDependOnInsertionOrder) {
+  // In general position the Delaunay triangulation is unique: one-by-one and bulk must agree.
+  const auto pts = test::uniform_points(3000, 21);
+  Triangulation a, b;
+  std::vector<VertexId> ida(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) ida[i] = a.insert(pts[i]).vertex;
+  const auto rb = b.insert_bulk(pts);
+  std::vector<std::uint32_t> a_to_input(a.vertex_id_bound()), b_to_input(b.vertex_id_bound());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    a_to_input[ida[i]] = static_cast<std::uint32_t>(i);
+    b_to_input[rb[i].vertex] = static_cast<std::uint32_t>(i);
+  }
+  std::set<VertexTriple> sa, sb;
+  for (auto t : a.finite_triangles()) sa.insert(sorted({a_to_input[t[0]], a_to_input[t[1]], a_to_input[t[2]]}));
+  for (auto t : b.finite_triangles()) sb.insert(sorted({b_to_input[t[0]], b_to_input[t[1]], b_to_input[t[2]]}));
+  EXPECT_EQ(sa, sb);
+}
+
+TEST(Delaunay, LargeBulkInsertionIsValid) {
+  const auto pts = test::uniform_points(200000, 99);
+  Triangulation t;
+  t.insert_bulk(pts);
+  expect_valid(t);
+  EXPECT_EQ(t.num_vertices(), pts.size());
+}
+
+}  // namespace
+}  // namespace tinstream::kernel
