@@ -104,6 +104,9 @@ class LayerWriter {
 
   // Encodes, compresses and stores a tile (replacing one with the same id in this version).
   Status put(const tile::TinTile& tile);
+  // Commits the pending batch now (put() commits every 256 tiles or 32 MiB by itself). Useful
+  // before a long pause, since an open batch holds the file's write lock.
+  Status flush();
   // Reads back a tile written to this (unpublished) version, e.g. children for the LOD pass.
   Result<std::optional<tile::TinTile>> get(const geo::TileId& id);
   Result<std::vector<geo::TileId>> tile_ids(std::optional<std::uint32_t> level = std::nullopt);

@@ -1,0 +1,65 @@
+#include "schema.hpp"
+
+namespace tinstream::store::schema {
+
+// Keep in sync with docs/store-format.md.
+const char* const kCreate = R"sql(
+CREATE TABLE IF NOT EXISTS metadata (
+  name  TEXT PRIMARY KEY,
+  value TEXT NOT NULL
+);
+
+CREATE TABLE IF NOT EXISTS layer_versions (
+  id              INTEGER PRIMARY KEY AUTOINCREMENT,
+  name            TEXT    NOT NULL,
+  status          TEXT    NOT NULL CHECK (status IN ('building', 'ready')),
+  writer_pid      INTEGER,
+  writer_host     TEXT,
+  writer_start    INTEGER,
+  projection      TEXT    NOT NULL,
+  vertical_datum  TEXT    NOT NULL,
+  min_x REAL NOT NULL, min_y REAL NOT NULL, max_x REAL NOT NULL, max_y REAL NOT NULL,
+  west  REAL NOT NULL, south REAL NOT NULL, east  REAL NOT NULL, north REAL NOT NULL,
+  min_level       INTEGER NOT NULL,
+  max_level       INTEGER NOT NULL,
+  max_points      INTEGER NOT NULL,
+  tile_count      INTEGER NOT NULL,
+  point_count     INTEGER NOT NULL,
+  source_points   INTEGER NOT NULL,
+  min_z REAL NOT NULL, max_z REAL NOT NULL,
+  level_max_error TEXT    NOT NULL,
+  options         TEXT    NOT NULL,
+  attribution     TEXT    NOT NULL,
+  started_unix    INTEGER NOT NULL,
+  created_unix    INTEGER
+);
+CREATE INDEX IF NOT EXISTS layer_versions_by_name ON layer_versions (name, status);
+
+CREATE TABLE IF NOT EXISTS layers (
+  name    TEXT PRIMARY KEY,
+  version INTEGER NOT NULL UNIQUE
+);
+
+CREATE TABLE IF NOT EXISTS tiles (
+  version         INTEGER NOT NULL,
+  z               INTEGER NOT NULL,
+  x               INTEGER NOT NULL,
+  y               INTEGER NOT NULL,
+  data            BLOB    NOT NULL,
+  etag            TEXT    NOT NULL,
+  min_z           REAL    NOT NULL,
+  max_z           REAL    NOT NULL,
+  geometric_error REAL    NOT NULL,
+  vertex_count    INTEGER NOT NULL,
+  triangle_count  INTEGER NOT NULL,
+  PRIMARY KEY (version, z, x, y)
+) WITHOUT ROWID;
+
+CREATE VIEW IF NOT EXISTS published_tiles AS
+  SELECT l.name AS layer, t.z, t.x, t.y, (1 << t.z) - 1 - t.y AS tms_y,
+         t.etag, length(t.data) AS bytes, t.min_z, t.max_z, t.geometric_error,
+         t.vertex_count, t.triangle_count, t.data
+  FROM layers AS l JOIN tiles AS t ON t.version = l.version;
+)sql";
+
+}  // namespace tinstream::store::schema

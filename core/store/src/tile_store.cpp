@@ -1,0 +1,876 @@
+// The SQLite tile store. Schema: schema.cpp / docs/store-format.md.
+//
+// Invariants (what makes a kill at any point harmless):
+//   1. A layer is visible to readers iff `layers` has a row for it; that row names a version
+//      whose status is 'ready'. Readers only ever join through `layers`.
+//   2. Tiles of a 'building' version are written in batched transactions; none of them is
+//      reachable through `layers` until publish() switches the row in one transaction, which
+//      also deletes the previous version's tiles and row.
+//   3. A 'building' version whose writer process is gone (pid not alive on this host, or alive
+//      with another start time) is garbage; the next begin_layer of the same name deletes it.
+#include "tinstream/store/tile_store.hpp"
+
+#include <signal.h>
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <unordered_map>
+
+#include "etag.hpp"
+#include "schema.hpp"
+#include "tinstream/tile/codec.hpp"
+
+namespace tinstream::store {
+
+namespace {
+
+// Batched writes: a transaction is committed after this many tiles or bytes, whichever first.
+constexpr std::size_t kBatchTiles = 256;
+constexpr std::size_t kBatchBytes = 32u << 20;
+constexpr int kBusyTimeoutMs = 10000;
+// The largest tile decode will inflate (the codec's default).
+constexpr std::size_t kMaxTileBytes = 256u << 20;
+
+struct DbCloser {
+  void operator()(sqlite3* db) const { sqlite3_close_v2(db); }
+};
+struct StmtFinalizer {
+  void operator()(sqlite3_stmt* s) const { sqlite3_finalize(s); }
+};
+using DbHandle = std::unique_ptr<sqlite3, DbCloser>;
+using StmtHandle = std::unique_ptr<sqlite3_stmt, StmtFinalizer>;
+
+// One use of a cached prepared statement: binds, steps, and resets it when it goes out of scope.
+class Query {
+ public:
+  explicit Query(sqlite3_stmt* s) : s_(s) {}
+  Query(Query&& other) noexcept : s_(std::exchange(other.s_, nullptr)) {}
+  Query& operator=(Query&&) = delete;
+  ~Query() {
+    if (s_ != nullptr) {
+      sqlite3_reset(s_);
+      sqlite3_clear_bindings(s_);
+    }
+  }
+
+  Query& bind(int i, std::int64_t v) { (void)sqlite3_bind_int64(s_, i, v); return *this; }
+  Query& bind(int i, std::uint64_t v) { return bind(i, static_cast<std::int64_t>(v)); }
+  Query& bind(int i, std::uint32_t v) { return bind(i, static_cast<std::int64_t>(v)); }
+  Query& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
+  Query& bind(int i, double v) { (void)sqlite3_bind_double(s_, i, v); return *this; }
+  Query& bind(int i, std::string_view v) {
+    (void)sqlite3_bind_text(s_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Query& bind_blob(int i, std::span<const std::uint8_t> v) {
+    (void)sqlite3_bind_blob64(s_, i, v.data(), v.size(), SQLITE_STATIC);
+    return *this;
+  }
+  Query& bind_null(int i) { (void)sqlite3_bind_null(s_, i); return *this; }
+
+  int step() { return sqlite3_step(s_); }
+  // Makes the statement reusable within the same Query (new bindings, new step).
+  void reset() {
+    sqlite3_reset(s_);
+    sqlite3_clear_bindings(s_);
+  }
+
+  std::int64_t i64(int c) const { return sqlite3_column_int64(s_, c); }
+  std::uint32_t u32(int c) const {
+    const std::int64_t v = i64(c);
+    return v < 0 || v > 0xFFFFFFFFll ? 0u : static_cast<std::uint32_t>(v);
+  }
+  std::uint64_t u64(int c) const {
+    const std::int64_t v = i64(c);
+    return v < 0 ? 0u : static_cast<std::uint64_t>(v);
+  }
+  double f64(int c) const { return sqlite3_column_double(s_, c); }
+  bool is_null(int c) const { return sqlite3_column_type(s_, c) == SQLITE_NULL; }
+  std::string text(int c) const {
+    const auto* p = sqlite3_column_text(s_, c);
+    return p == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(p),
+                                                     static_cast<std::size_t>(sqlite3_column_bytes(s_, c)));
+  }
+  std::vector<std::uint8_t> blob(int c) const {
+    const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(s_, c));
+    const auto n = static_cast<std::size_t>(sqlite3_column_bytes(s_, c));
+    return p == nullptr ? std::vector<std::uint8_t>() : std::vector<std::uint8_t>(p, p + n);
+  }
+
+ private:
+  sqlite3_stmt* s_;
+};
+
+std::int64_t now_unix() { return static_cast<std::int64_t>(std::time(nullptr)); }
+
+std::string host_name() {
+  char buf[256] = {};
+  if (gethostname(buf, sizeof buf - 1) != 0) return {};
+  return buf;
+}
+
+// The start time of a process (clock ticks since boot, /proc/<pid>/stat field 22), or -1 when
+// unknown. Together with the pid it identifies a process across pid reuse.
+std::int64_t process_start(long pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  if (!std::getline(in, stat)) return -1;
+  const auto paren = stat.rfind(')');  // the command name may contain spaces and parentheses
+  if (paren == std::string::npos) return -1;
+  std::istringstream fields(stat.substr(paren + 2));
+  std::string field;
+  // Fields after the name start at field 3 (state); starttime is field 22.
+  for (int i = 3; i <= 22; ++i) {
+    if (!(fields >> field)) return -1;
+  }
+  try {
+    return std::stoll(field);
+  } catch (...) {
+    return -1;
+  }
+}
+
+bool process_alive(long pid, std::int64_t recorded_start) {
+  if (pid <= 0) return false;
+  if (kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  const std::int64_t start = process_start(pid);
+  if (start < 0 || recorded_start < 0) return true;  // cannot tell: assume alive
+  if (start != recorded_start) return false;         // the pid was reused
+  // A zombie (killed, not yet reaped) is not writing any more.
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  std::getline(in, stat);
+  const auto paren = stat.rfind(')');
+  return !(paren != std::string::npos && paren + 2 < stat.size() && stat[paren + 2] == 'Z');
+}
+
+bool finite_info(const LayerInfo& i) {
+  for (double v : {i.mercator_bounds.min_x, i.mercator_bounds.min_y, i.mercator_bounds.max_x,
+                   i.mercator_bounds.max_y, i.bounds.west, i.bounds.south, i.bounds.east,
+                   i.bounds.north, i.min_z, i.max_z}) {
+    if (!std::isfinite(v)) return false;
+  }
+  for (double v : i.level_max_error) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+Status validate_info(const LayerInfo& info) {
+  if (Status s = validate_layer_name(info.name); !s) return s;
+  const std::string layer = "layer '" + info.name + "': ";
+  if (info.max_level > static_cast<std::uint32_t>(geo::kMaxLevel) ||
+      info.min_level > static_cast<std::uint32_t>(geo::kMaxLevel)) {
+    return invalid_argument(layer + "levels must be ≤ " + std::to_string(geo::kMaxLevel));
+  }
+  if (!finite_info(info)) return invalid_argument(layer + "non-finite bounds, heights or errors");
+  if (!nlohmann::json::accept(info.options_json)) {
+    return invalid_argument(layer + "options are not valid JSON");
+  }
+  if (info.vertical_datum.empty()) return invalid_argument(layer + "empty vertical datum");
+  return {};
+}
+
+// Columns of layer_versions read into a LayerInfo, in this order, by read_info().
+constexpr const char* kInfoColumns =
+    "v.id, v.name, v.projection, v.vertical_datum, v.min_x, v.min_y, v.max_x, v.max_y, v.west, "
+    "v.south, v.east, v.north, v.min_level, v.max_level, v.max_points, v.tile_count, "
+    "v.point_count, v.source_points, v.min_z, v.max_z, v.level_max_error, v.options, "
+    "v.attribution, v.created_unix";
+
+Result<LayerInfo> read_info(const Query& q, const std::filesystem::path& path) {
+  LayerInfo i;
+  i.version = q.i64(0);
+  i.name = q.text(1);
+  const std::string where = path.string() + ": layer '" + i.name + "': ";
+  const auto projection = geo::parse_projection(q.text(2));
+  if (!projection) return corrupt_data(where + projection.error().message);
+  i.projection = *projection;
+  i.vertical_datum = q.text(3);
+  i.mercator_bounds = {q.f64(4), q.f64(5), q.f64(6), q.f64(7)};
+  i.bounds = {q.f64(8), q.f64(9), q.f64(10), q.f64(11)};
+  i.min_level = q.u32(12);
+  i.max_level = q.u32(13);
+  i.max_points = q.u32(14);
+  i.tile_count = q.u64(15);
+  i.point_count = q.u64(16);
+  i.source_points = q.u64(17);
+  i.min_z = q.f64(18);
+  i.max_z = q.f64(19);
+  const auto errors = nlohmann::json::parse(q.text(20), nullptr, false);
+  if (errors.is_discarded() || !errors.is_array()) {
+    return corrupt_data(where + "level_max_error is not a JSON array");
+  }
+  for (const auto& e : errors) i.level_max_error.push_back(e.is_number() ? e.get<double>() : 0.0);
+  i.options_json = q.text(21);
+  i.attribution = q.text(22);
+  i.created_unix = q.i64(23);
+  return i;
+}
+
+}  // namespace
+
+struct TileStore::Impl {
+  std::filesystem::path path;
+  Mode mode = Mode::read_only;
+  DbHandle db;
+  // Prepared statements, keyed by their SQL text (the text is a literal in this file).
+  std::unordered_map<std::string, StmtHandle> statements;
+  // The open write transaction that batches LayerWriter::put()s, if any.
+  bool in_batch = false;
+  std::size_t batch_tiles = 0;
+  std::size_t batch_bytes = 0;
+
+  Error sql_error(const std::string& what) const {
+    const int code = db ? sqlite3_errcode(db.get()) : SQLITE_ERROR;
+    std::string message = path.string() + ": " + what + ": " +
+                          (db ? sqlite3_errmsg(db.get()) : sqlite3_errstr(code));
+    switch (code) {
+      case SQLITE_NOTADB:
+      case SQLITE_CORRUPT:
+        return corrupt_data(std::move(message));
+      case SQLITE_CANTOPEN:
+      case SQLITE_PERM:
+      case SQLITE_READONLY:
+      case SQLITE_BUSY:
+      case SQLITE_LOCKED:
+      case SQLITE_IOERR:
+      case SQLITE_FULL:
+      default:
+        return io_error(std::move(message));
+    }
+  }
+
+  Result<Query> query(const char* sql) {
+    auto it = statements.find(sql);
+    if (it == statements.end()) {
+      sqlite3_stmt* s = nullptr;
+      if (sqlite3_prepare_v3(db.get(), sql, -1, SQLITE_PREPARE_PERSISTENT, &s, nullptr) !=
+          SQLITE_OK) {
+        sqlite3_finalize(s);
+        return sql_error("preparing a statement");
+      }
+      it = statements.emplace(sql, StmtHandle(s)).first;
+    }
+    return Query(it->second.get());
+  }
+
+  Status exec(const char* sql, const char* what) {
+    char* message = nullptr;
+    if (sqlite3_exec(db.get(), sql, nullptr, nullptr, &message) != SQLITE_OK) {
+      sqlite3_free(message);
+      return sql_error(what);
+    }
+    return {};
+  }
+
+  // Runs a statement that returns no rows.
+  static bool done(Query& q) { return q.step() == SQLITE_DONE; }
+
+  Status require_writable() const {
+    if (mode != Mode::read_write) {
+      return invalid_argument(path.string() + ": the tile store is open read-only");
+    }
+    return {};
+  }
+
+  Status commit_batch() {
+    if (!in_batch) return {};
+    in_batch = false;
+    batch_tiles = batch_bytes = 0;
+    if (Status s = exec("COMMIT", "committing a batch of tiles"); !s) {
+      (void)exec("ROLLBACK", "rolling back");
+      return s;
+    }
+    return {};
+  }
+
+  void rollback_batch() {
+    if (!in_batch) return;
+    in_batch = false;
+    batch_tiles = batch_bytes = 0;
+    (void)exec("ROLLBACK", "rolling back a batch of tiles");
+  }
+
+  // Runs body inside its own write transaction (after committing any pending batch).
+  template <typename Body>
+  Status transaction(const char* what, Body&& body) {
+    if (Status s = commit_batch(); !s) return s;
+    if (Status s = exec("BEGIN IMMEDIATE", what); !s) return s;
+    Status s = body();
+    if (!s) {
+      (void)exec("ROLLBACK", what);
+      return s;
+    }
+    if (Status c = exec("COMMIT", what); !c) {
+      (void)exec("ROLLBACK", what);
+      return c;
+    }
+    return {};
+  }
+
+  // The published version of a layer; not_found when the layer does not exist.
+  Result<std::int64_t> published_version(std::string_view name) {
+    if (Status s = validate_layer_name(name); !s) return s.error();
+    auto q = query("SELECT version FROM layers WHERE name = ?1");
+    if (!q) return q.error();
+    q->bind(1, name);
+    const int rc = q->step();
+    if (rc == SQLITE_ROW) return q->i64(0);
+    if (rc == SQLITE_DONE) {
+      return not_found(path.string() + ": no layer '" + std::string(name) + "'");
+    }
+    return sql_error("looking up layer '" + std::string(name) + "'");
+  }
+
+  Result<std::optional<StoredTile>> stored_tile(std::int64_t version, const geo::TileId& id,
+                                                const std::string& what) {
+    auto q = query(
+        "SELECT data, etag, min_z, max_z, geometric_error, vertex_count, triangle_count "
+        "FROM tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
+    if (!q) return q.error();
+    q->bind(1, version).bind(2, id.z).bind(3, id.x).bind(4, id.y);
+    const int rc = q->step();
+    if (rc == SQLITE_DONE) return std::optional<StoredTile>();
+    if (rc != SQLITE_ROW) return sql_error("reading " + what);
+    StoredTile t;
+    t.id = id;
+    t.compressed = q->blob(0);
+    t.etag = q->text(1);
+    t.min_z = q->f64(2);
+    t.max_z = q->f64(3);
+    t.geometric_error = q->f64(4);
+    t.vertex_count = q->u32(5);
+    t.triangle_count = q->u32(6);
+    return std::optional<StoredTile>(std::move(t));
+  }
+
+  Result<std::optional<tile::TinTile>> decoded_tile(std::int64_t version, const geo::TileId& id,
+                                                    const std::string& what) {
+    auto stored = stored_tile(version, id, what);
+    if (!stored) return stored.error();
+    if (!stored->has_value()) return std::optional<tile::TinTile>();
+    const std::string where = path.string() + ": " + what + ": ";
+    auto raw = tile::decompress((*stored)->compressed, kMaxTileBytes);
+    if (!raw) return Error(raw.error().code, where + raw.error().message);
+    auto decoded = tile::decode(*raw);
+    if (!decoded) return Error(decoded.error().code, where + decoded.error().message);
+    if (decoded->id != id) {
+      return corrupt_data(where + "the blob holds tile " + decoded->id.to_string());
+    }
+    return std::optional<tile::TinTile>(std::move(*decoded));
+  }
+
+  Result<std::vector<geo::TileId>> ids(std::int64_t version, std::optional<std::uint32_t> level,
+                                       const std::string& what) {
+    auto q = level ? query("SELECT z, x, y FROM tiles WHERE version = ?1 AND z = ?2 ORDER BY z, x, y")
+                   : query("SELECT z, x, y FROM tiles WHERE version = ?1 ORDER BY z, x, y");
+    if (!q) return q.error();
+    q->bind(1, version);
+    if (level) q->bind(2, *level);
+    std::vector<geo::TileId> out;
+    int rc = 0;
+    while ((rc = q->step()) == SQLITE_ROW) {
+      auto id = geo::TileId::from_zxy(q->i64(0), q->i64(1), q->i64(2));
+      if (!id) return corrupt_data(path.string() + ": " + what + ": " + id.error().message);
+      out.push_back(*id);
+    }
+    if (rc != SQLITE_DONE) return sql_error("listing the tiles of " + what);
+    return out;
+  }
+
+  // Deletes a version's tiles and its row. Inside a transaction.
+  Status drop_version(std::int64_t version) {
+    auto tiles = query("DELETE FROM tiles WHERE version = ?1");
+    if (!tiles) return tiles.error();
+    tiles->bind(1, version);
+    if (!done(*tiles)) return sql_error("deleting the tiles of version " + std::to_string(version));
+    auto row = query("DELETE FROM layer_versions WHERE id = ?1");
+    if (!row) return row.error();
+    row->bind(1, version);
+    if (!done(*row)) return sql_error("deleting version " + std::to_string(version));
+    return {};
+  }
+
+  Status create_or_check_schema();
+};
+
+Status TileStore::Impl::create_or_check_schema() {
+  const auto has_table = [this](const char* name) -> Result<bool> {
+    auto q = query("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1");
+    if (!q) return q.error();
+    q->bind(1, std::string_view(name));
+    if (q->step() != SQLITE_ROW) return sql_error("reading the schema");
+    return q->i64(0) > 0;
+  };
+  // The first read of the file: a non-SQLite file fails here with "file is not a database".
+  auto present = has_table("metadata");
+  if (!present) {
+    return Error(present.error().code, present.error().message + " (not an SQLite tile store)");
+  }
+  if (!*present) {
+    if (mode == Mode::read_only) {
+      return corrupt_data(path.string() + ": not a tinstream tile store (no metadata table)");
+    }
+    Status s = transaction("creating the schema", [&]() -> Status {
+      auto objects = query("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");
+      if (!objects) return objects.error();
+      if (objects->step() != SQLITE_ROW) return sql_error("reading the schema");
+      const std::int64_t count = objects->i64(0);
+      auto again = has_table("metadata");
+      if (!again) return again.error();
+      if (*again) return {};  // another process created it meanwhile
+      if (count > 0) {
+        return corrupt_data(path.string() +
+                            ": an SQLite database that is not a tinstream tile store");
+      }
+      if (Status c = exec(schema::kCreate, "creating the schema"); !c) return c;
+      auto meta = query("INSERT INTO metadata (name, value) VALUES (?1, ?2)");
+      if (!meta) return meta.error();
+      const std::pair<std::string, std::string> rows[] = {
+          {"format", schema::kFormat},
+          {"schema_version", std::to_string(schema::kSchemaVersion)},
+          {"created_unix", std::to_string(now_unix())},
+          {"generator", "tinstream"}};
+      for (const auto& [name, value] : rows) {
+        meta->bind(1, name).bind(2, value);
+        if (!done(*meta)) return sql_error("writing metadata");
+        meta->reset();
+      }
+      return {};
+    });
+    if (!s) return s;
+  }
+  auto q = query("SELECT name, value FROM metadata WHERE name IN ('format', 'schema_version')");
+  if (!q) return q.error();
+  std::string format, version;
+  int rc = 0;
+  while ((rc = q->step()) == SQLITE_ROW) {
+    (q->text(0) == "format" ? format : version) = q->text(1);
+  }
+  if (rc != SQLITE_DONE) return sql_error("reading metadata");
+  if (format != schema::kFormat) {
+    return corrupt_data(path.string() + ": not a tinstream tile store (metadata format '" + format +
+                        "')");
+  }
+  if (version != std::to_string(schema::kSchemaVersion)) {
+    return unsupported(path.string() + ": tile store schema version '" + version +
+                       "' is not supported (this build reads version " +
+                       std::to_string(schema::kSchemaVersion) + ")");
+  }
+  return {};
+}
+
+Result<TileStore> TileStore::open(const std::filesystem::path& path, Mode mode) {
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->mode = mode;
+  std::error_code ec;
+  if (mode == Mode::read_only && !std::filesystem::exists(path, ec)) {
+    return not_found(path.string() + ": tile store does not exist");
+  }
+  if (std::filesystem::is_directory(path, ec)) {
+    return invalid_argument(path.string() + ": is a directory, not a tile store file");
+  }
+  const int flags = (mode == Mode::read_only ? SQLITE_OPEN_READONLY
+                                             : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) |
+                    SQLITE_OPEN_NOMUTEX;
+  sqlite3* raw = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
+  impl->db.reset(raw);
+  if (rc != SQLITE_OK) return impl->sql_error("opening the tile store");
+  sqlite3_extended_result_codes(raw, 0);
+  sqlite3_busy_timeout(raw, kBusyTimeoutMs);
+  if (mode == Mode::read_write) {
+    // WAL: readers never block the writer and see the last committed state; NORMAL is durable
+    // against process crashes (only a power loss may drop the last transactions, never corrupt).
+    auto q = impl->query("PRAGMA journal_mode = WAL");
+    if (!q) return q.error();
+    if (q->step() != SQLITE_ROW) {
+      const Error e = impl->sql_error("switching to WAL mode");
+      return Error(e.code, e.message + " (not an SQLite tile store?)");
+    }
+    if (Status s = impl->exec("PRAGMA synchronous = NORMAL", "setting synchronous"); !s) {
+      return s.error();
+    }
+  }
+  if (Status s = impl->create_or_check_schema(); !s) return s.error();
+  return TileStore(std::move(impl));
+}
+
+TileStore::TileStore(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+TileStore::TileStore(TileStore&&) noexcept = default;
+TileStore& TileStore::operator=(TileStore&&) noexcept = default;
+TileStore::~TileStore() {
+  if (impl_) {
+    (void)impl_->commit_batch();
+    impl_->statements.clear();  // finalize before closing
+  }
+}
+
+const std::filesystem::path& TileStore::path() const { return impl_->path; }
+
+Result<std::vector<LayerInfo>> TileStore::layers() {
+  static const std::string sql = std::string("SELECT ") + kInfoColumns +
+                                 " FROM layers AS l JOIN layer_versions AS v ON v.id = l.version"
+                                 " ORDER BY l.name";
+  auto q = impl_->query(sql.c_str());
+  if (!q) return q.error();
+  std::vector<LayerInfo> out;
+  int rc = 0;
+  while ((rc = q->step()) == SQLITE_ROW) {
+    auto info = read_info(*q, impl_->path);
+    if (!info) return info.error();
+    out.push_back(std::move(*info));
+  }
+  if (rc != SQLITE_DONE) return impl_->sql_error("listing layers");
+  return out;
+}
+
+Result<LayerInfo> TileStore::layer(std::string_view name) {
+  if (Status s = validate_layer_name(name); !s) return s.error();
+  static const std::string sql = std::string("SELECT ") + kInfoColumns +
+                                 " FROM layers AS l JOIN layer_versions AS v ON v.id = l.version"
+                                 " WHERE l.name = ?1";
+  auto q = impl_->query(sql.c_str());
+  if (!q) return q.error();
+  q->bind(1, name);
+  const int rc = q->step();
+  if (rc == SQLITE_DONE) {
+    return not_found(impl_->path.string() + ": no layer '" + std::string(name) + "'");
+  }
+  if (rc != SQLITE_ROW) return impl_->sql_error("reading layer '" + std::string(name) + "'");
+  return read_info(*q, impl_->path);
+}
+
+Result<std::optional<StoredTile>> TileStore::tile(std::string_view layer, const geo::TileId& id) {
+  if (!id.valid()) return invalid_argument("invalid tile id " + id.to_string());
+  // One statement, so the layer → version lookup and the tile read see the same snapshot.
+  auto q = impl_->query(
+      "SELECT t.data, t.etag, t.min_z, t.max_z, t.geometric_error, t.vertex_count, "
+      "t.triangle_count FROM layers AS l JOIN tiles AS t ON t.version = l.version "
+      "WHERE l.name = ?1 AND t.z = ?2 AND t.x = ?3 AND t.y = ?4");
+  if (!q) return q.error();
+  if (Status s = validate_layer_name(layer); !s) return s.error();
+  q->bind(1, layer).bind(2, id.z).bind(3, id.x).bind(4, id.y);
+  const int rc = q->step();
+  if (rc == SQLITE_ROW) {
+    StoredTile t;
+    t.id = id;
+    t.compressed = q->blob(0);
+    t.etag = q->text(1);
+    t.min_z = q->f64(2);
+    t.max_z = q->f64(3);
+    t.geometric_error = q->f64(4);
+    t.vertex_count = q->u32(5);
+    t.triangle_count = q->u32(6);
+    return std::optional<StoredTile>(std::move(t));
+  }
+  if (rc != SQLITE_DONE) {
+    return impl_->sql_error("reading layer '" + std::string(layer) + "' tile " + id.to_string());
+  }
+  // No tile: distinguish an unknown layer (an error) from a tile the layer does not have.
+  auto version = impl_->published_version(layer);
+  if (!version) return version.error();
+  return std::optional<StoredTile>();
+}
+
+Result<std::optional<tile::TinTile>> TileStore::read_tile(std::string_view layer,
+                                                          const geo::TileId& id) {
+  auto stored = tile(layer, id);
+  if (!stored) return stored.error();
+  if (!stored->has_value()) return std::optional<tile::TinTile>();
+  const std::string where = impl_->path.string() + ": layer '" + std::string(layer) + "' tile " +
+                            id.to_string() + " (" + id.quadkey() + "): ";
+  auto raw = tile::decompress((*stored)->compressed, kMaxTileBytes);
+  if (!raw) return Error(raw.error().code, where + raw.error().message);
+  auto decoded = tile::decode(*raw);
+  if (!decoded) return Error(decoded.error().code, where + decoded.error().message);
+  if (decoded->id != id) return corrupt_data(where + "the blob holds tile " + decoded->id.to_string());
+  return std::optional<tile::TinTile>(std::move(*decoded));
+}
+
+Result<std::vector<geo::TileId>> TileStore::tile_ids(std::string_view layer,
+                                                     std::optional<std::uint32_t> level) {
+  auto version = impl_->published_version(layer);
+  if (!version) return version.error();
+  return impl_->ids(*version, level, "layer '" + std::string(layer) + "'");
+}
+
+Status TileStore::delete_layer(std::string_view name) {
+  if (Status s = impl_->require_writable(); !s) return s;
+  if (Status s = validate_layer_name(name); !s) return s;
+  return impl_->transaction("deleting a layer", [&]() -> Status {
+    auto version = impl_->published_version(name);
+    if (!version) return version.error();
+    auto q = impl_->query("DELETE FROM layers WHERE name = ?1");
+    if (!q) return q.error();
+    q->bind(1, name);
+    if (!Impl::done(*q)) return impl_->sql_error("deleting layer '" + std::string(name) + "'");
+    return impl_->drop_version(*version);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct LayerWriter::Impl {
+  TileStore::Impl* store = nullptr;
+  std::string name;
+  std::int64_t version = 0;
+  enum class State { building, published, abandoned } state = State::building;
+  std::optional<Error> failed;  // a failed batch: this version can no longer be published
+
+  std::string what() const {
+    return "layer '" + name + "' version " + std::to_string(version);
+  }
+  Status usable() const {
+    if (failed) return *failed;
+    if (state == State::published) return invalid_argument(what() + " is already published");
+    if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
+    return {};
+  }
+};
+
+Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& info) {
+  if (Status s = impl_->require_writable(); !s) return s.error();
+  if (Status s = validate_info(info); !s) return s.error();
+  const long pid = static_cast<long>(getpid());
+  const std::string host = host_name();
+  std::int64_t version = 0;
+  Status s = impl_->transaction("starting a layer version", [&]() -> Status {
+    // Versions of this name still being built: refuse if their writer lives, else collect them.
+    auto q = impl_->query(
+        "SELECT id, writer_pid, writer_host, writer_start FROM layer_versions "
+        "WHERE name = ?1 AND status = 'building'");
+    if (!q) return q.error();
+    q->bind(1, info.name);
+    std::vector<std::int64_t> stale;
+    int rc = 0;
+    while ((rc = q->step()) == SQLITE_ROW) {
+      const std::int64_t id = q->i64(0);
+      const long other_pid = q->is_null(1) ? 0 : static_cast<long>(q->i64(1));
+      const bool same_host = q->text(2) == host;
+      const std::int64_t start = q->is_null(3) ? -1 : q->i64(3);
+      // WAL needs shared memory, so every writer of this file runs on this host; a version from
+      // another host comes from a copied file and its writer is not writing here.
+      if (same_host && process_alive(other_pid, start)) {
+        return invalid_argument(impl_->path.string() + ": layer '" + info.name +
+                                "' is being written by process " + std::to_string(other_pid) +
+                                " (version " + std::to_string(id) +
+                                "); one writer per layer at a time");
+      }
+      stale.push_back(id);
+    }
+    if (rc != SQLITE_DONE) return impl_->sql_error("reading layer versions");
+    for (const std::int64_t id : stale) {
+      if (Status d = impl_->drop_version(id); !d) return d;
+    }
+    auto insert = impl_->query(
+        "INSERT INTO layer_versions (name, status, writer_pid, writer_host, writer_start, "
+        "projection, vertical_datum, min_x, min_y, max_x, max_y, west, south, east, north, "
+        "min_level, max_level, max_points, tile_count, point_count, source_points, min_z, max_z, "
+        "level_max_error, options, attribution, started_unix) VALUES (?1, 'building', ?2, ?3, ?4, "
+        "?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, ?18, ?19, ?20, ?21, ?22, "
+        "?23, ?24, ?25)");
+    if (!insert) return insert.error();
+    const std::string errors = nlohmann::json(info.level_max_error).dump();
+    insert->bind(1, info.name).bind(2, static_cast<std::int64_t>(pid)).bind(3, host);
+    if (const std::int64_t start = process_start(pid); start >= 0) {
+      insert->bind(4, start);
+    } else {
+      insert->bind_null(4);
+    }
+    insert->bind(5, geo::to_string(info.projection)).bind(6, info.vertical_datum);
+    insert->bind(7, info.mercator_bounds.min_x).bind(8, info.mercator_bounds.min_y);
+    insert->bind(9, info.mercator_bounds.max_x).bind(10, info.mercator_bounds.max_y);
+    insert->bind(11, info.bounds.west).bind(12, info.bounds.south);
+    insert->bind(13, info.bounds.east).bind(14, info.bounds.north);
+    insert->bind(15, info.min_level).bind(16, info.max_level).bind(17, info.max_points);
+    insert->bind(18, info.point_count).bind(19, info.source_points);
+    insert->bind(20, info.min_z).bind(21, info.max_z).bind(22, errors);
+    insert->bind(23, info.options_json).bind(24, info.attribution).bind(25, now_unix());
+    if (!Impl::done(*insert)) return impl_->sql_error("creating a version of layer '" + info.name + "'");
+    version = sqlite3_last_insert_rowid(impl_->db.get());
+    return {};
+  });
+  if (!s) return s.error();
+  auto writer = std::make_unique<LayerWriter::Impl>();
+  writer->store = impl_.get();
+  writer->name = info.name;
+  writer->version = version;
+  return std::make_unique<LayerWriter>(std::move(writer));
+}
+
+LayerWriter::LayerWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+LayerWriter::~LayerWriter() {
+  if (impl_ && impl_->state == Impl::State::building) abandon();
+}
+
+Status LayerWriter::put(const tile::TinTile& t) {
+  if (Status s = impl_->usable(); !s) return s;
+  TileStore::Impl& store = *impl_->store;
+  const std::string what = impl_->what() + " tile " + t.id.to_string();
+  if (!t.id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + t.id.to_string());
+  const std::size_t vertices = t.vertex_count();
+  if (vertices > 0xFFFFFFFFu || t.triangles.size() > 0xFFFFFFFFu) {
+    return invalid_argument(what + ": too many vertices or triangles");
+  }
+  const auto compressed = tile::compress(tile::encode(t));
+  if (!store.in_batch) {
+    if (Status s = store.exec("BEGIN IMMEDIATE", "starting a batch of tiles"); !s) return s;
+    store.in_batch = true;
+  }
+  auto q = store.query(
+      "INSERT OR REPLACE INTO tiles (version, z, x, y, data, etag, min_z, max_z, "
+      "geometric_error, vertex_count, triangle_count) "
+      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+  Status result;
+  if (!q) {
+    result = q.error();
+  } else {
+    q->bind(1, impl_->version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
+    q->bind_blob(5, compressed).bind(6, make_etag(compressed));
+    q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
+    q->bind(10, static_cast<std::uint64_t>(vertices));
+    q->bind(11, static_cast<std::uint64_t>(t.triangles.size()));
+    if (!TileStore::Impl::done(*q)) result = store.sql_error("writing " + what);
+  }
+  if (result) {
+    ++store.batch_tiles;
+    store.batch_bytes += compressed.size();
+    if (store.batch_tiles >= kBatchTiles || store.batch_bytes >= kBatchBytes) {
+      result = store.commit_batch();
+    }
+  } else {
+    store.rollback_batch();
+  }
+  // A lost batch cannot be recovered tile by tile: the version is unusable from here on.
+  if (!result) impl_->failed = result.error();
+  return result;
+}
+
+Status LayerWriter::flush() {
+  if (Status s = impl_->usable(); !s) return s;
+  Status s = impl_->store->commit_batch();
+  if (!s) impl_->failed = s.error();
+  return s;
+}
+
+Result<std::optional<tile::TinTile>> LayerWriter::get(const geo::TileId& id) {
+  if (Status s = impl_->usable(); !s) return s.error();
+  if (!id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + id.to_string());
+  return impl_->store->decoded_tile(impl_->version, id, impl_->what() + " tile " + id.to_string());
+}
+
+Result<std::vector<geo::TileId>> LayerWriter::tile_ids(std::optional<std::uint32_t> level) {
+  if (Status s = impl_->usable(); !s) return s.error();
+  return impl_->store->ids(impl_->version, level, impl_->what());
+}
+
+Status LayerWriter::publish(const LayerInfo& info) {
+  if (Status s = impl_->usable(); !s) return s;
+  if (info.name != impl_->name) {
+    return invalid_argument(impl_->what() + ": publish() given the metadata of layer '" +
+                            info.name + "'");
+  }
+  if (Status s = validate_info(info); !s) return s;
+  TileStore::Impl& store = *impl_->store;
+  const std::int64_t version = impl_->version;
+  Status s = store.transaction("publishing a layer", [&]() -> Status {
+    auto count = store.query("SELECT count(*) FROM tiles WHERE version = ?1");
+    if (!count) return count.error();
+    count->bind(1, version);
+    if (count->step() != SQLITE_ROW) return store.sql_error("counting the tiles of " + impl_->what());
+    const std::int64_t tiles = count->i64(0);
+
+    auto update = store.query(
+        "UPDATE layer_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
+        "writer_start = NULL, projection = ?2, vertical_datum = ?3, min_x = ?4, min_y = ?5, "
+        "max_x = ?6, max_y = ?7, west = ?8, south = ?9, east = ?10, north = ?11, min_level = ?12, "
+        "max_level = ?13, max_points = ?14, tile_count = ?15, point_count = ?16, "
+        "source_points = ?17, min_z = ?18, max_z = ?19, level_max_error = ?20, options = ?21, "
+        "attribution = ?22, created_unix = ?23 WHERE id = ?1 AND status = 'building'");
+    if (!update) return update.error();
+    update->bind(1, version);
+    update->bind(2, geo::to_string(info.projection)).bind(3, info.vertical_datum);
+    update->bind(4, info.mercator_bounds.min_x).bind(5, info.mercator_bounds.min_y);
+    update->bind(6, info.mercator_bounds.max_x).bind(7, info.mercator_bounds.max_y);
+    update->bind(8, info.bounds.west).bind(9, info.bounds.south);
+    update->bind(10, info.bounds.east).bind(11, info.bounds.north);
+    update->bind(12, info.min_level).bind(13, info.max_level).bind(14, info.max_points);
+    update->bind(15, tiles).bind(16, info.point_count).bind(17, info.source_points);
+    update->bind(18, info.min_z).bind(19, info.max_z);
+    update->bind(20, nlohmann::json(info.level_max_error).dump());
+    update->bind(21, info.options_json).bind(22, info.attribution).bind(23, now_unix());
+    if (!TileStore::Impl::done(*update)) return store.sql_error("publishing " + impl_->what());
+    if (sqlite3_changes(store.db.get()) != 1) {
+      return Error(ErrorCode::internal, store.path.string() + ": " + impl_->what() +
+                                            " disappeared before it was published");
+    }
+
+    std::optional<std::int64_t> previous;
+    auto old = store.query("SELECT version FROM layers WHERE name = ?1");
+    if (!old) return old.error();
+    old->bind(1, impl_->name);
+    if (const int rc = old->step(); rc == SQLITE_ROW) {
+      previous = old->i64(0);
+    } else if (rc != SQLITE_DONE) {
+      return store.sql_error("reading layer '" + impl_->name + "'");
+    }
+    auto upsert = store.query(
+        "INSERT INTO layers (name, version) VALUES (?1, ?2) "
+        "ON CONFLICT (name) DO UPDATE SET version = excluded.version");
+    if (!upsert) return upsert.error();
+    upsert->bind(1, impl_->name).bind(2, version);
+    if (!TileStore::Impl::done(*upsert)) return store.sql_error("publishing " + impl_->what());
+    if (previous) return store.drop_version(*previous);
+    return {};
+  });
+  if (s) impl_->state = Impl::State::published;
+  return s;
+}
+
+void LayerWriter::abandon() {
+  if (impl_->state != Impl::State::building) return;
+  impl_->state = Impl::State::abandoned;
+  TileStore::Impl& store = *impl_->store;
+  const std::int64_t version = impl_->version;
+  // Best effort: if this fails (disk full, say), the next begin_layer of the name collects it.
+  (void)store.transaction("abandoning a layer version",
+                          [&]() -> Status { return store.drop_version(version); });
+}
+
+Status validate_layer_name(std::string_view name) {
+  const auto shown = [&] {
+    std::string s;
+    for (const char c : name.substr(0, 80)) {
+      s += (c >= 0x20 && c < 0x7f) ? std::string(1, c) : "\\x" + std::to_string(static_cast<unsigned char>(c));
+    }
+    return s;
+  };
+  if (name.empty()) return invalid_argument("empty layer name");
+  if (name.size() > 64) {
+    return invalid_argument("layer name '" + shown() + "…' is longer than 64 characters");
+  }
+  if (name.front() == '.') {
+    return invalid_argument("layer name '" + shown() + "' starts with '.'");
+  }
+  for (const char c : name) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                    c == '_' || c == '.' || c == '-';
+    if (!ok) {
+      return invalid_argument("layer name '" + shown() +
+                              "' has a character outside [A-Za-z0-9_.-]");
+    }
+  }
+  return {};
+}
+
+}  // namespace tinstream::store
