@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <mutex>
 
 #include "tinstream/sources/point_source.hpp"
@@ -218,8 +219,9 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
   if (gt[2] == 0 && gt[4] == 0) {
     const double x0 = gt[0] + 0.5 * gt[1], x1 = gt[0] + (w - 0.5) * gt[1];
     const double y0 = gt[3] + 0.5 * gt[5], y1 = gt[3] + (ht - 0.5) * gt[5];
-    info.bounds = SourceBounds{std::min(x0, x1), std::min(y0, y1), 0,
-                               std::max(x0, x1), std::max(y0, y1), 0};
+    const double unknown = std::numeric_limits<double>::quiet_NaN();
+    info.bounds = SourceBounds{std::min(x0, x1), std::min(y0, y1), unknown,
+                               std::max(x0, x1), std::max(y0, y1), unknown};
     int ok_min = 0, ok_max = 0;
     const double zmin = GDALGetRasterMinimum(band, &ok_min);
     const double zmax = GDALGetRasterMaximum(band, &ok_max);

@@ -41,7 +41,8 @@ struct LinearUnit {
   double to_metre = 1;  // 1, 0.3048, 1200/3937, …
 };
 
-// Axis-aligned bounds in source units.
+// Axis-aligned bounds in source units (cell centres for rasters). min_z/max_z are NaN when the
+// file does not say (rasters without statistics).
 struct SourceBounds {
   double min_x = 0, min_y = 0, min_z = 0;
   double max_x = 0, max_y = 0, max_z = 0;
