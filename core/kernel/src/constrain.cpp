@@ -67,8 +67,34 @@ VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t
     } else {
       mesh_.set_edge_constrained(e, i, true);
     }
+    // c1-c2 was protected while X was inserted; now unconstrained it may not be Delaunay.
+    std::vector<std::array<VertexId, 2>> edges{{c1, c2}};
+    restore_delaunay(edges);
   }
   return r.vertex;
+}
+
+// Lawson flips starting from the given edges (vertex pairs) until every unconstrained edge
+// reachable through flips is locally Delaunay.
+void Triangulation::restore_delaunay(std::vector<std::array<VertexId, 2>>& edges) {
+  while (!edges.empty()) {
+    const auto [x, y] = edges.back();
+    edges.pop_back();
+    int i;
+    const TriangleId f = find_edge(x, y, &i);
+    if (f == kNone || mesh_.constrained(f, i)) continue;
+    const TriangleId u = mesh_.tri(f).n[i];
+    if (u == kNone || mesh_.is_ghost(f) || mesh_.is_ghost(u)) continue;
+    const Triangle& F = mesh_.tri(f);
+    const VertexId q = mesh_.tri(u).v[mesh_.mirror(f, i)];
+    if (incircle(mesh_.xy(F.v[0]), mesh_.xy(F.v[1]), mesh_.xy(F.v[2]), mesh_.xy(q)) <= 0.0) continue;
+    const VertexId p = F.v[i], w = F.v[prev3(i)], uu = F.v[next3(i)];
+    mesh_.flip(f, i);
+    edges.push_back({p, uu});
+    edges.push_back({uu, q});
+    edges.push_back({q, w});
+    edges.push_back({w, p});
+  }
 }
 
 Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
@@ -177,25 +203,7 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
     t = find_edge(s, end, &idx);
     if (t == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
     mesh_.set_edge_constrained(t, idx, true);
-    // Restore the constrained Delaunay property around the new edges.
-    while (!fresh.empty()) {
-      const auto [x, y] = fresh.back();
-      fresh.pop_back();
-      int i;
-      const TriangleId f = find_edge(x, y, &i);
-      if (f == kNone || mesh_.constrained(f, i)) continue;
-      const TriangleId u = mesh_.tri(f).n[i];
-      if (mesh_.is_ghost(f) || mesh_.is_ghost(u)) continue;
-      const Triangle& F = mesh_.tri(f);
-      const VertexId q = mesh_.tri(u).v[mesh_.mirror(f, i)];
-      if (incircle(mesh_.xy(F.v[0]), mesh_.xy(F.v[1]), mesh_.xy(F.v[2]), mesh_.xy(q)) <= 0.0) continue;
-      const VertexId p = F.v[i], w = F.v[prev3(i)], uu = F.v[next3(i)];
-      mesh_.flip(f, i);
-      fresh.push_back({p, uu});
-      fresh.push_back({uu, q});
-      fresh.push_back({q, w});
-      fresh.push_back({w, p});
-    }
+    restore_delaunay(fresh);
   }
   hint_ = mesh_.vertex_triangle(a0);
   return {};

@@ -1,1 +1,149 @@
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "test_support.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+
+namespace tinstream::kernel {
+namespace {
+
+void expect_valid(const Triangulation& t) {
+  const Status s = t.check_valid(CheckLevel::expensive);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+}
+
+TEST(Constraint, ExistingEdgeBecomesConstrained) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 0}).vertex, b = t.insert({1, 0, 0}).vertex;
+  t.insert({0, 1, 0});
+  ASSERT_FALSE(t.is_constrained_edge(a, b));
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  EXPECT_TRUE(t.is_constrained_edge(a, b));
+  EXPECT_TRUE(t.is_constrained_edge(b, a));
+  expect_valid(t);
+}
+
+TEST(Constraint, SegmentAcrossManyTrianglesBecomesAnEdge) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(2000, 51));
+  const auto a = t.insert({0.0, 0.3, 0}).vertex, b = t.insert({1.0, 0.71, 0}).vertex;
+  ASSERT_FALSE(t.is_edge(a, b));
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  EXPECT_TRUE(t.is_constrained_edge(a, b));
+  expect_valid(t);
+}
+
+TEST(Constraint, VerticesOnTheSegmentSplitIt) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(500, 52));
+  const auto a = t.insert({0.0, 0.5, 0}).vertex;
+  const auto m1 = t.insert({0.25, 0.5, 0}).vertex;
+  const auto m2 = t.insert({0.75, 0.5, 0}).vertex;
+  const auto b = t.insert({1.0, 0.5, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  EXPECT_TRUE(t.is_constrained_edge(a, m1));
+  EXPECT_TRUE(t.is_constrained_edge(m1, m2));
+  EXPECT_TRUE(t.is_constrained_edge(m2, b));
+  EXPECT_FALSE(t.is_edge(a, b));
+  expect_valid(t);
+}
+
+TEST(Constraint, CrossingConstraintsMeetAtANewInterpolatedVertex) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 0}).vertex, c = t.insert({2, 2, 10}).vertex;
+  const auto b = t.insert({2, 0, 4}).vertex, d = t.insert({0, 2, 8}).vertex;
+  t.insert_bulk(test::scaled(test::uniform_points(100, 53), 2.0, 0.0));
+  ASSERT_TRUE(t.insert_constraint(a, c).ok());
+  const std::size_t before = t.num_vertices();
+  ASSERT_TRUE(t.insert_constraint(b, d).ok());
+  EXPECT_EQ(t.num_vertices(), before + 1);
+  const auto x = t.find_vertex(1.0, 1.0);
+  ASSERT_TRUE(x.has_value());
+  EXPECT_DOUBLE_EQ(t.z(*x), 6.0);  // halfway along b (4) -> d (8)
+  EXPECT_TRUE(t.is_constrained_edge(a, *x) || t.check_valid(CheckLevel::expensive).ok());
+  expect_valid(t);
+}
+
+TEST(Constraint, ConstrainedEdgeSurvivesLaterInsertions) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 0}).vertex, b = t.insert({10, 0, 0}).vertex;
+  t.insert({5, 1, 0});
+  t.insert({5, -1, 0});
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  // points inside the circumcircles on both sides would flip a-b in an unconstrained mesh
+  t.insert({5, 0.5, 0});
+  t.insert({5, -0.5, 0});
+  t.insert({2, 0.1, 0});
+  EXPECT_TRUE(t.is_constrained_edge(a, b));
+  expect_valid(t);
+  const auto m = t.insert({5, 0, 0});  // exactly on the constrained edge: splits it
+  EXPECT_TRUE(t.is_constrained_edge(a, m.vertex));
+  EXPECT_TRUE(t.is_constrained_edge(m.vertex, b));
+  expect_valid(t);
+}
+
+TEST(Constraint, ManyRandomNonCrossingSegmentsKeepValidity) {
+  Triangulation t(Rect{0, 0, 1, 1});
+  t.insert_bulk(test::uniform_points(3000, 54));
+  std::mt19937_64 rng(55);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  // one short segment per cell of a 20 x 20 grid: they cannot cross
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) {
+      const Point3 p{(i + 0.1 + 0.8 * u(rng)) / 20.0, (j + 0.1 + 0.8 * u(rng)) / 20.0, 1.0};
+      const Point3 q{(i + 0.1 + 0.8 * u(rng)) / 20.0, (j + 0.1 + 0.8 * u(rng)) / 20.0, 2.0};
+      ASSERT_TRUE(t.insert_constraint(p, q).ok());
+    }
+  }
+  expect_valid(t);
+  EXPECT_EQ(t.constraint_segments().size(), 400u);
+}
+
+TEST(Constraint, CrossingRandomSegmentsKeepValidity) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(500, 56));
+  std::mt19937_64 rng(57);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 30; ++k) {
+    const Status s = t.insert_constraint(Point3{u(rng), u(rng), 0}, Point3{u(rng), u(rng), 1}).ok()
+                         ? Status{}
+                         : Status{Error(ErrorCode::internal, "failed")};
+    ASSERT_TRUE(s.ok()) << k;
+    ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+  }
+}
+
+TEST(Constraint, TileBorderOnALatticeSplitsAtEveryLatticePoint) {
+  Triangulation t;
+  t.insert_bulk(test::lattice_points(11));
+  const auto a = *t.find_vertex(0, 0), b = *t.find_vertex(10, 0);
+  const auto c = *t.find_vertex(10, 10), d = *t.find_vertex(0, 10);
+  for (auto [p, q] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, d}, std::pair{d, a}}) {
+    ASSERT_TRUE(t.insert_constraint(p, q).ok());
+  }
+  const auto e = *t.find_vertex(0, 3), f = *t.find_vertex(10, 7);
+  ASSERT_TRUE(t.insert_constraint(e, f).ok());
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_TRUE(t.is_constrained_edge(*t.find_vertex(i, 0), *t.find_vertex(i + 1, 0)));
+  }
+  expect_valid(t);
+}
+
+TEST(Constraint, BadRequestsAreReported) {
+  Triangulation t;
+  const auto a = t.insert({0, 0, 0}).vertex, b = t.insert({1, 0, 0}).vertex;
+  EXPECT_EQ(t.insert_constraint(a, b).error().code, ErrorCode::unsupported);  // still 1-D
+  t.insert({0, 1, 0});
+  EXPECT_EQ(t.insert_constraint(a, a).error().code, ErrorCode::invalid_argument);
+  EXPECT_EQ(t.insert_constraint(a, 999).error().code, ErrorCode::invalid_argument);
+  Triangulation d(Rect{0, 0, 1, 1});
+  d.insert({0, 0, 0});
+  d.insert({1, 0, 0});
+  d.insert({0, 1, 0});
+  EXPECT_FALSE(d.insert_constraint(Point3{0.5, 0.5, 0}, Point3{2, 2, 0}).ok());
+}
+
+}  // namespace
+}  // namespace tinstream::kernel

@@ -1,1 +1,219 @@
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <random>
+#include <set>
+
+#include "test_support.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+
+namespace tinstream::kernel {
+namespace {
+
+using test::sorted;
+
+void expect_valid(const Triangulation& t) {
+  const Status s = t.check_valid(CheckLevel::expensive);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+}
+
+std::set<VertexTriple> triangle_set(const Triangulation& t) {
+  std::set<VertexTriple> s;
+  for (auto tr : t.finite_triangles()) s.insert(sorted(tr));
+  return s;
+}
+
+TEST(Removal, RemovingAnInteriorVertexGivesTheTriangulationWithoutIt) {
+  // General position: the Delaunay triangulation is unique, so removing a vertex must give the
+  // same triangles as building from scratch without that point.
+  const auto pts = test::uniform_points(400, 31);
+  Triangulation t;
+  std::vector<VertexId> ids;
+  for (const auto& p : pts) ids.push_back(t.insert(p).vertex);
+  std::mt19937 rng(5);
+  for (int round = 0; round < 40; ++round) {
+    const std::size_t victim = rng() % pts.size();
+    if (!t.is_vertex(ids[victim])) continue;
+    ASSERT_TRUE(t.remove_vertex(ids[victim]).ok());
+    ids[victim] = kNone;
+    Triangulation fresh;
+    std::map<VertexId, VertexId> fresh_to_t;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (ids[i] != kNone) fresh_to_t[fresh.insert(pts[i]).vertex] = ids[i];
+    }
+    std::set<VertexTriple> expected;
+    for (auto tr : fresh.finite_triangles()) {
+      expected.insert(sorted({fresh_to_t[tr[0]], fresh_to_t[tr[1]], fresh_to_t[tr[2]]}));
+    }
+    ASSERT_EQ(triangle_set(t), expected) << "after removing input point " << victim;
+  }
+  expect_valid(t);
+}
+
+TEST(Removal, PreviewEqualsTheTrianglesThatRemovalCreates) {
+  const auto pts = test::clustered_points(500, 8);
+  Triangulation t;
+  t.insert_bulk(pts);
+  std::mt19937 rng(9);
+  for (int round = 0; round < 100; ++round) {
+    const auto v = static_cast<VertexId>(1 + rng() % (t.vertex_id_bound() - 1));
+    if (!t.is_vertex(v)) continue;
+    const auto before = triangle_set(t);
+    const auto preview = t.removal_preview(v);
+    ASSERT_TRUE(preview.ok());
+    ASSERT_EQ(triangle_set(t), before) << "preview changed the triangulation";
+    ASSERT_TRUE(t.remove_vertex(v).ok());
+    std::set<VertexTriple> created;
+    for (const auto& tr : triangle_set(t)) {
+      if (!before.count(tr)) created.insert(tr);
+    }
+    std::set<VertexTriple> previewed;
+    for (auto tr : *preview) previewed.insert(sorted(tr));
+    ASSERT_EQ(previewed, created) << "vertex " << v;
+    for (const auto& tr : *preview) {  // counter-clockwise as promised
+      ASSERT_GT(orient2d(t.xy(tr[0]), t.xy(tr[1]), t.xy(tr[2])), 0.0);
+    }
+  }
+}
+
+struct Generator {
+  const char* name;
+  std::vector<Point3> (*make)();
+};
+
+const Generator kGenerators[] = {
+    {"uniform", [] { return test::uniform_points(250, 41); }},
+    {"clustered", [] { return test::clustered_points(250, 42); }},
+    {"lattice", [] { return test::lattice_points(14); }},
+    {"circle", [] { return test::circle_points(48); }},
+    {"duplicates", [] { return test::duplicate_heavy_points(300, 43); }},
+    {"ulp_apart", [] { return test::ulp_points(250, 44); }},
+    {"mercator_tile", [] { return test::mercator_tile_points(250, 45); }},
+    {"collinear_plus_one", [] {
+       auto p = test::collinear_points(40, 46);
+       p.push_back({0.0, 1.0, 0.0, 0.0});
+       return p;
+     }},
+};
+
+class RemovalProperty : public ::testing::TestWithParam<Generator> {};
+
+TEST_P(RemovalProperty, RemovingAllPointsInRandomOrderKeepsTheStructureValid) {
+  const auto pts = GetParam().make();
+  Triangulation t;
+  t.insert_bulk(pts);
+  std::vector<VertexId> alive;
+  for (VertexId v = 1; v < t.vertex_id_bound(); ++v) {
+    if (t.is_vertex(v)) alive.push_back(v);
+  }
+  std::shuffle(alive.begin(), alive.end(), std::mt19937(77));
+  std::size_t left = alive.size();
+  for (VertexId v : alive) {
+    const Status s = t.remove_vertex(v);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    --left;
+    ASSERT_EQ(t.num_vertices(), left);
+    ASSERT_FALSE(t.is_vertex(v));
+    ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+  }
+  EXPECT_EQ(t.num_finite_triangles(), 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Fixtures, RemovalProperty, ::testing::ValuesIn(kGenerators),
+                         [](const auto& p) { return std::string(p.param.name); });
+
+TEST(Removal, HullVertexRemovalShrinksTheHull) {
+  Triangulation t;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{4, 0, 0}, Point3{4, 4, 0}, Point3{0, 4, 0},
+                          Point3{2, 1, 0}, Point3{1, 2, 0}, Point3{3, 2, 0}}) {
+    t.insert(p);
+  }
+  const VertexId corner = *t.find_vertex(4, 4);
+  ASSERT_TRUE(t.is_on_hull(corner));
+  ASSERT_TRUE(t.remove_vertex(corner).ok());
+  expect_valid(t);
+  EXPECT_NEAR(static_cast<double>(test::triangle_area_sum(t)),
+              static_cast<double>(test::hull_area({{0, 0}, {4, 0}, {0, 4}, {2, 1}, {1, 2}, {3, 2}})), 1e-12);
+}
+
+TEST(Removal, RemovingAVertexThatLeavesCollinearPointsDropsAllTriangles) {
+  Triangulation t;
+  for (int i = 0; i < 5; ++i) t.insert({double(i), 0, 0});
+  const auto apex = t.insert({2, 3, 0});
+  ASSERT_EQ(t.num_finite_triangles(), 4u);
+  ASSERT_TRUE(t.removal_preview(apex.vertex)->empty());
+  ASSERT_TRUE(t.remove_vertex(apex.vertex).ok());
+  EXPECT_EQ(t.num_finite_triangles(), 0u);
+  EXPECT_EQ(t.dimension(), 1);
+  EXPECT_EQ(t.num_vertices(), 5u);
+  // and it comes back when a point off the line arrives
+  t.insert({1, -1, 0});
+  EXPECT_EQ(t.num_finite_triangles(), 4u);
+  expect_valid(t);
+}
+
+TEST(Removal, RemovedVertexIdIsNotReused) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(50, 3));
+  const VertexId v = 10;
+  ASSERT_TRUE(t.remove_vertex(v).ok());
+  const auto r = t.insert({0.123, 0.456, 0});
+  EXPECT_NE(r.vertex, v);
+  EXPECT_FALSE(t.is_vertex(v));
+  EXPECT_FALSE(t.remove_vertex(v).ok());
+}
+
+TEST(Removal, ConstraintEndpointIsRefused) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(100, 12));
+  const auto a = t.insert({0.1, 0.1, 0}).vertex, b = t.insert({0.9, 0.8, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  const Status s = t.remove_vertex(a);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::invalid_argument);
+  EXPECT_NE(s.error().message.find("constrained"), std::string::npos);
+  EXPECT_FALSE(t.removal_preview(a).ok());
+  EXPECT_TRUE(t.is_vertex(a));
+  expect_valid(t);
+}
+
+TEST(Removal, VertexSplittingAStraightConstraintRejoinsIt) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(200, 13, 0.0, 1.0));
+  const auto a = t.insert({0.0, 0.5, 0}).vertex;
+  const auto m = t.insert({0.5, 0.5, 0}).vertex;
+  const auto b = t.insert({1.0, 0.5, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(a, b).ok());
+  ASSERT_TRUE(t.is_constrained_edge(a, m) || !t.is_edge(a, m));
+  const auto preview = t.removal_preview(m);
+  ASSERT_TRUE(preview.ok());
+  ASSERT_TRUE(t.remove_vertex(m).ok());
+  expect_valid(t);
+  // the chain from a to b is still constrained and no longer passes through m
+  EXPECT_FALSE(t.is_vertex(m));
+  std::size_t on_line = 0;
+  for (VertexId v = 1; v < t.vertex_id_bound(); ++v) {
+    if (t.is_vertex(v) && t.xy(v).y == 0.5) ++on_line;
+  }
+  EXPECT_EQ(on_line, 2u);
+  EXPECT_TRUE(t.is_constrained_edge(a, b));
+}
+
+TEST(Removal, RejoiningOnTheHullKeepsTheBorderConstrained) {
+  Triangulation t(Rect{0, 0, 1, 1});
+  t.insert_bulk(test::uniform_points(100, 14, 0.01, 0.99));
+  const auto c0 = t.insert({0, 0, 0}).vertex, c1 = t.insert({1, 0, 0}).vertex;
+  t.insert({1, 1, 0});
+  t.insert({0, 1, 0});
+  ASSERT_TRUE(t.insert_constraint(c0, c1).ok());
+  const auto mid = t.insert({0.5, 0.0, 0}).vertex;  // lands on the constrained hull edge
+  ASSERT_TRUE(t.is_constrained_edge(c0, mid));
+  ASSERT_TRUE(t.is_constrained_edge(mid, c1));
+  ASSERT_TRUE(t.remove_vertex(mid).ok());
+  EXPECT_TRUE(t.is_constrained_edge(c0, c1));
+  expect_valid(t);
+}
+
+}  // namespace
+}  // namespace tinstream::kernel

@@ -168,6 +168,7 @@ class Triangulation {
   bool in_conflict(TriangleId nb, const XY& p) const;
 
   Status insert_segment(VertexId a, VertexId b);
+  void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
   VertexId insert_intersection(VertexId a, VertexId b, TriangleId t, int edge);
 
   struct Hole;
