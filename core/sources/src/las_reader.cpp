@@ -98,7 +98,7 @@ class LasSource final : public PointSource {
   // Decides the default class filter: scans class bytes until the first ground point.
   Status choose_default_filter() {
     bool has_ground = false;
-    std::uint64_t scanned = 0;
+    std::uint64_t first_ground = 0;  // 1-based record number
     while (next_record_ < h_.point_count && !has_ground) {
       if (auto st = refill(); !st.ok()) return st;
       for (std::size_t i = 0; i < buf_count_; ++i) {
@@ -106,16 +106,16 @@ class LasSource final : public PointSource {
         if (las::record_class(rec, h_.point_format) == 2 &&
             !las::record_withheld(rec, h_.point_format)) {
           has_ground = true;
+          first_ground = buf_first_record_ + i + 1;
           break;
         }
       }
-      scanned = next_record_;
     }
     std::vector<bool> keep(256, false);
     if (has_ground) {
       keep[2] = true;
-      info_.notes.push_back("class filter: file has ground points (class 2, first seen within " +
-                            std::to_string(scanned) + " records): keeping class 2 only");
+      info_.notes.push_back("class filter: the file has ground points (class 2; the first is "
+                            "record " + std::to_string(first_ground) + "): keeping class 2 only");
     } else {
       std::fill(keep.begin(), keep.end(), true);
       keep[7] = keep[18] = false;

@@ -1,7 +1,10 @@
 #include "tinstream/transform/reprojector.hpp"
 
 #include <proj.h>
+#include <proj_experimental.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 
@@ -56,15 +59,174 @@ std::optional<AxisUnit> axis_unit(PJ_CONTEXT* ctx, const PJ* crs, int axis) {
   return u;
 }
 
+
+struct ListDeleter {
+  void operator()(PJ_OBJ_LIST* l) const { proj_list_destroy(l); }
+};
+struct FactoryDeleter {
+  void operator()(PJ_OPERATION_FACTORY_CONTEXT* f) const {
+    proj_operation_factory_context_destroy(f);
+  }
+};
+
+// Operations from `source` (with a vertical part) to EPSG:4979, best first, with the given grid
+// availability rule.
+std::vector<PjPtr> candidate_operations(PJ_CONTEXT* ctx, const PJ* source, const PJ* target,
+                                        PROJ_GRID_AVAILABILITY_USE grids,
+                                        const std::optional<std::array<double, 4>>& area) {
+  std::vector<PjPtr> out;
+  std::unique_ptr<PJ_OPERATION_FACTORY_CONTEXT, FactoryDeleter> factory(
+      proj_create_operation_factory_context(ctx, nullptr));
+  if (!factory) return out;
+  proj_operation_factory_context_set_spatial_criterion(
+      ctx, factory.get(), PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
+  proj_operation_factory_context_set_grid_availability_use(ctx, factory.get(), grids);
+  if (area) {
+    proj_operation_factory_context_set_area_of_interest(ctx, factory.get(), (*area)[0],
+                                                        (*area)[1], (*area)[2], (*area)[3]);
+  }
+  std::unique_ptr<PJ_OBJ_LIST, ListDeleter> list(
+      proj_create_operations(ctx, source, target, factory.get()));
+  if (!list) return out;
+  const int n = proj_list_get_count(list.get());
+  for (int i = 0; i < n; ++i) out.emplace_back(proj_list_get(ctx, list.get(), i));
+  return out;
+}
+
+std::string grids_of(PJ_CONTEXT* ctx, const PJ* op, bool missing_only) {
+  std::string names;
+  const int n = proj_coordoperation_get_grid_used_count(ctx, op);
+  for (int i = 0; i < n; ++i) {
+    const char* short_name = nullptr;
+    int available = 0;
+    if (proj_coordoperation_get_grid_used(ctx, op, i, &short_name, nullptr, nullptr, nullptr,
+                                          nullptr, nullptr, &available) == 0) {
+      continue;
+    }
+    if (missing_only && available != 0) continue;
+    if (short_name != nullptr) names += (names.empty() ? "" : ", ") + std::string(short_name);
+  }
+  return names;
+}
+
 }  // namespace
 
 struct Reprojector::Impl {
   ContextPtr ctx;
   PjPtr horizontal;  // source horizontal CRS → EPSG:4326, lon/lat order
   PjPtr geoid;       // lon/lat degrees + H → h, or null
+  PjPtr full3d;      // vertical_datum=crs: source (x, y, z native) → lon, lat, h; else null
+
+  Status plan_vertical_crs(const PjPtr& compound, const PjPtr& horizontal_crs, PjPtr& vertical,
+                           PJ_TYPE htype, const sources::SourceInfo& info,
+                           const ReprojectOptions& options);
   ReprojectionPlan plan;
   std::string path;
 };
+
+// vertical_datum=crs: let PROJ go from the source's compound (or 3D) CRS to EPSG:4979.
+Status Reprojector::Impl::plan_vertical_crs(const PjPtr& compound, const PjPtr& horizontal_crs,
+                                            PjPtr& vertical, PJ_TYPE htype,
+                                            const sources::SourceInfo& info,
+                                            const ReprojectOptions& options) {
+  PJ_CONTEXT* pctx = ctx.get();
+  const std::string& file = info.path;
+  if (options.z_unit) {
+    return invalid_argument(file + ": a z unit cannot be combined with vertical_datum=crs: PROJ "
+                            "takes heights in the vertical CRS's own unit");
+  }
+  PjPtr source3d;
+  if (vertical && compound) {
+    source3d.reset(proj_clone(pctx, compound.get()));
+  } else if (htype == PJ_TYPE_GEOGRAPHIC_3D_CRS) {
+    source3d.reset(proj_clone(pctx, horizontal_crs.get()));
+  } else if (!info.vertical_crs.empty() && options.crs.empty()) {
+    PjPtr v(proj_create(pctx, info.vertical_crs.c_str()));
+    if (!v || proj_get_type(v.get()) != PJ_TYPE_VERTICAL_CRS) {
+      return unsupported(
+          file + ": the file's vertical CRS code " + info.vertical_crs +
+          " is not a vertical CRS that PROJ knows (LAS writers sometimes store the datum code, "
+          "e.g. EPSG:5103 for NAVD88, whose height CRSs are EPSG:5703 in metres and EPSG:6360 "
+          "in US feet): give a compound CRS with --crs, e.g. EPSG:2903+6360");
+    }
+    source3d.reset(proj_create_compound_crs(pctx, "source", horizontal_crs.get(), v.get()));
+    vertical = std::move(v);
+  }
+  if (!source3d) {
+    return invalid_argument(file + ": vertical_datum=crs needs a vertical CRS: give a compound "
+                            "CRS such as EPSG:32633+5773 with --crs");
+  }
+  const PJ* vcrs = vertical ? vertical.get() : source3d.get();
+  const std::string vname = proj_get_name(vcrs) != nullptr ? proj_get_name(vcrs) : "?";
+  if (auto vu = axis_unit(pctx, vcrs, vertical ? 0 : 2)) {
+    plan.z_unit = sources::LinearUnit{vu->name, vu->factor};
+  }
+  plan.z_unit_rule = "the vertical CRS (" + vname + "), converted by PROJ";
+  plan.notes.clear();
+
+  // Area of interest from the file's bounds, so that PROJ picks the operation valid there.
+  std::optional<std::array<double, 4>> area;
+  if (info.bounds) {
+    PJ_COORD corners[4] = {proj_coord(info.bounds->min_x, info.bounds->min_y, 0, 0),
+                           proj_coord(info.bounds->max_x, info.bounds->min_y, 0, 0),
+                           proj_coord(info.bounds->min_x, info.bounds->max_y, 0, 0),
+                           proj_coord(info.bounds->max_x, info.bounds->max_y, 0, 0)};
+    std::array<double, 4> a = {180, 90, -180, -90};
+    bool ok = true;
+    for (PJ_COORD& c : corners) {
+      c = proj_trans(horizontal.get(), PJ_FWD, c);
+      if (!std::isfinite(c.v[0]) || !std::isfinite(c.v[1])) ok = false;
+      a[0] = std::min(a[0], c.v[0]), a[1] = std::min(a[1], c.v[1]);
+      a[2] = std::max(a[2], c.v[0]), a[3] = std::max(a[3], c.v[1]);
+    }
+    if (ok) area = a;
+  }
+  PjPtr target(proj_create(pctx, "EPSG:4979"));
+  if (!target) return Error(ErrorCode::internal, "PROJ cannot build EPSG:4979");
+  auto usable = candidate_operations(pctx, source3d.get(), target.get(),
+                                     PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID,
+                                     area);
+  PjPtr chosen;
+  for (PjPtr& op : usable) {
+    if (op && proj_coordoperation_has_ballpark_transformation(pctx, op.get()) == 0) {
+      chosen = std::move(op);
+      break;
+    }
+  }
+  if (!chosen) {
+    auto all = candidate_operations(pctx, source3d.get(), target.get(),
+                                    PROJ_GRID_AVAILABILITY_IGNORED, area);
+    std::string missing;
+    for (PjPtr& op : all) {
+      if (op && proj_coordoperation_has_ballpark_transformation(pctx, op.get()) == 0) {
+        missing = grids_of(pctx, op.get(), true);
+        if (!missing.empty()) break;
+      }
+    }
+    if (!missing.empty()) {
+      const std::string first = missing.substr(0, missing.find(','));
+      const PJ_INFO pinfo = proj_info();
+      return not_found(file + ": converting heights in " + vname +
+                       " to WGS84 ellipsoidal heights needs the grid(s) " + missing +
+                       ", which PROJ cannot find (searched: " +
+                       (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
+                       "). Install it: `projsync --file " + first +
+                       "` (or download it from https://cdn.proj.org/" + first +
+                       ") into a directory listed in PROJ_DATA; or choose another "
+                       "--vertical-datum (ellipsoidal, egm96, egm2008)");
+    }
+    return unsupported(file + ": PROJ knows no transformation from heights in " + vname +
+                       " to WGS84 ellipsoidal heights other than a ballpark no-op; "
+                       "choose --vertical-datum explicitly (ellipsoidal, egm96, egm2008)");
+  }
+  plan.geoid_grid = grids_of(pctx, chosen.get(), false);
+  if (const char* name = proj_get_name(chosen.get())) {
+    plan.notes.push_back(std::string("heights converted by PROJ operation: ") + name);
+  }
+  full3d.reset(proj_normalize_for_visualization(pctx, chosen.get()));
+  if (!full3d) return unsupported(file + ": cannot normalise the 3D operation axis order");
+  return {};
+}
 
 Reprojector::Reprojector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Reprojector::Reprojector(Reprojector&&) noexcept = default;
@@ -73,7 +235,9 @@ Reprojector::~Reprojector() = default;
 const ReprojectionPlan& Reprojector::plan() const { return impl_->plan; }
 
 Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertical_datum) {
-  if (vertical_datum.empty() || vertical_datum == "ellipsoidal") return std::vector<std::string>{};
+  if (vertical_datum.empty() || vertical_datum == "ellipsoidal" || vertical_datum == "crs") {
+    return std::vector<std::string>{};
+  }
   if (vertical_datum == "egm96") {
     return std::vector<std::string>{"us_nga_egm96_15.tif", "egm96_15.gtx"};
   }
@@ -85,7 +249,7 @@ Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertic
     return std::vector<std::string>{vertical_datum};
   }
   return invalid_argument("unknown vertical datum '" + vertical_datum +
-                          "': use ellipsoidal, egm96, egm2008 or a PROJ geoid grid file name");
+                          "': use ellipsoidal, egm96, egm2008, crs or a PROJ geoid grid file name");
 }
 
 Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
@@ -187,6 +351,14 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
                        proj_message(ctx));
   }
 
+  if (options.vertical_datum == "crs") {
+    if (auto st = impl->plan_vertical_crs(crs, horizontal, vertical, htype, info, options);
+        !st.ok()) {
+      return st.error();
+    }
+    return Reprojector(std::move(impl));
+  }
+
   // Geoid.
   auto grids = geoid_grid_candidates(options.vertical_datum);
   if (!grids.ok()) return Error(grids.error().code, file + ": " + grids.error().message);
@@ -211,18 +383,43 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
           file + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " +
           names + ", which PROJ cannot find (searched: " +
           (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
-          "). Install it: `projsync --file " + grids->front() +
-          "` (or download it from https://cdn.proj.org/" + grids->front() +
-          "), or the Debian package proj-data, into a directory listed in PROJ_DATA; or use "
-          "--vertical-datum ellipsoidal if the heights are already ellipsoidal");
+          "). Install it with `projsync --file " + grids->front() +
+          "`, or download https://cdn.proj.org/" + grids->front() +
+          " into a directory listed in PROJ_DATA (Debian's proj-data package holds only a few "
+          "grids); or use --vertical-datum ellipsoidal if the heights are already ellipsoidal");
     }
   }
   return Reprojector(std::move(impl));
 }
 
+Status Reprojector::transform_3d(std::span<const sources::SourcePoint> in,
+                                 std::vector<GeoPoint>& out) {
+  for (std::size_t i = 0; i < in.size(); ++i) out[i] = GeoPoint{in[i].x, in[i].y, in[i].z};
+  if (in.empty()) return {};
+  PJ* op = impl_->full3d.get();
+  proj_errno_reset(op);
+  proj_trans_generic(op, PJ_FWD, &out[0].lon, sizeof(GeoPoint), out.size(), &out[0].lat,
+                     sizeof(GeoPoint), out.size(), &out[0].h, sizeof(GeoPoint), out.size(),
+                     nullptr, 0, 0);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    GeoPoint& g = out[i];
+    if (!std::isfinite(g.lon) || !std::isfinite(g.lat) || !std::isfinite(g.h) ||
+        std::abs(g.lat) > 90) {
+      return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) + ": (" +
+                          std::to_string(in[i].x) + ", " + std::to_string(in[i].y) + ", " +
+                          std::to_string(in[i].z) + ") cannot be transformed from " +
+                          impl_->plan.crs_name + " to WGS84 ellipsoidal height (outside the "
+                          "CRS's domain or the vertical grid?)");
+    }
+    if (g.lon > 180 || g.lon < -180) g.lon = std::remainder(g.lon, 360.0);
+  }
+  return {};
+}
+
 Status Reprojector::transform(std::span<const sources::SourcePoint> in,
                               std::vector<GeoPoint>& out) {
   out.resize(in.size());
+  if (impl_->full3d) return transform_3d(in, out);
   const double zf = impl_->plan.z_unit.to_metre;
   for (std::size_t i = 0; i < in.size(); ++i) {
     out[i] = GeoPoint{in[i].x, in[i].y, in[i].z * zf};

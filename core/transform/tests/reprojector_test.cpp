@@ -280,5 +280,81 @@ TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
   EXPECT_NEAR(out[0].h - 100.0, -22.47, 0.5);
 }
 
+
+TEST(Reprojector, VerticalCrsModeUsesProjsGeoidForEgm96Heights) {
+  ReprojectOptions crs_mode;
+  crs_mode.vertical_datum = "crs";
+  auto rp = Reprojector::create(info_with("EPSG:4326+5773"), crs_mode);  // WGS 84 + EGM96 height
+  ReprojectOptions egm;
+  egm.vertical_datum = "egm96";
+  auto ref = Reprojector::create(info_with("EPSG:4326"), egm);
+  if (!ref.ok()) {
+    // Without the grid, both must say so.
+    ASSERT_FALSE(rp.ok());
+    EXPECT_EQ(rp.error().code, ErrorCode::not_found);
+    GTEST_SKIP() << "EGM96 grid not installed";
+  }
+  ASSERT_TRUE(rp.ok()) << rp.error().message;
+  EXPECT_FALSE(rp->plan().geoid_grid.empty());
+  std::vector<SourcePoint> in = {{-123.071, 44.0507, 100.0, 1, 0}, {6.1, 49.8, 300.0, 2, 0}};
+  std::vector<GeoPoint> a, b;
+  ASSERT_TRUE(rp->transform(in, a).ok());
+  ASSERT_TRUE(ref->transform(in, b).ok());
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    EXPECT_NEAR(a[i].lon, in[i].x, 1e-9);
+    EXPECT_NEAR(a[i].lat, in[i].y, 1e-9);
+    EXPECT_NEAR(a[i].h, b[i].h, 0.01);
+  }
+  EXPECT_NEAR(a[0].h - 100.0, -22.47, 0.5);
+}
+
+TEST(Reprojector, VerticalCrsModeNamesMissingGeoidGrids) {
+  ReprojectOptions o;
+  o.vertical_datum = "crs";
+  SourceInfo info = info_with("EPSG:26910+5703", "/data/oregon.las");  // NAD83 UTM 10N + NAVD88
+  info.bounds = sources::SourceBounds{493000, 4877000, 0, 494000, 4878000, 0};
+  auto rp = Reprojector::create(info, o);
+  if (rp.ok()) GTEST_SKIP() << "NAVD88 geoid grid installed here: " << rp->plan().geoid_grid;
+  EXPECT_EQ(rp.error().code, ErrorCode::not_found) << rp.error().message;
+  EXPECT_NE(rp.error().message.find("/data/oregon.las"), std::string::npos);
+  EXPECT_NE(rp.error().message.find("projsync --file"), std::string::npos) << rp.error().message;
+  EXPECT_NE(rp.error().message.find("NAVD88"), std::string::npos) << rp.error().message;
+}
+
+TEST(Reprojector, VerticalCrsModeRejectsADatumCodeStoredAsVerticalCrs) {
+  const auto path = kData / "nm_4_6_crop.las";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
+  auto src = sources::open_source(path);
+  ASSERT_TRUE(src.ok());
+  ReprojectOptions o;
+  o.vertical_datum = "crs";
+  auto rp = Reprojector::create((*src)->info(), o);
+  ASSERT_FALSE(rp.ok());
+  EXPECT_NE(rp.error().message.find("EPSG:5103"), std::string::npos) << rp.error().message;
+  EXPECT_NE(rp.error().message.find("--crs"), std::string::npos);
+}
+
+TEST(Reprojector, VerticalCrsModeRefusesAZUnitAndNeedsAVerticalCrs) {
+  ReprojectOptions o;
+  o.vertical_datum = "crs";
+  o.z_unit = sources::LinearUnit{"foot", 0.3048};
+  auto a = Reprojector::create(info_with("EPSG:4326+5773"), o);
+  ASSERT_FALSE(a.ok());
+  EXPECT_EQ(a.error().code, ErrorCode::invalid_argument);
+  o.z_unit.reset();
+  auto b = Reprojector::create(info_with("EPSG:32633"), o);
+  ASSERT_FALSE(b.ok());
+  EXPECT_EQ(b.error().code, ErrorCode::invalid_argument);
+  EXPECT_NE(b.error().message.find("compound"), std::string::npos);
+  auto c = Reprojector::create(info_with("EPSG:4979"), o);  // 3D geographic: already ellipsoidal
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  std::vector<SourcePoint> in = {{10, 20, 123.25, 1, 0}};
+  std::vector<GeoPoint> out;
+  ASSERT_TRUE(c->transform(in, out).ok());
+  EXPECT_NEAR(out[0].lon, 10, 1e-12);
+  EXPECT_NEAR(out[0].lat, 20, 1e-12);
+  EXPECT_NEAR(out[0].h, 123.25, 1e-9);
+}
+
 }  // namespace
 }  // namespace tinstream::transform

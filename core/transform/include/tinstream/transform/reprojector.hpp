@@ -14,10 +14,14 @@
 //     a feet-based projection has z in feet); else metre.
 //     datum: `vertical_datum` = "ellipsoidal" (default) takes heights as already ellipsoidal;
 //     "egm96", "egm2008" or a PROJ grid file name (…tif/.gtx) takes them as orthometric heights
-//     above that geoid and adds the geoid undulation N from the PROJ grid: h = H + N.
-//   Why not PROJ's own vertical transformation to EPSG:4979: for vertical CRSs such as NAVD88 it
-//   needs grids that are rarely installed and, when they are missing, PROJ silently falls back to
-//   a "ballpark" no-op; an explicit option that fails loudly is safer.
+//     above that geoid and adds the geoid undulation N from the PROJ grid: h = H + N;
+//     "crs" lets PROJ convert from the source's own vertical CRS (a compound CRS such as
+//     "EPSG:26910+5703", or the LAS VerticalCSTypeGeoKey) to EPSG:4979, in that CRS's vertical
+//     unit (the z unit rule does not apply, and a z_unit option is refused). PROJ's own choice of
+//     operation is kept only if it is not a "ballpark" (no-op) vertical transformation; when the
+//     grids it needs are missing, the Error names them.
+//   Why "crs" is not the default: for vertical CRSs such as NAVD88 PROJ needs grids that are
+//   rarely installed; an explicit choice that fails loudly is safer than a silent no-op.
 // - A geoid grid PROJ cannot find is an Error naming the grid file and how to install it.
 // - Not thread-safe (it owns a PROJ context); use one Reprojector per thread. Movable.
 #pragma once
@@ -43,7 +47,8 @@ struct GeoPoint {
 struct ReprojectOptions {
   std::string crs;                             // overrides the file's CRS when not empty
   std::optional<sources::LinearUnit> z_unit;   // overrides the z unit rule
-  std::string vertical_datum = "ellipsoidal";  // "ellipsoidal", "egm96", "egm2008", or a grid file
+  // "ellipsoidal", "egm96", "egm2008", a geoid grid file name, or "crs" (see above).
+  std::string vertical_datum = "ellipsoidal";
 };
 
 // What a Reprojector decided, for logs and run summaries.
@@ -53,7 +58,7 @@ struct ReprojectionPlan {
   std::string horizontal_unit; // "foot", "metre", "degree", …
   sources::LinearUnit z_unit;  // how z was converted to metres
   std::string z_unit_rule;     // which rule chose z_unit
-  std::string geoid_grid;      // empty for ellipsoidal heights
+  std::string geoid_grid;      // grid(s) used for heights; empty for ellipsoidal heights
   std::vector<std::string> notes;
 };
 
@@ -75,11 +80,12 @@ class Reprojector {
  private:
   struct Impl;
   explicit Reprojector(std::unique_ptr<Impl> impl);
+  Status transform_3d(std::span<const sources::SourcePoint> in, std::vector<GeoPoint>& out);
   std::unique_ptr<Impl> impl_;
 };
 
 // The PROJ grid file names tried for a vertical datum option ("egm96" → us_nga_egm96_15.tif,
-// egm96_15.gtx); a name ending in .tif/.gtx/.gtg is itself. Empty for "ellipsoidal".
+// egm96_15.gtx); a name ending in .tif/.gtx/.gtg is itself. Empty for "ellipsoidal" and "crs".
 Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertical_datum);
 
 }  // namespace tinstream::transform
