@@ -1,0 +1,596 @@
+#include "tinstream/triangulate/finest_tiles.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <limits>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <unordered_set>
+
+#include "delaunay.hpp"
+#include "tinstream/kernel/predicates.hpp"
+
+namespace tinstream::triangulate {
+namespace {
+
+using kernel::XY;
+using subdivide::SortedPoint;
+
+constexpr std::uint32_t kKeyLevel = 30;
+constexpr std::uint32_t kDefaultSubShift = 4;
+
+std::uint64_t spread_bits(std::uint32_t v) {
+  std::uint64_t x = v;
+  x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
+  x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
+  x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
+  x = (x | (x << 2)) & 0x3333333333333333ull;
+  x = (x | (x << 1)) & 0x5555555555555555ull;
+  return x;
+}
+
+std::uint64_t pack(std::uint32_t x, std::uint32_t y) {
+  return (static_cast<std::uint64_t>(x) << 32) | y;
+}
+
+struct Circle {
+  double cx = 0, cy = 0, r2 = 0;
+  bool unbounded = false;  // degenerate or enormous: reaches everything on one side
+};
+
+Circle circumcircle(const XY& a, const XY& b, const XY& c) {
+  const double bx = b.x - a.x, by = b.y - a.y;
+  const double qx = c.x - a.x, qy = c.y - a.y;
+  const double d = 2.0 * (bx * qy - by * qx);
+  const double b2 = bx * bx + by * by, q2 = qx * qx + qy * qy;
+  const double ux = (qy * b2 - by * q2) / d;
+  const double uy = (bx * q2 - qx * b2) / d;
+  Circle circle{a.x + ux, a.y + uy, ux * ux + uy * uy, false};
+  if (!std::isfinite(circle.cx) || !std::isfinite(circle.cy) || !std::isfinite(circle.r2) ||
+      circle.r2 > 16.0) {
+    circle.unbounded = true;
+  }
+  return circle;
+}
+
+// Conservative: true whenever the circle may meet the closed rectangle.
+bool circle_meets(const Circle& c, const geo::MercatorRect& r) {
+  if (c.unbounded) return true;
+  const double dx = std::max({r.min_x - c.cx, 0.0, c.cx - r.max_x});
+  const double dy = std::max({r.min_y - c.cy, 0.0, c.cy - r.max_y});
+  return dx * dx + dy * dy <= c.r2 * (1.0 + 1e-9) + 1e-300;
+}
+
+bool bbox_meets(const XY& a, const XY& b, const XY& c, const geo::MercatorRect& r) {
+  return std::max({a.x, b.x, c.x}) >= r.min_x && std::min({a.x, b.x, c.x}) <= r.max_x &&
+         std::max({a.y, b.y, c.y}) >= r.min_y && std::min({a.y, b.y, c.y}) <= r.max_y;
+}
+
+geo::MercatorRect cell_rect(std::uint32_t level, std::uint32_t cx, std::uint32_t cy) {
+  return geo::TileId{level, cx, cy}.bounds();
+}
+
+bool lex_less(const SortedPoint& a, const SortedPoint& b) {
+  return a.x < b.x || (a.x == b.x && a.y < b.y);
+}
+
+// Elevation where the segment p→q (canonical lexicographic order) meets the line at parameter t.
+struct Crossing {
+  double along = 0;  // the coordinate along the border (x for north/south, y for east/west)
+  double z = 0;
+};
+
+// The canonical intersection of edge (a, b) with the horizontal line y = Y (requires a proper
+// crossing). Both tiles sharing the line compute exactly this.
+Crossing cross_horizontal(const SortedPoint& a, const SortedPoint& b, double Y) {
+  const SortedPoint& p = lex_less(a, b) ? a : b;
+  const SortedPoint& q = lex_less(a, b) ? b : a;
+  const double t = (Y - p.y) / (q.y - p.y);
+  return {p.x + t * (q.x - p.x), p.z + t * (q.z - p.z)};
+}
+
+Crossing cross_vertical(const SortedPoint& a, const SortedPoint& b, double X) {
+  const SortedPoint& p = lex_less(a, b) ? a : b;
+  const SortedPoint& q = lex_less(a, b) ? b : a;
+  const double t = (X - p.x) / (q.x - p.x);
+  return {p.y + t * (q.y - p.y), p.z + t * (q.z - p.z)};
+}
+
+// Elevation of the global surface at corner c, from the triangle of `tris` containing it; the
+// computation depends only on the containing triangle's (or edge's) vertices in canonical order.
+std::optional<double> corner_elevation(const XY& c, const std::vector<SortedPoint>& pts,
+                                       const std::vector<detail::IndexTriangle>& tris) {
+  for (const auto& t : tris) {
+    const SortedPoint* v[3] = {&pts[t[0]], &pts[t[1]], &pts[t[2]]};
+    const XY a{v[0]->x, v[0]->y}, b{v[1]->x, v[1]->y}, d{v[2]->x, v[2]->y};
+    if (c.x < std::min({a.x, b.x, d.x}) || c.x > std::max({a.x, b.x, d.x}) ||
+        c.y < std::min({a.y, b.y, d.y}) || c.y > std::max({a.y, b.y, d.y})) {
+      continue;
+    }
+    const int s0 = kernel::sign(kernel::orient2d(a, b, c));
+    const int s1 = kernel::sign(kernel::orient2d(b, d, c));
+    const int s2 = kernel::sign(kernel::orient2d(d, a, c));
+    if (s0 < 0 || s1 < 0 || s2 < 0) continue;
+    for (const SortedPoint* p : v) {
+      if (p->x == c.x && p->y == c.y) return p->z;
+    }
+    const int zeros = (s0 == 0) + (s1 == 0) + (s2 == 0);
+    if (zeros == 1) {  // on an edge: interpolate along it, endpoints in canonical order
+      const SortedPoint* e0 = s0 == 0 ? v[0] : s1 == 0 ? v[1] : v[2];
+      const SortedPoint* e1 = s0 == 0 ? v[1] : s1 == 0 ? v[2] : v[0];
+      if (lex_less(*e1, *e0)) std::swap(e0, e1);
+      const double s = std::abs(e1->x - e0->x) >= std::abs(e1->y - e0->y)
+                           ? (c.x - e0->x) / (e1->x - e0->x)
+                           : (c.y - e0->y) / (e1->y - e0->y);
+      return e0->z + s * (e1->z - e0->z);
+    }
+    std::sort(std::begin(v), std::end(v),
+              [](const SortedPoint* l, const SortedPoint* r) { return lex_less(*l, *r); });
+    const double d1x = v[1]->x - v[0]->x, d1y = v[1]->y - v[0]->y;
+    const double d2x = v[2]->x - v[0]->x, d2y = v[2]->y - v[0]->y;
+    const double det = d1x * d2y - d1y * d2x;
+    const double px = c.x - v[0]->x, py = c.y - v[0]->y;
+    const double u = (px * d2y - py * d2x) / det;
+    const double w = (d1x * py - d1y * px) / det;
+    return v[0]->z + u * (v[1]->z - v[0]->z) + w * (v[2]->z - v[0]->z);
+  }
+  return std::nullopt;
+}
+
+tile::Vertex to_vertex(const SortedPoint& p) { return {p.x, p.y, p.z, 0.0}; }
+
+// Andrew's monotone chain with exact orientation; collinear points dropped; counter-clockwise.
+std::vector<XY> convex_hull(std::vector<XY> points) {
+  std::sort(points.begin(), points.end(),
+            [](const XY& a, const XY& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  points.erase(std::unique(points.begin(), points.end(),
+                           [](const XY& a, const XY& b) { return a.x == b.x && a.y == b.y; }),
+               points.end());
+  if (points.size() < 3) return points;
+  std::vector<XY> hull(2 * points.size());
+  std::size_t k = 0;
+  for (const XY& p : points) {
+    while (k >= 2 && kernel::orient2d(hull[k - 2], hull[k - 1], p) <= 0.0) --k;
+    hull[k++] = p;
+  }
+  for (std::size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && kernel::orient2d(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k - 1);
+  return hull;
+}
+
+}  // namespace
+
+double canonical_circumradius2(XY a, XY b, XY c) {
+  auto less = [](const XY& l, const XY& r) { return l.x < r.x || (l.x == r.x && l.y < r.y); };
+  if (less(b, a)) std::swap(a, b);
+  if (less(c, b)) std::swap(b, c);
+  if (less(b, a)) std::swap(a, b);
+  const Circle circle = circumcircle(a, b, c);
+  return circle.unbounded ? std::numeric_limits<double>::infinity() : circle.r2;
+}
+
+// ── PointCells ─────────────────────────────────────────────────────────────────────────────────
+
+Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::SortedRun& run) {
+  auto cells = std::make_shared<PointCells>();
+  cells->level_ = run.finest_level;
+  cells->sub_shift_ = std::min(kDefaultSubShift, kKeyLevel - run.finest_level);
+  cells->tiles_ = run.tiles;
+  cells->run_path_ = run.path;
+  const std::uint32_t per_tile = 1u << (2 * cells->sub_shift_);
+  cells->cell_offsets_.assign(cells->tiles_.size() * (per_tile + 1), 0);
+  for (std::uint32_t i = 0; i < cells->tiles_.size(); ++i) {
+    cells->index_.emplace(pack(cells->tiles_[i].id.x, cells->tiles_[i].id.y), i);
+  }
+  auto reader = subdivide::SortedRunReader::open(run.path);
+  if (!reader) return reader.error();
+  const std::uint32_t cell_shift = 2 * (kKeyLevel - cells->cell_level());
+  std::vector<SortedPoint> chunk;
+  std::vector<XY> hull_candidates;
+  for (std::uint32_t t = 0; t < cells->tiles_.size(); ++t) {
+    const auto& range = cells->tiles_[t];
+    if (Status s = reader->read(range.first, range.count, chunk); !s) return s.error();
+    std::uint32_t* counts = &cells->cell_offsets_[t * (per_tile + 1)];
+    for (const SortedPoint& p : chunk) {
+      const auto local = static_cast<std::uint32_t>((p.key >> cell_shift) & (per_tile - 1));
+      ++counts[local + 1];
+    }
+    for (std::uint32_t i = 1; i <= per_tile; ++i) counts[i] += counts[i - 1];
+    std::vector<XY> tile_points(chunk.size());
+    for (std::size_t i = 0; i < chunk.size(); ++i) tile_points[i] = {chunk[i].x, chunk[i].y};
+    const auto tile_hull = convex_hull(std::move(tile_points));
+    hull_candidates.insert(hull_candidates.end(), tile_hull.begin(), tile_hull.end());
+  }
+  cells->hull_ = convex_hull(std::move(hull_candidates));
+  return std::shared_ptr<const PointCells>(std::move(cells));
+}
+
+std::ptrdiff_t PointCells::tile_index(const geo::TileId& id) const {
+  if (id.z != level_) return -1;
+  const auto it = index_.find(pack(id.x, id.y));
+  return it == index_.end() ? -1 : static_cast<std::ptrdiff_t>(it->second);
+}
+
+std::pair<std::uint64_t, std::uint64_t> PointCells::cell_range(std::uint32_t cx,
+                                                               std::uint32_t cy) const {
+  const std::ptrdiff_t t = tile_index({level_, cx >> sub_shift_, cy >> sub_shift_});
+  if (t < 0) return {0, 0};
+  const std::uint32_t mask = (1u << sub_shift_) - 1;
+  const auto local =
+      static_cast<std::uint32_t>(spread_bits(cx & mask) | (spread_bits(cy & mask) << 1));
+  const std::uint32_t per_tile = 1u << (2 * sub_shift_);
+  const std::uint32_t* offsets = &cell_offsets_[static_cast<std::size_t>(t) * (per_tile + 1)];
+  const auto& range = tiles_[static_cast<std::size_t>(t)];
+  return {range.first + offsets[local], offsets[local + 1] - offsets[local]};
+}
+
+// ── One tile ───────────────────────────────────────────────────────────────────────────────────
+
+Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
+                                        subdivide::SortedRunReader& reader,
+                                        const FinestTileOptions& options,
+                                        FinestTileStats* stats) {
+  if (id.z != cells.level()) {
+    return invalid_argument("tile " + id.to_string() + " is not at the finest level " +
+                            std::to_string(cells.level()));
+  }
+  const geo::MercatorRect R = id.bounds();
+  const std::uint32_t cell_level = cells.cell_level();
+  const std::uint32_t n = 1u << cells.sub_shift();
+  const std::int64_t cells_per_side = std::int64_t{1} << cell_level;
+
+  std::unordered_set<std::uint64_t> have;  // cells in S or pending
+  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
+  auto want = [&](std::int64_t cx, std::int64_t cy) {
+    if (cx < 0 || cy < 0 || cx >= cells_per_side || cy >= cells_per_side) return;
+    const auto ux = static_cast<std::uint32_t>(cx), uy = static_cast<std::uint32_t>(cy);
+    if (have.insert(pack(ux, uy)).second) pending.emplace_back(ux, uy);
+  };
+  const std::int64_t x0 = std::int64_t{id.x} * n, y0 = std::int64_t{id.y} * n;
+  for (std::int64_t cy = y0 - 1; cy <= y0 + n; ++cy) {
+    for (std::int64_t cx = x0 - 1; cx <= x0 + n; ++cx) want(cx, cy);
+  }
+
+  std::vector<SortedPoint> pts, chunk;
+  // Points of candidate cells, read once per tile and tested exactly before a cell joins.
+  std::unordered_map<std::uint64_t, std::vector<XY>> peeked;
+  Status peek_error;
+  auto peek = [&](std::uint32_t cx, std::uint32_t cy) -> const std::vector<XY>& {
+    auto [it, fresh] = peeked.try_emplace(pack(cx, cy));
+    if (fresh) {
+      const auto [first, count] = cells.cell_range(cx, cy);
+      if (count > 0) {
+        std::vector<SortedPoint> raw;
+        if (Status st = reader.read(first, count, raw); !st) peek_error = st;
+        it->second.reserve(raw.size());
+        for (const auto& p : raw) it->second.push_back({p.x, p.y});
+      }
+    }
+    return it->second;
+  };
+  // B: the only region whose points can matter for triangles kept in this tile.
+  const double rmax = options.max_circumradius_tiles * R.width();
+  const double rmax2 = rmax * rmax;
+  const geo::MercatorRect B{R.min_x - 2 * rmax, R.min_y - 2 * rmax, R.max_x + 2 * rmax,
+                            R.max_y + 2 * rmax};
+  // Calls visit(cx, cy, points) for the not-yet-gathered, non-empty cells inside `box` (∩ B)
+  // that meet `touches`.
+  auto scan_cells = [&](geo::MercatorRect box, const auto& touches, const auto& visit) {
+    box.min_x = std::max(box.min_x, B.min_x);
+    box.min_y = std::max(box.min_y, B.min_y);
+    box.max_x = std::min(box.max_x, B.max_x);
+    box.max_y = std::min(box.max_y, B.max_y);
+    if (box.min_x > box.max_x || box.min_y > box.max_y) return;
+    const geo::TileId lo = geo::TileId::containing({box.min_x, box.max_y}, cells.level());
+    const geo::TileId hi = geo::TileId::containing({box.max_x, box.min_y}, cells.level());
+    for (std::uint32_t ty = lo.y; ty <= hi.y; ++ty) {
+      for (std::uint32_t tx = lo.x; tx <= hi.x; ++tx) {
+        const geo::TileId tid{cells.level(), tx, ty};
+        if (cells.tile_index(tid) < 0 || !touches(tid.bounds())) continue;
+        for (std::uint32_t cy = ty * n; cy < (ty + 1) * n; ++cy) {
+          for (std::uint32_t cx = tx * n; cx < (tx + 1) * n; ++cx) {
+            if (in_s.count(pack(cx, cy)) || !touches(cell_rect(cell_level, cx, cy))) continue;
+            const auto& cell_points = peek(cx, cy);
+            if (!cell_points.empty()) visit(cx, cy, cell_points);
+          }
+        }
+      }
+    }
+  };
+  // Gathers what the current local triangulation says is missing: points inside the circumcircle
+  // of a triangle touching R, or beyond a local hull edge touching R (both only within B).
+  auto grow_halo = [&](const std::vector<XY>& v, const std::vector<detail::IndexTriangle>& tri) {
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> directed;
+    directed.reserve(tri.size() * 3);
+    for (const auto& t : tri) {
+      for (std::size_t k = 0; k < 3; ++k) directed.emplace_back(t[k], t[(k + 1) % 3]);
+    }
+    std::sort(directed.begin(), directed.end());
+    for (const auto& [ia, ib] : directed) {
+      if (std::binary_search(directed.begin(), directed.end(), std::make_pair(ib, ia))) continue;
+      const XY &a = v[ia], &b = v[ib];
+      if (!bbox_meets(a, b, b, R)) continue;
+      // Nothing lies beyond an edge that no vertex of the global convex hull lies beyond.
+      if (std::none_of(cells.hull().begin(), cells.hull().end(),
+                       [&](const XY& h) { return kernel::orient2d(a, b, h) < 0.0; })) {
+        continue;
+      }
+      // Outside is to the right of a→b (triangles are counter-clockwise).
+      auto beyond = [&](const geo::MercatorRect& rect) {
+        const XY corners[4] = {{rect.min_x, rect.min_y}, {rect.max_x, rect.min_y},
+                               {rect.min_x, rect.max_y}, {rect.max_x, rect.max_y}};
+        return std::any_of(std::begin(corners), std::end(corners),
+                           [&](const XY& c) { return kernel::orient2d(a, b, c) <= 0.0; });
+      };
+      // Gather only the Delaunay neighbour across the edge (the point q beyond it whose circle
+      // through b, a, q holds no other point beyond); its triangle's circle does the rest.
+      std::optional<XY> best;
+      std::pair<std::uint32_t, std::uint32_t> best_cell{};
+      scan_cells(B, beyond, [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+        for (const XY& p : points) {
+          if (kernel::orient2d(a, b, p) >= 0.0) continue;
+          if (!best || kernel::incircle(b, a, *best, p) > 0.0) {
+            best = p;
+            best_cell = {cx, cy};
+          }
+        }
+      });
+      if (best) want(best_cell.first, best_cell.second);
+    }
+    // While the local hull still moves near R, the circles of its slivers are meaningless (and
+    // huge): settle the hull first.
+    if (!pending.empty()) return;
+    for (const auto& t : tri) {
+      const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
+      if (!bbox_meets(a, b, c, R)) continue;
+      const Circle circle = circumcircle(a, b, c);
+      geo::MercatorRect box = B;
+      if (!circle.unbounded) {
+        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+        box = {circle.cx - r, circle.cy - r, circle.cx + r, circle.cy + r};
+      }
+      scan_cells(
+          box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
+          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+            if (std::any_of(points.begin(), points.end(),
+                            [&](const XY& p) { return kernel::incircle(a, b, c, p) > 0.0; })) {
+              want(cx, cy);
+            }
+          });
+    }
+  };
+  std::vector<XY> xy;
+  std::vector<detail::IndexTriangle> tris;
+  int round = 0;
+  for (;; ++round) {
+    if (round >= options.max_rounds) {
+      return Error(ErrorCode::internal, "tile " + id.quadkey() + ": halo did not converge in " +
+                                            std::to_string(options.max_rounds) + " rounds");
+    }
+    for (const auto& [cx, cy] : pending) {
+      in_s.insert(pack(cx, cy));
+      const auto [first, count] = cells.cell_range(cx, cy);
+      if (count == 0) continue;
+      if (Status s = reader.read(first, count, chunk); !s) return s.error();
+      pts.insert(pts.end(), chunk.begin(), chunk.end());
+    }
+    pending.clear();
+    if (pts.size() > options.max_gathered_points) {
+      return Error(ErrorCode::unsupported,
+                   "tile " + id.quadkey() + ": its halo needs more than " +
+                       std::to_string(options.max_gathered_points) +
+                       " points (very uneven density); raise max_gathered_points");
+    }
+    xy.resize(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) xy[i] = {pts[i].x, pts[i].y};
+    tris = detail::delaunay(xy);
+
+    grow_halo(xy, tris);
+    if (!peek_error.ok()) return peek_error.error();
+    // Only cells that hold points matter.
+    std::erase_if(pending, [&](const auto& cell) {
+      return cells.cell_range(cell.first, cell.second).second == 0;
+    });
+    if (pending.empty()) break;
+  }
+  if (stats) {
+    stats->gathered_points = pts.size();
+    stats->rounds = round + 1;
+  }
+
+  // ── Cut at the tile border ──
+  tile::TinTile out;
+  out.id = id;
+  const XY corner_xy[4] = {{R.min_x, R.max_y}, {R.max_x, R.max_y}, {R.min_x, R.min_y}, {R.max_x, R.min_y}};
+  bool corner_found[4] = {false, false, false, false};
+  std::vector<tile::Vertex> north, east, south, west;
+  const std::ptrdiff_t own = cells.tile_index(id);
+  out.source_points = own >= 0 ? cells.tiles()[static_cast<std::size_t>(own)].count : 0;
+  for (const SortedPoint& p : pts) {
+    const bool in_x = p.x > R.min_x && p.x < R.max_x;
+    const bool in_y = p.y > R.min_y && p.y < R.max_y;
+    if (in_x && in_y) {
+      out.interior.push_back(to_vertex(p));
+    } else if (in_x && p.y == R.max_y) {
+      north.push_back(to_vertex(p));
+    } else if (in_x && p.y == R.min_y) {
+      south.push_back(to_vertex(p));
+    } else if (in_y && p.x == R.min_x) {
+      west.push_back(to_vertex(p));
+    } else if (in_y && p.x == R.max_x) {
+      east.push_back(to_vertex(p));
+    } else {
+      for (int k = 0; k < 4; ++k) {
+        if (p.x == corner_xy[k].x && p.y == corner_xy[k].y) {
+          out.corners[static_cast<std::size_t>(k)] = to_vertex(p);
+          corner_found[k] = true;
+        }
+      }
+    }
+  }
+  // Only triangles with circumradius ≤ rmax are part of the surface (larger ones span data gaps
+  // or hug the data's outer boundary; both neighbours decide this identically).
+  std::erase_if(tris, [&](const detail::IndexTriangle& t) {
+    return !(canonical_circumradius2(xy[t[0]], xy[t[1]], xy[t[2]]) <= rmax2);
+  });
+  // Edges crossing the four border lines: every undirected edge once (hull edges included — the
+  // data's outer boundary may run through R).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
+  edges.reserve(tris.size() * 3);
+  for (const auto& t : tris) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint32_t ia = t[k], ib = t[(k + 1) % 3];
+      const SortedPoint& a = pts[ia];
+      const SortedPoint& b = pts[ib];
+      const bool spans_y = (a.y < R.max_y) != (b.y < R.max_y) || (a.y < R.min_y) != (b.y < R.min_y);
+      const bool spans_x = (a.x < R.min_x) != (b.x < R.min_x) || (a.x < R.max_x) != (b.x < R.max_x);
+      if (spans_x || spans_y) edges.emplace_back(std::min(ia, ib), std::max(ia, ib));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  for (const auto& [ia, ib] : edges) {
+    const SortedPoint& a = pts[ia];
+    const SortedPoint& b = pts[ib];
+    for (double Y : {R.max_y, R.min_y}) {
+      if ((a.y < Y && b.y > Y) || (a.y > Y && b.y < Y)) {
+        const Crossing c = cross_horizontal(a, b, Y);
+        if (c.along > R.min_x && c.along < R.max_x) {
+          (Y == R.max_y ? north : south).push_back({c.along, Y, c.z, 0.0});
+        }
+      }
+    }
+    for (double X : {R.min_x, R.max_x}) {
+      if ((a.x < X && b.x > X) || (a.x > X && b.x < X)) {
+        const Crossing c = cross_vertical(a, b, X);
+        if (c.along > R.min_y && c.along < R.max_y) {
+          (X == R.min_x ? west : east).push_back({X, c.along, c.z, 0.0});
+        }
+      }
+    }
+  }
+  auto by_x = [](const tile::Vertex& a, const tile::Vertex& b) {
+    return a.x < b.x || (a.x == b.x && a.z < b.z);
+  };
+  auto by_y_desc = [](const tile::Vertex& a, const tile::Vertex& b) {
+    return a.y > b.y || (a.y == b.y && a.z < b.z);
+  };
+  auto same_xy = [](const tile::Vertex& a, const tile::Vertex& b) { return a.x == b.x && a.y == b.y; };
+  for (auto* side : {&north, &south}) {
+    std::sort(side->begin(), side->end(), by_x);
+    side->erase(std::unique(side->begin(), side->end(), same_xy), side->end());
+  }
+  for (auto* side : {&east, &west}) {
+    std::sort(side->begin(), side->end(), by_y_desc);
+    side->erase(std::unique(side->begin(), side->end(), same_xy), side->end());
+  }
+  for (int k = 0; k < 4; ++k) {
+    if (corner_found[k]) continue;
+    const auto z = corner_elevation(corner_xy[k], pts, tris);
+    out.corners[static_cast<std::size_t>(k)] = {corner_xy[k].x, corner_xy[k].y, z.value_or(0.0), 0.0};
+    out.corner_nodata[static_cast<std::size_t>(k)] = !z.has_value();
+  }
+  out.north = std::move(north);
+  out.east = std::move(east);
+  out.south = std::move(south);
+  out.west = std::move(west);
+
+  // ── Re-triangulate corners + edge points + interior (the border is the hull) ──
+  const std::vector<tile::Vertex> vertices = out.vertices();
+  xy.resize(vertices.size());
+  for (std::size_t i = 0; i < vertices.size(); ++i) xy[i] = {vertices[i].x, vertices[i].y};
+  const auto final_tris = detail::delaunay(xy);
+  out.triangles.assign(final_tris.begin(), final_tris.end());
+  out.update_z_range();
+  return out;
+}
+
+// ── All tiles, in parallel ─────────────────────────────────────────────────────────────────────
+
+Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, unsigned threads,
+                                              const TileSink& sink,
+                                              const FinestTileOptions& options,
+                                              const ProgressSink& progress) {
+  auto cells_or = PointCells::build(run);
+  if (!cells_or) return cells_or.error();
+  const std::shared_ptr<const PointCells> cells = *cells_or;
+  const std::size_t total = cells->tiles().size();
+  threads = std::max(1u, std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(total, 1))));
+
+  struct Done {
+    Result<tile::TinTile> tile;
+    FinestTileStats stats;
+  };
+  std::mutex mutex;
+  std::condition_variable ready, space;
+  std::deque<Done> queue;
+  const std::size_t capacity = 2 * threads;
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stop{false};
+
+  auto worker = [&] {
+    auto reader = subdivide::SortedRunReader::open(cells->run_path());
+    for (;;) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= total || stop.load()) return;
+      Done done{Error(ErrorCode::internal, "unset"), {}};
+      if (!reader) {
+        done.tile = reader.error();
+      } else {
+        done.tile = build_finest_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats);
+      }
+      std::unique_lock lock(mutex);
+      space.wait(lock, [&] { return queue.size() < capacity || stop.load(); });
+      queue.push_back(std::move(done));
+      ready.notify_one();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
+
+  TriangulateSummary summary;
+  Status failure;
+  for (std::size_t received = 0; received < total; ++received) {
+    Done done{Error(ErrorCode::internal, "unset"), {}};
+    {
+      std::unique_lock lock(mutex);
+      ready.wait(lock, [&] { return !queue.empty(); });
+      done = std::move(queue.front());
+      queue.pop_front();
+      space.notify_one();
+    }
+    if (!done.tile) {
+      failure = done.tile.error();
+      break;
+    }
+    summary.gathered_points += done.stats.gathered_points;
+    summary.max_rounds = std::max(summary.max_rounds, done.stats.rounds);
+    if (Status s = sink(std::move(*done.tile)); !s) {
+      failure = s;
+      break;
+    }
+    ++summary.tiles;
+    if (progress && !progress({"triangulate", summary.tiles, total, "tiles"})) {
+      failure = Error(ErrorCode::cancelled, "ingest cancelled while triangulating");
+      break;
+    }
+  }
+  if (!failure.ok()) {
+    stop.store(true);
+    std::lock_guard lock(mutex);
+    space.notify_all();
+  }
+  for (auto& t : pool) t.join();
+  if (!failure.ok()) return failure.error();
+  return summary;
+}
+
+}  // namespace tinstream::triangulate

@@ -1,0 +1,296 @@
+#include <gtest/gtest.h>
+
+#include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+
+#include <filesystem>
+#include <map>
+#include <random>
+#include <set>
+
+#include "tinstream/kernel/predicates.hpp"
+#include "tinstream/triangulate/finest_tiles.hpp"
+
+namespace tinstream::triangulate {
+namespace {
+
+namespace fs = std::filesystem;
+using subdivide::InputPoint;
+
+struct Fixture {
+  fs::path dir;
+  subdivide::SortedRun run;
+  std::vector<tile::TinTile> tiles;
+  TriangulateSummary summary;
+};
+
+// Runs pass 2 and pass 3 on `points`; tiles keyed by id.
+Fixture build(const std::vector<InputPoint>& points, std::uint32_t max_points, unsigned threads,
+              const std::string& name) {
+  Fixture f;
+  f.dir = fs::temp_directory_path() / ("tinstream-tri-test-" + name);
+  fs::remove_all(f.dir);
+  fs::create_directories(f.dir);
+  subdivide::SubdivideOptions opt;
+  opt.tmp_dir = f.dir;
+  opt.max_points = max_points;
+  std::size_t pos = 0;
+  auto run = subdivide::subdivide(
+      [&](std::vector<InputPoint>& batch) -> Result<std::size_t> {
+        const std::size_t n = std::min<std::size_t>(4096, points.size() - pos);
+        batch.insert(batch.end(), points.begin() + static_cast<std::ptrdiff_t>(pos),
+                     points.begin() + static_cast<std::ptrdiff_t>(pos + n));
+        pos += n;
+        return n;
+      },
+      opt);
+  EXPECT_TRUE(run.ok()) << run.error().message;
+  f.run = *run;
+  auto summary = build_finest_tiles(f.run, threads, [&](tile::TinTile&& t) {
+    f.tiles.push_back(std::move(t));
+    return Status{};
+  });
+  EXPECT_TRUE(summary.ok()) << summary.error().message;
+  if (summary) f.summary = *summary;
+  std::sort(f.tiles.begin(), f.tiles.end(),
+            [](const auto& a, const auto& b) { return a.id < b.id; });
+  return f;
+}
+
+std::vector<InputPoint> random_points(std::size_t n, std::uint64_t seed, double x0, double y0,
+                                      double span) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<InputPoint> pts;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = x0 + span * u(rng), y = y0 + span * u(rng);
+    pts.push_back({x, y, 100.0 + 50.0 * std::sin(x * 3e4) + 30.0 * std::cos(y * 2e4)});
+  }
+  return pts;
+}
+
+const tile::TinTile* find(const Fixture& f, const geo::TileId& id) {
+  for (const auto& t : f.tiles) {
+    if (t.id == id) return &t;
+  }
+  return nullptr;
+}
+
+void expect_same_vertices(const std::vector<tile::Vertex>& a, const std::vector<tile::Vertex>& b,
+                          const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].x, b[i].x) << what << " #" << i;
+    EXPECT_EQ(a[i].y, b[i].y) << what << " #" << i;
+    EXPECT_EQ(a[i].z, b[i].z) << what << " #" << i;
+  }
+}
+
+// Shared borders of same-level neighbours are bit-identical (watertight).
+void expect_watertight(const Fixture& f) {
+  int shared = 0;
+  for (const auto& t : f.tiles) {
+    if (auto east = t.id.neighbour(geo::Direction::east)) {
+      if (const auto* n = find(f, *east)) {
+        expect_same_vertices(t.border(geo::Direction::east), n->border(geo::Direction::west),
+                             t.id.quadkey() + " east");
+        ++shared;
+      }
+    }
+    if (auto south = t.id.neighbour(geo::Direction::south)) {
+      if (const auto* n = find(f, *south)) {
+        expect_same_vertices(t.border(geo::Direction::south), n->border(geo::Direction::north),
+                             t.id.quadkey() + " south");
+        ++shared;
+      }
+    }
+  }
+  EXPECT_GT(shared, 0);
+}
+
+// Every triangle of every tile is CCW and has no tile vertex strictly inside its circumcircle.
+void expect_delaunay_tiles(const Fixture& f) {
+  for (const auto& t : f.tiles) {
+    ASSERT_TRUE(tile::check_structure(t).ok()) << t.id.quadkey() << ": " << tile::check_structure(t).error().message;
+    const auto v = t.vertices();
+    for (const auto& tri : t.triangles) {
+      const kernel::XY a{v[tri[0]].x, v[tri[0]].y}, b{v[tri[1]].x, v[tri[1]].y},
+          c{v[tri[2]].x, v[tri[2]].y};
+      ASSERT_GT(kernel::orient2d(a, b, c), 0.0);
+      for (const auto& p : v) {  // O(n·t) — keep inputs small
+        ASSERT_LE(kernel::incircle(a, b, c, {p.x, p.y}), 0.0) << t.id.quadkey();
+      }
+    }
+  }
+}
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+// Edge points must be exactly the crossings of the GLOBAL Delaunay triangulation's edges with the
+// tile borders (computed here from CGAL's triangulation of all points).
+void expect_edge_points_match_global(const Fixture& f, const std::vector<InputPoint>& pts) {
+  CGAL::Delaunay_triangulation_2<K> dt;
+  std::map<std::pair<double, double>, double> z_of;
+  std::vector<K::Point_2> in;
+  for (const auto& p : pts) {
+    in.emplace_back(p.x, p.y);
+    auto [it, fresh] = z_of.emplace(std::make_pair(p.x, p.y), p.z);
+    if (!fresh) it->second = std::min(it->second, p.z);
+  }
+  dt.insert(in.begin(), in.end());
+  for (const auto& t : f.tiles) {
+    const auto r = t.id.bounds();
+    const double rmax = FinestTileOptions{}.max_circumradius_tiles * r.width();
+    auto kept = [&](CGAL::Delaunay_triangulation_2<K>::Face_handle face) {
+      if (dt.is_infinite(face)) return false;
+      const auto& p0 = face->vertex(0)->point();
+      const auto& p1 = face->vertex(1)->point();
+      const auto& p2 = face->vertex(2)->point();
+      return canonical_circumradius2({p0.x(), p0.y()}, {p1.x(), p1.y()}, {p2.x(), p2.y()}) <=
+             rmax * rmax;
+    };
+    std::set<std::pair<double, double>> expected_north, got_north;
+    for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
+      if (!kept(e->first) && !kept(e->first->neighbor(e->second))) continue;
+      const auto& pa = e->first->vertex(e->first->cw(e->second))->point();
+      const auto& pb = e->first->vertex(e->first->ccw(e->second))->point();
+      if ((pa.y() < r.max_y && pb.y() > r.max_y) || (pa.y() > r.max_y && pb.y() < r.max_y)) {
+        const bool a_first = pa.x() < pb.x() || (pa.x() == pb.x() && pa.y() < pb.y());
+        const auto& p = a_first ? pa : pb;
+        const auto& q = a_first ? pb : pa;
+        const double s = (r.max_y - p.y()) / (q.y() - p.y());
+        const double x = p.x() + s * (q.x() - p.x());
+        const double zp = z_of.at({p.x(), p.y()}), zq = z_of.at({q.x(), q.y()});
+        if (x > r.min_x && x < r.max_x) expected_north.emplace(x, zp + s * (zq - zp));
+      }
+    }
+    for (const auto& p : pts) {
+      if (p.y == r.max_y && p.x > r.min_x && p.x < r.max_x) expected_north.emplace(p.x, p.z);
+    }
+    for (const auto& v : t.north) got_north.emplace(v.x, v.z);
+    EXPECT_EQ(got_north, expected_north) << t.id.quadkey();
+  }
+}
+
+// Every input point is a vertex of the tile that owns it (TileId::containing).
+void expect_no_point_lost(const Fixture& f, const std::vector<InputPoint>& pts) {
+  std::map<geo::TileId, std::set<std::pair<double, double>>> vertices;
+  for (const auto& t : f.tiles) {
+    for (const auto& v : t.vertices()) vertices[t.id].emplace(v.x, v.y);
+  }
+  for (const auto& p : pts) {
+    const auto id = geo::TileId::containing({p.x, p.y}, f.run.finest_level);
+    ASSERT_TRUE(vertices[id].count({p.x, p.y})) << id.quadkey() << " lost " << p.x << "," << p.y;
+  }
+}
+
+TEST(FinestTiles, RandomPointsGiveWatertightGloballyDelaunayTiles) {
+  const auto pts = random_points(6000, 1, 0.1, 0.2, 3e-4);
+  const Fixture f = build(pts, 400, 2, "random");
+  ASSERT_GT(f.tiles.size(), 8u);
+  EXPECT_EQ(f.tiles.size(), f.run.tiles.size());
+  expect_watertight(f);
+  expect_delaunay_tiles(f);
+  expect_no_point_lost(f, pts);
+  expect_edge_points_match_global(f, pts);
+  // The halo is a band, not whole neighbours: little more than one triangulation per point.
+  EXPECT_LT(f.summary.gathered_points, 3 * pts.size());
+}
+
+TEST(FinestTiles, PlanarSurfaceInterpolatesEdgeAndCornerPointsOnThePlane) {
+  auto pts = random_points(3000, 2, -0.3, 0.4, 2e-4);
+  for (auto& p : pts) p.z = 1000.0 + 2e5 * (p.x + 0.3) - 1e5 * (p.y - 0.4);
+  const Fixture f = build(pts, 300, 1, "plane");
+  for (const auto& t : f.tiles) {
+    const auto vertices = t.vertices();
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      if (i < 4 && t.corner_nodata[i]) continue;
+      const auto& v = vertices[i];
+      EXPECT_NEAR(v.z, 1000.0 + 2e5 * (v.x + 0.3) - 1e5 * (v.y - 0.4), 1e-6) << t.id.quadkey();
+    }
+  }
+}
+
+TEST(FinestTiles, CornersOutsideTheDataAreNodata) {
+  // A thin diagonal strip: many tile corners lie outside the data's convex hull.
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 3000; ++i) {
+    const double s = u(rng);
+    pts.push_back({0.5 + 3e-4 * s + 1e-6 * u(rng), 0.5 + 3e-4 * s + 1e-6 * u(rng), 5.0});
+  }
+  const Fixture f = build(pts, 300, 2, "strip");
+  int nodata = 0;
+  for (const auto& t : f.tiles) {
+    for (int k = 0; k < 4; ++k) {
+      if (t.corner_nodata[static_cast<std::size_t>(k)]) {
+        ++nodata;
+        EXPECT_EQ(t.corners[static_cast<std::size_t>(k)].z, 0.0);
+      } else {
+        EXPECT_NEAR(t.corners[static_cast<std::size_t>(k)].z, 5.0, 1e-9);
+      }
+    }
+  }
+  EXPECT_GT(nodata, 0);
+  expect_watertight(f);
+  expect_no_point_lost(f, pts);
+}
+
+TEST(FinestTiles, GridAlignedLatticeWithPointsOnTileBordersStaysWatertight) {
+  // A DEM-like lattice whose rows and columns fall exactly on tile borders (all cocircular).
+  const std::uint32_t level = 12;
+  const geo::TileId base{level, 2000, 1500};
+  const auto r = base.bounds();
+  const double step = r.width() / 16;
+  std::vector<InputPoint> pts;
+  for (int i = -20; i < 52; ++i) {
+    for (int j = -20; j < 52; ++j) {
+      const double x = r.min_x + i * step, y = r.max_y - j * step;
+      pts.push_back({x, y, 10.0 + (i * 7 % 13) + (j * 5 % 11)});
+    }
+  }
+  const Fixture f = build(pts, 400, 2, "lattice");
+  ASSERT_GT(f.tiles.size(), 4u);
+  expect_watertight(f);
+  expect_no_point_lost(f, pts);
+  for (const auto& t : f.tiles) {
+    ASSERT_TRUE(tile::check_structure(t).ok()) << t.id.quadkey();
+  }
+}
+
+TEST(FinestTiles, LatticeCellsStraddlingTileBordersStayWatertight) {
+  // Every lattice square is cocircular and the tile borders cut through the squares: which
+  // diagonal each square gets decides the edge points, so ties must be broken the same way by
+  // every tile whatever its neighbourhood.
+  const geo::TileId base{12, 2000, 1500};
+  const auto r = base.bounds();
+  const double step = r.width() / 16;
+  std::vector<InputPoint> pts;
+  for (int i = -20; i < 52; ++i) {
+    for (int j = -20; j < 52; ++j) {
+      const double x = r.min_x + (i + 0.5) * step, y = r.max_y - (j + 0.5) * step;
+      pts.push_back({x, y, 10.0 + (i * 7 % 13) + (j * 5 % 11)});
+    }
+  }
+  const Fixture f = build(pts, 400, 2, "lattice-offset");
+  ASSERT_GT(f.tiles.size(), 4u);
+  expect_watertight(f);
+  expect_no_point_lost(f, pts);
+}
+
+TEST(FinestTiles, WrongLevelRejected) {
+  const auto pts = random_points(500, 4, 0.1, 0.1, 1e-4);
+  const Fixture f = build(pts, 100, 1, "level");
+  auto cells = PointCells::build(f.run);
+  ASSERT_TRUE(cells.ok());
+  auto reader = subdivide::SortedRunReader::open(f.run.path);
+  ASSERT_TRUE(reader.ok());
+  const geo::TileId coarse = f.run.tiles[0].id.parent();
+  auto t = build_finest_tile(coarse, **cells, *reader);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.error().message.find("finest level"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tinstream::triangulate
