@@ -313,6 +313,17 @@ TEST_F(LasFile, OffsetToPointsBeyondTheFileIsRejected) {
   expect_error(open_las(p2), ErrorCode::corrupt_data, "inside the header", p2);
 }
 
+TEST_F(LasFile, AbsurdVlrCountAndHeaderSizeAreRejected) {
+  auto b = build_las(small_spec());
+  testing::put_value<std::uint32_t>(b, 100, 0xFFFFFFFFu);  // VLR count
+  auto p = write(b);
+  expect_error(open_las(p), ErrorCode::corrupt_data, "VLR 1 of 4294967295", p);
+  auto b2 = build_las(small_spec());
+  testing::put_value<std::uint16_t>(b2, 94, 60000);  // header size beyond the file
+  auto p2 = write(b2, "hs.las");
+  expect_error(open_las(p2), ErrorCode::corrupt_data, "truncated", p2);
+}
+
 TEST_F(LasFile, RecordLengthSmallerThanTheFormatIsRejected) {
   auto b = build_las(small_spec());
   testing::put_value<std::uint16_t>(b, 105, 20);  // format 1 needs 28

@@ -18,6 +18,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tinstream/base/result.hpp"
@@ -84,9 +85,8 @@ enum class InvalidPolicy {
   skip,  // count it in SourceCounters::rejected_invalid and go on
 };
 
-// Classification filter (LAS, and XYZ with a class column).
-//
-// The rule (this text is also the CLI's --help):
+// Classification filter (LAS, and XYZ with a class column). The rule, verbatim as the CLI's
+// --help prints it (kClassFilterRule):
 //   * If `classes` is given, keep exactly those ASPRS classes.
 //   * Otherwise, for LAS: if the file holds at least one ground point (class 2, not withheld),
 //     keep only class 2 (bare earth); otherwise keep every class except noise (7 low noise,
@@ -96,6 +96,11 @@ enum class InvalidPolicy {
 //     (LAS header return counts say nothing about classes, hence the scan.)
 //   * XYZ with a class column: every class except 7 and 18 (no pre-scan of text files).
 //   * Points flagged "withheld" in LAS are always dropped (the spec calls them deleted).
+inline constexpr std::string_view kClassFilterRule =
+    "Classes kept: with --classes, exactly those ASPRS classes. Otherwise, for LAS: if the file "
+    "has any ground point (class 2), only class 2 (bare earth); if it has none, every class "
+    "except noise (7 and 18). For text with a class column: every class except 7 and 18. "
+    "LAS points flagged withheld are always dropped.";
 struct ClassFilter {
   std::optional<std::vector<std::uint8_t>> classes;
 };

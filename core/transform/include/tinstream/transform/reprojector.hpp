@@ -30,12 +30,23 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tinstream/base/result.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::transform {
+
+// The vertical rules above in the words the CLI's --help prints.
+inline constexpr std::string_view kHeightRule =
+    "Heights: z is converted to metres with --z-units if given, else the unit the file states "
+    "(LAS VerticalUnitsGeoKey, raster unit), else the CRS's vertical axis unit, else the linear "
+    "unit of a projected CRS (a LAS file in a feet projection has z in feet), else metres. "
+    "--vertical-datum ellipsoidal (default) takes heights as ellipsoidal; egm96, egm2008 or a "
+    "PROJ grid file adds that geoid's undulation (orthometric to ellipsoidal); crs lets PROJ "
+    "convert from the source's vertical CRS (e.g. --crs EPSG:26910+5703). A missing grid is an "
+    "error that names it.";
 
 // WGS84 geodetic position: degrees, metres above the ellipsoid.
 struct GeoPoint {
