@@ -218,7 +218,25 @@ std::vector<InsertResult> Triangulation::insert_bulk(std::span<const Point3> poi
   const std::vector<std::uint32_t> order = detail::brio_hilbert_order(points, valid);
   mesh_.reserve_vertices(mesh_.vertex_slots() + order.size());
   mesh_.reserve_triangles(mesh_.triangle_slots() + 2 * order.size() + 8);
-  for (std::uint32_t i : order) out[i] = insert(points[i]);
+  std::vector<std::uint32_t> origin;  // vertex id -> input index it came from
+  for (std::uint32_t i : order) {
+    out[i] = insert(points[i]);
+    if (out[i].outcome == InsertOutcome::inserted) {
+      if (origin.size() <= out[i].vertex) origin.resize(out[i].vertex + 1, kNone);
+      origin[out[i].vertex] = i;
+    }
+  }
+  // Among exact duplicates the first in input order wins, whatever the insertion order was.
+  for (std::uint32_t i : valid) {
+    if (out[i].outcome != InsertOutcome::duplicate) continue;
+    const VertexId v = out[i].vertex;
+    if (v >= origin.size() || origin[v] == kNone || origin[v] < i) continue;
+    out[origin[v]].outcome = InsertOutcome::duplicate;
+    out[i].outcome = InsertOutcome::inserted;
+    origin[v] = i;
+    mesh_.set_z(v, points[i].z);
+    mesh_.set_weight(v, points[i].weight);
+  }
   return out;
 }
 

@@ -202,6 +202,22 @@ TEST(Delaunay, GeneralPositionResultDoesNotDependOnInsertionOrder) {
   EXPECT_EQ(sa, sb);
 }
 
+TEST(Delaunay, BulkDuplicatesKeepTheFirstInInputOrder) {
+  auto pts = test::uniform_points(5000, 23);
+  const std::size_t n = pts.size();
+  for (std::size_t i = 0; i < n; i += 3) pts.push_back({pts[i].x, pts[i].y, -1.0 - double(i), 0.0});
+  Triangulation t;
+  const auto r = t.insert_bulk(pts);
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_EQ(r[i].outcome, InsertOutcome::inserted) << i;
+    ASSERT_EQ(t.z(r[i].vertex), pts[i].z);
+  }
+  for (std::size_t i = n; i < pts.size(); ++i) {
+    ASSERT_EQ(r[i].outcome, InsertOutcome::duplicate);
+    ASSERT_EQ(r[i].vertex, r[(i - n) * 3].vertex);
+  }
+}
+
 TEST(Delaunay, LargeBulkInsertionIsValid) {
   const auto pts = test::uniform_points(200000, 99);
   Triangulation t;

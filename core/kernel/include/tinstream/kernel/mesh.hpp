@@ -71,6 +71,7 @@ class Mesh {
   double z(VertexId v) const { return z_[v]; }
   double weight(VertexId v) const { return weight_[v]; }
   void set_z(VertexId v, double z) { z_[v] = z; }
+  void set_weight(VertexId v, double w) { weight_[v] = w; }
   // One live triangle incident to v, or kNone (removed vertex, or not yet triangulated).
   TriangleId vertex_triangle(VertexId v) const { return vtri_[v]; }
   void set_vertex_triangle(VertexId v, TriangleId t) { vtri_[v] = t; }

@@ -78,7 +78,8 @@ class Triangulation {
   // ---- building -------------------------------------------------------------------------------
   InsertResult insert(const Point3& p);
   // Inserts all points in a spatially sorted order (BRIO rounds, each in Hilbert order); result
-  // i belongs to points[i]. Among exact duplicates the first in `points` wins.
+  // i belongs to points[i]. Among exact duplicates the first in `points` wins (its z and weight
+  // are kept; the others are reported as duplicates of it).
   std::vector<InsertResult> insert_bulk(std::span<const Point3> points);
 
   // Makes the straight segment a-b a chain of constrained edges. Vertices lying exactly on it
