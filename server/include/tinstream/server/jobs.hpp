@@ -1,0 +1,95 @@
+// tinstream/server/jobs.hpp — admin ingest jobs, run one at a time on a background worker.
+//
+// The server does not know how to ingest: it is handed an IngestRunner (the lead plugs the real
+// pipeline in through server/src/default_ingest_runner.cpp). The runner is called on the job
+// worker thread — never on an io thread — with the validated job and a ProgressSink; it writes
+// the layer through store::TileStore::begin_layer / LayerWriter::publish on its own read-write
+// TileStore, so readers see the new layer atomically when it publishes. Returning false from the
+// sink's callback means "cancel" (server shutdown); the runner then returns ErrorCode::cancelled.
+//
+// Threads: submit()/get()/list()/counts() from any thread (one mutex guards the job table); the
+// runner on the worker thread only. The destructor cancels the running job and joins the worker.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tinstream/base/progress.hpp"
+#include "tinstream/base/result.hpp"
+#include "tinstream/server/metrics.hpp"
+
+namespace tinstream::server {
+
+struct IngestJobSpec {
+  std::string job_id;
+  std::string layer;                            // valid layer name
+  std::vector<std::filesystem::path> sources;   // canonical, existing, under data_root or uploads
+  nlohmann::json options = nlohmann::json::object();  // passed through from the request
+  std::filesystem::path store_path;             // the server's store (open it read-write)
+};
+
+using IngestRunner = std::function<Status(const IngestJobSpec&, const ProgressSink&)>;
+
+enum class JobState { queued, running, succeeded, failed, cancelled };
+std::string_view to_string(JobState s);
+
+struct JobStatus {
+  std::string id;
+  std::string layer;
+  JobState state = JobState::queued;
+  Progress progress;            // latest report
+  std::uint64_t reports = 0;    // progress reports received
+  std::string error;            // when failed/cancelled
+  std::int64_t created_unix = 0, started_unix = 0, finished_unix = 0;
+  std::vector<std::string> sources;
+
+  nlohmann::json to_json() const;
+};
+
+class JobManager {
+ public:
+  JobManager(IngestRunner runner, std::uint32_t max_pending);
+  ~JobManager();
+  JobManager(const JobManager&) = delete;
+  JobManager& operator=(const JobManager&) = delete;
+
+  // Queues a job (its id is assigned here). Files in `delete_after` are removed when the job ends.
+  // Error (unsupported → 503) when max_pending jobs are queued or running.
+  Result<std::string> submit(IngestJobSpec spec, std::vector<std::filesystem::path> delete_after = {});
+  std::optional<JobStatus> get(const std::string& id) const;
+  std::vector<JobStatus> list() const;
+  JobCounts counts() const;
+  // Cancels queued jobs and asks the running one to stop; joins the worker.
+  void shutdown();
+
+ private:
+  struct Job {
+    JobStatus status;
+    IngestJobSpec spec;
+    std::vector<std::filesystem::path> delete_after;
+  };
+  void work();
+
+  IngestRunner runner_;
+  std::uint32_t max_pending_;
+  mutable std::mutex mutex_;  // guards everything below
+  std::condition_variable wake_;
+  std::map<std::string, std::shared_ptr<Job>> jobs_;
+  std::deque<std::shared_ptr<Job>> queue_;
+  std::uint64_t next_id_ = 1;
+  bool stopping_ = false;
+  std::thread worker_;  // last: started after the members above exist
+};
+
+}  // namespace tinstream::server

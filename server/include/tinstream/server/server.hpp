@@ -1,0 +1,45 @@
+// tinstream/server/server.hpp — the HTTP server: Boost.Beast/Asio, one io_context, N threads.
+//
+// Each connection is an asynchronous session owned by shared_from_this, on its own strand:
+// keep-alive, pipelined requests answered in order, a timeout on every read and write, header
+// and body limits, at most max_connections sessions (more get 503 and are closed). Each io
+// thread opens its own read-only TileStore. stop() (also on SIGINT/SIGTERM when
+// handle_signals) closes the listener, lets in-flight responses finish (up to
+// shutdown_grace_ms), closes idle keep-alive connections and returns from run().
+//
+// Threads: create() and run() on the caller's thread; run() blocks until stopped; stop() from
+// any thread. Beast is kept out of this header (pimpl).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/server/config.hpp"
+#include "tinstream/server/jobs.hpp"
+
+namespace tinstream::server {
+
+class Server {
+ public:
+  // Binds the listening socket (so port() is known before run()). Errors name address/port or
+  // the store.
+  static Result<std::unique_ptr<Server>> create(const ServerConfig& config, IngestRunner runner);
+  ~Server();
+
+  std::uint16_t port() const;
+  // Serves until stop(). When handle_signals, SIGINT/SIGTERM call stop().
+  void run(bool handle_signals = false);
+  void stop();
+
+  struct Impl;
+
+ private:
+  explicit Server(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// The runner used by the `tinstream-server` executable (server/src/default_ingest_runner.cpp).
+IngestRunner default_ingest_runner();
+
+}  // namespace tinstream::server

@@ -1,0 +1,606 @@
+#include "tinstream/server/handler.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <list>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <system_error>
+#include <unordered_map>
+
+#include "tinstream/server/ingest_paths.hpp"
+#include "tinstream/server/routes.hpp"
+#include "tinstream/terrain/gzip.hpp"
+#include "tinstream/terrain/layer_json.hpp"
+#include "tinstream/terrain/quantized_mesh.hpp"
+#include "tinstream/tile/codec.hpp"
+
+namespace tinstream::server {
+namespace {
+
+using nlohmann::json;
+
+bool iequals(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) ==
+                  std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> split(std::string_view s, char sep) {
+  std::vector<std::string_view> out;
+  while (true) {
+    const auto p = s.find(sep);
+    out.push_back(trim(s.substr(0, p)));
+    if (p == std::string_view::npos) break;
+    s = s.substr(p + 1);
+  }
+  return out;
+}
+
+// Quality of `coding` in an Accept-Encoding header: 0 when not acceptable.
+double accept_quality(std::string_view header, std::string_view coding) {
+  double star = -1, exact = -1;
+  for (std::string_view item : split(header, ',')) {
+    if (item.empty()) continue;
+    auto parts = split(item, ';');
+    double q = 1.0;
+    for (std::size_t i = 1; i < parts.size(); ++i) {
+      if (parts[i].size() > 2 && (parts[i][0] == 'q' || parts[i][0] == 'Q') && parts[i][1] == '=') {
+        try {
+          q = std::stod(std::string(parts[i].substr(2)));
+        } catch (...) {
+          q = 0;
+        }
+      }
+    }
+    if (iequals(parts[0], coding)) exact = q;
+    if (parts[0] == "*") star = q;
+  }
+  if (exact >= 0) return exact;
+  if (star >= 0) return star;
+  return 0;
+}
+
+// True when the Accept header asks for the quantized-mesh extension `ext`.
+bool accept_wants_extension(std::string_view accept, std::string_view ext) {
+  for (std::string_view item : split(accept, ',')) {
+    auto parts = split(item, ';');
+    if (!iequals(parts[0], "application/vnd.quantized-mesh")) continue;
+    for (std::size_t i = 1; i < parts.size(); ++i) {
+      if (parts[i].substr(0, 11) != "extensions=") continue;
+      std::string_view list = parts[i].substr(11);
+      if (!list.empty() && list.front() == '"') list = list.substr(1, list.size() >= 2 ? list.size() - 2 : 0);
+      for (std::string_view e : split(list, '-')) {
+        if (e == ext) return true;
+      }
+    }
+  }
+  return false;
+}
+
+bool etag_matches(std::string_view if_none_match, std::string_view etag) {
+  if (if_none_match.empty()) return false;
+  for (std::string_view tag : split(if_none_match, ',')) {
+    if (tag == "*") return true;
+    if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
+    if (tag == etag) return true;
+  }
+  return false;
+}
+
+int http_status(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::invalid_argument: return 400;
+    case ErrorCode::not_found: return 404;
+    case ErrorCode::unsupported: return 409;
+    case ErrorCode::cancelled:
+    case ErrorCode::io_error: return 503;
+    case ErrorCode::corrupt_data:
+    case ErrorCode::internal: return 500;
+  }
+  return 500;
+}
+
+Response error_response(const Error& e) { return json_error(http_status(e.code), e.message); }
+
+json layer_to_json(const store::LayerInfo& l) {
+  json j = {
+      {"name", l.name},
+      {"projection", geo::to_string(l.projection)},
+      {"vertical_datum", l.vertical_datum},
+      {"bounds", {{"west", l.bounds.west}, {"south", l.bounds.south}, {"east", l.bounds.east}, {"north", l.bounds.north}}},
+      {"mercator_bounds",
+       {{"min_x", l.mercator_bounds.min_x}, {"min_y", l.mercator_bounds.min_y},
+        {"max_x", l.mercator_bounds.max_x}, {"max_y", l.mercator_bounds.max_y}}},
+      {"min_level", l.min_level},
+      {"max_level", l.max_level},
+      {"max_points", l.max_points},
+      {"tile_count", l.tile_count},
+      {"point_count", l.point_count},
+      {"source_points", l.source_points},
+      {"min_z", l.min_z},
+      {"max_z", l.max_z},
+      {"level_max_error", l.level_max_error},
+      {"attribution", l.attribution},
+      {"created_unix", l.created_unix},
+      {"version", l.version},
+  };
+  json opts = json::parse(l.options_json, nullptr, false);
+  j["options"] = opts.is_discarded() ? json::object() : opts;
+  j["tiles"] = "/tiles/" + l.name + "/{quadkey}";
+  if (l.projection == geo::Projection::spherical) {
+    j["terrain"] = "/tiles/" + l.name + "/layer.json";
+  } else {
+    j["terrain"] = nullptr;
+  }
+  return j;
+}
+
+std::string cache_control(const ServerConfig& c) {
+  return "public, max-age=" + std::to_string(c.cache_max_age_s);
+}
+
+Result<store::TileStore*> get_store(Context& ctx) {
+  if (!ctx.store) return Error(ErrorCode::internal, "no store configured");
+  return ctx.store();
+}
+
+// Terrain only for spherical layers; a JSON 409 explains why otherwise.
+std::optional<Response> refuse_ellipsoidal(const store::LayerInfo& info) {
+  if (info.projection == geo::Projection::spherical) return std::nullopt;
+  return json_error(409, "layer \"" + info.name +
+                             "\" uses ellipsoidal Mercator; Cesium quantized-mesh tiles exist only "
+                             "for spherical-Mercator (EPSG:3857) layers — use /tiles/" +
+                             info.name + "/{quadkey}");
+}
+
+Response handle_native_tile(const Request& req, Context& ctx, const NativeTileRoute& r) {
+  auto st = get_store(ctx);
+  if (!st) return error_response(st.error());
+  auto t = (*st)->tile(r.layer, r.id);
+  if (!t) return error_response(t.error());
+  if (!t->has_value()) {
+    return json_error(404, "no tile " + r.id.quadkey() + " (" + r.id.to_string() + ") in layer \"" + r.layer + "\"");
+  }
+  const store::StoredTile& tile = **t;
+  Response res;
+  res.set("ETag", tile.etag);
+  res.set("Cache-Control", cache_control(ctx.config));
+  res.set("Vary", "Accept-Encoding");
+  if (etag_matches(req.if_none_match, tile.etag)) {
+    res.status = 304;
+    return res;
+  }
+  res.set("Content-Type", "application/vnd.tinstream.tile");
+  const double q_deflate = accept_quality(req.accept_encoding, "deflate");
+  const double q_gzip = accept_quality(req.accept_encoding, "gzip");
+  if (q_deflate > 0 && q_deflate >= q_gzip) {
+    res.set("Content-Encoding", "deflate");
+    res.body.assign(tile.compressed.begin(), tile.compressed.end());
+  } else if (q_gzip > 0) {
+    auto gz = terrain::zlib_to_gzip(tile.compressed);
+    if (!gz) return json_error(500, "tile " + r.id.quadkey() + ": " + gz.error().message);
+    res.set("Content-Encoding", "gzip");
+    res.body.assign(gz->begin(), gz->end());
+  } else {
+    auto raw = tile::decompress(tile.compressed);
+    if (!raw) return json_error(500, "tile " + r.id.quadkey() + ": " + raw.error().message);
+    res.body.assign(raw->begin(), raw->end());
+  }
+  return res;
+}
+
+void send_maybe_gzip(const Request& req, Response& res, const std::string& gz) {
+  if (accept_quality(req.accept_encoding, "gzip") > 0) {
+    res.set("Content-Encoding", "gzip");
+    res.body = gz;
+    return;
+  }
+  auto raw = terrain::gzip_decompress(std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()));
+  if (!raw) {
+    res = json_error(500, raw.error().message);
+    return;
+  }
+  res.body.assign(raw->begin(), raw->end());
+}
+
+Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRoute& r) {
+  auto st = get_store(ctx);
+  if (!st) return error_response(st.error());
+  auto info = (*st)->layer(r.layer);
+  if (!info) return error_response(info.error());
+  if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
+  const std::string etag = "\"lj-" + std::to_string(info->version) + "\"";
+  Response res;
+  res.set("ETag", etag);
+  res.set("Cache-Control", "no-cache");
+  res.set("Vary", "Accept-Encoding");
+  if (etag_matches(req.if_none_match, etag)) {
+    res.status = 304;
+    return res;
+  }
+  const std::string key = "layer.json|" + r.layer + "|" + std::to_string(info->version);
+  std::shared_ptr<const std::string> gz = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!gz) {
+    auto ids = (*st)->tile_ids(r.layer);
+    if (!ids) return error_response(ids.error());
+    terrain::LayerJsonInput in;
+    in.name = info->name;
+    in.attribution = info->attribution;
+    in.description = "tinstream layer " + info->name;
+    in.version = std::to_string(info->version);
+    in.bounds = info->bounds;
+    in.min_level = info->min_level;
+    in.max_level = info->max_level;
+    in.tile_ids = std::move(*ids);
+    const std::string text = terrain::layer_json(in);
+    auto bytes = terrain::gzip_compress(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+    gz = std::make_shared<const std::string>(bytes.begin(), bytes.end());
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, gz);
+  }
+  res.set("Content-Type", "application/json");
+  send_maybe_gzip(req, res, *gz);
+  return res;
+}
+
+Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r) {
+  auto st = get_store(ctx);
+  if (!st) return error_response(st.error());
+  auto info = (*st)->layer(r.layer);
+  if (!info) return error_response(info.error());
+  if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
+  const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
+
+  auto stored = (*st)->tile(r.layer, r.id);
+  if (!stored) return error_response(stored.error());
+  const bool synthetic = !stored->has_value();
+  if (synthetic && r.id.z >= info->min_level) {
+    return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
+                               std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
+  }
+  std::string base_tag = synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
+                                   : (**stored).etag;
+  base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
+  const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
+  Response res;
+  res.set("ETag", etag);
+  res.set("Cache-Control", cache_control(ctx.config));
+  res.set("Vary", "Accept, Accept-Encoding");
+  if (etag_matches(req.if_none_match, etag)) {
+    res.status = 304;
+    return res;
+  }
+  const std::string key = "qm|" + r.layer + "|" + std::to_string(info->version) + "|" +
+                          r.id.quadkey() + "|" + (normals ? "n" : "");
+  std::shared_ptr<const std::string> gz = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!gz) {
+    tile::TinTile tin;
+    if (synthetic) {
+      tin = terrain::flat_tile(r.id);
+    } else {
+      auto raw = tile::decompress((**stored).compressed);
+      if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
+      auto decoded = tile::decode(*raw);
+      if (!decoded) return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
+      tin = std::move(*decoded);
+    }
+    auto qm = terrain::encode_quantized_mesh(tin, info->projection, {normals});
+    if (!qm) return error_response(qm.error());
+    auto bytes = terrain::gzip_compress(*qm);
+    gz = std::make_shared<const std::string>(bytes.begin(), bytes.end());
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, gz);
+  }
+  res.set("Content-Type", normals ? "application/vnd.quantized-mesh;extensions=octvertexnormals"
+                                  : "application/vnd.quantized-mesh");
+  send_maybe_gzip(req, res, *gz);
+  return res;
+}
+
+void remove_quietly(const std::filesystem::path& p) {
+  if (p.empty()) return;
+  std::error_code ec;
+  std::filesystem::remove(p, ec);
+}
+
+Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
+  if (auto denied = check_admin(req, ctx)) {
+    remove_quietly(req.body_file);
+    return *denied;
+  }
+  if (!ctx.jobs) {
+    remove_quietly(req.body_file);
+    return json_error(503, "ingest is not available in this server");
+  }
+  IngestJobSpec spec;
+  spec.store_path = ctx.config.store;
+  std::vector<std::filesystem::path> delete_after;
+  if (is_upload(req)) {
+    if (req.body_file.empty()) return json_error(400, "upload body missing");
+    auto layer = r.query.find("layer");
+    if (layer == r.query.end() || !is_valid_layer_name(layer->second)) {
+      remove_quietly(req.body_file);
+      return json_error(400, "upload: query parameter layer= must name a valid layer ([A-Za-z0-9_.-]{1,64})");
+    }
+    spec.layer = layer->second;
+    std::string name = "upload";
+    if (auto f = r.query.find("filename"); f != r.query.end()) {
+      auto safe = sanitize_filename(f->second);
+      if (!safe) {
+        remove_quietly(req.body_file);
+        return json_error(400, "upload: filename= " + safe.error().message);
+      }
+      name = *safe;
+    }
+    std::filesystem::path final_path = req.body_file;
+    final_path += "-" + name;
+    std::error_code ec;
+    std::filesystem::rename(req.body_file, final_path, ec);
+    if (ec) {
+      remove_quietly(req.body_file);
+      return json_error(500, "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
+    }
+    spec.sources.push_back(final_path);
+    delete_after.push_back(final_path);
+    if (auto o = r.query.find("options"); o != r.query.end()) {
+      json opts = json::parse(o->second, nullptr, false);
+      if (opts.is_discarded() || !opts.is_object()) {
+        remove_quietly(final_path);
+        return json_error(400, "upload: options= must be a JSON object");
+      }
+      spec.options = std::move(opts);
+    }
+  } else {
+    json body = json::parse(req.body, nullptr, false);
+    if (body.is_discarded() || !body.is_object()) {
+      return json_error(400, "ingest: body must be a JSON object {\"layer\": ..., \"sources\": [...]}");
+    }
+    if (!body.contains("layer") || !body["layer"].is_string() ||
+        !is_valid_layer_name(body["layer"].get<std::string>())) {
+      return json_error(400, "ingest: \"layer\" must be a valid layer name ([A-Za-z0-9_.-]{1,64})");
+    }
+    spec.layer = body["layer"].get<std::string>();
+    if (!body.contains("sources") || !body["sources"].is_array() || body["sources"].empty()) {
+      return json_error(400, "ingest: \"sources\" must be a non-empty array of paths under the data root");
+    }
+    if (ctx.config.data_root.empty()) {
+      return json_error(403, "ingest: server-side paths are disabled (no data_root configured); upload the file instead");
+    }
+    for (const auto& s : body["sources"]) {
+      if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
+      auto p = resolve_source(ctx.config.data_root, s.get<std::string>());
+      if (!p) return json_error(p.error().code == ErrorCode::not_found ? 404 : (p.error().code == ErrorCode::invalid_argument ? 400 : 403), p.error().message);
+      spec.sources.push_back(*p);
+    }
+    if (body.contains("options")) {
+      if (!body["options"].is_object()) return json_error(400, "ingest: \"options\" must be an object");
+      spec.options = body["options"];
+    }
+  }
+  auto id = ctx.jobs->submit(std::move(spec), std::move(delete_after));
+  if (!id) {
+    for (const auto& p : delete_after) remove_quietly(p);
+    return json_error(503, id.error().message);
+  }
+  Response res = json_response(202, json{{"job", *id}, {"status_url", "/admin/jobs/" + *id}}.dump());
+  res.set("Location", "/admin/jobs/" + *id);
+  return res;
+}
+
+Response handle_delete(const Request& req, Context& ctx, const DeleteLayerRoute& r) {
+  if (auto denied = check_admin(req, ctx)) return *denied;
+  // A short-lived read-write connection on this io thread: deleting is one transaction.
+  auto rw = store::TileStore::open(ctx.config.store, store::TileStore::Mode::read_write);
+  if (!rw) return error_response(rw.error());
+  Status st = rw->delete_layer(r.layer);
+  if (!st) return error_response(st.error());
+  return json_response(200, json{{"deleted", r.layer}}.dump());
+}
+
+Response dispatch(const Request& req, Context& ctx, const Route& route) {
+  if (std::holds_alternative<HealthRoute>(route)) {
+    auto st = get_store(ctx);
+    if (!st) return json_error(503, "store unavailable: " + st.error().message);
+    auto layers = (*st)->layers();
+    if (!layers) return json_error(503, "store unavailable: " + layers.error().message);
+    return json_response(200, json{{"status", "ok"}, {"layers", layers->size()}}.dump());
+  }
+  if (std::holds_alternative<MetricsRoute>(route)) {
+    Response res;
+    res.set("Content-Type", "text/plain; version=0.0.4");
+    res.body = ctx.metrics ? ctx.metrics->render(ctx.jobs ? ctx.jobs->counts() : JobCounts{}) : "";
+    return res;
+  }
+  if (std::holds_alternative<LayersRoute>(route)) {
+    auto st = get_store(ctx);
+    if (!st) return error_response(st.error());
+    auto layers = (*st)->layers();
+    if (!layers) return error_response(layers.error());
+    json arr = json::array();
+    for (const auto& l : *layers) arr.push_back(layer_to_json(l));
+    return json_response(200, json{{"layers", arr}}.dump());
+  }
+  if (const auto* r = std::get_if<LayerRoute>(&route)) {
+    auto st = get_store(ctx);
+    if (!st) return error_response(st.error());
+    auto info = (*st)->layer(r->layer);
+    if (!info) return error_response(info.error());
+    return json_response(200, layer_to_json(*info).dump());
+  }
+  if (const auto* r = std::get_if<NativeTileRoute>(&route)) return handle_native_tile(req, ctx, *r);
+  if (const auto* r = std::get_if<LayerJsonRoute>(&route)) return handle_layer_json(req, ctx, *r);
+  if (const auto* r = std::get_if<TerrainRoute>(&route)) return handle_terrain(req, ctx, *r);
+  if (const auto* r = std::get_if<IngestRoute>(&route)) return handle_ingest(req, ctx, *r);
+  if (std::holds_alternative<JobsRoute>(route)) {
+    if (auto denied = check_admin(req, ctx)) return *denied;
+    json arr = json::array();
+    if (ctx.jobs) {
+      for (const auto& j : ctx.jobs->list()) arr.push_back(j.to_json());
+    }
+    return json_response(200, json{{"jobs", arr}}.dump());
+  }
+  if (const auto* r = std::get_if<JobRoute>(&route)) {
+    if (auto denied = check_admin(req, ctx)) return *denied;
+    auto job = ctx.jobs ? ctx.jobs->get(r->id) : std::nullopt;
+    if (!job) return json_error(404, "no job " + r->id);
+    return json_response(200, job->to_json().dump());
+  }
+  if (const auto* r = std::get_if<DeleteLayerRoute>(&route)) return handle_delete(req, ctx, *r);
+  // PreflightRoute
+  Response res;
+  res.status = 204;
+  res.set("Access-Control-Allow-Methods", "GET, HEAD, POST, DELETE, OPTIONS");
+  res.set("Access-Control-Allow-Headers", "Authorization, Content-Type, If-None-Match, Accept, Accept-Encoding");
+  res.set("Access-Control-Max-Age", "86400");
+  return res;
+}
+
+}  // namespace
+
+const std::string* Response::header(std::string_view name) const {
+  for (const auto& [k, v] : headers) {
+    if (iequals(k, name)) return &v;
+  }
+  return nullptr;
+}
+
+void Response::set(std::string name, std::string value) {
+  for (auto& [k, v] : headers) {
+    if (iequals(k, name)) {
+      v = std::move(value);
+      return;
+    }
+  }
+  headers.emplace_back(std::move(name), std::move(value));
+}
+
+Response json_response(int status, std::string body) {
+  Response r;
+  r.status = status;
+  r.body = std::move(body);
+  r.set("Content-Type", "application/json");
+  return r;
+}
+
+Response json_error(int status, std::string_view message) {
+  return json_response(status, json{{"error", message}, {"status", status}}.dump());
+}
+
+std::optional<Response> check_admin(const Request& request, const Context& context) {
+  if (context.admin_token.empty()) {
+    return json_error(403, "admin API disabled: no admin token configured");
+  }
+  std::string_view auth = trim(request.authorization);
+  if (auth.size() < 7 || !iequals(auth.substr(0, 7), "Bearer ")) {
+    Response r = json_error(401, "admin API: bearer token required (Authorization: Bearer <token>)");
+    r.set("WWW-Authenticate", "Bearer realm=\"tinstream-admin\"");
+    return r;
+  }
+  const std::string_view given = trim(auth.substr(7));
+  const std::string& want = context.admin_token;
+  // Constant time in the token's content: always walk the longer of the two.
+  const std::size_t n = std::max(given.size(), want.size());
+  unsigned diff = given.size() == want.size() ? 0u : 1u;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto a = static_cast<unsigned char>(i < given.size() ? given[i] : 0);
+    const auto b = static_cast<unsigned char>(i < want.size() ? want[i] : 0);
+    diff |= static_cast<unsigned>(a ^ b);
+  }
+  if (diff != 0) return json_error(403, "admin API: wrong token");
+  return std::nullopt;
+}
+
+bool is_upload(const Request& r) {
+  if (r.method != "POST") return false;
+  std::string_view path = r.target;
+  path = path.substr(0, path.find('?'));
+  if (path != "/admin/ingest") return false;
+  std::string_view ct = trim(r.content_type);
+  ct = ct.substr(0, ct.find(';'));
+  return !iequals(trim(ct), "application/json");
+}
+
+void add_cors(Response& response, const ServerConfig& config) {
+  if (config.cors_allow_origin.empty()) return;
+  response.set("Access-Control-Allow-Origin", config.cors_allow_origin);
+  response.set("Access-Control-Expose-Headers", "ETag, Content-Encoding, Content-Length, Location");
+}
+
+Response handle(const Request& request, Context& context) {
+  RouteResult parsed = parse_route(request.method, request.target);
+  Response res;
+  if (const auto* err = std::get_if<RouteError>(&parsed)) {
+    remove_quietly(request.body_file);
+    res = json_error(err->status, err->message);
+    if (!err->allow.empty()) res.set("Allow", err->allow);
+    res.route = err->route;
+  } else {
+    const Route& route = std::get<Route>(parsed);
+    if (!std::holds_alternative<IngestRoute>(route)) remove_quietly(request.body_file);
+    try {
+      res = dispatch(request, context, route);
+    } catch (const std::exception& e) {
+      res = json_error(500, std::string("internal error: ") + e.what());
+    }
+    res.route = std::string(route_name(route));
+  }
+  add_cors(res, context.config);
+  return res;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct TerrainCache::Impl {
+  using Entry = std::pair<std::string, std::shared_ptr<const std::string>>;
+  std::uint64_t max_bytes;
+  mutable std::mutex mutex;  // guards everything below
+  std::list<Entry> lru;      // front = most recent
+  std::unordered_map<std::string, std::list<Entry>::iterator> index;
+  std::uint64_t bytes = 0;
+};
+
+TerrainCache::TerrainCache(std::uint64_t max_bytes) : impl_(std::make_unique<Impl>()) {
+  impl_->max_bytes = max_bytes;
+}
+TerrainCache::~TerrainCache() = default;
+
+std::shared_ptr<const std::string> TerrainCache::get(const std::string& key) {
+  std::lock_guard lock(impl_->mutex);
+  auto it = impl_->index.find(key);
+  if (it == impl_->index.end()) return nullptr;
+  impl_->lru.splice(impl_->lru.begin(), impl_->lru, it->second);
+  return it->second->second;
+}
+
+void TerrainCache::put(const std::string& key, std::shared_ptr<const std::string> value) {
+  const std::uint64_t size = value->size() + key.size() + 64;
+  std::lock_guard lock(impl_->mutex);
+  if (size > impl_->max_bytes) return;
+  if (auto it = impl_->index.find(key); it != impl_->index.end()) {
+    impl_->bytes -= it->second->second->size() + key.size() + 64;
+    impl_->lru.erase(it->second);
+    impl_->index.erase(it);
+  }
+  impl_->lru.emplace_front(key, std::move(value));
+  impl_->index[key] = impl_->lru.begin();
+  impl_->bytes += size;
+  while (impl_->bytes > impl_->max_bytes && !impl_->lru.empty()) {
+    auto& last = impl_->lru.back();
+    impl_->bytes -= last.second->size() + last.first.size() + 64;
+    impl_->index.erase(last.first);
+    impl_->lru.pop_back();
+  }
+}
+
+std::uint64_t TerrainCache::bytes() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->bytes;
+}
+
+}  // namespace tinstream::server

@@ -1,0 +1,441 @@
+// The server library on a real loopback socket (port 0), against a real SQLite store.
+#include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "grid_tile.hpp"
+#include "qm_decoder.hpp"
+#include "test_support.hpp"
+#include "tinstream/server/server.hpp"
+#include "tinstream/tile/codec.hpp"
+
+namespace tinstream::server {
+namespace {
+
+using nlohmann::json;
+using testing::HttpConnection;
+using testing::http_get;
+using testing::http_request;
+using testing::TempDir;
+
+const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+const std::map<std::string, std::string> kAdmin = {{"Authorization", "Bearer tok"},
+                                                   {"Content-Type", "application/json"}};
+
+// What the test ingest runner saw, and a gate to hold a job in the running state.
+struct RunnerState {
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool open = true;
+  std::vector<std::uintmax_t> source_sizes;
+  int runs = 0;
+};
+
+// A real ingest stand-in: writes a small layer through LayerWriter and publishes it.
+IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
+  return [state](const IngestJobSpec& job, const ProgressSink& progress) -> Status {
+    {
+      std::unique_lock lock(state->mutex);
+      for (const auto& s : job.sources) state->source_sizes.push_back(std::filesystem::file_size(s));
+      ++state->runs;
+      state->cv.wait(lock, [&] { return state->open; });
+    }
+    if (!progress({"read", 1, 3, "steps"})) return Error(ErrorCode::cancelled, "cancelled");
+    auto st = store::TileStore::open(job.store_path, store::TileStore::Mode::read_write);
+    if (!st) return st.error();
+    store::LayerInfo info;
+    info.name = job.layer;
+    info.min_level = 12;
+    info.max_level = 12;
+    const auto ids = testing::test_tile_ids();
+    info.bounds = ids.back().lonlat_bounds(geo::NormalisedMercator());
+    auto writer = st->begin_layer(info);
+    if (!writer) return writer.error();
+    for (const auto& id : ids) {
+      if (id.z != 12) continue;
+      if (Status s = (*writer)->put(testing::make_grid_tile(id, 9, testing::synthetic_height)); !s) return s;
+      if (!progress({"triangulate", 2, 3, "steps"})) return Error(ErrorCode::cancelled, "cancelled");
+    }
+    info.tile_count = 16;
+    return (*writer)->publish(info);
+  };
+}
+
+class ServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    spdlog::set_level(spdlog::level::warn);
+    start({});
+  }
+  void TearDown() override { stop(); }
+
+  void start(std::function<void(ServerConfig&)> tweak) {
+    store_path_ = dir_.path / "store.db";
+    if (!std::filesystem::exists(store_path_)) testing::write_test_layer(store_path_, "lux");
+    std::filesystem::create_directories(dir_.path / "data" / "sub");
+    std::ofstream(dir_.path / "data" / "sub" / "points.xyz") << "6.1 49.6 300\n6.2 49.7 310\n";
+    std::ofstream(dir_.path / "secret.xyz") << "1 2 3\n";
+    std::error_code ec;
+    std::filesystem::create_symlink(dir_.path / "secret.xyz", dir_.path / "data" / "escape.xyz", ec);
+    ServerConfig c;
+    c.address = "127.0.0.1";
+    c.port = 0;
+    c.store = store_path_;
+    c.threads = 2;
+    c.admin_token = "tok";
+    c.data_root = dir_.path / "data";
+    c.upload_dir = dir_.path / "uploads";
+    c.max_header_bytes = 2048;
+    c.max_body_bytes = 4096;
+    c.max_upload_bytes = 100000;
+    c.read_timeout_ms = 5000;
+    c.write_timeout_ms = 5000;
+    c.log_level = "warn";
+    c.access_log = false;
+    if (tweak) tweak(c);
+    auto s = Server::create(c, make_runner(runner_));
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    server_ = std::move(*s);
+    port_ = server_->port();
+    ASSERT_NE(port_, 0);
+    thread_ = std::thread([this] { server_->run(); });
+  }
+
+  void stop() {
+    {
+      std::lock_guard lock(runner_->mutex);
+      runner_->open = true;
+    }
+    runner_->cv.notify_all();
+    if (server_) server_->stop();
+    if (thread_.joinable()) thread_.join();
+    server_.reset();
+  }
+
+  json wait_for_job(const std::string& id) {
+    json j;
+    for (int i = 0; i < 2000; ++i) {
+      auto r = http_get(port_, "/admin/jobs/" + id, kAdmin);
+      EXPECT_EQ(r.status, 200);
+      j = json::parse(r.body);
+      if (j["state"] != "queued" && j["state"] != "running") return j;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ADD_FAILURE() << "job " << id << " did not finish";
+    return j;
+  }
+
+  TempDir dir_{"server"};
+  std::filesystem::path store_path_;
+  std::shared_ptr<RunnerState> runner_ = std::make_shared<RunnerState>();
+  std::unique_ptr<Server> server_;
+  std::thread thread_;
+  std::uint16_t port_ = 0;
+};
+
+TEST_F(ServerTest, ServesReadEndpoints) {
+  auto health = http_get(port_, "/healthz");
+  EXPECT_EQ(health.status, 200);
+  EXPECT_EQ(json::parse(health.body)["status"], "ok");
+
+  auto layers = http_get(port_, "/layers");
+  ASSERT_EQ(layers.status, 200);
+  EXPECT_EQ(json::parse(layers.body)["layers"][0]["name"], "lux");
+  EXPECT_EQ(json::parse(http_get(port_, "/layers/lux").body)["max_level"], 12);
+
+  auto tile = http_get(port_, "/tiles/lux/" + kTile.quadkey(), {{"Accept-Encoding", "deflate, gzip"}});
+  ASSERT_EQ(tile.status, 200);
+  EXPECT_EQ(tile.header("Content-Encoding"), "deflate");
+  EXPECT_FALSE(tile.header("ETag").empty());
+  EXPECT_EQ(tile.header("Access-Control-Allow-Origin"), "*");
+  auto decoded = tile::decode(testing::inflate_zlib(tile.body));
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_EQ(decoded->id, kTile);
+
+  auto again = http_get(port_, "/tiles/lux/" + kTile.quadkey(),
+                        {{"Accept-Encoding", "deflate"}, {"If-None-Match", tile.header("ETag")}});
+  EXPECT_EQ(again.status, 304);
+
+  auto lj = http_get(port_, "/tiles/lux/layer.json", {{"Accept-Encoding", "gzip"}});
+  ASSERT_EQ(lj.status, 200);
+  const auto lj_raw = testing::gunzip(lj.body);
+  EXPECT_EQ(json::parse(std::string(lj_raw.begin(), lj_raw.end()))["format"], "quantized-mesh-1.0");
+
+  auto terrain = http_get(port_, "/tiles/lux/12/2121/" + std::to_string(kTile.tms_row()) + ".terrain",
+                          {{"Accept-Encoding", "gzip"},
+                           {"Accept", "application/vnd.quantized-mesh;extensions=octvertexnormals"}});
+  ASSERT_EQ(terrain.status, 200);
+  EXPECT_EQ(terrain.header("Content-Encoding"), "gzip");
+  auto mesh = testing::decode_quantized_mesh(testing::gunzip(terrain.body));
+  EXPECT_TRUE(mesh.oct_normals.has_value());
+  EXPECT_EQ(mesh.u.size(), 17u * 17u);
+
+  EXPECT_EQ(http_get(port_, "/tiles/lux/0123x").status, 400);
+  EXPECT_EQ(http_get(port_, "/tiles/lux/" + geo::TileId::from_zxy(12, 1, 1)->quadkey()).status, 404);
+  EXPECT_EQ(http_get(port_, "/nothing/here").status, 404);
+
+  auto metrics = http_get(port_, "/metrics");
+  ASSERT_EQ(metrics.status, 200);
+  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"200\"}"), std::string::npos);
+  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"304\"} 1"), std::string::npos);
+  // This connection at least (earlier ones may still be closing).
+  const auto open_at = metrics.body.find("\ntinstream_http_open_connections ");
+  ASSERT_NE(open_at, std::string::npos);
+  EXPECT_GE(std::stoi(metrics.body.substr(open_at + 33)), 1);
+}
+
+TEST_F(ServerTest, NeighbourTerrainTilesShareEdgesOverHttp) {
+  auto fetch = [&](const geo::TileId& id) {
+    auto r = http_get(port_, "/tiles/lux/12/" + std::to_string(id.x) + "/" + std::to_string(id.tms_row()) + ".terrain",
+                      {{"Accept-Encoding", "gzip"}});
+    EXPECT_EQ(r.status, 200);
+    return testing::decode_quantized_mesh(testing::gunzip(r.body));
+  };
+  const geo::TileId east = *kTile.neighbour(geo::Direction::east);
+  const auto a = fetch(kTile), b = fetch(east);
+  const auto ra = kTile.lonlat_bounds(geo::NormalisedMercator()), rb = east.lonlat_bounds(geo::NormalisedMercator());
+  ASSERT_EQ(a.east.size(), b.west.size());
+  for (std::uint32_t i : a.east) {
+    const double lat_a = ra.south + (ra.north - ra.south) * a.v[i] / 32767.0;
+    const double h_a = a.min_height + (static_cast<double>(a.max_height) - a.min_height) * a.h[i] / 32767.0;
+    bool found = false;
+    for (std::uint32_t j : b.west) {
+      const double lat_b = rb.south + (rb.north - rb.south) * b.v[j] / 32767.0;
+      if (std::abs(lat_a - lat_b) > 1e-9) continue;
+      found = true;
+      const double h_b = b.min_height + (static_cast<double>(b.max_height) - b.min_height) * b.h[j] / 32767.0;
+      EXPECT_NEAR(h_a, h_b, 0.02);
+      EXPECT_EQ(a.u[i], 32767);
+      EXPECT_EQ(b.u[j], 0);
+    }
+    EXPECT_TRUE(found);
+  }
+}
+
+TEST_F(ServerTest, KeepAliveAndPipelining) {
+  HttpConnection c(port_);
+  ASSERT_TRUE(c.send_raw("GET /layers/lux HTTP/1.1\r\nHost: x\r\n\r\n"
+                         "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
+                         "GET /tiles/lux/9x HTTP/1.1\r\nHost: x\r\n\r\n"
+                         "HEAD /tiles/lux/" + kTile.quadkey() + " HTTP/1.1\r\nHost: x\r\n\r\n"));
+  auto r1 = c.read_response();
+  auto r2 = c.read_response();
+  auto r3 = c.read_response();
+  auto r4 = c.read_response(/*head_request=*/true);
+  EXPECT_EQ(r1.status, 200);
+  EXPECT_EQ(json::parse(r1.body)["name"], "lux");
+  EXPECT_EQ(r2.status, 200);
+  EXPECT_EQ(json::parse(r2.body)["status"], "ok");
+  EXPECT_EQ(r3.status, 400);
+  EXPECT_EQ(r4.status, 200);
+  EXPECT_TRUE(r4.body.empty());
+  EXPECT_GT(std::stoul(r4.header("Content-Length")), 100u);
+  // Still open: a fifth request on the same connection.
+  EXPECT_EQ(c.request("GET", "/healthz").status, 200);
+}
+
+TEST_F(ServerTest, OversizedHeadersBodiesAndGarbageAre4xxAndServingContinues) {
+  {
+    HttpConnection c(port_);
+    auto r = c.request("GET", "/healthz", {{"X-Pad", std::string(4000, 'a')}});
+    EXPECT_EQ(r.status, 431);
+    EXPECT_EQ(json::parse(r.body)["status"], 431);
+  }
+  {
+    HttpConnection c(port_);
+    auto r = c.request("POST", "/admin/ingest", kAdmin, std::string(10000, ' '));
+    EXPECT_EQ(r.status, 413);
+  }
+  {
+    HttpConnection c(port_);  // chunked body over the limit: detected while reading
+    std::string req = "POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+                      "Content-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n";
+    for (int i = 0; i < 5; ++i) req += "400\r\n" + std::string(1024, ' ') + "\r\n";
+    req += "0\r\n\r\n";
+    c.send_raw(req);
+    EXPECT_EQ(c.read_response().status, 413);
+  }
+  for (const std::string garbage :
+       {"GARBAGE\r\n\r\n", "GET /healthz HTTP/1.1\r\nContent-Length: abc\r\n\r\n",
+        "GET /healthz HTTP/7.1\r\n\r\n", "GET  HTTP/1.1\r\n\r\n", "\x01\x02\x03\r\n\r\n"}) {
+    HttpConnection c(port_);
+    c.send_raw(garbage);
+    auto r = c.read_response();
+    EXPECT_EQ(r.status, 400) << garbage;
+  }
+  EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+  EXPECT_EQ(http_get(port_, "/tiles/lux/" + kTile.quadkey()).status, 200);
+}
+
+TEST_F(ServerTest, PathTraversalIsRejected) {
+  for (const std::string target :
+       {"/tiles/%2e%2e/0", "/tiles/..%2f..%2fetc/0", "/tiles/lux/%2e%2e", "/layers/%2e%2e%2fstore.db",
+        "/tiles/../../etc/passwd", "/tiles/lux/..%2F..%2Fetc%2Fpasswd", "/layers/..%5c..%5cwin"}) {
+    auto r = http_get(port_, target);
+    EXPECT_GE(r.status, 400) << target;
+    EXPECT_LT(r.status, 500) << target;
+  }
+  auto post = [&](const std::string& source) {
+    return http_request(port_, "POST", "/admin/ingest", kAdmin,
+                        json{{"layer", "t"}, {"sources", {source}}}.dump()).status;
+  };
+  EXPECT_EQ(post("../secret.xyz"), 400);
+  EXPECT_EQ(post("sub/../../secret.xyz"), 400);
+  EXPECT_EQ(post((dir_.path / "secret.xyz").string()), 403);
+  EXPECT_EQ(post("/etc/passwd"), 403);
+  EXPECT_EQ(post("escape.xyz"), 403);  // symlink out of the data root
+  EXPECT_EQ(post("%2e%2e/secret.xyz"), 404);  // no decoding of body paths: a literal name
+  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest?layer=..&filename=a.xyz",
+                         {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}}, "1 2 3\n").status, 400);
+  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest?layer=u&filename=..%2Fx",
+                         {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}}, "1 2 3\n").status, 400);
+  EXPECT_EQ(runner_->runs, 0);
+}
+
+TEST_F(ServerTest, AdminAuthFailures) {
+  const std::string body = json{{"layer", "t"}, {"sources", {"sub/points.xyz"}}}.dump();
+  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest", {{"Content-Type", "application/json"}}, body).status, 401);
+  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest",
+                         {{"Content-Type", "application/json"}, {"Authorization", "Bearer nope"}}, body).status, 403);
+  EXPECT_EQ(http_get(port_, "/admin/jobs/1").status, 401);
+  EXPECT_EQ(http_get(port_, "/admin/jobs/1", {{"Authorization", "Bearer tokk"}}).status, 403);
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/lux").status, 401);
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/lux", {{"Authorization", "Bearer x"}}).status, 403);
+  // Uploads are refused before the body is stored.
+  auto up = http_request(port_, "POST", "/admin/ingest?layer=u", {{"Content-Type", "application/octet-stream"}},
+                         std::string(5000, 'x'));
+  EXPECT_EQ(up.status, 401);
+  EXPECT_TRUE(!std::filesystem::exists(dir_.path / "uploads") ||
+              std::filesystem::is_empty(dir_.path / "uploads"));
+  EXPECT_EQ(http_get(port_, "/layers/lux").status, 200);
+  EXPECT_EQ(runner_->runs, 0);
+}
+
+TEST_F(ServerTest, IngestThroughTheAdminApiWhileServing) {
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = false;  // hold the job in "running" until the reader is busy
+  }
+  std::atomic<bool> done{false};
+  std::atomic<int> fetched{0}, failures{0};
+  std::thread reader([&] {
+    HttpConnection c(port_);
+    for (int i = 0; i < 5000 && !done; ++i) {
+      auto r = c.request("GET", "/tiles/lux/" + kTile.quadkey(), {{"Accept-Encoding", "deflate"}});
+      if (r.status != 200) ++failures;
+      ++fetched;
+    }
+  });
+  auto r = http_request(port_, "POST", "/admin/ingest", kAdmin,
+                        json{{"layer", "fresh"}, {"sources", {"sub/points.xyz"}}, {"options", {{"max_points", 100}}}}.dump());
+  ASSERT_EQ(r.status, 202) << r.body;
+  const std::string id = json::parse(r.body)["job"];
+  EXPECT_EQ(r.header("Location"), "/admin/jobs/" + id);
+  json status;
+  for (int i = 0; i < 2000; ++i) {
+    status = json::parse(http_get(port_, "/admin/jobs/" + id, kAdmin).body);
+    if (status["state"] == "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_EQ(status["state"], "running");
+  EXPECT_EQ(http_get(port_, "/layers/fresh").status, 404);  // not visible before publish
+  EXPECT_NE(http_get(port_, "/metrics").body.find("tinstream_ingest_jobs{state=\"running\"} 1"), std::string::npos);
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = true;
+  }
+  runner_->cv.notify_all();
+  status = wait_for_job(id);
+  done = true;
+  reader.join();
+  EXPECT_EQ(status["state"], "succeeded") << status.dump();
+  EXPECT_GE(status["reports"].get<int>(), 1);
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(fetched, 0);
+  EXPECT_EQ(http_get(port_, "/layers/fresh").status, 200);
+  EXPECT_EQ(http_get(port_, "/tiles/fresh/" + kTile.quadkey()).status, 200);
+  EXPECT_EQ(http_get(port_, "/tiles/lux/" + kTile.quadkey()).status, 200);
+  ASSERT_EQ(runner_->source_sizes.size(), 1u);
+
+  // Delete it again.
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/fresh", kAdmin).status, 200);
+  EXPECT_EQ(http_get(port_, "/layers/fresh").status, 404);
+  EXPECT_EQ(http_get(port_, "/tiles/fresh/" + kTile.quadkey()).status, 404);
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/fresh", kAdmin).status, 404);
+  EXPECT_EQ(http_get(port_, "/admin/jobs/999", kAdmin).status, 404);
+}
+
+TEST_F(ServerTest, UploadIngestIsStreamedToDiskAndLimited) {
+  const std::map<std::string, std::string> up = {{"Authorization", "Bearer tok"},
+                                                 {"Content-Type", "application/octet-stream"}};
+  auto r = http_request(port_, "POST", "/admin/ingest?layer=uploaded&filename=pts.xyz", up, std::string(50000, 'x'));
+  ASSERT_EQ(r.status, 202) << r.body;
+  const auto status = wait_for_job(json::parse(r.body)["job"]);
+  EXPECT_EQ(status["state"], "succeeded") << status.dump();
+  ASSERT_EQ(runner_->source_sizes.size(), 1u);
+  EXPECT_EQ(runner_->source_sizes[0], 50000u);
+  EXPECT_TRUE(std::filesystem::is_empty(dir_.path / "uploads"));  // removed after the job
+  EXPECT_EQ(http_get(port_, "/layers/uploaded").status, 200);
+
+  auto big = http_request(port_, "POST", "/admin/ingest?layer=big", up, std::string(200000, 'x'));
+  EXPECT_EQ(big.status, 413);
+  // With Expect: 100-continue, as curl sends for large uploads.
+  HttpConnection c(port_);
+  c.send_raw("POST /admin/ingest?layer=cont HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+             "Content-Type: application/octet-stream\r\nContent-Length: 10\r\nExpect: 100-continue\r\n\r\n");
+  c.send_raw("0123456789");
+  EXPECT_EQ(c.read_response().status, 202);
+  EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+}
+
+TEST_F(ServerTest, CorsPreflightOverTheWire) {
+  auto r = http_request(port_, "OPTIONS", "/tiles/lux/layer.json",
+                        {{"Origin", "https://viewer.example"}, {"Access-Control-Request-Method", "GET"}});
+  EXPECT_EQ(r.status, 204);
+  EXPECT_EQ(r.header("Access-Control-Allow-Origin"), "*");
+  EXPECT_NE(r.header("Access-Control-Allow-Methods").find("GET"), std::string::npos);
+}
+
+TEST_F(ServerTest, GracefulShutdownFinishesInFlightRequests) {
+  HttpConnection idle(port_);
+  ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
+  HttpConnection busy(port_);
+  // Half a request in flight: headers and part of the body.
+  const std::string part1 = "{\"layer\": \"late\", ", part2 = "\"sources\": [\"sub/points.xyz\"]}";
+  ASSERT_TRUE(busy.send_raw("POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+                            "Content-Type: application/json\r\nContent-Length: " +
+                            std::to_string(part1.size() + part2.size()) + "\r\n\r\n" + part1));
+  // Make sure the server is reading that body before stopping (a request on another connection
+  // is answered after the bytes above were received by the server's socket).
+  ASSERT_EQ(http_get(port_, "/healthz").status, 200);
+  server_->stop();
+  ASSERT_TRUE(busy.send_raw(part2));
+  auto r = busy.read_response();
+  EXPECT_EQ(r.status, 202) << r.body;
+  EXPECT_EQ(r.header("Connection"), "close");
+  EXPECT_TRUE(idle.closed_by_peer());
+  thread_.join();  // run() returned
+  // New connections are refused.
+  HttpConnection after(port_);
+  EXPECT_EQ(after.request("GET", "/healthz").status, 0);
+}
+
+TEST_F(ServerTest, ConnectionsBeyondTheLimitGet503) {
+  stop();
+  start([](ServerConfig& c) { c.max_connections = 2; });
+  HttpConnection a(port_), b(port_);
+  ASSERT_EQ(a.request("GET", "/healthz").status, 200);
+  ASSERT_EQ(b.request("GET", "/healthz").status, 200);
+  HttpConnection c(port_);
+  EXPECT_EQ(c.request("GET", "/healthz").status, 503);
+  EXPECT_EQ(a.request("GET", "/healthz").status, 200);
+}
+
+}  // namespace
+}  // namespace tinstream::server

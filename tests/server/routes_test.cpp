@@ -1,0 +1,169 @@
+#include <gtest/gtest.h>
+
+#include "tinstream/server/config.hpp"
+#include "tinstream/server/routes.hpp"
+
+namespace tinstream::server {
+namespace {
+
+// Copies, so that results of temporaries stay valid.
+template <typename T>
+std::optional<T> as(const RouteResult& r) {
+  if (!std::holds_alternative<Route>(r)) return std::nullopt;
+  if (const T* t = std::get_if<T>(&std::get<Route>(r))) return *t;
+  return std::nullopt;
+}
+
+std::optional<RouteError> error_of(const RouteResult& r) {
+  if (const auto e = std::get_if<RouteError>(&r)) return *e;
+  return std::nullopt;
+}
+
+TEST(Routes, NativeTileByQuadkey) {
+  const auto r = parse_route("GET", "/tiles/lux/0231");
+  const auto t = as<NativeTileRoute>(r);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_EQ(t->layer, "lux");
+  EXPECT_EQ(t->id.quadkey(), "0231");
+  EXPECT_EQ(route_name(std::get<Route>(r)), "tile");
+}
+
+TEST(Routes, MalformedQuadkeyGives400WithTheTileIdMessage) {
+  const auto r = parse_route("GET", "/tiles/lux/0241");
+  const auto e = error_of(r);
+  ASSERT_TRUE(e.has_value());
+  EXPECT_EQ(e->status, 400);
+  EXPECT_EQ(e->message, geo::TileId::from_quadkey("0241").error().message);
+}
+
+TEST(Routes, TerrainTileConvertsTmsRows) {
+  const auto t = as<TerrainRoute>(parse_route("GET", "/tiles/lux/12/2120/2695.terrain?v=3"));
+  ASSERT_TRUE(t.has_value());
+  EXPECT_EQ(t->id.z, 12u);
+  EXPECT_EQ(t->id.x, 2120u);
+  EXPECT_EQ(t->id.y, 4095u - 2695u);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/4/0.terrain"))->status, 400);  // x out of range
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/-1.terrain"))->status, 400);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/x.terrain"))->status, 400);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/1.png"))->status, 404);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/99999999999/1/1.terrain"))->status, 400);
+}
+
+TEST(Routes, LayerJsonAndMetadata) {
+  EXPECT_TRUE(as<LayerJsonRoute>(parse_route("GET", "/tiles/lux/layer.json")).has_value());
+  EXPECT_TRUE(as<LayersRoute>(parse_route("GET", "/layers")).has_value());
+  const auto l = as<LayerRoute>(parse_route("HEAD", "/layers/my-layer_1.v2"));
+  ASSERT_TRUE(l.has_value());
+  EXPECT_EQ(l->layer, "my-layer_1.v2");
+  EXPECT_TRUE(as<HealthRoute>(parse_route("GET", "/healthz")).has_value());
+  EXPECT_TRUE(as<MetricsRoute>(parse_route("GET", "/metrics")).has_value());
+}
+
+TEST(Routes, TraversalInLayerNamesIsRejected) {
+  for (const std::string& target : std::vector<std::string>{"/tiles/../0", "/tiles/%2e%2e/0", "/tiles/%2E%2E/layer.json", "/layers/..", "/layers/.hidden",
+        "/layers/a%2Fb", "/layers/a%5Cb", "/tiles/..%2F..%2Fetc/0", "/admin/layers/%2e%2e",
+        "/layers/a%00b", "/layers/%zz", "/layers/" + std::string(65, 'a') + ""}) {
+    const auto r = parse_route(target.substr(0, 7) == "/admin/" ? "DELETE" : "GET", target);
+    const auto e = error_of(r);
+    ASSERT_TRUE(e.has_value()) << target;
+    EXPECT_EQ(e->status, 400) << target;
+  }
+  // A decoded "/" cannot split a segment into two.
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux%2F0/1"))->status, 400);
+  // ".." as a path segment is just an unknown path.
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/../../etc/passwd"))->status, 404);
+}
+
+TEST(Routes, QuadkeyTraversalIsRejected) {
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/%2e%2e"))->status, 400);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/..%2f..%2fetc"))->status, 400);
+}
+
+TEST(Routes, WrongMethodIs405WithAllow) {
+  const auto e = error_of(parse_route("POST", "/tiles/lux/0"));
+  ASSERT_TRUE(e.has_value());
+  EXPECT_EQ(e->status, 405);
+  EXPECT_NE(e->allow.find("GET"), std::string::npos);
+  EXPECT_EQ(error_of(parse_route("GET", "/admin/ingest"))->status, 405);
+  EXPECT_EQ(error_of(parse_route("GET", "/admin/layers/lux"))->status, 405);
+  EXPECT_EQ(error_of(parse_route("DELETE", "/layers/lux"))->status, 405);
+}
+
+TEST(Routes, UnknownPathsAndBadTargets) {
+  EXPECT_EQ(error_of(parse_route("GET", "/nope"))->status, 404);
+  EXPECT_EQ(error_of(parse_route("GET", "/"))->status, 404);
+  EXPECT_EQ(error_of(parse_route("GET", "http://example.com/layers"))->status, 400);
+  EXPECT_EQ(error_of(parse_route("GET", "*"))->status, 400);
+  EXPECT_EQ(error_of(parse_route("GET", ""))->status, 400);
+}
+
+TEST(Routes, AdminRoutes) {
+  const auto i = as<IngestRoute>(parse_route("POST", "/admin/ingest?layer=lux&filename=a%20b.tif"));
+  ASSERT_TRUE(i.has_value());
+  EXPECT_EQ(i->query.at("layer"), "lux");
+  EXPECT_EQ(i->query.at("filename"), "a b.tif");
+  const auto j = as<JobRoute>(parse_route("GET", "/admin/jobs/12"));
+  ASSERT_TRUE(j.has_value());
+  EXPECT_EQ(j->id, "12");
+  EXPECT_EQ(error_of(parse_route("GET", "/admin/jobs/..%2f1"))->status, 400);
+  EXPECT_TRUE(as<JobsRoute>(parse_route("GET", "/admin/jobs")).has_value());
+  EXPECT_TRUE(as<DeleteLayerRoute>(parse_route("DELETE", "/admin/layers/lux")).has_value());
+  EXPECT_TRUE(as<PreflightRoute>(parse_route("OPTIONS", "/tiles/lux/0")).has_value());
+}
+
+TEST(Routes, PercentDecoding) {
+  EXPECT_EQ(*percent_decode("a%41%62"), "aAb");
+  EXPECT_FALSE(percent_decode("a%4").has_value());
+  EXPECT_FALSE(percent_decode("a%").has_value());
+  EXPECT_FALSE(percent_decode("%g0").has_value());
+  EXPECT_FALSE(percent_decode("%00").has_value());
+  EXPECT_EQ(*percent_decode("a+b", true), "a b");
+  EXPECT_EQ(*percent_decode("a+b", false), "a+b");
+}
+
+TEST(Config, ParsesKeysAndRejectsUnknownOnes) {
+  auto c = config_from_json(R"({
+    // comments are allowed
+    "address": "127.0.0.1", "port": 9000, "store": "x.db", "threads": 3,
+    "admin_token_env": "MY_TOKEN", "data_root": "/srv/data", "upload_dir": "/tmp/up",
+    "max_upload_bytes": 1000, "max_header_bytes": 4096, "max_body_bytes": 2000,
+    "max_connections": 10, "read_timeout_ms": 100, "write_timeout_ms": 200,
+    "cache_max_age_s": 60, "cors_allow_origin": "", "terrain_cache_bytes": 0,
+    "max_queued_jobs": 2, "shutdown_grace_ms": 500, "log_level": "warn", "access_log": false})");
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_EQ(c->port, 9000);
+  EXPECT_EQ(c->threads, 3u);
+  EXPECT_EQ(c->store, "x.db");
+  EXPECT_EQ(c->max_header_bytes, 4096u);
+  EXPECT_FALSE(c->access_log);
+  EXPECT_EQ(c->cors_allow_origin, "");
+
+  auto bad = config_from_json(R"({"prot": 1})");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("prot"), std::string::npos);
+  EXPECT_FALSE(config_from_json(R"({"port": 70000})").ok());
+  EXPECT_FALSE(config_from_json(R"({"port": "80"})").ok());
+  EXPECT_FALSE(config_from_json(R"({"log_level": "loud"})").ok());
+  EXPECT_FALSE(config_from_json("[1,2]").ok());
+  EXPECT_FALSE(config_from_json("{").ok());
+}
+
+TEST(Config, ShippedConfigFileParses) {
+  auto c = load_config(std::filesystem::path(TINSTREAM_SOURCE_DIR) / "config" / "server.json");
+  ASSERT_TRUE(c.ok()) << c.error().message;
+}
+
+TEST(Config, TokenFromEnvironment) {
+  ServerConfig c;
+  c.admin_token_env = "TINSTREAM_TEST_TOKEN_XYZ";
+  ::setenv("TINSTREAM_TEST_TOKEN_XYZ", "s3cret", 1);
+  EXPECT_EQ(resolve_admin_token(c), "s3cret");
+  c.admin_token = "literal";
+  EXPECT_EQ(resolve_admin_token(c), "literal");
+  ::unsetenv("TINSTREAM_TEST_TOKEN_XYZ");
+  c.admin_token.clear();
+  EXPECT_EQ(resolve_admin_token(c), "");
+}
+
+}  // namespace
+}  // namespace tinstream::server

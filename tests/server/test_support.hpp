@@ -1,0 +1,71 @@
+// Shared helpers for the server tests: a test store with real tiles, and a tiny blocking HTTP/1.1
+// client over POSIX sockets (so tests can also send malformed bytes). 127.0.0.1 only; every read
+// has a timeout so a broken server fails a test instead of hanging it.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "tinstream/geo/tile_id.hpp"
+#include "tinstream/store/tile_store.hpp"
+
+namespace tinstream::testing {
+
+// A fresh directory under the build tree, removed by the destructor.
+struct TempDir {
+  explicit TempDir(const std::string& name);
+  ~TempDir();
+  std::filesystem::path path;
+};
+
+// The tiles of the test layer: a 4×4 block at level 12 (near Luxembourg) and their ancestors up to
+// level 10, built from the synthetic surface (grid_tile.hpp).
+std::vector<geo::TileId> test_tile_ids();
+// Writes layer `name` with those tiles through LayerWriter (n×n vertex grids) and publishes it.
+void write_test_layer(const std::filesystem::path& store, const std::string& name,
+                      geo::Projection projection = geo::Projection::spherical, int grid = 17);
+
+struct HttpResponse {
+  int status = 0;
+  std::map<std::string, std::string> headers;  // lower-case names
+  std::string body;
+  std::string header(const std::string& name) const;
+};
+
+class HttpConnection {
+ public:
+  explicit HttpConnection(std::uint16_t port);
+  ~HttpConnection();
+  HttpConnection(const HttpConnection&) = delete;
+  HttpConnection& operator=(const HttpConnection&) = delete;
+
+  bool send_raw(const std::string& bytes);  // false when the peer is gone
+  // Reads one response; status 0 when the connection closed or timed out first.
+  HttpResponse read_response(bool head_request = false);
+  // True when the server closed the connection (EOF within the timeout).
+  bool closed_by_peer();
+  HttpResponse request(const std::string& method, const std::string& target,
+                       const std::map<std::string, std::string>& headers = {},
+                       const std::string& body = {});
+
+ private:
+  int fd_ = -1;
+  std::string buffer_;
+};
+
+HttpResponse http_request(std::uint16_t port, const std::string& method, const std::string& target,
+                          const std::map<std::string, std::string>& headers = {},
+                          const std::string& body = {});
+inline HttpResponse http_get(std::uint16_t port, const std::string& target,
+                             const std::map<std::string, std::string>& headers = {}) {
+  return http_request(port, "GET", target, headers);
+}
+
+std::vector<std::uint8_t> gunzip(const std::string& gz);
+std::vector<std::uint8_t> inflate_zlib(const std::string& z);
+std::vector<std::uint8_t> bytes_of(const std::string& s);
+
+}  // namespace tinstream::testing
