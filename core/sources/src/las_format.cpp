@@ -98,11 +98,17 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
                         ") is beyond the end of the file (" + std::to_string(file_size) +
                         " bytes)");
   }
-  const std::uint64_t available = file_size - h.offset_to_points;
+  // Point records end at the first EVLR (LAS 1.4) or at the end of the file.
+  std::uint64_t points_end = file_size;
+  if (h.evlr_count > 0 && h.evlr_start >= h.offset_to_points && h.evlr_start <= file_size) {
+    points_end = h.evlr_start;
+  }
+  const std::uint64_t available = points_end - h.offset_to_points;
   if (h.point_count > available / h.record_length) {
     return corrupt_data(where + "the header announces " + std::to_string(h.point_count) +
                         " points of " + std::to_string(h.record_length) + " bytes, but only " +
-                        std::to_string(available) + " bytes follow the offset to point data " +
+                        std::to_string(available) + " bytes lie between the offset to point data " +
+                        "and the end of the point records " +
                         "(room for " + std::to_string(available / h.record_length) +
                         " records): the file is truncated or the count is wrong");
   }

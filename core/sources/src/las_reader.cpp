@@ -308,6 +308,12 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
     }
     if (k.vertical_cs_type && *k.vertical_cs_type > 0 && *k.vertical_cs_type < 32767) {
       info.vertical_crs = "EPSG:" + std::to_string(*k.vertical_cs_type);
+      if (*k.vertical_cs_type >= 5100 && *k.vertical_cs_type <= 5199) {
+        info.notes.push_back("VerticalCSTypeGeoKey " + info.vertical_crs +
+                             " is an EPSG vertical *datum* code, not a vertical CRS (a common "
+                             "writer mistake; NAVD88's height CRS is EPSG:5703, or 6360 in US "
+                             "feet)");
+      }
     }
   }
   if (!crs.wkt.empty()) {

@@ -303,6 +303,18 @@ TEST_F(LasFile, AbsurdPointCountIsRejected) {
   expect_error(open_las(p14), ErrorCode::corrupt_data, "18446744073709551615 points", p14);
 }
 
+TEST_F(LasFile, PointCountRunningIntoTheExtendedVlrsIsRejected) {
+  LasSpec s;
+  s.minor = 4;
+  s.format = 6;
+  s.points = sample_points();
+  s.evlrs.push_back(TestVlr{"LASF_Projection", 2112, testing::text_body(std::string(200, 'W'))});
+  auto b = build_las(s);
+  testing::put_value<std::uint64_t>(b, 247, 9);  // 2 more than written: would read the EVLR
+  auto p = write(b);
+  expect_error(open_las(p), ErrorCode::corrupt_data, "announces 9 points", p);
+}
+
 TEST_F(LasFile, OffsetToPointsBeyondTheFileIsRejected) {
   auto b = build_las(small_spec());
   testing::put_value<std::uint32_t>(b, 96, 1u << 30);
@@ -543,6 +555,9 @@ TEST(LasRealData, NewMexicoGeoKeysGiveEpsgAndUsSurveyFeet) {
   EXPECT_EQ(info.crs, "EPSG:2903");
   EXPECT_EQ(info.crs_origin, "LAS GeoKeys");
   EXPECT_EQ(info.vertical_crs, "EPSG:5103");
+  bool datum_note = false;
+  for (const auto& n : info.notes) datum_note |= n.find("datum* code") != std::string::npos;
+  EXPECT_TRUE(datum_note) << "5103 is NAVD88's datum code, the file stores it as the vertical CRS";
   ASSERT_TRUE(info.z_unit.has_value());
   EXPECT_EQ(info.z_unit->name, "US survey foot");
   EXPECT_EQ(info.record_count, 23875u);
