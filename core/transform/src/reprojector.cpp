@@ -404,7 +404,7 @@ Status Reprojector::transform_3d(std::span<const sources::SourcePoint> in,
   for (std::size_t i = 0; i < out.size(); ++i) {
     GeoPoint& g = out[i];
     if (!std::isfinite(g.lon) || !std::isfinite(g.lat) || !std::isfinite(g.h) ||
-        std::abs(g.lat) > 90) {
+        std::abs(g.lat) > 90 || std::abs(g.lon) > 360) {
       return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) + ": (" +
                           std::to_string(in[i].x) + ", " + std::to_string(in[i].y) + ", " +
                           std::to_string(in[i].z) + ") cannot be transformed from " +
@@ -431,8 +431,10 @@ Status Reprojector::transform(std::span<const sources::SourcePoint> in,
                      sizeof(GeoPoint), out.size(), nullptr, 0, 0, nullptr, 0, 0);
   for (std::size_t i = 0; i < out.size(); ++i) {
     GeoPoint& g = out[i];
+    // |lon| > 360 never comes out of a real transformation: it is a projected coordinate read
+    // as degrees (a wrong CRS label), and wrapping it would hide that.
     if (!std::isfinite(g.lon) || !std::isfinite(g.lat) || std::abs(g.lat) > 90 ||
-        g.lon == HUGE_VAL) {
+        std::abs(g.lon) > 360) {
       return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) + ": (" +
                           std::to_string(in[i].x) + ", " + std::to_string(in[i].y) +
                           ") cannot be transformed from " + impl_->plan.crs_name +

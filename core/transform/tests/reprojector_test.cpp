@@ -356,5 +356,35 @@ TEST(Reprojector, VerticalCrsModeRefusesAZUnitAndNeedsAVerticalCrs) {
   EXPECT_NEAR(out[0].h, 123.25, 1e-9);
 }
 
+TEST(Reprojector, ProjectedCoordinatesLabelledGeographicAreAClearError) {
+  // lone_star_tls.laz's GeoKeys say EPSG:4326 for UTM metres (SOURCES.md); same numbers here.
+  auto rp = Reprojector::create(info_with("EPSG:4326", "/data/lone_star.las"), {});
+  ASSERT_TRUE(rp.ok());
+  std::vector<SourcePoint> in = {{10.0, 20.0, 1, 1, 0}, {515368.602, 4918340.364, 2330, 2, 0}};
+  std::vector<GeoPoint> out;
+  auto st = rp->transform(in, out);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.error().message.find("/data/lone_star.las: record 2"), std::string::npos)
+      << st.error().message;
+  EXPECT_NE(st.error().message.find("wrong CRS"), std::string::npos);
+  // Read as UTM 12N they fall on Lone Star Geyser, Yellowstone (-110.807, 44.418).
+  auto utm = Reprojector::create(info_with("EPSG:32612"), {});
+  ASSERT_TRUE(utm.ok());
+  ASSERT_TRUE(utm->transform(std::span(in).subspan(1), out).ok());
+  EXPECT_NEAR(out[0].lon, -110.807, 0.001);
+  EXPECT_NEAR(out[0].lat, 44.418, 0.001);
+}
+
+TEST(Reprojector, PointOutsideTheProjectionDomainNamesTheRecord) {
+  auto rp = Reprojector::create(info_with("EPSG:32633", "/data/far.xyz"), {});
+  ASSERT_TRUE(rp.ok());
+  std::vector<SourcePoint> in = {{500000, 4000000, 0, 7, 0}, {1e12, 1e12, 0, 8, 0}};
+  std::vector<GeoPoint> out;
+  auto st = rp->transform(in, out);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.error().message.find("/data/far.xyz: record 8"), std::string::npos)
+      << st.error().message;
+}
+
 }  // namespace
 }  // namespace tinstream::transform
