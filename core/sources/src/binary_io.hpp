@@ -23,9 +23,7 @@ inline std::uint64_t load_le64(const unsigned char* p) {
 inline std::int32_t load_le_i32(const unsigned char* p) {
   return std::bit_cast<std::int32_t>(load_le32(p));
 }
-inline double load_le_double(const unsigned char* p) {
-  return std::bit_cast<double>(load_le64(p));
-}
+inline double load_le_double(const unsigned char* p) { return std::bit_cast<double>(load_le64(p)); }
 
 struct FileCloser {
   void operator()(std::FILE* f) const {

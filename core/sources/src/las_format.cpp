@@ -108,8 +108,8 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
     return corrupt_data(where + "the header announces " + std::to_string(h.point_count) +
                         " points of " + std::to_string(h.record_length) + " bytes, but only " +
                         std::to_string(available) + " bytes lie between the offset to point data " +
-                        "and the end of the point records " +
-                        "(room for " + std::to_string(available / h.record_length) +
+                        "and the end of the point records " + "(room for " +
+                        std::to_string(available / h.record_length) +
                         " records): the file is truncated or the count is wrong");
   }
   const char* axis = "xyz";
@@ -141,13 +141,26 @@ Result<GeoKeys> parse_geokeys(std::span<const unsigned char> bytes, const std::s
     const std::uint16_t value = load_le16(e + 6);
     if (location != 0) continue;  // the keys we use are all SHORT values stored inline
     switch (id) {
-      case 1024: keys.model_type = value; break;
-      case 2048: keys.geographic_type = value; break;
-      case 3072: keys.projected_cs_type = value; break;
-      case 3076: keys.proj_linear_units = value; break;
-      case 4096: keys.vertical_cs_type = value; break;
-      case 4099: keys.vertical_units = value; break;
-      default: break;
+      case 1024:
+        keys.model_type = value;
+        break;
+      case 2048:
+        keys.geographic_type = value;
+        break;
+      case 3072:
+        keys.projected_cs_type = value;
+        break;
+      case 3076:
+        keys.proj_linear_units = value;
+        break;
+      case 4096:
+        keys.vertical_cs_type = value;
+        break;
+      case 4099:
+        keys.vertical_units = value;
+        break;
+      default:
+        break;
     }
   }
   return keys;
@@ -155,11 +168,16 @@ Result<GeoKeys> parse_geokeys(std::span<const unsigned char> bytes, const std::s
 
 std::optional<LinearUnit> linear_unit_from_epsg(std::uint16_t code) {
   switch (code) {
-    case 9001: return LinearUnit{"metre", 1.0};
-    case 9002: return LinearUnit{"foot", 0.3048};
-    case 9003: return LinearUnit{"US survey foot", 1200.0 / 3937.0};
-    case 9036: return LinearUnit{"kilometre", 1000.0};
-    default: return std::nullopt;
+    case 9001:
+      return LinearUnit{"metre", 1.0};
+    case 9002:
+      return LinearUnit{"foot", 0.3048};
+    case 9003:
+      return LinearUnit{"US survey foot", 1200.0 / 3937.0};
+    case 9036:
+      return LinearUnit{"kilometre", 1000.0};
+    default:
+      return std::nullopt;
   }
 }
 

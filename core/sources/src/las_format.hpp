@@ -42,12 +42,12 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
 
 // What the GeoKey directory (LASF_Projection 34735) says, for the keys we use.
 struct GeoKeys {
-  std::optional<std::uint16_t> model_type;          // 1024
-  std::optional<std::uint16_t> geographic_type;     // 2048
-  std::optional<std::uint16_t> projected_cs_type;   // 3072
-  std::optional<std::uint16_t> proj_linear_units;   // 3076
-  std::optional<std::uint16_t> vertical_cs_type;    // 4096
-  std::optional<std::uint16_t> vertical_units;      // 4099
+  std::optional<std::uint16_t> model_type;         // 1024
+  std::optional<std::uint16_t> geographic_type;    // 2048
+  std::optional<std::uint16_t> projected_cs_type;  // 3072
+  std::optional<std::uint16_t> proj_linear_units;  // 3076
+  std::optional<std::uint16_t> vertical_cs_type;   // 4096
+  std::optional<std::uint16_t> vertical_units;     // 4099
 };
 Result<GeoKeys> parse_geokeys(std::span<const unsigned char> bytes, const std::string& path);
 

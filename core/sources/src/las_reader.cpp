@@ -26,9 +26,7 @@ bool seek(std::FILE* f, std::uint64_t offset) {
   return fseeko(f, static_cast<off_t>(offset), SEEK_SET) == 0;
 }
 
-bool read_exact(std::FILE* f, void* dst, std::size_t n) {
-  return std::fread(dst, 1, n, f) == n;
-}
+bool read_exact(std::FILE* f, void* dst, std::size_t n) { return std::fread(dst, 1, n, f) == n; }
 
 std::string trim_c_string(const unsigned char* p, std::size_t n) {
   std::size_t len = 0;
@@ -83,10 +81,10 @@ class LasSource final : public PointSource {
           ++counters_.rejected_invalid;
           continue;
         }
-        return fail(corrupt_data(info_.path + ": point record " + std::to_string(record) +
-                                 ": coordinate is not finite after scale/offset (x=" +
-                                 std::to_string(p.x) + ", y=" + std::to_string(p.y) +
-                                 ", z=" + std::to_string(p.z) + ")"));
+        return fail(
+            corrupt_data(info_.path + ": point record " + std::to_string(record) +
+                         ": coordinate is not finite after scale/offset (x=" + std::to_string(p.x) +
+                         ", y=" + std::to_string(p.y) + ", z=" + std::to_string(p.z) + ")"));
       }
       batch.push_back(p);
       ++counters_.accepted;
@@ -114,8 +112,10 @@ class LasSource final : public PointSource {
     std::vector<bool> keep(256, false);
     if (has_ground) {
       keep[2] = true;
-      info_.notes.push_back("class filter: the file has ground points (class 2; the first is "
-                            "record " + std::to_string(first_ground) + "): keeping class 2 only");
+      info_.notes.push_back(
+          "class filter: the file has ground points (class 2; the first is "
+          "record " +
+          std::to_string(first_ground) + "): keeping class 2 only");
     } else {
       std::fill(keep.begin(), keep.end(), true);
       keep[7] = keep[18] = false;
@@ -226,9 +226,8 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
     const std::uint16_t id = load_le16(vh + 18);
     const std::uint16_t length = load_le16(vh + 20);
     if (pos + 54 + length > h.offset_to_points) {
-      return corrupt_data(path + ": " + what + " (" + user + " " + std::to_string(id) +
-                          "): its " + std::to_string(length) +
-                          "-byte body runs past the start of point data");
+      return corrupt_data(path + ": " + what + " (" + user + " " + std::to_string(id) + "): its " +
+                          std::to_string(length) + "-byte body runs past the start of point data");
     }
     if (auto st = inspect_record(f, path, what, user, id, pos + 54, length, out); !st.ok()) {
       return st;
@@ -278,7 +277,8 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
   FilePtr file(std::fopen(path.c_str(), "rb"));
   if (!file) return io_error(path + ": cannot open: " + std::strerror(errno));
 
-  std::vector<unsigned char> head(static_cast<std::size_t>(std::min<std::uint64_t>(375, file_size)));
+  std::vector<unsigned char> head(
+      static_cast<std::size_t>(std::min<std::uint64_t>(375, file_size)));
   if (!read_exact(file.get(), head.data(), head.size())) {
     return io_error(path + ": cannot read the LAS header");
   }
@@ -321,9 +321,7 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
     info.crs_origin = "LAS WKT VLR";
   } else if (crs.geokeys) {
     const las::GeoKeys& k = *crs.geokeys;
-    auto valid = [](const std::optional<std::uint16_t>& v) {
-      return v && *v > 0 && *v < 32767;
-    };
+    auto valid = [](const std::optional<std::uint16_t>& v) { return v && *v > 0 && *v < 32767; };
     if (valid(k.projected_cs_type)) {
       info.crs = "EPSG:" + std::to_string(*k.projected_cs_type);
     } else if (valid(k.geographic_type) && !(k.model_type && *k.model_type == 1)) {
@@ -342,8 +340,8 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
     for (std::uint8_t c : *options.class_filter.classes) k[c] = true;
     keep = std::move(k);
   }
-  auto source = std::make_unique<LasSource>(std::move(file), h, std::move(info), options,
-                                            std::move(keep));
+  auto source =
+      std::make_unique<LasSource>(std::move(file), h, std::move(info), options, std::move(keep));
   if (!options.class_filter.classes) {
     if (auto st = source->choose_default_filter(); !st.ok()) return st.error();
   }

@@ -21,10 +21,14 @@ std::string lower(std::string s) {
 Result<std::unique_ptr<PointSource>> open_source(const std::filesystem::path& path,
                                                  const SourceOptions& options) {
   switch (options.format) {
-    case SourceFormat::las: return open_las(path, options);
-    case SourceFormat::xyz: return open_xyz(path, options);
-    case SourceFormat::raster: return open_raster(path, options);
-    case SourceFormat::automatic: break;
+    case SourceFormat::las:
+      return open_las(path, options);
+    case SourceFormat::xyz:
+      return open_xyz(path, options);
+    case SourceFormat::raster:
+      return open_raster(path, options);
+    case SourceFormat::automatic:
+      break;
   }
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {

@@ -1,8 +1,8 @@
 // Any GDAL raster as points: one point per cell centre of one band, NODATA and NaN cells
 // skipped, read a strip of block-height rows at a time (memory: width × block height doubles).
-#include <gdal.h>
 #include <cpl_conv.h>
 #include <cpl_error.h>
+#include <gdal.h>
 #include <ogr_srs_api.h>
 
 #include <algorithm>
@@ -27,7 +27,10 @@ using DatasetPtr = std::unique_ptr<void, DatasetCloser>;
 // message is read with CPLGetLastErrorMsg().
 class QuietGdalErrors {
  public:
-  QuietGdalErrors() { CPLPushErrorHandler(CPLQuietErrorHandler); CPLErrorReset(); }
+  QuietGdalErrors() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
   ~QuietGdalErrors() { CPLPopErrorHandler(); }
   QuietGdalErrors(const QuietGdalErrors&) = delete;
   QuietGdalErrors& operator=(const QuietGdalErrors&) = delete;
@@ -180,11 +183,11 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
   if (!std::filesystem::exists(fs_path, ec)) return not_found(path + ": cannot open: no such file");
 
   QuietGdalErrors quiet;
-  DatasetPtr ds(GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr,
-                           nullptr));
+  DatasetPtr ds(
+      GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
   if (!ds) {
-    return unsupported(path + ": not a LAS file, and GDAL cannot open it as a raster: " +
-                       last_gdal_error());
+    return unsupported(
+        path + ": not a LAS file, and GDAL cannot open it as a raster: " + last_gdal_error());
   }
   auto h = static_cast<GDALDatasetH>(ds.get());
   const int bands = GDALGetRasterCount(h);
@@ -210,8 +213,9 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
   if (!info.crs.empty()) {
     info.crs_origin = "GDAL";
   } else {
-    info.notes.push_back("the raster has no CRS (ESRI ASCII grids carry none without a .prj): "
-                         "the caller must give one (--crs)");
+    info.notes.push_back(
+        "the raster has no CRS (ESRI ASCII grids carry none without a .prj): "
+        "the caller must give one (--crs)");
   }
   info.z_unit = unit_from_gdal(GDALGetRasterUnitType(band));
   const int w = GDALGetRasterXSize(h), ht = GDALGetRasterYSize(h);
@@ -230,8 +234,8 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
       info.bounds->max_z = zmax;
     }
   }
-  auto source = std::make_unique<RasterSource>(std::move(ds), band, gt, nodata, std::move(info),
-                                               options);
+  auto source =
+      std::make_unique<RasterSource>(std::move(ds), band, gt, nodata, std::move(info), options);
   return std::unique_ptr<PointSource>(std::move(source));
 }
 

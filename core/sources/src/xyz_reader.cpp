@@ -20,8 +20,8 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
     s.remove_prefix(1);
   }
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r' ||
-                        s.back() == '\n')) {
+  while (!s.empty() &&
+         (s.back() == ' ' || s.back() == '\t' || s.back() == '\r' || s.back() == '\n')) {
     s.remove_suffix(1);
   }
   return s;
@@ -92,8 +92,8 @@ class XyzSource final : public PointSource {
         continue;
       }
       split(line, t.delimiter, fields_);
-      const std::size_t need = std::max({t.x_column, t.y_column, t.z_column,
-                                         t.class_column.value_or(0)}) + 1;
+      const std::size_t need =
+          std::max({t.x_column, t.y_column, t.z_column, t.class_column.value_or(0)}) + 1;
       const auto where = [&] { return info_.path + ": line " + std::to_string(line_no_) + ": "; };
       if (!t.header_lines && !first_data_seen_) {
         first_data_seen_ = true;

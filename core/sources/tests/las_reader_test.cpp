@@ -41,9 +41,12 @@ std::vector<TestPoint> sample_points() {
 
 class LasFile : public ::testing::Test {
  protected:
-  void SetUp() override { dir_ = testing::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name()); }
+  void SetUp() override {
+    dir_ = testing::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
   void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::filesystem::path write(const std::vector<unsigned char>& bytes, const std::string& name = "t.las") {
+  std::filesystem::path write(const std::vector<unsigned char>& bytes,
+                              const std::string& name = "t.las") {
     auto p = dir_ / name;
     testing::write_file(p, bytes);
     return p;
@@ -200,9 +203,9 @@ TEST_F(LasFile, ManyPointsStreamAcrossChunkBoundaries) {
 TEST_F(LasFile, CrsFromGeoKeysWithUnits) {
   LasSpec s;
   s.points = sample_points();
-  s.vlrs.push_back(TestVlr{"LASF_Projection", 34735,
-                           testing::geokey_body({{1024, 1}, {3072, 2903}, {3076, 9003},
-                                                 {4096, 5703}, {4099, 9003}})});
+  s.vlrs.push_back(TestVlr{
+      "LASF_Projection", 34735,
+      testing::geokey_body({{1024, 1}, {3072, 2903}, {3076, 9003}, {4096, 5703}, {4099, 9003}})});
   auto src = open_las(write(build_las(s)));
   ASSERT_TRUE(src.ok()) << src.error().message;
   const auto& info = (*src)->info();
@@ -468,7 +471,8 @@ TEST_F(LasFile, MutatedFilesNeverCrash) {
     const int flips = 1 + static_cast<int>(next() % 8);
     for (int f = 0; f < flips; ++f) {
       // Mostly hit the header and VLRs, where the structure is.
-      const std::size_t limit = (next() % 4 == 0) ? bytes.size() : std::min<std::size_t>(bytes.size(), 700);
+      const std::size_t limit =
+          (next() % 4 == 0) ? bytes.size() : std::min<std::size_t>(bytes.size(), 700);
       bytes[next() % limit] = static_cast<unsigned char>(next());
     }
     if (next() % 5 == 0) bytes.resize(next() % bytes.size());

@@ -35,7 +35,7 @@ struct LasSpec {
   double offset[3] = {1000, 2000, 0};
   std::vector<TestPoint> points;
   std::vector<TestVlr> vlrs;
-  std::vector<TestVlr> evlrs;  // LAS 1.4 only
+  std::vector<TestVlr> evlrs;      // LAS 1.4 only
   bool legacy_count_zero = false;  // 1.4: leave the legacy 32-bit count at 0
 };
 
@@ -158,7 +158,8 @@ inline std::vector<unsigned char> geokey_body(
 
 inline void write_file(const std::filesystem::path& p, const std::vector<unsigned char>& bytes) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
 }
 
 // A fresh, empty directory for one test.

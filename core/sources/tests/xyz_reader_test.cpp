@@ -11,8 +11,8 @@ namespace {
 class XyzFile : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = testing::scratch_dir(
-        std::string("xyz_") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = testing::scratch_dir(std::string("xyz_") +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
   std::filesystem::path write(const std::string& text, const std::string& name = "p.xyz") {
@@ -51,8 +51,8 @@ TEST_F(XyzFile, WhitespaceSeparatedWithCommentsAndBlankLines) {
 }
 
 TEST_F(XyzFile, CsvWithHeaderIsDetectedAndColumnsChosen) {
-  auto p = write("id,z,easting,northing\n1,100.5,500000,4000000\n2,101.5,500001,4000001\n",
-                 "p.csv");
+  auto p =
+      write("id,z,easting,northing\n1,100.5,500000,4000000\n2,101.5,500001,4000001\n", "p.csv");
   SourceOptions o;
   o.text.delimiter = ',';
   o.text.x_column = 2;

@@ -103,8 +103,8 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
                            " is outside the normalised Mercator square (|lat| ≤ " +
                            std::to_string(mercator.max_latitude()) + "°)");
         }
-        run_points.push_back(RunPoint{m->x, m->y, g.h, in.weight, input_tag,
-                                      batch[i].classification});
+        run_points.push_back(
+            RunPoint{m->x, m->y, g.h, in.weight, input_tag, batch[i].classification});
         lonlat.push_back(geo::LonLat{g.lon, g.lat});
       }
       if (auto st = writer->append(run_points, lonlat); !st.ok()) return st.error();

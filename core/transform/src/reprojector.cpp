@@ -31,7 +31,8 @@ std::string proj_message(PJ_CONTEXT* ctx) {
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 struct AxisUnit {
@@ -59,7 +60,6 @@ std::optional<AxisUnit> axis_unit(PJ_CONTEXT* ctx, const PJ* crs, int axis) {
   return u;
 }
 
-
 struct ListDeleter {
   void operator()(PJ_OBJ_LIST* l) const { proj_list_destroy(l); }
 };
@@ -78,12 +78,12 @@ std::vector<PjPtr> candidate_operations(PJ_CONTEXT* ctx, const PJ* source, const
   std::unique_ptr<PJ_OPERATION_FACTORY_CONTEXT, FactoryDeleter> factory(
       proj_create_operation_factory_context(ctx, nullptr));
   if (!factory) return out;
-  proj_operation_factory_context_set_spatial_criterion(
-      ctx, factory.get(), PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
+  proj_operation_factory_context_set_spatial_criterion(ctx, factory.get(),
+                                                       PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
   proj_operation_factory_context_set_grid_availability_use(ctx, factory.get(), grids);
   if (area) {
-    proj_operation_factory_context_set_area_of_interest(ctx, factory.get(), (*area)[0],
-                                                        (*area)[1], (*area)[2], (*area)[3]);
+    proj_operation_factory_context_set_area_of_interest(ctx, factory.get(), (*area)[0], (*area)[1],
+                                                        (*area)[2], (*area)[3]);
   }
   std::unique_ptr<PJ_OBJ_LIST, ListDeleter> list(
       proj_create_operations(ctx, source, target, factory.get()));
@@ -132,7 +132,8 @@ Status Reprojector::Impl::plan_vertical_crs(const PjPtr& compound, const PjPtr& 
   PJ_CONTEXT* pctx = ctx.get();
   const std::string& file = info.path;
   if (options.z_unit) {
-    return invalid_argument(file + ": a z unit cannot be combined with vertical_datum=crs: PROJ "
+    return invalid_argument(file +
+                            ": a z unit cannot be combined with vertical_datum=crs: PROJ "
                             "takes heights in the vertical CRS's own unit");
   }
   PjPtr source3d;
@@ -153,7 +154,8 @@ Status Reprojector::Impl::plan_vertical_crs(const PjPtr& compound, const PjPtr& 
     vertical = std::move(v);
   }
   if (!source3d) {
-    return invalid_argument(file + ": vertical_datum=crs needs a vertical CRS: give a compound "
+    return invalid_argument(file +
+                            ": vertical_datum=crs needs a vertical CRS: give a compound "
                             "CRS such as EPSG:32633+5773 with --crs");
   }
   const PJ* vcrs = vertical ? vertical.get() : source3d.get();
@@ -183,9 +185,9 @@ Status Reprojector::Impl::plan_vertical_crs(const PjPtr& compound, const PjPtr& 
   }
   PjPtr target(proj_create(pctx, "EPSG:4979"));
   if (!target) return Error(ErrorCode::internal, "PROJ cannot build EPSG:4979");
-  auto usable = candidate_operations(pctx, source3d.get(), target.get(),
-                                     PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID,
-                                     area);
+  auto usable =
+      candidate_operations(pctx, source3d.get(), target.get(),
+                           PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID, area);
   PjPtr chosen;
   for (PjPtr& op : usable) {
     if (op && proj_coordoperation_has_ballpark_transformation(pctx, op.get()) == 0) {
@@ -331,24 +333,25 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
     return unsupported(file + ": z unit '" + plan.z_unit.name + "' has no usable metre factor");
   }
   if (vertical || !info.vertical_crs.empty()) {
-    plan.notes.push_back("the source declares a vertical CRS (" +
-                         (vertical ? std::string(proj_get_name(vertical.get()))
-                                   : info.vertical_crs) +
-                         "); heights are converted as vertical_datum=" + options.vertical_datum);
+    plan.notes.push_back(
+        "the source declares a vertical CRS (" +
+        (vertical ? std::string(proj_get_name(vertical.get())) : info.vertical_crs) +
+        "); heights are converted as vertical_datum=" + options.vertical_datum);
   }
 
   // Horizontal operation.
   PjPtr wgs84(proj_create(ctx, "EPSG:4326"));
-  if (!wgs84) return Error(ErrorCode::internal, "PROJ cannot build EPSG:4326: " + proj_message(ctx));
+  if (!wgs84)
+    return Error(ErrorCode::internal, "PROJ cannot build EPSG:4326: " + proj_message(ctx));
   PjPtr op(proj_create_crs_to_crs_from_pj(ctx, horizontal.get(), wgs84.get(), nullptr, nullptr));
   if (!op) {
-    return unsupported(file + ": no transformation from '" + plan.crs_name + "' to WGS84: " +
-                       proj_message(ctx));
+    return unsupported(file + ": no transformation from '" + plan.crs_name +
+                       "' to WGS84: " + proj_message(ctx));
   }
   impl->horizontal.reset(proj_normalize_for_visualization(ctx, op.get()));
   if (!impl->horizontal) {
-    return unsupported(file + ": cannot normalise the transformation axis order: " +
-                       proj_message(ctx));
+    return unsupported(file +
+                       ": cannot normalise the transformation axis order: " + proj_message(ctx));
   }
 
   if (options.vertical_datum == "crs") {
@@ -366,7 +369,9 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
     for (const std::string& g : *grids) {
       const std::string pipeline =
           "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
-          "+step +proj=vgridshift +grids=" + g + " +multiplier=1 "
+          "+step +proj=vgridshift +grids=" +
+          g +
+          " +multiplier=1 "
           "+step +proj=unitconvert +xy_in=rad +xy_out=deg";
       PjPtr shift(proj_create(ctx, pipeline.c_str()));
       if (shift) {
@@ -380,8 +385,8 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
       for (const auto& g : *grids) names += (names.empty() ? "" : " or ") + g;
       const PJ_INFO pinfo = proj_info();
       return not_found(
-          file + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " +
-          names + ", which PROJ cannot find (searched: " +
+          file + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " + names +
+          ", which PROJ cannot find (searched: " +
           (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
           "). Install it with `projsync --file " + grids->front() +
           "`, or download https://cdn.proj.org/" + grids->front() +
@@ -399,8 +404,8 @@ Status Reprojector::transform_3d(std::span<const sources::SourcePoint> in,
   PJ* op = impl_->full3d.get();
   proj_errno_reset(op);
   proj_trans_generic(op, PJ_FWD, &out[0].lon, sizeof(GeoPoint), out.size(), &out[0].lat,
-                     sizeof(GeoPoint), out.size(), &out[0].h, sizeof(GeoPoint), out.size(),
-                     nullptr, 0, 0);
+                     sizeof(GeoPoint), out.size(), &out[0].h, sizeof(GeoPoint), out.size(), nullptr,
+                     0, 0);
   for (std::size_t i = 0; i < out.size(); ++i) {
     GeoPoint& g = out[i];
     if (!std::isfinite(g.lon) || !std::isfinite(g.lat) || !std::isfinite(g.h) ||
@@ -408,7 +413,8 @@ Status Reprojector::transform_3d(std::span<const sources::SourcePoint> in,
       return corrupt_data(impl_->path + ": record " + std::to_string(in[i].record) + ": (" +
                           std::to_string(in[i].x) + ", " + std::to_string(in[i].y) + ", " +
                           std::to_string(in[i].z) + ") cannot be transformed from " +
-                          impl_->plan.crs_name + " to WGS84 ellipsoidal height (outside the "
+                          impl_->plan.crs_name +
+                          " to WGS84 ellipsoidal height (outside the "
                           "CRS's domain or the vertical grid?)");
     }
     if (g.lon > 180 || g.lon < -180) g.lon = std::remainder(g.lon, 360.0);

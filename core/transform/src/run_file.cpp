@@ -121,8 +121,7 @@ RunPoint decode_run_point(const unsigned char in[kRunRecordBytes]) {
 // ---- writer -------------------------------------------------------------------------------
 
 Result<RunFileWriter> RunFileWriter::create(const std::filesystem::path& path,
-                                            geo::Projection projection,
-                                            std::uint32_t input_count) {
+                                            geo::Projection projection, std::uint32_t input_count) {
   RunFileWriter w;
   w.final_ = path;
   w.partial_ = path;
@@ -234,8 +233,8 @@ Result<RunFileHeader> RunFileWriter::commit() {
   if (ec) {
     std::error_code ignored;
     std::filesystem::remove(partial_, ignored);
-    return io_error(final_.string() + ": cannot rename the finished run file into place: " +
-                    ec.message());
+    return io_error(final_.string() +
+                    ": cannot rename the finished run file into place: " + ec.message());
   }
   return header_;
 }
@@ -280,7 +279,8 @@ Result<std::size_t> RunFileReader::read(std::vector<RunPoint>& out, std::size_t 
                     ": read failed (file changed underneath?)");
   }
   out.reserve(out.size() + n);
-  for (std::size_t i = 0; i < n; ++i) out.push_back(decode_run_point(buffer_.data() + i * kRunRecordBytes));
+  for (std::size_t i = 0; i < n; ++i)
+    out.push_back(decode_run_point(buffer_.data() + i * kRunRecordBytes));
   next_ += n;
   return n;
 }

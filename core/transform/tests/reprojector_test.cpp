@@ -1,11 +1,11 @@
-#include <GeographicLib/UTMUPS.hpp>
+#include "tinstream/transform/reprojector.hpp"
+
 #include <gdal.h>
 #include <gtest/gtest.h>
 #include <proj.h>
 
+#include <GeographicLib/UTMUPS.hpp>
 #include <cmath>
-
-#include "tinstream/transform/reprojector.hpp"
 
 namespace tinstream::transform {
 namespace {
@@ -174,8 +174,8 @@ TEST(Reprojector, ZUnitOptionOverrides) {
 }
 
 TEST(Reprojector, UnknownCrsIsAClearErrorNamingTheFile) {
-  for (const std::string bad : {"EPSG:999999", "PROJCS[\"broken\",", "+proj=nonsense",
-                                "not a crs at all"}) {
+  for (const std::string bad :
+       {"EPSG:999999", "PROJCS[\"broken\",", "+proj=nonsense", "not a crs at all"}) {
     auto rp = Reprojector::create(info_with(bad, "/data/in.las"), {});
     ASSERT_FALSE(rp.ok()) << bad;
     EXPECT_EQ(rp.error().code, ErrorCode::unsupported);
@@ -261,7 +261,8 @@ TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
   const std::vector<std::pair<double, double>> places = {
       {-123.071, 44.0507}, {10.5, 0.5}, {-105.45, 40.15}, {6.1, 49.8}};
   std::vector<SourcePoint> in;
-  for (const auto& [lon, lat] : places) in.push_back(SourcePoint{lon, lat, 100.0, in.size() + 1, 0});
+  for (const auto& [lon, lat] : places)
+    in.push_back(SourcePoint{lon, lat, 100.0, in.size() + 1, 0});
   std::vector<GeoPoint> out;
   ASSERT_TRUE(rp->transform(in, out).ok());
   for (std::size_t k = 0; k < places.size(); ++k) {
@@ -270,8 +271,8 @@ TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
     const int col = static_cast<int>((lon - gt[0]) / gt[1]);
     const int row = static_cast<int>((places[k].second - gt[3]) / gt[5]);
     float n = 0;
-    ASSERT_EQ(GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, col, row, 1, 1, &n, 1, 1,
-                           GDT_Float32, 0, 0),
+    ASSERT_EQ(GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, col, row, 1, 1, &n, 1, 1, GDT_Float32,
+                           0, 0),
               CE_None);
     EXPECT_NEAR(out[k].h, 100.0 + n, 1.0) << places[k].first << ", " << places[k].second;
   }
@@ -279,7 +280,6 @@ TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
   // Eugene, Oregon: EGM96 N ≈ -22.5 m.
   EXPECT_NEAR(out[0].h - 100.0, -22.47, 0.5);
 }
-
 
 TEST(Reprojector, VerticalCrsModeUsesProjsGeoidForEgm96Heights) {
   ReprojectOptions crs_mode;

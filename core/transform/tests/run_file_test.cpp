@@ -1,3 +1,5 @@
+#include "tinstream/transform/run_file.hpp"
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -6,7 +8,6 @@
 #include <fstream>
 
 #include "tinstream/transform/pass1.hpp"
-#include "tinstream/transform/run_file.hpp"
 
 namespace tinstream::transform {
 namespace {
@@ -37,8 +38,8 @@ TEST(RunFile, RecordLayoutIsLittleEndianAndFixed) {
   encode_run_point(RunPoint{1.0, -2.0, 0.5, 2.0f, 0x1234, 9}, rec);
   // 1.0 = 0x3FF0000000000000, -2.0 = 0xC000000000000000, 0.5 = 0x3FE0…, 2.0f = 0x40000000.
   const unsigned char expected[kRunRecordBytes] = {
-      0, 0, 0, 0, 0, 0, 0xF0, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0xC0, 0, 0, 0, 0, 0, 0, 0xE0, 0x3F,
-      0, 0, 0, 0x40, 0x34, 0x12, 9, 0};
+      0, 0, 0, 0, 0, 0, 0xF0, 0x3F, 0, 0, 0, 0,    0,    0,    0, 0xC0,
+      0, 0, 0, 0, 0, 0, 0xE0, 0x3F, 0, 0, 0, 0x40, 0x34, 0x12, 9, 0};
   EXPECT_EQ(std::memcmp(rec, expected, kRunRecordBytes), 0);
   const RunPoint back = decode_run_point(rec);
   EXPECT_EQ(back.x, 1.0);
@@ -133,14 +134,16 @@ TEST(RunFile, ReaderRefusesIncompleteTruncatedAndForeignFiles) {
   auto incomplete = bytes;
   incomplete[25] = 0;
   std::ofstream(partial_copy, std::ios::binary)
-      .write(reinterpret_cast<const char*>(incomplete.data()), static_cast<std::streamsize>(incomplete.size()));
+      .write(reinterpret_cast<const char*>(incomplete.data()),
+             static_cast<std::streamsize>(incomplete.size()));
   auto r1 = RunFileReader::open(partial_copy);
   ASSERT_FALSE(r1.ok());
   EXPECT_NE(r1.error().message.find("incomplete"), std::string::npos);
 
   auto truncated = dir / "truncated.run";
   std::ofstream(truncated, std::ios::binary)
-      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size() - 5));
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size() - 5));
   auto r2 = RunFileReader::open(truncated);
   ASSERT_FALSE(r2.ok());
   EXPECT_NE(r2.error().message.find("says 10 points"), std::string::npos) << r2.error().message;

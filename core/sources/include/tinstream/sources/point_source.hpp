@@ -56,8 +56,8 @@ struct SourceInfo {
   // Horizontal (or full) CRS as the file states it: "EPSG:n", WKT, or a PROJ string; empty
   // when the file has none (ESRI ASCII grids, XYZ text) — then the caller must give one.
   std::string crs;
-  std::string crs_origin;     // where `crs` came from: "LAS WKT VLR", "LAS GeoKeys", "GDAL"
-  std::string vertical_crs;   // informational ("EPSG:5103" from a LAS VerticalCSTypeGeoKey)
+  std::string crs_origin;            // where `crs` came from: "LAS WKT VLR", "LAS GeoKeys", "GDAL"
+  std::string vertical_crs;          // informational ("EPSG:5103" from a LAS VerticalCSTypeGeoKey)
   std::optional<LinearUnit> z_unit;  // explicit vertical unit stated by the file, if any
   // Records the reader will visit (LAS points, raster cells); unknown for text. Use it as the
   // progress total. Accepted points may be fewer (class filter, NODATA).

@@ -36,30 +36,30 @@ namespace tinstream::transform {
 
 struct InputSpec {
   std::filesystem::path path;
-  sources::SourceOptions source;   // format, class filter, text layout, invalid policy
-  ReprojectOptions reproject;      // CRS override, z unit, vertical datum
-  float weight = 1;                // written to every point of this input
+  sources::SourceOptions source;  // format, class filter, text layout, invalid policy
+  ReprojectOptions reproject;     // CRS override, z unit, vertical datum
+  float weight = 1;               // written to every point of this input
 };
 
 struct TransformOptions {
-  std::filesystem::path output;                        // the run file
+  std::filesystem::path output;  // the run file
   geo::Projection projection = geo::Projection::spherical;
-  std::size_t batch_size = 65536;                      // points per batch; Requires: > 0
+  std::size_t batch_size = 65536;  // points per batch; Requires: > 0
 };
 
 struct InputSummary {
   std::string path;
   std::string format;
-  ReprojectionPlan plan;            // CRS used, z unit and the rule that chose it, geoid grid
-  sources::SourceCounters counters; // records read / rejected by class, NODATA, invalid
+  ReprojectionPlan plan;               // CRS used, z unit and the rule that chose it, geoid grid
+  sources::SourceCounters counters;    // records read / rejected by class, NODATA, invalid
   std::uint64_t outside_mercator = 0;  // counted in counters.rejected_invalid too
   std::uint64_t points_written = 0;
-  std::vector<std::string> notes;   // the reader's and reprojector's remarks
+  std::vector<std::string> notes;  // the reader's and reprojector's remarks
 };
 
 struct RunSummary {
   std::filesystem::path run_file;
-  RunFileHeader header;             // count, Mercator and lon/lat boxes, z range
+  RunFileHeader header;  // count, Mercator and lon/lat boxes, z range
   std::vector<InputSummary> inputs;
 };
 

@@ -56,20 +56,20 @@ struct GeoPoint {
 };
 
 struct ReprojectOptions {
-  std::string crs;                             // overrides the file's CRS when not empty
-  std::optional<sources::LinearUnit> z_unit;   // overrides the z unit rule
+  std::string crs;                            // overrides the file's CRS when not empty
+  std::optional<sources::LinearUnit> z_unit;  // overrides the z unit rule
   // "ellipsoidal", "egm96", "egm2008", a geoid grid file name, or "crs" (see above).
   std::string vertical_datum = "ellipsoidal";
 };
 
 // What a Reprojector decided, for logs and run summaries.
 struct ReprojectionPlan {
-  std::string crs;             // the CRS text used
-  std::string crs_name;        // PROJ's name for it
-  std::string horizontal_unit; // "foot", "metre", "degree", …
-  sources::LinearUnit z_unit;  // how z was converted to metres
-  std::string z_unit_rule;     // which rule chose z_unit
-  std::string geoid_grid;      // grid(s) used for heights; empty for ellipsoidal heights
+  std::string crs;              // the CRS text used
+  std::string crs_name;         // PROJ's name for it
+  std::string horizontal_unit;  // "foot", "metre", "degree", …
+  sources::LinearUnit z_unit;   // how z was converted to metres
+  std::string z_unit_rule;      // which rule chose z_unit
+  std::string geoid_grid;       // grid(s) used for heights; empty for ellipsoidal heights
   std::vector<std::string> notes;
 };
 

@@ -72,8 +72,8 @@ struct RunFileHeader {
 class RunFileWriter {
  public:
   // Creates the partial file next to `path` (same directory, so the rename is atomic).
-  static Result<RunFileWriter> create(const std::filesystem::path& path,
-                                      geo::Projection projection, std::uint32_t input_count);
+  static Result<RunFileWriter> create(const std::filesystem::path& path, geo::Projection projection,
+                                      std::uint32_t input_count);
   RunFileWriter(RunFileWriter&&) noexcept;
   RunFileWriter& operator=(RunFileWriter&&) noexcept;
   ~RunFileWriter();  // without commit(): removes the partial file
@@ -90,7 +90,9 @@ class RunFileWriter {
   RunFileWriter() = default;
   void abandon();
   struct FileCloser {
-    void operator()(std::FILE* f) const { if (f != nullptr) std::fclose(f); }
+    void operator()(std::FILE* f) const {
+      if (f != nullptr) std::fclose(f);
+    }
   };
   std::unique_ptr<std::FILE, FileCloser> file_;
   std::filesystem::path final_, partial_;
@@ -114,7 +116,9 @@ class RunFileReader {
  private:
   RunFileReader() = default;
   struct FileCloser {
-    void operator()(std::FILE* f) const { if (f != nullptr) std::fclose(f); }
+    void operator()(std::FILE* f) const {
+      if (f != nullptr) std::fclose(f);
+    }
   };
   std::unique_ptr<std::FILE, FileCloser> file_;
   std::filesystem::path path_;
