@@ -37,7 +37,8 @@ bool record_less(const SortedPoint& a, const SortedPoint& b) {
   if (a.key != b.key) return a.key < b.key;
   if (a.x != b.x) return a.x < b.x;
   if (a.y != b.y) return a.y < b.y;
-  return a.z < b.z;
+  if (a.z != b.z) return a.z < b.z;
+  return a.weight > b.weight;
 }
 
 bool same_xy(const SortedPoint& a, const SortedPoint& b) {
@@ -291,7 +292,7 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
                                 std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
                                 std::to_string(p.z) + ")");
       }
-      buffer.push_back({cell_key(p.x, p.y), p.x, p.y, p.z});
+      buffer.push_back({cell_key(p.x, p.y), p.x, p.y, p.z, p.weight, 0});
       ++result.input_points;
       if (buffer.size() == sort_capacity) {
         if (Status s = spill(); !s) return s.error();
@@ -396,7 +397,7 @@ Result<SortedRunReader> SortedRunReader::open(const std::filesystem::path& path)
   if (ec) return io_error("cannot stat sorted run " + path.string() + ": " + ec.message());
   if (bytes % sizeof(SortedPoint) != 0) {
     return corrupt_data("sorted run " + path.string() + " has " + std::to_string(bytes) +
-                        " bytes, not a multiple of the 32-byte record");
+                        " bytes, not a multiple of the 40-byte record");
   }
   SortedRunReader r;
   r.file_ = std::fopen(path.c_str(), "rb");

@@ -230,7 +230,7 @@ TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
   const fs::path bad = tmp.path() / "bad.run";
   {
     std::FILE* f = std::fopen(bad.c_str(), "wb");
-    std::fputs("not a multiple of thirty-two", f);
+    std::fputs("not a multiple of forty bytes", f);
     std::fclose(f);
   }
   auto r = SortedRunReader::open(bad);

@@ -141,7 +141,7 @@ std::optional<double> corner_elevation(const XY& c, const std::vector<SortedPoin
   return std::nullopt;
 }
 
-tile::Vertex to_vertex(const SortedPoint& p) { return {p.x, p.y, p.z, 0.0}; }
+tile::Vertex to_vertex(const SortedPoint& p) { return {p.x, p.y, p.z, p.weight}; }
 
 // Andrew's monotone chain with exact orientation; collinear points dropped; counter-clockwise.
 std::vector<XY> convex_hull(std::vector<XY> points) {

@@ -2,7 +2,7 @@
 // level and put every point into Morton (quadkey) order, with bounded memory.
 //
 // Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
-// Output: ONE sorted run file of fixed 32-byte records plus an in-memory tile index (first record
+// Output: ONE sorted run file of fixed 40-byte records plus an in-memory tile index (first record
 // and count of every non-empty finest tile, in Morton order) — not one file per tile.
 //
 // Order: records are sorted by (key, x, y) where key is the Morton code of the level-30 cell that
@@ -11,7 +11,8 @@
 // come in Z-order (a good insertion order for the triangulation).
 //
 // Duplicates: points with identical (x, y) are merged into one; the LOWEST z wins (it is the one
-// closest to bare earth; the rule is independent of input order). They are counted.
+// closest to bare earth; the rule is independent of input order; on equal z the higher weight).
+// They are counted.
 //
 // Finest level L: the smallest level at which no tile holds more than max_points points (after
 // merging duplicates), capped by max_level; never below min_level.
@@ -34,13 +35,15 @@
 
 namespace tinstream::subdivide {
 
-// One record of the sorted run (and of the temporary runs), 32 bytes, host (little-endian) order.
+// One record of the sorted run (and of the temporary runs), 40 bytes, host (little-endian) order.
 struct SortedPoint {
-  std::uint64_t key = 0;  // Morton code of the level-30 cell
-  double x = 0, y = 0;    // normalised Mercator
-  double z = 0;           // metres, ellipsoidal
+  std::uint64_t key = 0;     // Morton code of the level-30 cell
+  double x = 0, y = 0;       // normalised Mercator
+  double z = 0;              // metres, ellipsoidal
+  float weight = 0;          // importance for thinning (the input's weight)
+  std::uint32_t reserved = 0;
 };
-static_assert(sizeof(SortedPoint) == 32);
+static_assert(sizeof(SortedPoint) == 40);
 
 // The level-30 cell key of a point (x, y clamped to the map).
 std::uint64_t cell_key(double x, double y);
@@ -76,6 +79,7 @@ struct SortedRun {
 // 0 means the input is exhausted.
 struct InputPoint {
   double x = 0, y = 0, z = 0;
+  float weight = 0;
 };
 using PointFeed = std::function<Result<std::size_t>(std::vector<InputPoint>& batch)>;
 

@@ -1,0 +1,58 @@
+// `tinstream verify`: checks every tile of a layer; non-zero exit on any failure.
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "command.hpp"
+#include "progress_printer.hpp"
+#include "tinstream/ingest/verify.hpp"
+
+namespace tinstream::cli {
+namespace {
+
+struct VerifyArgs {
+  std::string store, layer;
+  bool no_delaunay = false, quiet = false;
+};
+
+int run(const VerifyArgs& a) {
+  auto store = store::TileStore::open(a.store, store::TileStore::Mode::read_only);
+  if (!store) {
+    std::cerr << "tinstream verify: " << store.error().message << "\n";
+    return 2;
+  }
+  ProgressPrinter printer(a.quiet);
+  ingest::VerifyOptions options;
+  options.delaunay = !a.no_delaunay;
+  auto report = ingest::verify_layer(*store, a.layer, options, printer.sink());
+  printer.finish();
+  if (!report) {
+    std::cerr << "tinstream verify: " << report.error().message << "\n";
+    return 2;
+  }
+  nlohmann::json j{{"layer", a.layer},
+                   {"tiles", report->tiles},
+                   {"triangles", report->triangles},
+                   {"shared_borders", report->shared_borders},
+                   {"problems", report->problems},
+                   {"messages", report->messages},
+                   {"ok", report->ok()}};
+  std::cout << j.dump(2) << "\n";
+  return report->ok() ? 0 : 1;
+}
+
+const CommandRegistration kRegistration{
+    "verify",
+    "Check every tile of a layer: structure, Delaunay, watertight borders, pyramid, point count",
+    [](CLI::App& sub) -> CommandRun {
+      auto a = std::make_shared<VerifyArgs>();
+      sub.add_option("--store", a->store, "SQLite tile store")->required()->check(CLI::ExistingFile);
+      sub.add_option("--layer", a->layer, "Layer name")->required();
+      sub.add_flag("--no-delaunay", a->no_delaunay, "Skip the empty-circle check (faster)");
+      sub.add_flag("-q,--quiet", a->quiet, "No progress display");
+      return [a] { return run(*a); };
+    }};
+
+}  // namespace
+}  // namespace tinstream::cli

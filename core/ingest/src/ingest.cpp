@@ -1,0 +1,237 @@
+#include "tinstream/ingest/ingest.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "tinstream/subdivide/sorted_run.hpp"
+#include "tinstream/transform/run_file.hpp"
+#include "tinstream/triangulate/finest_tiles.hpp"
+#ifdef TINSTREAM_HAVE_LOD
+#include "tinstream/lod/pyramid.hpp"
+#endif
+
+namespace tinstream::ingest {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A private temporary directory, removed with everything in it when the ingest ends.
+class ScratchDir {
+ public:
+  static Result<ScratchDir> create(const fs::path& parent, const std::string& layer) {
+    std::error_code ec;
+    const fs::path base = parent.empty() ? fs::temp_directory_path(ec) : parent;
+    if (ec) return io_error("no temporary directory: " + ec.message());
+    ScratchDir d;
+    d.path_ = base / ("tinstream-ingest-" + layer + "-" + std::to_string(::getpid()) + "-" +
+                      std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
+    fs::create_directories(d.path_, ec);
+    if (ec) return io_error("cannot create temporary directory " + d.path_.string() + ": " + ec.message());
+    return d;
+  }
+  ScratchDir(ScratchDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
+  ScratchDir& operator=(ScratchDir&&) = delete;
+  ~ScratchDir() {
+    if (!path_.empty()) {
+      std::error_code ec;
+      fs::remove_all(path_, ec);
+    }
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  ScratchDir() = default;
+  fs::path path_;
+};
+
+Status cancelled(const std::string& where) {
+  return Error(ErrorCode::cancelled, "ingest cancelled during " + where);
+}
+
+nlohmann::json options_json(const IngestOptions& o) {
+  nlohmann::json inputs = nlohmann::json::array();
+  for (const auto& in : o.inputs) {
+    nlohmann::json j{{"path", in.path.string()},
+                     {"crs", in.reproject.crs},
+                     {"vertical_datum", in.reproject.vertical_datum},
+                     {"weight", in.weight}};
+    if (in.reproject.z_unit) j["z_unit"] = in.reproject.z_unit->name;
+    if (in.source.class_filter.classes) j["classes"] = *in.source.class_filter.classes;
+    inputs.push_back(std::move(j));
+  }
+  return {{"inputs", inputs},
+          {"projection", std::string(geo::to_string(o.projection))},
+          {"max_points", o.max_points},
+          {"max_level", o.max_level},
+          {"min_level", o.min_level},
+          {"epsilon", o.epsilon},
+          {"pyramid", o.pyramid}};
+}
+
+}  // namespace
+
+std::uint64_t peak_rss_bytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024u;  // Linux reports KiB
+}
+
+Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSink& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  if (Status s = store::validate_layer_name(options.layer); !s) return s.error();
+  if (options.inputs.empty()) return invalid_argument("no input files given");
+  if (options.max_points < 3 || options.max_points > 65535) {
+    return invalid_argument("max_points " + std::to_string(options.max_points) +
+                            " outside [3, 65535]");
+  }
+  if (options.max_level > 30 || options.min_level > options.max_level) {
+    return invalid_argument("levels: need min_level ≤ max_level ≤ 30 (got " +
+                            std::to_string(options.min_level) + ", " +
+                            std::to_string(options.max_level) + ")");
+  }
+  if (!(options.epsilon >= 0.0)) return invalid_argument("epsilon must be ≥ 0 metres");
+  const unsigned threads =
+      options.threads != 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+
+  // Open the store first: a bad store path fails before hours of work.
+  auto store = store::TileStore::open(options.store_path, store::TileStore::Mode::read_write);
+  if (!store) return store.error();
+
+  auto scratch = ScratchDir::create(options.tmp_dir, options.layer);
+  if (!scratch) return scratch.error();
+
+  IngestSummary summary;
+  summary.layer = options.layer;
+
+  // ── Pass 1: read, reproject, normalised Mercator → run file ──
+  transform::TransformOptions topt;
+  topt.output = scratch->path() / "points.run";
+  topt.projection = options.projection;
+  auto pass1 = transform::transform_sources(options.inputs, topt, progress);
+  if (!pass1) return pass1.error();
+  summary.inputs = pass1->inputs;
+  for (const auto& in : pass1->inputs) {
+    summary.records_read += in.counters.records_read;
+    summary.points_accepted += in.points_written;
+  }
+  summary.points_rejected = summary.records_read - summary.points_accepted;
+  if (pass1->header.point_count == 0) {
+    return invalid_argument("the inputs hold no usable points (" +
+                            std::to_string(summary.records_read) +
+                            " records read, all rejected by the class filter, NODATA or as invalid)");
+  }
+
+  // ── Pass 2: Morton sort + finest level ──
+  auto run_reader = transform::RunFileReader::open(pass1->run_file);
+  if (!run_reader) return run_reader.error();
+  std::vector<transform::RunPoint> run_batch;
+  subdivide::PointFeed feed = [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
+    run_batch.clear();
+    auto n = run_reader->read(run_batch, 1 << 16);
+    if (!n) return n.error();
+    for (const auto& p : run_batch) batch.push_back({p.x, p.y, p.z, p.weight});
+    return *n;
+  };
+  subdivide::SubdivideOptions sopt;
+  sopt.max_points = options.max_points;
+  sopt.max_level = options.max_level;
+  sopt.min_level = options.min_level;
+  sopt.memory_bytes = options.memory_bytes;
+  sopt.tmp_dir = scratch->path();
+  sopt.output = scratch->path() / "sorted.run";
+  auto sorted = subdivide::subdivide(feed, sopt, progress);
+  if (!sorted) return sorted.error();
+  {
+    // The unsorted run is no longer needed: free the disk early.
+    run_reader = Error(ErrorCode::internal, "closed");
+    std::error_code ec;
+    fs::remove(pass1->run_file, ec);
+  }
+  summary.duplicates_merged = sorted->duplicates_merged;
+  summary.points = sorted->points;
+  summary.finest_level = sorted->finest_level;
+
+  // ── Store: a new, invisible layer version ──
+  store::LayerInfo info;
+  info.name = options.layer;
+  info.projection = options.projection;
+  info.vertical_datum = options.inputs.front().reproject.vertical_datum;
+  const auto& h = pass1->header;
+  info.mercator_bounds = {h.mercator.min_x, h.mercator.min_y, h.mercator.max_x, h.mercator.max_y};
+  info.bounds = {h.lonlat.min_x, h.lonlat.min_y, h.lonlat.max_x, h.lonlat.max_y};
+  info.min_z = h.min_z;
+  info.max_z = h.max_z;
+  info.max_level = sorted->finest_level;
+  info.min_level = options.pyramid ? std::min(options.min_level, sorted->finest_level)
+                                   : sorted->finest_level;
+  info.max_points = options.max_points;
+  info.point_count = sorted->points;
+  info.source_points = summary.points_accepted;
+  info.options_json = options_json(options).dump();
+  info.attribution = options.attribution;
+  auto writer = store->begin_layer(info);
+  if (!writer) return writer.error();
+
+  // ── Pass 3: finest tiles on the worker pool, stored by this thread ──
+  std::uint64_t finest_tiles = 0;
+  auto pass3 = triangulate::build_finest_tiles(
+      *sorted, threads,
+      [&](tile::TinTile&& t) -> Status {
+        ++finest_tiles;
+        return (*writer)->put(t);
+      },
+      {}, progress);
+  if (!pass3) return pass3.error();
+  summary.halo_overhead =
+      static_cast<double>(pass3->gathered_points) / static_cast<double>(std::max<std::uint64_t>(sorted->points, 1));
+  {
+    std::error_code ec;
+    fs::remove(sorted->path, ec);
+  }
+  summary.levels.push_back({sorted->finest_level, finest_tiles, 0.0});
+  summary.tiles = finest_tiles;
+
+  // ── Pass 4: the LOD pyramid ──
+  info.level_max_error.assign(sorted->finest_level + 1, 0.0);
+#ifdef TINSTREAM_HAVE_LOD
+  if (options.pyramid && info.min_level < sorted->finest_level) {
+    lod::PyramidOptions popt;
+    popt.max_points = options.max_points;
+    popt.epsilon = options.epsilon;
+    auto pyramid = lod::build_pyramid(**writer, sorted->finest_level, info.min_level, popt,
+                                      threads, progress);
+    if (!pyramid) return pyramid.error();
+    for (const auto& level : pyramid->levels) {
+      summary.levels.push_back({level.level, level.tiles, level.max_error});
+      summary.tiles += level.tiles;
+      if (level.level < info.level_max_error.size()) info.level_max_error[level.level] = level.max_error;
+    }
+  }
+#else
+  info.min_level = sorted->finest_level;
+#endif
+  std::sort(summary.levels.begin(), summary.levels.end(),
+            [](const LevelSummary& a, const LevelSummary& b) { return a.level < b.level; });
+  summary.min_level = summary.levels.front().level;
+  info.min_level = summary.min_level;
+
+  // ── Publish ──
+  if (progress && !progress({"publish", 0, 1, "steps"})) return cancelled("publish").error();
+  info.tile_count = summary.tiles;
+  if (Status s = (*writer)->publish(info); !s) return s.error();
+  if (progress) progress({"publish", 1, 1, "steps"});
+  auto published = store->layer(options.layer);
+  if (!published) return published.error();
+  summary.layer_info = *published;
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.peak_rss_bytes = peak_rss_bytes();
+  return summary;
+}
+
+}  // namespace tinstream::ingest

@@ -1,0 +1,173 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "tinstream/ingest/ingest.hpp"
+#include "tinstream/ingest/verify.hpp"
+
+namespace tinstream::ingest {
+namespace {
+
+namespace fs = std::filesystem;
+
+class IngestTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("tinstream-ingest-test-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Hilly synthetic terrain near Zürich as lon/lat/height text (EPSG:4326).
+  fs::path write_xyz(const std::string& name, std::size_t n, std::uint64_t seed) {
+    const fs::path p = dir_ / name;
+    std::ofstream out(p);
+    out.precision(12);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double lon = 8.5 + 0.02 * u(rng), lat = 47.3 + 0.02 * u(rng);
+      out << lon << " " << lat << " " << 400 + 80 * std::sin(lon * 300) * std::cos(lat * 250) << "\n";
+    }
+    return p;
+  }
+
+  IngestOptions options(const std::vector<fs::path>& inputs, const std::string& layer) {
+    IngestOptions o;
+    o.store_path = dir_ / "store.sqlite";
+    o.layer = layer;
+    for (const auto& p : inputs) {
+      transform::InputSpec in;
+      in.path = p;
+      in.reproject.crs = "EPSG:4326";
+      o.inputs.push_back(in);
+    }
+    o.max_points = 500;
+    o.threads = 2;
+    o.tmp_dir = dir_ / "tmp";
+    o.memory_bytes = 1 << 20;
+    return o;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(IngestTest, XyzIngestPublishesAVerifiedLayer) {
+  const auto xyz = write_xyz("hills.xyz", 20000, 1);
+  auto summary = run_ingest(options({xyz}, "hills"));
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->records_read, 20000u);
+  EXPECT_EQ(summary->points, 20000u);
+  EXPECT_GT(summary->tiles, 16u);
+  EXPECT_GT(summary->finest_level, 10u);
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  ASSERT_TRUE(store.ok());
+  auto layer = store->layer("hills");
+  ASSERT_TRUE(layer.ok());
+  EXPECT_EQ(layer->point_count, 20000u);
+  EXPECT_NEAR(layer->bounds.west, 8.5, 1e-3);
+  EXPECT_NEAR(layer->bounds.north, 47.32, 1e-3);
+  auto report = verify_layer(*store, "hills");
+  ASSERT_TRUE(report.ok()) << report.error().message;
+  for (const auto& m : report->messages) ADD_FAILURE() << m;
+  EXPECT_TRUE(report->ok());
+  EXPECT_GT(report->shared_borders, 10u);
+  // Temporary files are gone.
+  EXPECT_TRUE(!fs::exists(dir_ / "tmp") || fs::is_empty(dir_ / "tmp"));
+}
+
+TEST_F(IngestTest, BadInputLeavesThePublishedLayerUntouched) {
+  const auto good = write_xyz("good.xyz", 5000, 2);
+  ASSERT_TRUE(run_ingest(options({good}, "terrain")).ok());
+  auto before_store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  const auto before = before_store->layer("terrain");
+  ASSERT_TRUE(before.ok());
+
+  const fs::path bad = dir_ / "bad.xyz";
+  {
+    std::ofstream out(bad);
+    out << "8.5 47.3 400\n8.51 47.31 nan\n";
+  }
+  auto failed = run_ingest(options({good, bad}, "terrain"));
+  ASSERT_FALSE(failed.ok());
+  EXPECT_NE(failed.error().message.find("bad.xyz"), std::string::npos) << failed.error().message;
+
+  auto after_store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  const auto after = after_store->layer("terrain");
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->version, before->version);
+  EXPECT_EQ(after->tile_count, before->tile_count);
+  auto report = verify_layer(*after_store, "terrain");
+  ASSERT_TRUE(report.ok());
+  EXPECT_TRUE(report->ok());
+}
+
+TEST_F(IngestTest, PointsOutsideTheMercatorRangeAreRejectedByRecord) {
+  const fs::path polar = dir_ / "polar.xyz";
+  {
+    std::ofstream out(polar);
+    out << "10 60 5\n10 89.5 5\n";
+  }
+  auto r = run_ingest(options({polar}, "polar"));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("polar.xyz"), std::string::npos) << r.error().message;
+}
+
+TEST_F(IngestTest, ReingestReplacesTheLayer) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("a.xyz", 3000, 3)}, "t")).ok());
+  auto second = run_ingest(options({write_xyz("b.xyz", 6000, 4)}, "t"));
+  ASSERT_TRUE(second.ok()) << second.error().message;
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  EXPECT_EQ(store->layer("t")->point_count, 6000u);
+  auto report = verify_layer(*store, "t");
+  ASSERT_TRUE(report.ok());
+  EXPECT_TRUE(report->ok());
+}
+
+TEST_F(IngestTest, InvalidOptionsRejectedUpFront) {
+  auto o = options({write_xyz("c.xyz", 10, 5)}, "bad/name");
+  EXPECT_FALSE(run_ingest(o).ok());
+  o.layer = "ok";
+  o.max_points = 70000;
+  EXPECT_FALSE(run_ingest(o).ok());
+  o.max_points = 100;
+  o.inputs.clear();
+  EXPECT_FALSE(run_ingest(o).ok());
+}
+
+TEST_F(IngestTest, VerifyDetectsATamperedBorder) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("d.xyz", 8000, 6)}, "v")).ok());
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
+  ASSERT_TRUE(store.ok());
+  const auto info = *store->layer("v");
+  const auto ids = store->tile_ids("v");
+  ASSERT_TRUE(ids.ok());
+  // Re-publish the layer with one tile whose east border point is nudged.
+  auto writer = store->begin_layer(info);
+  ASSERT_TRUE(writer.ok());
+  bool tampered = false;
+  for (const auto& id : *ids) {
+    auto t = **store->read_tile("v", id);
+    if (!tampered && id.z == info.max_level && !t.east.empty()) {
+      t.east[0].z += 0.5;
+      tampered = true;
+    }
+    ASSERT_TRUE((*writer)->put(t).ok());
+  }
+  ASSERT_TRUE(tampered);
+  ASSERT_TRUE((*writer)->publish(info).ok());
+  auto report = verify_layer(*store, "v");
+  ASSERT_TRUE(report.ok());
+  EXPECT_FALSE(report->ok());
+  bool mentions = false;
+  for (const auto& m : report->messages) mentions |= m.find("not watertight") != std::string::npos;
+  EXPECT_TRUE(mentions);
+}
+
+}  // namespace
+}  // namespace tinstream::ingest
