@@ -66,6 +66,11 @@ class RasterSource final : public PointSource {
         options_(std::move(options)) {
     width_ = GDALGetRasterXSize(static_cast<GDALDatasetH>(ds_.get()));
     height_ = GDALGetRasterYSize(static_cast<GDALDatasetH>(ds_.get()));
+    int has = 0;
+    const double scale = GDALGetRasterScale(band_, &has);
+    if (has != 0 && std::isfinite(scale) && scale != 0) scale_ = scale;
+    const double offset = GDALGetRasterOffset(band_, &has);
+    if (has != 0 && std::isfinite(offset)) offset_ = offset;
     int bx = 0, by = 0;
     GDALGetBlockSize(band_, &bx, &by);
     strip_rows_ = std::clamp(by, 1, std::max(1, (1 << 22) / std::max(1, width_)));
@@ -109,7 +114,7 @@ class RasterSource final : public PointSource {
       SourcePoint p;
       p.x = gt_[0] + cx * gt_[1] + cy * gt_[2];
       p.y = gt_[3] + cx * gt_[4] + cy * gt_[5];
-      p.z = v;
+      p.z = v * scale_ + offset_;  // the band's scale/offset (1 and 0 unless the file says)
       p.record = static_cast<std::uint64_t>(row) * static_cast<std::uint64_t>(width_) +
                  static_cast<std::uint64_t>(col) + 1;
       batch.push_back(p);
@@ -140,7 +145,8 @@ class RasterSource final : public PointSource {
   DatasetPtr ds_;
   GDALRasterBandH band_;
   std::array<double, 6> gt_;
-  std::optional<double> nodata_;
+  std::optional<double> nodata_;  // compared with the raw value, before scale/offset
+  double scale_ = 1, offset_ = 0;
   SourceInfo info_;
   SourceOptions options_;
   SourceCounters counters_;

@@ -76,6 +76,31 @@ TEST(RasterSource, CellCentresSkippingNodataAndNan) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(RasterSource, BandScaleAndOffsetAreApplied) {
+  auto dir = testing::scratch_dir("raster_scale");
+  GDALAllRegister();
+  const auto path = dir / "scaled.tif";
+  GDALDatasetH ds =
+      GDALCreate(GDALGetDriverByName("GTiff"), path.c_str(), 2, 1, 1, GDT_Int16, nullptr);
+  double gt[6] = {10, 1, 0, 20, 0, -1};
+  GDALSetGeoTransform(ds, gt);
+  GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+  GDALSetRasterScale(band, 0.5);
+  GDALSetRasterOffset(band, 100);
+  GDALSetRasterNoDataValue(band, -1);
+  std::int16_t values[2] = {-1, 7};  // NODATA is the raw value
+  ASSERT_EQ(GDALRasterIO(band, GF_Write, 0, 0, 2, 1, values, 2, 1, GDT_Int16, 0, 0), CE_None);
+  GDALClose(ds);
+  auto src = open_raster(path);
+  ASSERT_TRUE(src.ok()) << src.error().message;
+  auto pts = read_all(**src);
+  ASSERT_TRUE(pts.ok());
+  ASSERT_EQ(pts->size(), 1u);
+  EXPECT_EQ((*pts)[0].z, 103.5);
+  EXPECT_EQ((*pts)[0].x, 11.5);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(RasterSource, NotARasterGivesAnErrorNamingTheFile) {
   auto dir = testing::scratch_dir("raster_bad");
   auto p = dir / "junk.dat";
