@@ -47,24 +47,35 @@ std::vector<TileRange> merge_ranges(std::vector<geo::TileId> tiles) {
   return done;
 }
 
+std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& stored,
+                                             std::uint32_t min_level) {
+  std::vector<geo::TileId> out;
+  for (geo::TileId id : stored) {
+    if (id.z < min_level) continue;
+    while (id.z > min_level) id = id.parent();
+    while (id.z > 0) {
+      id = id.parent();
+      out.push_back(id);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 std::string layer_json(const LayerJsonInput& in) {
   using nlohmann::json;
   std::vector<std::vector<geo::TileId>> by_level(in.max_level + 1);
   for (const auto& id : in.tile_ids) {
-    if (id.z <= in.max_level) by_level[id.z].push_back(id);
+    if (id.z <= in.max_level && id.z >= in.min_level) by_level[id.z].push_back(id);
   }
+  for (const auto& id : synthetic_ancestors(in.tile_ids, in.min_level)) by_level[id.z].push_back(id);
   json available = json::array();
   for (std::uint32_t z = 0; z <= in.max_level; ++z) {
     json level = json::array();
-    if (z < in.min_level) {
-      // Synthesised flat tiles: the whole level.
-      const std::uint32_t last = (1u << z) - 1;
-      level.push_back({{"startX", 0}, {"startY", 0}, {"endX", last}, {"endY", last}});
-    } else {
-      for (const TileRange& r : merge_ranges(std::move(by_level[z]))) {
-        level.push_back(
-            {{"startX", r.start_x}, {"startY", r.start_y}, {"endX", r.end_x}, {"endY", r.end_y}});
-      }
+    for (const TileRange& r : merge_ranges(std::move(by_level[z]))) {
+      level.push_back(
+          {{"startX", r.start_x}, {"startY", r.start_y}, {"endX", r.end_x}, {"endY", r.end_y}});
     }
     available.push_back(std::move(level));
   }

@@ -64,13 +64,26 @@ TEST(LayerJson, DocumentHasTheCesiumKeys) {
   EXPECT_EQ(j["maxzoom"], 3);
   ASSERT_EQ(j["available"].size(), 4u);
   EXPECT_EQ(j["available"][0][0]["endX"], 0);
-  EXPECT_EQ(j["available"][1][0]["endX"], 1);  // synthesised levels: whole level
+  ASSERT_EQ(j["available"][1].size(), 1u);  // synthesised levels: the ancestors only
+  EXPECT_EQ(j["available"][1][0]["startX"], 1);
+  EXPECT_EQ(j["available"][1][0]["endX"], 1);
+  EXPECT_EQ(j["available"][1][0]["startY"], 1);  // (1, 1, 0) in TMS rows
   EXPECT_EQ(j["available"][2].size(), 1u);
   EXPECT_EQ(j["available"][2][0]["startY"], 2);  // TMS row of y = 1 at z = 2
   EXPECT_EQ(j["available"][3].size(), 1u);
   EXPECT_EQ(j["available"][3][0]["startX"], 4);
   EXPECT_EQ(j["available"][3][0]["endX"], 5);
   EXPECT_EQ(j["bounds"][2], 6.5);
+}
+
+TEST(LayerJson, SyntheticAncestorsLeadToTheStoredTiles) {
+  const auto ids = std::vector<geo::TileId>{*geo::TileId::from_zxy(3, 4, 2), *geo::TileId::from_zxy(3, 5, 2),
+                                            *geo::TileId::from_zxy(4, 8, 4)};
+  const auto a = synthetic_ancestors(ids, 3);
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_EQ(a[0], *geo::TileId::from_zxy(0, 0, 0));
+  EXPECT_EQ(a[1], *geo::TileId::from_zxy(1, 1, 0));
+  EXPECT_EQ(a[2], *geo::TileId::from_zxy(2, 2, 1));
 }
 
 }  // namespace

@@ -1,9 +1,10 @@
 // tinstream/terrain/layer_json.hpp — Cesium's layer.json (tilejson 2.1.0 + quantized-mesh keys).
 //
 // `available` lists, per level 0 … maxzoom, the tiles that exist as merged TMS rectangles
-// {startX, startY, endX, endY} (inclusive). Levels above the layer's coarsest stored level are
-// declared fully available: the server synthesises flat tiles there (flat_tile()), because
-// Cesium's WebMercatorTilingScheme starts from the single level-0 tile and refines downwards.
+// {startX, startY, endX, endY} (inclusive). Cesium's WebMercatorTilingScheme starts from the
+// single level-0 tile and refines downwards, so the ancestors of the coarsest stored tiles are
+// listed too: the server synthesises them as flat tiles (flat_tile()) and the static export
+// writes them. Other tiles are absent; Cesium upsamples their parents there.
 // Pure functions, thread-safe.
 #pragma once
 
@@ -37,6 +38,11 @@ struct LayerJsonInput {
   std::vector<geo::TileId> tile_ids;  // every stored tile
   bool oct_vertex_normals = true;     // advertise the extension
 };
+
+// The tiles above `min_level` that lead to the stored tiles: every ancestor (levels 0 …
+// min_level − 1) of a stored tile at level ≥ min_level, sorted, without duplicates.
+std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& stored,
+                                             std::uint32_t min_level);
 
 // The layer.json document (UTF-8 JSON text).
 std::string layer_json(const LayerJsonInput& input);
