@@ -1,0 +1,63 @@
+// tinstream/lod/error.hpp — how far a coarse tile is from the surface it approximates, and the
+// checks `tinstream verify` runs on a pyramid.
+//
+// Both surfaces are piecewise linear, so their difference is linear on every cell of the overlay
+// of the two triangulations, and its maximum is reached at an overlay vertex: a vertex of either
+// mesh or a point where a coarse edge crosses a fine edge. surface_difference() clips every fine
+// triangle against the coarse triangles it overlaps (Sutherland–Hodgman) and evaluates both
+// planes at the vertices of each clipped polygon, so it visits every overlay vertex: the maximum
+// is exact up to rounding, and the RMS is the exact area integral (a linear function's square
+// integrates in closed form over each polygon's fan).
+//
+// NODATA: at the finest level, triangles incident to a NODATA corner (z = 0 by convention, no
+// data there) are not surface: the "data area" is the union of the other finest triangles. So
+// surface_difference skips such fine triangles only when the fines *are* finest tiles; above the
+// finest level a child's NODATA triangles may lie over finest data and are measured like any
+// other (conservative: the bound chain stays honest over the whole data area). Coarse triangles
+// are always measured. Areas without fine tiles (missing children) are not measured.
+//
+// Threads: pure functions on values.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod {
+
+struct SurfaceDifference {
+  double max_abs = 0;        // max |coarse − fine| over the measured area
+  double sum_sq_area = 0;    // ∫ (coarse − fine)² dA over the measured area
+  double area = 0;           // measured area (normalised Mercator units²)
+  std::size_t polygons = 0;  // clipped overlay cells visited
+  double rms() const;
+};
+
+// Requires: every fine tile lies inside `coarse`'s rectangle.
+SurfaceDifference surface_difference(const tile::TinTile& coarse,
+                                     std::span<const tile::TinTile* const> fines, bool fines_are_finest);
+
+// Rounding allowance added to every stored bound (metres): the overlay is evaluated in floating
+// point, so the exact maximum may exceed the computed one by a few ulps of the heights involved.
+// 1 µm + 1e-9 × the tile's height range.
+double error_rounding_allowance(const tile::TinTile& coarse);
+
+// Shared borders of same-level neighbours are identical: for every pair of tiles in the list that
+// are east/west or north/south neighbours, the two border() lists match exactly (x, y, z bits).
+// Pairs across the antimeridian are not compared. Errors name the pair and the first differing
+// point. Requires: all tiles of one level.
+Status check_level_watertight(const std::vector<tile::TinTile>& tiles_of_one_level);
+
+// The largest |coarse − finest| found by sampling: every vertex of the finest tiles located in
+// the coarse tile, and every coarse vertex located in the finest tiles (an independent lower
+// bound of the true maximum; verify checks stored geometric_error ≥ this). Finest triangles at
+// NODATA corners are skipped. Errors: a finest tile outside the coarse tile, an empty list.
+Result<double> measured_max_error(const tile::TinTile& coarse,
+                                  const std::vector<tile::TinTile>& finest_tiles_under_it);
+
+// The tile holds at most max_points vertices (corners and edge points included).
+Status check_budget(const tile::TinTile& tile, std::size_t max_points);
+
+}  // namespace tinstream::lod

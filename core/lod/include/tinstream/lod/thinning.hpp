@@ -1,0 +1,98 @@
+// tinstream/lod/thinning.hpp — error-ordered point removal (Lee 1989 drop heuristic) on one tile.
+//
+// Contract (DESIGN.md §3, pass 4):
+//  * Border first, deterministically, from the border points alone. Each side (both corners
+//    included, in the tile's edge order) is thinned in 1-D: a side point's error is the largest
+//    vertical difference, over every point of the side's *input* between its surviving
+//    neighbours, between that input point and the straight line joining the surviving neighbours.
+//    The smallest effective error goes first (ties: the point nearer the side's start, by
+//    position). Two neighbours hold bit-identical copies of their shared side (same points, same
+//    order), so they compute bit-identical results: same-level tiles stay watertight.
+//  * Then the border is held fixed (constrained) and the interior is thinned in 2-D: a point's
+//    error is the largest vertical difference that removing it would make at the point itself
+//    and at every input point already removed inside its star (the "orphans", kept with their
+//    original z), evaluated on the re-triangulated star (Triangulation::removal_preview).
+//    Priority queue with lazy invalidation; after a removal the former neighbours are
+//    re-evaluated.
+//  * Stopping rule, for a side and for the interior alike: keep removing while the count is above
+//    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
+//    Corners are never removed.
+//  * Weight rule: effective error = error + weight. A weight is thus "metres of vertical error
+//    that this point is worth"; a point with weight w survives every point whose error is below
+//    its own error + w, and is never removed by the epsilon rule when w ≥ epsilon.
+//  * The errors used for decisions are vertex-sampled. The error *stored* in a tile
+//    (geometric_error, rms_error) is measured separately and exactly (error.hpp).
+//
+// Threads: pure functions on values; call from any thread.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod {
+
+struct LodOptions {
+  std::size_t max_points = 16384;  // per tile, corners and edge points included
+  double epsilon = 0.0;            // metres: keep thinning below budget while error < epsilon
+  // Budget of one side's edge points (corners excluded). 0 = automatic: min(⌈√max_points⌉,
+  // (max_points − 4) / 8), so the border never takes more than half of the budget.
+  std::size_t border_points_per_side = 0;
+  // The level of the finest tiles (pass 3), when known: build_parent then treats children of that
+  // level as the finest surface, whose NODATA-corner triangles are not data (error.hpp). Unknown
+  // (the default): every child triangle is measured, which is always honest.
+  std::uint32_t finest_level = 0xFFFFFFFFu;
+};
+
+// The per-side budget that `options` implies (see LodOptions::border_points_per_side).
+std::size_t side_budget(const LodOptions& options);
+
+// 1-D thinning of one side. `side` holds the side's points in edge order *including both
+// corners* (TinTile::border order); `along_x` says whether the side runs along x (north, south)
+// or along y (east, west). Returns the kept points (corners always kept), in order.
+// `removed`, when given, receives the dropped points.
+// Requires: side.size() ≥ 2, positions strictly monotone along the side.
+std::vector<tile::Vertex> thin_border_side(std::span<const tile::Vertex> side, bool along_x,
+                                           std::size_t budget, double epsilon,
+                                           std::vector<tile::Vertex>* removed = nullptr);
+
+// What thin_tile works on: a tile's corners and border lists (tile order, corners excluded),
+// interior points, and `orphans` — points of the surface being approximated that are not
+// candidates themselves (e.g. the children's points on a parent's internal cross); they only
+// feed the error estimate.
+struct ThinInput {
+  geo::TileId id;
+  std::array<tile::Vertex, 4> corners{};
+  std::array<bool, 4> corner_nodata{};
+  std::vector<tile::Vertex> north, east, south, west;
+  std::vector<tile::Vertex> interior;
+  std::vector<tile::Vertex> orphans;
+};
+
+struct ThinStats {
+  std::size_t input_points = 0;     // corners + border + interior given
+  std::size_t border_removed = 0;
+  std::size_t interior_removed = 0;
+  std::size_t duplicates = 0;       // interior points dropped as exact (x, y) duplicates
+  double last_error = 0;            // effective error of the last removal (0 when none)
+};
+
+// Triangulates the input with the border constrained and thins it (border first, then
+// interior). The result has corners, border lists, surviving interior, CCW triangles, z range;
+// its geometric_error / rms_error are left 0 (the caller measures them, error.hpp).
+// Errors: a broken triangulation (reported, never a crash), invalid options.
+Result<tile::TinTile> thin_tile(const ThinInput& input, const LodOptions& options,
+                                ThinStats* stats = nullptr);
+
+// "Reduced TIN" at the finest level (gridded input): thins a finest tile the same way, then
+// stores geometric_error = exact max |reduced − original| + the tile's previous geometric_error
+// and the matching RMS. The tile is replaced only on success.
+Status reduce_finest_tile(tile::TinTile& tile, double epsilon, std::size_t max_points,
+                          ThinStats* stats = nullptr);
+Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options,
+                          ThinStats* stats = nullptr);
+
+}  // namespace tinstream::lod

@@ -1,0 +1,183 @@
+// Exact overlay difference of two piecewise-linear surfaces, and the verification helpers.
+#include "tinstream/lod/error.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "planar_index.hpp"
+
+namespace tinstream::lod {
+
+using detail::FlatTriangle;
+using detail::P2;
+using detail::plane_at;
+using detail::TriangleGrid;
+
+double SurfaceDifference::rms() const { return area > 0 ? std::sqrt(sum_sq_area / area) : 0.0; }
+
+double error_rounding_allowance(const tile::TinTile& coarse) {
+  const double range = std::isfinite(coarse.max_z - coarse.min_z) ? coarse.max_z - coarse.min_z : 0.0;
+  return 1e-6 + 1e-9 * std::abs(range) + 1e-12 * std::max(std::abs(coarse.max_z), std::abs(coarse.min_z));
+}
+
+namespace {
+
+FlatTriangle translated(const FlatTriangle& t, P2 o) {
+  FlatTriangle r = t;
+  for (auto& p : r.p) p = {p.x - o.x, p.y - o.y};
+  return r;
+}
+
+// Sutherland–Hodgman: keeps the part of `poly` left of (or on) the directed line a → b.
+int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& out) {
+  const double ex = b.x - a.x, ey = b.y - a.y;
+  auto side = [&](P2 p) { return ex * (p.y - a.y) - ey * (p.x - a.x); };
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const P2 s = poly[static_cast<std::size_t>(i)], e = poly[static_cast<std::size_t>((i + 1) % n)];
+    const double ds = side(s), de = side(e);
+    if (ds >= 0) out[static_cast<std::size_t>(m++)] = s;
+    if ((ds >= 0) != (de >= 0) && m < 12) {
+      const double f = ds / (ds - de);
+      out[static_cast<std::size_t>(m++)] = {s.x + (e.x - s.x) * f, s.y + (e.y - s.y) * f};
+    }
+    if (m >= 11) break;  // a triangle clipped by three lines has at most 6 vertices
+  }
+  return m;
+}
+
+}  // namespace
+
+SurfaceDifference surface_difference(const tile::TinTile& coarse, std::span<const tile::TinTile* const> fines,
+                                     bool fines_are_finest) {
+  SurfaceDifference d;
+  std::vector<FlatTriangle> ct;
+  detail::append_triangles(coarse, false, ct);
+  TriangleGrid grid(std::move(ct), coarse.id.bounds());
+  std::vector<FlatTriangle> ft;
+  for (const tile::TinTile* fine : fines) {
+    ft.clear();
+    detail::append_triangles(*fine, fines_are_finest, ft);
+    for (const FlatTriangle& f0 : ft) {
+      const P2 o = f0.p[0];
+      const FlatTriangle f = translated(f0, o);
+      grid.for_each_overlapping(f0.min_x, f0.min_y, f0.max_x, f0.max_y, [&](std::uint32_t ci) {
+        const FlatTriangle c = translated(grid.triangles()[ci], o);
+        std::array<P2, 12> a{}, b{};
+        a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
+        int n = 3;
+        n = clip(a, n, c.p[0], c.p[1], b);
+        if (n == 0) return;
+        n = clip(b, n, c.p[1], c.p[2], a);
+        if (n == 0) return;
+        n = clip(a, n, c.p[2], c.p[0], b);
+        if (n == 0) return;
+        std::array<double, 12> v{};
+        for (int k = 0; k < n; ++k) {
+          const P2 q = b[static_cast<std::size_t>(k)];
+          v[static_cast<std::size_t>(k)] = plane_at(c, q.x, q.y) - plane_at(f, q.x, q.y);
+          d.max_abs = std::max(d.max_abs, std::abs(v[static_cast<std::size_t>(k)]));
+        }
+        ++d.polygons;
+        for (int k = 1; k + 1 < n; ++k) {
+          const P2 p0 = b[0], p1 = b[static_cast<std::size_t>(k)], p2 = b[static_cast<std::size_t>(k + 1)];
+          const double area = 0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
+          const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)], v2 = v[static_cast<std::size_t>(k + 1)];
+          d.area += area;
+          d.sum_sq_area += area / 6.0 * (v0 * v0 + v1 * v1 + v2 * v2 + v0 * v1 + v1 * v2 + v2 * v0);
+        }
+      });
+    }
+  }
+  return d;
+}
+
+Status check_level_watertight(const std::vector<tile::TinTile>& tiles) {
+  std::map<geo::TileId, std::size_t> by_id;
+  for (std::size_t i = 0; i < tiles.size(); ++i) {
+    if (!tiles.empty() && tiles[i].id.z != tiles[0].id.z) {
+      return invalid_argument("watertight: tiles of different levels given (" + tiles[0].id.to_string() +
+                              ", " + tiles[i].id.to_string() + ")");
+    }
+    by_id.emplace(tiles[i].id, i);
+  }
+  auto compare = [&](const tile::TinTile& a, geo::Direction da, const tile::TinTile& b,
+                     geo::Direction db) -> Status {
+    const auto pa = a.border(da), pb = b.border(db);
+    const std::string pair = "watertight: " + a.id.to_string() + " and " + b.id.to_string();
+    if (pa.size() != pb.size()) {
+      return corrupt_data(pair + ": shared border has " + std::to_string(pa.size()) + " vs " +
+                          std::to_string(pb.size()) + " points");
+    }
+    for (std::size_t i = 0; i < pa.size(); ++i) {
+      if (pa[i].x != pb[i].x || pa[i].y != pb[i].y || pa[i].z != pb[i].z) {
+        return corrupt_data(pair + ": shared border point #" + std::to_string(i) + " differs");
+      }
+    }
+    return {};
+  };
+  for (const auto& t : tiles) {
+    // East/west pairs across the antimeridian (x = +1 / −1) are not compared: their border
+    // coordinates differ by design.
+    if (auto e = t.id.neighbour(geo::Direction::east); e && e->x == t.id.x + 1) {
+      if (auto it = by_id.find(*e); it != by_id.end()) {
+        if (Status s = compare(t, geo::Direction::east, tiles[it->second], geo::Direction::west); !s) return s;
+      }
+    }
+    if (auto s_id = t.id.neighbour(geo::Direction::south)) {
+      if (auto it = by_id.find(*s_id); it != by_id.end()) {
+        if (Status s = compare(t, geo::Direction::south, tiles[it->second], geo::Direction::north); !s) return s;
+      }
+    }
+  }
+  return {};
+}
+
+Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector<tile::TinTile>& finest) {
+  if (finest.empty()) return invalid_argument("measured_max_error: no finest tiles under " + coarse.id.to_string());
+  const geo::MercatorRect r = coarse.id.bounds();
+  std::vector<FlatTriangle> ct, ft;
+  detail::append_triangles(coarse, false, ct);
+  for (const auto& f : finest) {
+    const geo::MercatorRect fr = f.id.bounds();
+    if (f.id.z < coarse.id.z || fr.min_x < r.min_x || fr.max_x > r.max_x || fr.min_y < r.min_y || fr.max_y > r.max_y) {
+      return invalid_argument("measured_max_error: " + f.id.to_string() + " is not under " + coarse.id.to_string());
+    }
+    detail::append_triangles(f, true, ft);
+  }
+  TriangleGrid cg(std::move(ct), r);
+  TriangleGrid fg(std::move(ft), r);
+  double worst = 0;
+  // Finest vertices (of data triangles) against the coarse surface.
+  for (const auto& t : fg.triangles()) {
+    for (int k = 0; k < 3; ++k) {
+      double w;
+      const std::int64_t c = cg.locate(t.p[k].x, t.p[k].y, &w);
+      if (c < 0) return Error(ErrorCode::internal, "measured_max_error: " + coarse.id.to_string() + " does not cover a finest vertex");
+      worst = std::max(worst, std::abs(plane_at(cg.triangles()[static_cast<std::size_t>(c)], t.p[k].x, t.p[k].y) - t.z[k]));
+    }
+  }
+  // Coarse vertices against the finest surface, where there is one.
+  for (const auto& t : cg.triangles()) {
+    for (int k = 0; k < 3; ++k) {
+      double w;
+      const std::int64_t f = fg.locate(t.p[k].x, t.p[k].y, &w);
+      if (f < 0 || w < -1e-9) continue;
+      worst = std::max(worst, std::abs(plane_at(fg.triangles()[static_cast<std::size_t>(f)], t.p[k].x, t.p[k].y) - t.z[k]));
+    }
+  }
+  return worst;
+}
+
+Status check_budget(const tile::TinTile& tile, std::size_t max_points) {
+  if (tile.vertex_count() > max_points) {
+    return corrupt_data("budget: " + tile.id.to_string() + " holds " + std::to_string(tile.vertex_count()) +
+                        " vertices, more than " + std::to_string(max_points));
+  }
+  return {};
+}
+
+}  // namespace tinstream::lod

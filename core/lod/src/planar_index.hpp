@@ -1,0 +1,161 @@
+// A bucket grid over the triangles of one or more tiles, for point location and overlap queries.
+// Built once, read-only afterwards.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "tinstream/geo/tile_id.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod::detail {
+
+struct P2 {
+  double x, y;
+};
+
+// One triangle with its corner positions and heights (counter-clockwise).
+struct FlatTriangle {
+  P2 p[3];
+  double z[3];
+  double min_x, min_y, max_x, max_y;
+};
+
+// Linear interpolation at q in triangle t with barycentric weights clamped to the triangle (q is
+// inside up to rounding); coordinates relative to p[0] for accuracy. *min_weight (optional)
+// receives the smallest unclamped weight (≥ 0 inside).
+inline double plane_at(const FlatTriangle& t, double qx0, double qy0, double* min_weight = nullptr) {
+  const double bx = t.p[1].x - t.p[0].x, by = t.p[1].y - t.p[0].y;
+  const double cx = t.p[2].x - t.p[0].x, cy = t.p[2].y - t.p[0].y;
+  const double qx = qx0 - t.p[0].x, qy = qy0 - t.p[0].y;
+  const double det = bx * cy - by * cx;
+  if (!(det != 0)) {
+    if (min_weight) *min_weight = -std::numeric_limits<double>::infinity();
+    return t.z[0];
+  }
+  double wb = (qx * cy - qy * cx) / det;
+  double wc = (bx * qy - by * qx) / det;
+  double wa = 1.0 - wb - wc;
+  if (min_weight) *min_weight = std::min({wa, wb, wc});
+  wa = std::max(wa, 0.0), wb = std::max(wb, 0.0), wc = std::max(wc, 0.0);
+  const double s = wa + wb + wc;
+  return (wa * t.z[0] + wb * t.z[1] + wc * t.z[2]) / s;
+}
+
+// Triangles of a tile, skipping those incident to a NODATA corner when skip_nodata.
+inline void append_triangles(const tile::TinTile& tile, bool skip_nodata, std::vector<FlatTriangle>& out) {
+  const std::vector<tile::Vertex> v = tile.vertices();
+  for (const auto& tr : tile.triangles) {
+    bool nodata = false;
+    for (auto i : tr) nodata = nodata || (i < 4 && tile.corner_nodata[i]);
+    if (skip_nodata && nodata) continue;
+    FlatTriangle f{};
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = v[tr[static_cast<std::size_t>(k)]];
+      f.p[k] = {p.x, p.y};
+      f.z[k] = p.z;
+    }
+    f.min_x = std::min({f.p[0].x, f.p[1].x, f.p[2].x});
+    f.max_x = std::max({f.p[0].x, f.p[1].x, f.p[2].x});
+    f.min_y = std::min({f.p[0].y, f.p[1].y, f.p[2].y});
+    f.max_y = std::max({f.p[0].y, f.p[1].y, f.p[2].y});
+    out.push_back(f);
+  }
+}
+
+class TriangleGrid {
+ public:
+  TriangleGrid(std::vector<FlatTriangle> tris, const geo::MercatorRect& r) : tris_(std::move(tris)), r_(r) {
+    const double n = static_cast<double>(tris_.size());
+    g_ = static_cast<std::uint32_t>(std::clamp(std::ceil(std::sqrt(n / 2.0)), 1.0, 1024.0));
+    sx_ = g_ / std::max(r_.width(), std::numeric_limits<double>::min());
+    sy_ = g_ / std::max(r_.height(), std::numeric_limits<double>::min());
+    offsets_.assign(static_cast<std::size_t>(g_) * g_ + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass == 1) {
+        for (std::size_t i = 1; i < offsets_.size(); ++i) offsets_[i] += offsets_[i - 1];
+        items_.resize(offsets_.back());
+        fill_ = std::vector<std::uint32_t>(offsets_.begin(), offsets_.end() - 1);
+      }
+      for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+        std::uint32_t x0, y0, x1, y1;
+        cells(tris_[t].min_x, tris_[t].min_y, tris_[t].max_x, tris_[t].max_y, x0, y0, x1, y1);
+        for (std::uint32_t cy = y0; cy <= y1; ++cy) {
+          for (std::uint32_t cx = x0; cx <= x1; ++cx) {
+            const std::size_t c = static_cast<std::size_t>(cy) * g_ + cx;
+            if (pass == 0) {
+              ++offsets_[c + 1];
+            } else {
+              items_[fill_[c]++] = t;
+            }
+          }
+        }
+      }
+    }
+    stamp_.assign(tris_.size(), 0);
+  }
+
+  const std::vector<FlatTriangle>& triangles() const { return tris_; }
+
+  // Calls f(index) once for every triangle whose bounding box meets the given box.
+  template <typename F>
+  void for_each_overlapping(double min_x, double min_y, double max_x, double max_y, F&& f) {
+    if (++query_ == 0) {
+      std::fill(stamp_.begin(), stamp_.end(), 0);
+      query_ = 1;
+    }
+    std::uint32_t x0, y0, x1, y1;
+    cells(min_x, min_y, max_x, max_y, x0, y0, x1, y1);
+    for (std::uint32_t cy = y0; cy <= y1; ++cy) {
+      for (std::uint32_t cx = x0; cx <= x1; ++cx) {
+        const std::size_t c = static_cast<std::size_t>(cy) * g_ + cx;
+        for (std::uint32_t k = offsets_[c]; k < offsets_[c + 1]; ++k) {
+          const std::uint32_t t = items_[k];
+          if (stamp_[t] == query_) continue;
+          stamp_[t] = query_;
+          const auto& T = tris_[t];
+          if (T.max_x < min_x || T.min_x > max_x || T.max_y < min_y || T.min_y > max_y) continue;
+          f(t);
+        }
+      }
+    }
+  }
+
+  // The triangle containing (x, y) best (largest smallest barycentric weight, so ≥ 0 when inside
+  // up to rounding), or -1 when no triangle's box holds the point.
+  std::int64_t locate(double x, double y, double* min_weight) {
+    std::int64_t best = -1;
+    double best_w = -std::numeric_limits<double>::infinity();
+    for_each_overlapping(x, y, x, y, [&](std::uint32_t t) {
+      double w;
+      plane_at(tris_[t], x, y, &w);
+      if (w > best_w) best_w = w, best = t;
+    });
+    if (min_weight) *min_weight = best_w;
+    return best;
+  }
+
+ private:
+  void cells(double min_x, double min_y, double max_x, double max_y, std::uint32_t& x0, std::uint32_t& y0,
+             std::uint32_t& x1, std::uint32_t& y1) const {
+    auto cell = [&](double v, double origin, double scale) {
+      const double c = std::floor((v - origin) * scale);
+      return static_cast<std::uint32_t>(std::clamp(c, 0.0, static_cast<double>(g_ - 1)));
+    };
+    x0 = cell(min_x, r_.min_x, sx_), x1 = cell(max_x, r_.min_x, sx_);
+    y0 = cell(min_y, r_.min_y, sy_), y1 = cell(max_y, r_.min_y, sy_);
+  }
+
+  std::vector<FlatTriangle> tris_;
+  geo::MercatorRect r_;
+  std::uint32_t g_ = 1;
+  double sx_ = 1, sy_ = 1;
+  std::vector<std::uint32_t> offsets_, items_, fill_;
+  std::vector<std::uint32_t> stamp_;
+  std::uint32_t query_ = 0;
+};
+
+}  // namespace tinstream::lod::detail

@@ -1,0 +1,492 @@
+// Lee's drop heuristic on one tile: border sides in 1-D first, then the interior in 2-D with the
+// border constrained (thinning.hpp has the contract).
+//
+// Interior bookkeeping. Every point that left the surface (a removed candidate, a border point
+// dropped in 1-D, an input orphan) is an "orphan" kept with its original z and filed under the
+// live triangle that contains it, as an intrusive singly linked list per triangle slot:
+//
+//   head[t] ──▶ orphan i ──next[i]──▶ orphan j ──▶ … ──▶ kNone
+//
+// Invariant: every orphan inside the rectangle is filed under exactly one live triangle that
+// contains it (closed triangle). Removing v re-files the orphans of v's star (and v itself) into
+// the triangles that replace the star, which are exactly removal_preview(v) (the kernel writes
+// back the same hole it previews and touches nothing outside it).
+#include "tinstream/lod/thinning.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <string>
+
+#include "tinstream/kernel/triangulation.hpp"
+#include "tinstream/lod/error.hpp"
+
+namespace tinstream::lod {
+
+using kernel::kNone;
+using kernel::TriangleId;
+using kernel::Triangulation;
+using kernel::VertexId;
+using kernel::VertexTriple;
+using kernel::XY;
+using tile::Vertex;
+
+std::size_t side_budget(const LodOptions& options) {
+  if (options.border_points_per_side != 0) return options.border_points_per_side;
+  const auto root = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(options.max_points))));
+  const std::size_t cap = options.max_points > 4 ? (options.max_points - 4) / 8 : 0;
+  return std::min(root, cap);
+}
+
+namespace {
+
+struct QueueEntry {
+  double error;      // effective (error + weight)
+  double key_a;      // tie-break: position
+  double key_b;
+  std::uint32_t id;  // index / vertex id
+  std::uint32_t version;
+  bool operator>(const QueueEntry& o) const {
+    if (error != o.error) return error > o.error;
+    if (key_a != o.key_a) return key_a > o.key_a;
+    if (key_b != o.key_b) return key_b > o.key_b;
+    return id > o.id;
+  }
+};
+using MinQueue = std::priority_queue<QueueEntry, std::vector<QueueEntry>, std::greater<>>;
+
+// Linear interpolation in the closed triangle (a, b, c) at p with barycentric weights clamped to
+// the triangle (p is inside up to rounding); coordinates relative to a for accuracy.
+double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double zb, double zc,
+                      double px, double py, double* min_weight) {
+  const double bx = b.x - a.x, by = b.y - a.y, cx = c.x - a.x, cy = c.y - a.y;
+  const double qx = px - a.x, qy = py - a.y;
+  const double det = bx * cy - by * cx;
+  double wb = (qx * cy - qy * cx) / det;
+  double wc = (bx * qy - by * qx) / det;
+  double wa = 1.0 - wb - wc;
+  if (min_weight) *min_weight = std::min({wa, wb, wc});
+  wa = std::max(wa, 0.0), wb = std::max(wb, 0.0), wc = std::max(wc, 0.0);
+  const double s = wa + wb + wc;
+  return (wa * za + wb * zb + wc * zc) / s;
+}
+
+class InteriorThinner {
+ public:
+  InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate)
+      : tri_(tri), candidate_(std::move(candidate)), version_(candidate_.size(), 0) {
+    head_.assign(tri_.mesh().triangle_slots(), kNone);
+  }
+
+  void add_orphan(const Vertex& p) {
+    const TriangleId t = tri_.locate_triangle(p.x, p.y);
+    if (t == kNone) return;  // outside the rectangle: not part of this tile's surface
+    push_orphan(p.x, p.y, p.z, t);
+  }
+
+  void seed_queue() {
+    for (VertexId v = 1; v < candidate_.size(); ++v) {
+      if (candidate_[v] && tri_.is_vertex(v)) evaluate_and_push(v);
+    }
+  }
+
+  // Removes while above budget or below epsilon. Returns the number removed.
+  Result<std::size_t> run(std::size_t max_points, double epsilon, double* last_error) {
+    std::size_t removed = 0;
+    while (!queue_.empty()) {
+      const QueueEntry top = queue_.top();
+      if (!candidate_[top.id] || top.version != version_[top.id]) {
+        queue_.pop();
+        continue;
+      }
+      if (tri_.num_vertices() <= max_points && top.error >= epsilon) break;
+      queue_.pop();
+      Status s = remove(top.id);
+      if (!s.ok()) return s.error();
+      *last_error = top.error;
+      ++removed;
+    }
+    return removed;
+  }
+
+ private:
+  void push_orphan(double x, double y, double z, TriangleId t) {
+    if (t >= head_.size()) head_.resize(static_cast<std::size_t>(t) + 1, kNone);
+    const auto i = static_cast<std::uint32_t>(ox_.size());
+    ox_.push_back(x), oy_.push_back(y), oz_.push_back(z);
+    next_.push_back(head_[t]);
+    head_[t] = i;
+  }
+
+  // Index into `tris` of the replacement triangle containing (x, y) (largest smallest barycentric
+  // weight), and the interpolated z.
+  double surface_at(const std::vector<VertexTriple>& tris, double x, double y, std::size_t* which) const {
+    double best_w = -std::numeric_limits<double>::infinity(), best_z = 0;
+    std::size_t best = 0;
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+      const auto& t = tris[k];
+      double w;
+      const double z = interpolate_in(tri_.xy(t[0]), tri_.xy(t[1]), tri_.xy(t[2]), tri_.z(t[0]),
+                                      tri_.z(t[1]), tri_.z(t[2]), x, y, &w);
+      if (w > best_w) best_w = w, best_z = z, best = k;
+      if (w >= 0) break;
+    }
+    if (which) *which = best;
+    return best_z;
+  }
+
+  // The kernel does not re-triangulate a star that is the whole triangulation (it takes that for
+  // "only collinear points remain"). Here that happens exactly when v is the last interior vertex
+  // (a second interior vertex would own a triangle without v), so the replacement is the
+  // triangulation of the fixed border polygon alone.
+  std::optional<double> evaluate_last(VertexId v) const {
+    Triangulation rest(*tri_.domain());
+    std::vector<kernel::Point3> ring;
+    for (VertexId w : tri_.adjacent_vertices(v)) ring.push_back({tri_.xy(w).x, tri_.xy(w).y, tri_.z(w), 0});
+    rest.insert_bulk(ring);
+    if (rest.dimension() != 2) return std::nullopt;
+    auto at = [&](double x, double y) { return rest.interpolate(x, y); };
+    const XY& p = tri_.xy(v);
+    const auto zv = at(p.x, p.y);
+    if (!zv) return std::nullopt;
+    double err = std::abs(tri_.z(v) - *zv);
+    for (TriangleId t : tri_.incident_triangles(v, true)) {
+      if (t >= head_.size()) continue;
+      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
+        if (const auto z = at(ox_[i], oy_[i])) err = std::max(err, std::abs(oz_[i] - *z));
+      }
+    }
+    return err + tri_.weight(v);
+  }
+
+  bool is_last(VertexId v, const Result<std::vector<VertexTriple>>& preview) const {
+    return preview.ok() && preview->empty() && tri_.num_vertices() > 3 && !tri_.is_on_hull(v);
+  }
+
+ public:
+  // The interior vertex removed without the kernel (see evaluate_last), or kNone.
+  VertexId removed_last() const { return removed_last_; }
+
+ private:
+  // Effective error of removing v, or nullopt when v cannot be removed.
+  std::optional<double> evaluate(VertexId v) const {
+    auto preview = tri_.removal_preview(v);
+    if (is_last(v, preview)) return evaluate_last(v);
+    if (!preview.ok() || preview->empty()) return std::nullopt;
+    const auto& tris = *preview;
+    const XY& p = tri_.xy(v);
+    double err = std::abs(tri_.z(v) - surface_at(tris, p.x, p.y, nullptr));
+    for (TriangleId t : tri_.incident_triangles(v, true)) {
+      if (t >= head_.size()) continue;
+      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
+        err = std::max(err, std::abs(oz_[i] - surface_at(tris, ox_[i], oy_[i], nullptr)));
+      }
+    }
+    return err + tri_.weight(v);
+  }
+
+  void evaluate_and_push(VertexId v) {
+    ++version_[v];
+    const auto e = evaluate(v);
+    if (!e) return;
+    const XY& p = tri_.xy(v);
+    queue_.push({*e, p.x, p.y, v, version_[v]});
+  }
+
+  Status remove(VertexId v) {
+    auto preview = tri_.removal_preview(v);
+    if (is_last(v, preview)) {
+      // Nothing is left to evaluate after it; the caller re-triangulates the border alone.
+      candidate_[v] = 0;
+      removed_last_ = v;
+      return {};
+    }
+    if (!preview.ok()) return preview.error();
+    const std::vector<VertexTriple> tris = std::move(*preview);
+    const std::vector<TriangleId> star = tri_.incident_triangles(v, true);
+    const std::vector<VertexId> ring = tri_.adjacent_vertices(v);
+    gathered_.clear();
+    for (TriangleId t : star) {
+      if (t >= head_.size()) continue;
+      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) gathered_.push_back(i);
+    }
+    const XY pv = tri_.xy(v);
+    const double zv = tri_.z(v);
+    Status s = tri_.remove_vertex(v);
+    if (!s.ok()) return s;
+    candidate_[v] = 0;
+    for (TriangleId t : star) {
+      if (t < head_.size()) head_[t] = kNone;
+    }
+    // The ids of the replacement triangles (the star's slots, reused).
+    new_ids_.assign(tris.size(), kNone);
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+      const auto& want = tris[k];
+      for (TriangleId t : tri_.incident_triangles(want[0], true)) {
+        const auto& tv = tri_.mesh().tri(t).v;
+        if (tri_.mesh().index_of(t, want[1]) >= 0 && tri_.mesh().index_of(t, want[2]) >= 0) {
+          new_ids_[k] = t;
+          (void)tv;
+          break;
+        }
+      }
+      if (new_ids_[k] == kNone) {
+        return Error(ErrorCode::internal, "lod: replacement triangle of vertex " + std::to_string(v) +
+                                              " not found after removal");
+      }
+      if (new_ids_[k] >= head_.size()) head_.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
+    }
+    for (std::uint32_t i : gathered_) {
+      std::size_t k;
+      surface_at(tris, ox_[i], oy_[i], &k);
+      const TriangleId t = new_ids_[k];
+      next_[i] = head_[t];
+      head_[t] = i;
+    }
+    {
+      std::size_t k;
+      surface_at(tris, pv.x, pv.y, &k);
+      push_orphan(pv.x, pv.y, zv, new_ids_[k]);
+    }
+    for (VertexId w : ring) {
+      if (w < candidate_.size() && candidate_[w]) evaluate_and_push(w);
+    }
+    return {};
+  }
+
+  Triangulation& tri_;
+  std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
+  std::vector<std::uint32_t> version_;   // by vertex id: lazy invalidation of queue entries
+  MinQueue queue_;
+  std::vector<std::uint32_t> head_;      // by triangle slot
+  std::vector<double> ox_, oy_, oz_;
+  std::vector<std::uint32_t> next_;
+  std::vector<std::uint32_t> gathered_;
+  std::vector<TriangleId> new_ids_;
+  VertexId removed_last_ = kNone;
+};
+
+std::string tile_name(const geo::TileId& id) { return "tile " + id.to_string(); }
+
+}  // namespace
+
+std::vector<Vertex> thin_border_side(std::span<const Vertex> side, bool along_x, std::size_t budget,
+                                     double epsilon, std::vector<Vertex>* removed) {
+  const std::size_t n = side.size();
+  if (n <= 2) return {side.begin(), side.end()};
+  auto pos = [&](std::size_t i) { return along_x ? side[i].x : side[i].y; };
+  std::vector<std::uint32_t> prev(n), next(n), version(n, 0);
+  std::vector<std::uint8_t> alive(n, 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    prev[i] = static_cast<std::uint32_t>(i == 0 ? 0 : i - 1);
+    next[i] = static_cast<std::uint32_t>(i + 1 == n ? n - 1 : i + 1);
+  }
+  // Max over the side's input points strictly between i's surviving neighbours of the distance to
+  // the chord joining them (i included, the removed ones too).
+  auto error_of = [&](std::size_t i) {
+    const std::size_t a = prev[i], b = next[i];
+    const double ta = pos(a), tb = pos(b), za = side[a].z, zb = side[b].z;
+    double err = 0;
+    for (std::size_t j = a + 1; j < b; ++j) {
+      const double f = (pos(j) - ta) / (tb - ta);
+      err = std::max(err, std::abs(side[j].z - (za + (zb - za) * f)));
+    }
+    return err + side[i].weight;
+  };
+  MinQueue queue;
+  auto push = [&](std::size_t i) {
+    ++version[i];
+    queue.push({error_of(i), static_cast<double>(i), 0.0, static_cast<std::uint32_t>(i), version[i]});
+  };
+  for (std::size_t i = 1; i + 1 < n; ++i) push(i);
+  std::size_t count = n - 2;
+  while (!queue.empty()) {
+    const QueueEntry top = queue.top();
+    if (!alive[top.id] || top.version != version[top.id]) {
+      queue.pop();
+      continue;
+    }
+    if (count <= budget && top.error >= epsilon) break;
+    queue.pop();
+    const std::size_t i = top.id;
+    alive[i] = 0;
+    --count;
+    next[prev[i]] = next[i];
+    prev[next[i]] = prev[i];
+    if (prev[i] != 0) push(prev[i]);
+    if (next[i] != n - 1) push(next[i]);
+  }
+  std::vector<Vertex> kept;
+  kept.reserve(count + 2);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (alive[i]) {
+      kept.push_back(side[i]);
+    } else if (removed) {
+      removed->push_back(side[i]);
+    }
+  }
+  return kept;
+}
+
+Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, ThinStats* stats) {
+  if (options.max_points < 4) {
+    return invalid_argument("lod: max_points must be at least 4 (the corners), got " +
+                            std::to_string(options.max_points));
+  }
+  if (!(options.epsilon >= 0)) return invalid_argument("lod: epsilon must be ≥ 0");
+  ThinStats local;
+  ThinStats& st = stats ? *stats : local;
+  st = ThinStats{};
+  const geo::MercatorRect r = in.id.bounds();
+  const std::size_t budget = side_budget(options);
+
+  // ---- 1. the border, side by side, from the border points alone ------------------------------
+  std::vector<Vertex> dropped;
+  auto thin_side = [&](const std::vector<Vertex>& list, int c0, int c1, bool along_x) {
+    std::vector<Vertex> side;
+    side.reserve(list.size() + 2);
+    side.push_back(in.corners[static_cast<std::size_t>(c0)]);
+    side.insert(side.end(), list.begin(), list.end());
+    side.push_back(in.corners[static_cast<std::size_t>(c1)]);
+    std::vector<Vertex> kept = thin_border_side(side, along_x, budget, options.epsilon, &dropped);
+    return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
+  };
+  st.input_points = 4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() + in.interior.size();
+  const std::array<std::vector<Vertex>, 4> sides = {
+      thin_side(in.north, 0, 1, true), thin_side(in.east, 1, 3, false),
+      thin_side(in.south, 2, 3, true), thin_side(in.west, 0, 2, false)};
+  st.border_removed = dropped.size();
+
+  // ---- 2. triangulate corners + border + interior, border constrained -------------------------
+  Triangulation tri(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
+  std::vector<kernel::Point3> pts;
+  pts.reserve(4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size() + in.interior.size());
+  auto add = [&](const Vertex& v) { pts.push_back({v.x, v.y, v.z, v.weight}); };
+  for (const auto& c : in.corners) add(c);
+  for (const auto& s : sides) {
+    for (const auto& v : s) add(v);
+  }
+  const std::size_t n_fixed = pts.size();
+  for (const auto& v : in.interior) add(v);
+  const std::vector<kernel::InsertResult> ins = tri.insert_bulk(pts);
+  for (std::size_t i = 0; i < n_fixed; ++i) {
+    if (ins[i].outcome != kernel::InsertOutcome::inserted) {
+      return invalid_argument("lod: " + tile_name(in.id) + ": corner or edge point #" + std::to_string(i) +
+                              " is a duplicate or lies outside the tile");
+    }
+  }
+  std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);
+  for (std::size_t i = n_fixed; i < pts.size(); ++i) {
+    switch (ins[i].outcome) {
+      case kernel::InsertOutcome::inserted: candidate[ins[i].vertex] = 1; break;
+      case kernel::InsertOutcome::duplicate: ++st.duplicates; break;
+      default:
+        return invalid_argument("lod: " + tile_name(in.id) + ": interior point #" +
+                                std::to_string(i - n_fixed) + " lies outside the tile or is not finite");
+    }
+  }
+  if (tri.dimension() != 2) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": degenerate triangulation");
+  // Border chains in edge order: corner ids 0..3 are ins[0..3].
+  std::array<std::vector<VertexId>, 4> chain;
+  {
+    std::size_t k = 4;
+    const std::array<std::array<int, 2>, 4> ends = {{{0, 1}, {1, 3}, {2, 3}, {0, 2}}};
+    for (std::size_t s = 0; s < 4; ++s) {
+      chain[s].push_back(ins[static_cast<std::size_t>(ends[s][0])].vertex);
+      for (std::size_t j = 0; j < sides[s].size(); ++j) chain[s].push_back(ins[k++].vertex);
+      chain[s].push_back(ins[static_cast<std::size_t>(ends[s][1])].vertex);
+      for (std::size_t j = 0; j + 1 < chain[s].size(); ++j) {
+        Status c = tri.insert_constraint(chain[s][j], chain[s][j + 1]);
+        if (!c.ok()) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": border constraint: " + c.error().message);
+      }
+    }
+  }
+  if (tri.num_vertices() != pts.size() - st.duplicates) {
+    return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": a border constraint added vertices");
+  }
+
+  // ---- 3. thin the interior ------------------------------------------------------------------
+  VertexId removed_last = kNone;
+  {
+    InteriorThinner thinner(tri, candidate);
+    for (const auto& o : in.orphans) thinner.add_orphan(o);
+    for (const auto& o : dropped) thinner.add_orphan(o);
+    thinner.seed_queue();
+    auto removed = thinner.run(options.max_points, options.epsilon, &st.last_error);
+    if (!removed.ok()) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": " + removed.error().message);
+    st.interior_removed = *removed;
+    removed_last = thinner.removed_last();
+  }
+  std::optional<Triangulation> border_only;  // when the last interior vertex went (evaluate_last)
+  std::vector<kernel::InsertResult> border_ins;
+  if (removed_last != kNone) {
+    border_only.emplace(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
+    border_ins = border_only->insert_bulk(std::span<const kernel::Point3>(pts.data(), n_fixed));
+    for (std::size_t i = 0; i < n_fixed; ++i) {
+      if (border_ins[i].outcome != kernel::InsertOutcome::inserted) {
+        return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": border re-triangulation failed");
+      }
+    }
+  }
+
+  // ---- 4. back to a tile ---------------------------------------------------------------------
+  tile::TinTile out;
+  out.id = in.id;
+  out.corners = in.corners;
+  out.corner_nodata = in.corner_nodata;
+  out.north = sides[0], out.east = sides[1], out.south = sides[2], out.west = sides[3];
+  std::vector<std::uint32_t> index(tri.vertex_id_bound(), kNone);
+  for (std::size_t c = 0; c < 4; ++c) index[ins[c].vertex] = static_cast<std::uint32_t>(c);
+  std::uint32_t next_index = 4;
+  for (std::size_t i = 4; i < n_fixed; ++i) index[ins[i].vertex] = next_index++;
+  for (std::size_t i = n_fixed; i < pts.size(); ++i) {
+    const VertexId v = ins[i].vertex;
+    if (ins[i].outcome != kernel::InsertOutcome::inserted || !tri.is_vertex(v) || v == removed_last) continue;
+    index[v] = next_index++;
+    out.interior.push_back(in.interior[i - n_fixed]);
+  }
+  if (border_only) {
+    // Only the fixed points are left; their tile numbering is their insertion order.
+    index.assign(border_only->vertex_id_bound(), kNone);
+    for (std::size_t i = 0; i < n_fixed; ++i) index[border_ins[i].vertex] = static_cast<std::uint32_t>(i);
+  }
+  const Triangulation& final_tri = border_only ? *border_only : tri;
+  out.triangles.reserve(final_tri.num_finite_triangles());
+  for (const auto& t : final_tri.finite_triangles()) {
+    tile::Triangle m{index[t[0]], index[t[1]], index[t[2]]};
+    if (m[0] == kNone || m[1] == kNone || m[2] == kNone) {
+      return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": triangle over an unknown vertex");
+    }
+    out.triangles.push_back(m);
+  }
+  out.update_z_range();
+  return out;
+}
+
+Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinStats* stats) {
+  ThinInput in;
+  in.id = tile.id;
+  in.corners = tile.corners;
+  in.corner_nodata = tile.corner_nodata;
+  in.north = tile.north, in.east = tile.east, in.south = tile.south, in.west = tile.west;
+  in.interior = tile.interior;
+  auto reduced = thin_tile(in, options, stats);
+  if (!reduced.ok()) return reduced.error();
+  const tile::TinTile* original = &tile;
+  const SurfaceDifference d = surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1), true);
+  reduced->geometric_error = d.max_abs + tile.geometric_error + error_rounding_allowance(*reduced);
+  reduced->rms_error = d.rms() + tile.rms_error;
+  reduced->source_points = tile.source_points;
+  tile = std::move(*reduced);
+  return {};
+}
+
+Status reduce_finest_tile(tile::TinTile& tile, double epsilon, std::size_t max_points, ThinStats* stats) {
+  LodOptions o;
+  o.epsilon = epsilon;
+  o.max_points = max_points;
+  return reduce_finest_tile(tile, o, stats);
+}
+
+}  // namespace tinstream::lod

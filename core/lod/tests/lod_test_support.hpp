@@ -1,0 +1,107 @@
+// Helpers shared by the lod tests: synthetic grid tiles and an independent (brute-force)
+// evaluation of a tile's surface.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "tinstream/lod/thinning.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod::testing {
+
+using Surface = std::function<double(double, double)>;
+
+// Options that keep every point: nothing is above budget and nothing is below epsilon 0.
+inline LodOptions keep_everything() {
+  LodOptions o;
+  o.max_points = std::size_t{1} << 30;
+  o.border_points_per_side = std::size_t{1} << 30;
+  o.epsilon = 0.0;
+  return o;
+}
+
+// A finest-like tile sampling `f` on an (n+1)×(n+1) lattice over the tile (n a power of two, so
+// lattice points on a border are exactly on it and neighbours share them bit for bit).
+inline tile::TinTile grid_tile(const geo::TileId& id, int n, const Surface& f,
+                               const std::function<double(double, double)>& weight = {}) {
+  const geo::MercatorRect r = id.bounds();
+  const double h = r.width() / n;
+  ThinInput in;
+  in.id = id;
+  auto v = [&](double x, double y) {
+    return tile::Vertex{x, y, f(x, y), weight ? weight(x, y) : 0.0};
+  };
+  in.corners = {v(r.min_x, r.max_y), v(r.max_x, r.max_y), v(r.min_x, r.min_y), v(r.max_x, r.min_y)};
+  for (int i = 1; i < n; ++i) {
+    in.north.push_back(v(r.min_x + i * h, r.max_y));
+    in.south.push_back(v(r.min_x + i * h, r.min_y));
+    in.east.push_back(v(r.max_x, r.max_y - i * h));
+    in.west.push_back(v(r.min_x, r.max_y - i * h));
+  }
+  for (int j = 1; j < n; ++j) {
+    for (int i = 1; i < n; ++i) in.interior.push_back(v(r.min_x + i * h, r.max_y - j * h));
+  }
+  auto t = thin_tile(in, keep_everything());
+  EXPECT_TRUE(t.ok()) << (t.ok() ? "" : t.error().message);
+  return t.ok() ? *t : tile::TinTile{};
+}
+
+// Barycentric interpolation by brute force over the tile's triangles (written independently of
+// the library). Triangles at NODATA corners are skipped when skip_nodata. nullopt: not covered.
+inline std::optional<double> brute_height(const tile::TinTile& t, double x, double y, bool skip_nodata) {
+  const auto v = t.vertices();
+  std::optional<double> best;
+  double best_w = -1e-9;
+  for (const auto& tr : t.triangles) {
+    if (skip_nodata) {
+      bool nd = false;
+      for (auto i : tr) nd = nd || (i < 4 && t.corner_nodata[i]);
+      if (nd) continue;
+    }
+    const auto &a = v[tr[0]], &b = v[tr[1]], &c = v[tr[2]];
+    const double det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    const double la = ((b.x - x) * (c.y - y) - (b.y - y) * (c.x - x)) / det;
+    const double lb = ((c.x - x) * (a.y - y) - (c.y - y) * (a.x - x)) / det;
+    const double lc = 1.0 - la - lb;
+    const double w = std::min({la, lb, lc});
+    if (w > best_w) {
+      best_w = w;
+      best = la * a.z + lb * b.z + lc * c.z;
+    }
+  }
+  return best;
+}
+
+// Max |coarse − fine| over a dense lattice (samples per side) inside `coarse` plus all fine
+// vertices, where the fine surface has data.
+inline double sampled_max_difference(const tile::TinTile& coarse, const std::vector<tile::TinTile>& fines, int samples) {
+  const geo::MercatorRect r = coarse.id.bounds();
+  double worst = 0;
+  auto probe = [&](double x, double y) {
+    for (const auto& f : fines) {
+      const auto fr = f.id.bounds();
+      if (x < fr.min_x || x > fr.max_x || y < fr.min_y || y > fr.max_y) continue;
+      const auto zf = brute_height(f, x, y, true);
+      if (!zf) continue;
+      const auto zc = brute_height(coarse, x, y, false);
+      EXPECT_TRUE(zc.has_value());
+      if (zc) worst = std::max(worst, std::abs(*zc - *zf));
+    }
+  };
+  for (int j = 0; j <= samples; ++j) {
+    for (int i = 0; i <= samples; ++i) {
+      probe(r.min_x + r.width() * i / samples, r.min_y + r.height() * j / samples);
+    }
+  }
+  for (const auto& f : fines) {
+    for (const auto& p : f.vertices()) probe(p.x, p.y);
+  }
+  return worst;
+}
+
+}  // namespace tinstream::lod::testing

@@ -1,0 +1,254 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <random>
+
+#include "lod_test_support.hpp"
+#include "tinstream/lod/error.hpp"
+#include "tinstream/lod/pyramid.hpp"
+#include "tinstream/store/tile_store.hpp"
+#include "tinstream/triangulate/finest_tiles.hpp"
+
+namespace tinstream::lod {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::grid_tile;
+using tile::TinTile;
+
+struct TempStore {
+  fs::path dir;
+  std::optional<store::TileStore> store;
+  explicit TempStore(const std::string& name) {
+    dir = fs::temp_directory_path() / ("tinstream-lod-test-" + name + "-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto s = store::TileStore::open(dir / "tiles.sqlite", store::TileStore::Mode::read_write);
+    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+    if (s.ok()) store.emplace(std::move(*s));
+  }
+  ~TempStore() {
+    store.reset();
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  std::unique_ptr<store::LayerWriter> writer(const std::string& layer) {
+    store::LayerInfo info;
+    info.name = layer;
+    auto w = store->begin_layer(info);
+    EXPECT_TRUE(w.ok()) << (w.ok() ? "" : w.error().message);
+    return w.ok() ? std::move(*w) : nullptr;
+  }
+};
+
+std::vector<TinTile> level_tiles(store::LayerWriter& w, std::uint32_t z) {
+  std::vector<TinTile> out;
+  auto ids = w.tile_ids(z);
+  EXPECT_TRUE(ids.ok());
+  for (const auto& id : *ids) {
+    auto t = w.get(id);
+    EXPECT_TRUE(t.ok() && t->has_value());
+    out.push_back(std::move(**t));
+  }
+  return out;
+}
+
+bool under(const geo::TileId& fine, const geo::TileId& coarse) {
+  if (fine.z < coarse.z) return false;
+  const std::uint32_t s = fine.z - coarse.z;
+  return (fine.x >> s) == coarse.x && (fine.y >> s) == coarse.y;
+}
+
+// Every level: structure, budget, watertight, monotone error, stored error ≥ the finest surface
+// sampled independently. Returns the levels' max errors.
+void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t min_level, std::size_t max_points,
+                   const PyramidSummary& summary, int samples, std::size_t vertex_stride) {
+  const std::vector<TinTile> fin = level_tiles(w, finest);
+  ASSERT_FALSE(fin.empty());
+  std::map<geo::TileId, double> error_of;
+  for (const auto& t : fin) error_of[t.id] = t.geometric_error;
+  for (std::uint32_t z = finest; z-- > min_level;) {
+    const std::vector<TinTile> level = level_tiles(w, z);
+    ASSERT_FALSE(level.empty()) << "level " << z;
+    EXPECT_EQ(summary.level_tiles[z], level.size()) << "level " << z;
+    const Status wt = check_level_watertight(level);
+    EXPECT_TRUE(wt.ok()) << "level " << z << ": " << (wt.ok() ? "" : wt.error().message);
+    double level_max = 0;
+    for (const auto& t : level) {
+      const Status st = tile::check_structure(t);
+      EXPECT_TRUE(st.ok()) << t.id.to_string() << ": " << (st.ok() ? "" : st.error().message);
+      EXPECT_TRUE(check_budget(t, max_points).ok()) << t.id.to_string();
+      level_max = std::max(level_max, t.geometric_error);
+      for (const auto& c : t.id.children()) {
+        if (auto it = error_of.find(c); it != error_of.end()) {
+          EXPECT_GE(t.geometric_error, it->second) << t.id.to_string() << " vs child " << c.to_string();
+        }
+      }
+      std::vector<TinTile> fines;
+      for (const auto& f : fin) {
+        if (under(f.id, t.id)) fines.push_back(f);
+      }
+      ASSERT_FALSE(fines.empty());
+      // Independent evaluation: a lattice plus a stride of the finest vertices.
+      std::vector<TinTile> thin_fines = fines;
+      const double sampled = testing::sampled_max_difference(t, {}, 0);
+      (void)sampled;
+      double worst = 0;
+      const geo::MercatorRect r = t.id.bounds();
+      auto probe = [&](double x, double y) {
+        for (const auto& f : fines) {
+          const auto fr = f.id.bounds();
+          if (x < fr.min_x || x > fr.max_x || y < fr.min_y || y > fr.max_y) continue;
+          const auto zf = testing::brute_height(f, x, y, true);
+          const auto zc = testing::brute_height(t, x, y, false);
+          if (zf && zc) worst = std::max(worst, std::abs(*zf - *zc));
+        }
+      };
+      for (int j = 0; j <= samples; ++j) {
+        for (int i = 0; i <= samples; ++i) probe(r.min_x + r.width() * i / samples, r.min_y + r.height() * j / samples);
+      }
+      for (const auto& f : fines) {
+        const auto v = f.vertices();
+        for (std::size_t k = 0; k < v.size(); k += vertex_stride) probe(v[k].x, v[k].y);
+      }
+      EXPECT_GE(t.geometric_error, worst) << t.id.to_string();
+      auto m = measured_max_error(t, fines);
+      ASSERT_TRUE(m.ok()) << m.error().message;
+      EXPECT_GE(t.geometric_error, *m) << t.id.to_string();
+      error_of[t.id] = t.geometric_error;
+    }
+    EXPECT_EQ(summary.level_max_error[z], level_max) << "level " << z;
+    EXPECT_GE(summary.level_max_error[z], summary.level_max_error[z + 1]) << "level " << z;
+  }
+}
+
+double world_hills(double x, double y) { return 100.0 + 50.0 * std::sin(3.0 * x) * std::cos(2.0 * y) + 20.0 * std::sin(17.0 * x * y); }
+
+TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
+  TempStore ts("grid");
+  auto w = ts.writer("grid");
+  ASSERT_TRUE(w);
+  const std::uint32_t L = 3;
+  const geo::TileId peak_tile{L, 5, 2};
+  const geo::MercatorRect pr = peak_tile.bounds();
+  const double px = pr.min_x + pr.width() * 3 / 8, py = pr.max_y - pr.height() * 5 / 8;
+  auto f = [&](double x, double y) { return world_hills(x, y) + (x == px && y == py ? 0.25 : 0.0); };
+  auto weight = [&](double x, double y) { return x == px && y == py ? 1e6 : 0.0; };
+  for (std::uint32_t y = 0; y < 8; ++y) {
+    for (std::uint32_t x = 0; x < 8; ++x) ASSERT_TRUE(w->put(grid_tile({L, x, y}, 8, f, weight)).ok());
+  }
+  PyramidOptions o;
+  o.lod.max_points = 24;
+  std::vector<Progress> seen;
+  auto summary = build_pyramid(*w, L, 0, o, 2, [&](const Progress& p) {
+    seen.push_back(p);
+    return true;
+  });
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->tiles_built, 16u + 4u + 1u);
+  EXPECT_EQ(summary->level_tiles[L], 64u);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back().phase, "lod");
+  EXPECT_EQ(seen.back().unit, "tiles");
+  EXPECT_EQ(seen.back().done, 21u);
+  check_pyramid(*w, L, 0, o.lod.max_points, *summary, 40, 1);
+  for (std::uint32_t z = 0; z < L; ++z) {
+    const geo::TileId holder{z, peak_tile.x >> (L - z), peak_tile.y >> (L - z)};
+    auto t = w->get(holder);
+    ASSERT_TRUE(t.ok() && t->has_value());
+    bool found = false;
+    for (const auto& p : (*t)->interior) found = found || (p.x == px && p.y == py && p.weight == 1e6);
+    EXPECT_TRUE(found) << "level " << z;
+  }
+  EXPECT_GT(summary->level_max_error[0], summary->level_max_error[2]);
+}
+
+TEST(Pyramid, ThreadCountDoesNotChangeTheResult) {
+  TempStore ts("threads");
+  auto a = ts.writer("a");
+  auto b = ts.writer("b");
+  ASSERT_TRUE(a && b);
+  for (std::uint32_t y = 0; y < 4; ++y) {
+    for (std::uint32_t x = 0; x < 4; ++x) {
+      const auto t = grid_tile({2, x, y}, 16, world_hills);
+      ASSERT_TRUE(a->put(t).ok());
+      ASSERT_TRUE(b->put(t).ok());
+    }
+  }
+  PyramidOptions o;
+  o.lod.max_points = 40;
+  o.lod.epsilon = 0.5;
+  o.reduce_finest = true;
+  ASSERT_TRUE(build_pyramid(*a, 2, 0, o, 1).ok());
+  ASSERT_TRUE(build_pyramid(*b, 2, 0, o, 3).ok());
+  for (std::uint32_t z = 0; z <= 2; ++z) {
+    const auto ta = level_tiles(*a, z), tb = level_tiles(*b, z);
+    ASSERT_EQ(ta.size(), tb.size());
+    for (std::size_t i = 0; i < ta.size(); ++i) {
+      EXPECT_EQ(ta[i].vertices().size(), tb[i].vertices().size());
+      EXPECT_EQ(ta[i].triangles, tb[i].triangles) << ta[i].id.to_string();
+      EXPECT_EQ(ta[i].geometric_error, tb[i].geometric_error);
+      if (z == 2) {
+        EXPECT_LE(ta[i].vertex_count(), 40u);
+        EXPECT_GT(ta[i].geometric_error, 0.0);
+      }
+    }
+  }
+}
+
+TEST(Pyramid, ProgressSinkCancels) {
+  TempStore ts("cancel");
+  auto w = ts.writer("c");
+  ASSERT_TRUE(w);
+  for (std::uint32_t y = 0; y < 4; ++y) {
+    for (std::uint32_t x = 0; x < 4; ++x) ASSERT_TRUE(w->put(grid_tile({2, x, y}, 4, world_hills)).ok());
+  }
+  auto r = build_pyramid(*w, 2, 0, PyramidOptions{}, 2, [](const Progress&) { return false; });
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::cancelled);
+}
+
+// Finest tiles from pass 2 + 3 on random points, then the whole pyramid through a real store.
+TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
+  TempStore ts("random");
+  std::mt19937_64 rng(42);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double x0 = 0.1, y0 = 0.2, span = 2e-3;
+  std::vector<subdivide::InputPoint> pts;
+  for (int i = 0; i < 12000; ++i) {
+    const double x = x0 + span * u(rng), y = y0 + span * u(rng);
+    pts.push_back({x, y, 100.0 + 50.0 * std::sin(x * 3e3) + 30.0 * std::cos(y * 2e3) + 5.0 * std::sin(x * 4e4)});
+  }
+  subdivide::SubdivideOptions so;
+  so.tmp_dir = ts.dir;
+  so.max_points = 1500;
+  std::size_t pos = 0;
+  auto run = subdivide::subdivide(
+      [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
+        const std::size_t n = std::min<std::size_t>(4096, pts.size() - pos);
+        batch.insert(batch.end(), pts.begin() + static_cast<std::ptrdiff_t>(pos),
+                     pts.begin() + static_cast<std::ptrdiff_t>(pos + n));
+        pos += n;
+        return n;
+      },
+      so);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  auto w = ts.writer("random");
+  ASSERT_TRUE(w);
+  auto tri = triangulate::build_finest_tiles(*run, 2, [&](TinTile&& t) { return w->put(t); });
+  ASSERT_TRUE(tri.ok()) << tri.error().message;
+  const std::uint32_t L = run->finest_level;
+  ASSERT_GE(L, 3u);
+  PyramidOptions o;
+  o.lod.max_points = 800;
+  o.lod.epsilon = 0.05;
+  auto summary = build_pyramid(*w, L, 0, o, 2);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->level_tiles[0], 1u);
+  check_pyramid(*w, L, 0, o.lod.max_points, *summary, 30, 5);
+}
+
+}  // namespace
+}  // namespace tinstream::lod
