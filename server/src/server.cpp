@@ -37,6 +37,7 @@ using tcp = net::ip::tcp;
 class Session;
 
 struct Server::Impl {
+  ~Impl();
   explicit Impl(const ServerConfig& c)
       : serial(next_serial.fetch_add(1)),
         config(c), acceptor(net::make_strand(ioc)), signals(ioc, SIGINT, SIGTERM), grace(ioc) {}
@@ -130,6 +131,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void shutdown() {
     if (reading_header_) close_now();
   }
+  // Only when no thread runs the io_context (Server::Impl's destructor).
+  void force_close() { close_now(); }
   void shutdown_posted() {
     net::post(stream_.get_executor(), [self = shared_from_this()] { self->shutdown(); });
   }
@@ -348,6 +351,26 @@ class Session : public std::enable_shared_from_this<Session> {
   std::size_t drained_ = 0;
   std::array<char, 8192> drain_buffer_{};
 };
+
+Server::Impl::~Impl() {
+  // Handlers still pending after a forced stop (grace period over) own sessions that refer to
+  // this object: close their sockets and let those handlers finish before any member goes away.
+  beast::error_code ec;
+  acceptor.close(ec);
+  signals.cancel(ec);
+  grace.cancel();
+  std::vector<std::shared_ptr<Session>> live;
+  {
+    std::lock_guard lock(sessions_mutex);
+    for (auto& [ptr, weak] : sessions) {
+      if (auto s = weak.lock()) live.push_back(std::move(s));
+    }
+  }
+  for (auto& s : live) s->force_close();
+  live.clear();
+  ioc.restart();
+  ioc.run_for(std::chrono::seconds(5));
+}
 
 void Server::Impl::do_accept() {
   acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
