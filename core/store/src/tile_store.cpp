@@ -16,6 +16,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -851,7 +852,13 @@ Status validate_layer_name(std::string_view name) {
   const auto shown = [&] {
     std::string s;
     for (const char c : name.substr(0, 80)) {
-      s += (c >= 0x20 && c < 0x7f) ? std::string(1, c) : "\\x" + std::to_string(static_cast<unsigned char>(c));
+      if (c >= 0x20 && c < 0x7f) {
+        s += c;
+      } else {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "\\x%02x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+        s += hex;
+      }
     }
     return s;
   };

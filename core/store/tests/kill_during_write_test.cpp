@@ -55,7 +55,7 @@ enum class Death { sigkill, exit_in_transaction };
   if (!writer) _exit(11);
   std::mt19937_64 rng(99);
   const std::size_t signal_after = 700;  // batches of 256: two committed, one open
-  for (std::size_t i = 0;; ++i) {
+  for (std::size_t i = 0; i < 200000; ++i) {  // bounded, in case the parent never kills us
     const auto k = static_cast<std::uint32_t>(i);
     const TinTile t = make_grid_tile({14, k % 16384, (k / 16384) % 16384}, 3, 3, rng);
     if (!(*writer)->put(t).ok()) _exit(12);
@@ -65,7 +65,19 @@ enum class Death { sigkill, exit_in_transaction };
       if (death == Death::exit_in_transaction) _exit(0);  // no destructors: batch left open
     }
   }
+  _exit(14);
 }
+
+// Kills and reaps the child if the parent leaves the test early (a failed ASSERT).
+struct ChildGuard {
+  pid_t pid = 0;
+  ~ChildGuard() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
 
 void kill_writer_and_check(Death death) {
   TempDir dir;
@@ -94,13 +106,22 @@ void kill_writer_and_check(Death death) {
     child_writer(path, fds[1], death);
   }
   close(fds[1]);
+  ChildGuard guard{pid};
   char byte = 0;
   const ssize_t got = read(fds[0], &byte, 1);  // blocks until the child has written enough
   close(fds[0]);
   ASSERT_EQ(got, 1) << "the child writer failed before writing its tiles";
-  if (death == Death::sigkill) kill(pid, SIGKILL);
+  if (death == Death::sigkill) {
+    // The child is still writing: a read-only reader in this process sees version 1 unchanged.
+    auto reader = TileStore::open(path, TileStore::Mode::read_only);
+    ASSERT_TRUE(reader.ok()) << reader.error().message;
+    EXPECT_EQ(reader->layer("dem")->version, v1_version);
+    EXPECT_EQ(snapshot(*reader, "dem"), before);
+    kill(pid, SIGKILL);
+  }
   int status = 0;
   ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  guard.pid = 0;
   if (death == Death::sigkill) {
     ASSERT_TRUE(WIFSIGNALED(status));
   } else {
