@@ -338,7 +338,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   ThinStats local;
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
-  const geo::MercatorRect r = in.id.bounds();
+  const geo::MercatorRect r = in.rect ? *in.rect : in.id.bounds();
   const std::size_t budget = side_budget(options);
 
   // ---- 1. the border, side by side, from the border points alone ------------------------------

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -70,6 +71,9 @@ struct ThinInput {
   std::vector<tile::Vertex> north, east, south, west;
   std::vector<tile::Vertex> interior;
   std::vector<tile::Vertex> orphans;
+  // The rectangle the corners span; default id.bounds(). Lets a caller thin a grid in its own
+  // coordinates (e.g. metres, bench/lod) rather than a quadtree tile.
+  std::optional<geo::MercatorRect> rect;
 };
 
 struct ThinStats {
