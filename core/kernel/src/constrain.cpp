@@ -25,6 +25,8 @@ Status Triangulation::insert_constraint(VertexId a, VertexId b) {
                        ": needs a two-dimensional triangulation (three non-collinear points)");
   }
   segments_.push_back({a, b});
+  has_constraints_ = true;
+  randomize_walk_ = true;
   return insert_segment(a, b);
 }
 

@@ -43,18 +43,28 @@ Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) cons
   TriangleId t = start_triangle(hint);
   if (t == kNone) return {Where::outside_hull, kNone, 0};
   TriangleId prev = kNone;
+  int start = 0;
+  double o[3];
   for (;;) {
     const Triangle& T = mesh_.tri(t);
-    rng_ ^= rng_ << 13;
-    rng_ ^= rng_ >> 17;
-    rng_ ^= rng_ << 5;
-    const int start = static_cast<int>(rng_ % 3u);
+    if (randomize_walk_) {
+      rng_ ^= rng_ << 13;
+      rng_ ^= rng_ >> 17;
+      rng_ ^= rng_ << 5;
+      start = static_cast<int>(rng_ % 3u);
+    } else {
+      start = next3(start);
+    }
     TriangleId next = kNone;
     for (int k = 0; k < 3; ++k) {
       const int i = (start + k) % 3;
       const TriangleId nb = T.n[i];
-      if (nb == prev && prev != kNone) continue;
-      if (orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p) < 0.0) {
+      if (nb == prev && prev != kNone) {
+        o[i] = 1.0;  // p is strictly on this side: we just crossed that edge towards it
+        continue;
+      }
+      o[i] = orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p);
+      if (o[i] < 0.0) {
         if (nb == kNone) return {Where::outside_hull, kNone, 0};  // cut mesh: blocked
         if (mesh_.is_ghost(nb)) return {Where::outside_hull, nb, 0};
         next = nb;
@@ -65,47 +75,50 @@ Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) cons
     prev = t;
     t = next;
   }
-  const Triangle& T = mesh_.tri(t);
-  for (int i = 0; i < 3; ++i) {
-    const XY& q = mesh_.xy(T.v[i]);
-    if (q.x == p.x && q.y == p.y) return {Where::on_vertex, t, i};
-  }
-  for (int i = 0; i < 3; ++i) {
-    if (orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p) == 0.0) {
-      return {Where::on_edge, t, i};
-    }
-  }
-  return {Where::inside, t, 0};
+  // p lies in the closed triangle t; o[] holds its (non-negative) edge orientations.
+  const int zeros = (o[0] == 0.0) + (o[1] == 0.0) + (o[2] == 0.0);
+  if (zeros == 0) return {Where::inside, t, 0};
+  if (zeros == 1) return {Where::on_edge, t, o[0] == 0.0 ? 0 : o[1] == 0.0 ? 1 : 2};
+  // On two edge lines: p is the vertex they share, the one opposite the non-zero edge.
+  return {Where::on_vertex, t, o[0] != 0.0 ? 0 : o[1] != 0.0 ? 1 : 2};
 }
 
-bool Triangulation::in_conflict(TriangleId nb, const XY& p) const {
-  const Triangle& T = mesh_.tri(nb);
-  const int g = T.v[0] == kInfiniteVertex   ? 0
-                : T.v[1] == kInfiniteVertex ? 1
-                : T.v[2] == kInfiniteVertex ? 2
-                                            : -1;
-  if (g < 0) return incircle(mesh_.xy(T.v[0]), mesh_.xy(T.v[1]), mesh_.xy(T.v[2]), p) > 0.0;
-  // A ghost triangle (x, y, 0)'s "circle" is the open half-plane left of x->y (outside the hull).
-  return orient2d(mesh_.xy(T.v[next3(g)]), mesh_.xy(T.v[prev3(g)]), p) > 0.0;
-}
-
+// Lawson flips from the new vertex p: every edge opposite p is tested against the triangle on
+// its other side and flipped when p lies in its circle.
 void Triangulation::legalize(VertexId p) {
   const XY pp = mesh_.xy(p);
   while (!stack_.empty()) {
     const auto [t, i] = stack_.back();
     stack_.pop_back();
-    if (mesh_.constrained(t, i)) continue;
-    const TriangleId nb = mesh_.tri(t).n[i];
-    if (nb == kNone || !in_conflict(nb, pp)) continue;
-    const TriangleId u = mesh_.flip(t, i);
+    if (has_constraints_ && mesh_.constrained(t, i)) continue;
+    const Triangle& T = mesh_.tri(t);
+    const TriangleId nb = T.n[i];
+    if (nb == kNone) continue;
+    const Triangle& N = mesh_.tri(nb);
+    const int j = N.n[0] == t ? 0 : N.n[1] == t ? 1 : 2;
+    const VertexId q = N.v[j];
+    if (q == kInfiniteVertex) continue;  // across a hull edge from inside: never in conflict
+    const VertexId w = N.v[next3(j)], u = N.v[prev3(j)];  // N = (q, w, u)
+    bool conflict;
+    if (w == kInfiniteVertex) {
+      conflict = orient2d(mesh_.xy(u), mesh_.xy(q), pp) > 0.0;  // ghost (u, q, 0)
+    } else if (u == kInfiniteVertex) {
+      conflict = orient2d(mesh_.xy(q), mesh_.xy(w), pp) > 0.0;  // ghost (q, w, 0)
+    } else {
+      conflict = incircle(mesh_.xy(q), mesh_.xy(w), mesh_.xy(u), pp) > 0.0;
+    }
+    if (!conflict) continue;
+    const TriangleId v2 = mesh_.flip(t, i, j);
     stack_.emplace_back(t, 0);
-    stack_.emplace_back(u, 2);
+    stack_.emplace_back(v2, 2);
   }
 }
 
 InsertResult Triangulation::insert_vertex(VertexId v, TriangleId hint) {
-  const XY p = mesh_.xy(v);
-  const Location loc = locate(p, hint);
+  return insert_at(v, locate(mesh_.xy(v), hint));
+}
+
+InsertResult Triangulation::insert_at(VertexId v, const Location& loc) {
   switch (loc.where) {
     case Where::on_vertex:
       return {InsertOutcome::duplicate, mesh_.tri(loc.t).v[loc.index]};
@@ -163,9 +176,10 @@ InsertResult Triangulation::insert(const Point3& p) {
     hint_ = loc.t;
     return {InsertOutcome::duplicate, mesh_.tri(loc.t).v[loc.index]};
   }
+  if (loc.t == kNone) return {InsertOutcome::rejected, kNone};
   const VertexId v = mesh_.add_vertex(p.x, p.y, p.z, p.weight);
   ++live_vertices_;
-  return insert_vertex(v, loc.t);
+  return insert_at(v, loc);
 }
 
 // The pending vertices are distinct and collinear; `off_line` is not on their line. Builds the
@@ -219,7 +233,13 @@ std::vector<InsertResult> Triangulation::insert_bulk(std::span<const Point3> poi
   mesh_.reserve_vertices(mesh_.vertex_slots() + order.size());
   mesh_.reserve_triangles(mesh_.triangle_slots() + 2 * order.size() + 8);
   std::vector<std::uint32_t> origin;  // vertex id -> input index it came from
-  for (std::uint32_t i : order) {
+  origin.reserve(mesh_.vertex_slots() + order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (k + 8 < order.size()) {  // the input is read in a scattered order: hide the misses
+      __builtin_prefetch(&points[order[k + 8]]);
+      __builtin_prefetch(&out[order[k + 8]], 1);
+    }
+    const std::uint32_t i = order[k];
     out[i] = insert(points[i]);
     if (out[i].outcome == InsertOutcome::inserted) {
       if (origin.size() <= out[i].vertex) origin.resize(out[i].vertex + 1, kNone);

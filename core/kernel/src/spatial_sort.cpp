@@ -1,32 +1,51 @@
 #include "spatial_sort.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 
 namespace tinstream::kernel::detail {
 namespace {
 
-// Hilbert index of (x, y) on a 2^16 x 2^16 grid.
-std::uint32_t hilbert_index(std::uint32_t x, std::uint32_t y) {
-  std::uint32_t d = 0;
-  for (std::uint32_t s = 1u << 15; s > 0; s >>= 1) {
-    const std::uint32_t rx = (x & s) ? 1u : 0u;
-    const std::uint32_t ry = (y & s) ? 1u : 0u;
-    d += s * s * ((3u * rx) ^ ry);
-    if (ry == 0) {
-      if (rx == 1) {
-        x = 65535u - x;  // flips the bits still to be read; higher ones no longer matter
-        y = 65535u - y;
+// One Hilbert level as a state machine. The state is the transform accumulated so far on the
+// remaining bits: bit 0 = x and y swapped, bit 1 = both reflected (they commute). Entry
+// [state * 4 + (xbit << 1 | ybit)] = (digit << 2) | next state.
+constexpr std::array<std::uint8_t, 16> make_hilbert_table() {
+  std::array<std::uint8_t, 16> table{};
+  for (unsigned state = 0; state < 4; ++state) {
+    for (unsigned quad = 0; quad < 4; ++quad) {
+      unsigned rx = (quad >> 1) ^ (state >> 1), ry = (quad & 1u) ^ (state >> 1);
+      if (state & 1u) {
+        const unsigned tmp = rx;
+        rx = ry;
+        ry = tmp;
       }
-      std::swap(x, y);
+      const unsigned digit = (3u * rx) ^ ry;
+      unsigned next = state;
+      if (ry == 0) next ^= 1u | (rx << 1);
+      table[state * 4 + quad] = static_cast<std::uint8_t>((digit << 2) | next);
     }
+  }
+  return table;
+}
+constexpr std::array<std::uint8_t, 16> kHilbert = make_hilbert_table();
+
+// Hilbert index of (x, y) on a 2^bits x 2^bits grid.
+std::uint32_t hilbert_index(std::uint32_t x, std::uint32_t y, int bits) {
+  std::uint32_t d = 0;
+  unsigned state = 0;
+  for (int b = bits - 1; b >= 0; --b) {
+    const unsigned quad = (((x >> b) & 1u) << 1) | ((y >> b) & 1u);
+    const unsigned e = kHilbert[state * 4 + quad];
+    d = (d << 2) | (e >> 2);
+    state = e & 3u;
   }
   return d;
 }
 
-std::uint64_t splitmix(std::uint64_t& state) {
-  std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+std::uint64_t mix(std::uint64_t z) {
+  z += 0x9E3779B97F4A7C15ull;
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return z ^ (z >> 31);
@@ -45,36 +64,37 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
     ymin = std::min(ymin, points[i].y);
     ymax = std::max(ymax, points[i].y);
   }
+  // About one grid cell per point: finer cells would not improve locality.
+  const int bits = std::clamp(static_cast<int>(std::bit_width(n) + 1) / 2 + 1, 2, 15);
+  const double cells = double((1u << bits) - 1u);
   const double span = std::max(xmax - xmin, ymax - ymin);
-  const double scale = span > 0.0 ? 65535.0 / span : 0.0;
+  const double scale = span > 0.0 ? cells / span : 0.0;
+  const auto max_cell = static_cast<std::uint32_t>(cells);
 
-  // Random round per point: the shuffled position k lands in round bit_width(k) - 6 (the last
-  // round holds about half of the points, the one before a quarter, ...).
-  std::vector<std::uint32_t> shuffled(indices);
-  std::uint64_t state = 0x5EEDu;
-  for (std::size_t k = n; k > 1; --k) {
-    const std::size_t r = static_cast<std::size_t>(splitmix(state) % k);
-    std::swap(shuffled[k - 1], shuffled[r]);
-  }
+  // BRIO rounds without shuffling: a hash of the index picks the round with a geometric
+  // distribution (last round about half of the points, the one before a quarter, ...; round 0
+  // gets the first ~64-128). Keys are (round, Hilbert index); one radix sort orders them.
+  const int last_round = std::max(0, static_cast<int>(std::bit_width(n)) - 7);
   struct Keyed {
-    std::uint64_t key;
+    std::uint32_t key;
     std::uint32_t index;
   };
   std::vector<Keyed> keyed(n), tmp(n);
   for (std::size_t k = 0; k < n; ++k) {
-    const std::uint32_t i = shuffled[k];
-    const auto gx = static_cast<std::uint32_t>((points[i].x - xmin) * scale);
-    const auto gy = static_cast<std::uint32_t>((points[i].y - ymin) * scale);
-    const auto bw = static_cast<int>(std::bit_width(static_cast<std::uint64_t>(k)));
-    const std::uint64_t round = bw > 6 ? static_cast<std::uint64_t>(bw - 6) : 0u;
-    keyed[k] = {(round << 32) | hilbert_index(std::min(gx, 65535u), std::min(gy, 65535u)), i};
+    const std::uint32_t i = indices[k];
+    const auto gx = std::min(static_cast<std::uint32_t>((points[i].x - xmin) * scale), max_cell);
+    const auto gy = std::min(static_cast<std::uint32_t>((points[i].y - ymin) * scale), max_cell);
+    const int tz = std::countr_zero(mix(i) | (1ull << 62));
+    const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz));
+    keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits), i};
   }
-  // LSD radix sort on the 40 significant key bits, 8 bits per pass.
-  for (int shift = 0; shift < 40; shift += 8) {
-    std::size_t count[257] = {};
-    for (const Keyed& e : keyed) ++count[((e.key >> shift) & 0xFFu) + 1];
-    for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
-    for (const Keyed& e : keyed) tmp[count[(e.key >> shift) & 0xFFu]++] = e;
+  const int key_bits = 2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));
+  constexpr int kDigit = 11;
+  for (int shift = 0; shift < key_bits; shift += kDigit) {
+    std::vector<std::uint32_t> count((1u << kDigit) + 1, 0);
+    for (const Keyed& e : keyed) ++count[((e.key >> shift) & ((1u << kDigit) - 1)) + 1];
+    for (std::size_t b = 0; b + 1 < count.size(); ++b) count[b + 1] += count[b];
+    for (const Keyed& e : keyed) tmp[count[(e.key >> shift) & ((1u << kDigit) - 1)]++] = e;
     keyed.swap(tmp);
   }
   std::vector<std::uint32_t> order(n);

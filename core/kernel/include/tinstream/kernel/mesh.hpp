@@ -89,6 +89,7 @@ class Mesh {
   bool constrained(TriangleId t, int i) const { return (flags_[t] >> i) & 1u; }
   void set_constrained(TriangleId t, int i, bool on) {
     if (on) {
+      any_constrained_ = true;
       flags_[t] = static_cast<std::uint8_t>(flags_[t] | (1u << i));
     } else {
       flags_[t] = static_cast<std::uint8_t>(flags_[t] & ~(1u << i));
@@ -164,22 +165,22 @@ class Mesh {
   // three, so the old edges are at index 2. Returns the three triangles (t is reused first).
   std::array<TriangleId, 3> split_triangle(TriangleId t, VertexId p) {
     const Triangle old = tris_[t];
-    const std::uint8_t f = flags_[t];
     const VertexId a = old.v[0], b = old.v[1], c = old.v[2];
     const TriangleId t1 = new_triangle(b, c, p);
     const TriangleId t2 = new_triangle(c, a, p);
     set_vertices(t, a, b, p);
-    flags_[t] = static_cast<std::uint8_t>(((f >> 2) & 1u) << 2);
-    flags_[t1] = static_cast<std::uint8_t>((f & 1u) << 2);
-    flags_[t2] = static_cast<std::uint8_t>(((f >> 1) & 1u) << 2);
+    if (any_constrained_) {
+      const std::uint8_t f = flags_[t];
+      flags_[t] = static_cast<std::uint8_t>(((f >> 2) & 1u) << 2);
+      flags_[t1] = static_cast<std::uint8_t>((f & 1u) << 2);
+      flags_[t2] = static_cast<std::uint8_t>(((f >> 1) & 1u) << 2);
+    }
     tris_[t].n = {t1, t2, old.n[2]};
     tris_[t1].n = {t2, t, old.n[0]};
     tris_[t2].n = {t, t1, old.n[1]};
     replace_neighbour(old.n[0], t, t1);
     replace_neighbour(old.n[1], t, t2);
-    vtri_[a] = t;
-    vtri_[b] = t;
-    vtri_[c] = t1;
+    vtri_[c] = t1;  // a and b stay in t
     vtri_[p] = t;
     return {t, t1, t2};
   }
@@ -220,10 +221,8 @@ class Mesh {
     flags_[u1] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fC ? 2u : 0u));
     replace_neighbour(A, t, t1);
     replace_neighbour(C, u, u1);
-    vtri_[a] = t;
-    vtri_[uu] = t;
+    vtri_[uu] = t;  // a stays in t, q in u
     vtri_[w] = t1;
-    vtri_[q] = u;
     vtri_[p] = t;
     return {{t, t1, u, u1}, {2, 1, 2, 1}};
   }
@@ -232,27 +231,30 @@ class Mesh {
   // (q, w, u), the result is t = (p, u, q) and neighbour = (q, w, p). Returns the neighbour id.
   // The new edge p-q is unconstrained. Requires: the quadrilateral is strictly convex (checked
   // by the caller with exact predicates).
-  TriangleId flip(TriangleId t, int i) {
-    const TriangleId u = tris_[t].n[i];
-    const int j = mirror(t, i);
-    const Triangle ot = tris_[t], ou = tris_[u];
-    const std::uint8_t ft = flags_[t], fu = flags_[u];
-    const VertexId p = ot.v[i], uu = ot.v[next3(i)], w = ot.v[prev3(i)], q = ou.v[j];
-    const TriangleId A = ot.n[next3(i)], B = ot.n[prev3(i)];
-    const TriangleId C = ou.n[next3(j)], D = ou.n[prev3(j)];
-    const unsigned fA = (ft >> next3(i)) & 1u, fB = (ft >> prev3(i)) & 1u;
-    const unsigned fC = (fu >> next3(j)) & 1u, fD = (fu >> prev3(j)) & 1u;
-    set_vertices(t, p, uu, q);
-    set_vertices(u, q, w, p);
-    tris_[t].n = {C, u, B};
-    flags_[t] = static_cast<std::uint8_t>(fC | (fB << 2));
-    tris_[u].n = {A, t, D};
-    flags_[u] = static_cast<std::uint8_t>(fA | (fD << 2));
+  TriangleId flip(TriangleId t, int i) { return flip(t, i, mirror(t, i)); }
+  // Same, with j = mirror(t, i) already known.
+  TriangleId flip(TriangleId t, int i, int j) {
+    Triangle& T = tris_[t];
+    const TriangleId u = T.n[i];
+    Triangle& U = tris_[u];
+    const int i1 = next3(i), i2 = prev3(i), j1 = next3(j), j2 = prev3(j);
+    const VertexId p = T.v[i], uu = T.v[i1], w = T.v[i2], q = U.v[j];
+    const TriangleId A = T.n[i1], B = T.n[i2], C = U.n[j1], D = U.n[j2];
+    if (any_constrained_) {
+      const unsigned ft = flags_[t], fu = flags_[u];
+      flags_[t] = static_cast<std::uint8_t>(((fu >> j1) & 1u) | (((ft >> i2) & 1u) << 2));
+      flags_[u] = static_cast<std::uint8_t>(((ft >> i1) & 1u) | (((fu >> j2) & 1u) << 2));
+    }
+    T.v = {p, uu, q};
+    T.n = {C, u, B};
+    U.v = {q, w, p};
+    U.n = {A, t, D};
+    // Ghost count: an edge (x, 0) flipped away loses one ghost, a new edge (p, 0) adds one.
+    ghosts_ += static_cast<std::size_t>((p == kInfiniteVertex) | (q == kInfiniteVertex));
+    ghosts_ -= static_cast<std::size_t>((uu == kInfiniteVertex) | (w == kInfiniteVertex));
     replace_neighbour(C, u, t);
     replace_neighbour(A, t, u);
-    vtri_[p] = t;
-    vtri_[uu] = t;
-    vtri_[q] = t;
+    vtri_[uu] = t;  // p and q stay in both; u-vertex only in t, w only in u
     vtri_[w] = u;
     return u;
   }
@@ -284,6 +286,7 @@ class Mesh {
   std::vector<std::uint8_t> flags_;  // bit i: edge opposite v[i] constrained
   std::vector<TriangleId> free_;
   std::size_t ghosts_ = 0;
+  bool any_constrained_ = false;  // while false every flag is 0 and edits skip the flag array
 };
 
 }  // namespace tinstream::kernel

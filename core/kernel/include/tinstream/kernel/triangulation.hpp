@@ -162,11 +162,11 @@ class Triangulation {
 
   Location locate(const XY& p, TriangleId hint) const;
   InsertResult insert_vertex(VertexId v, TriangleId hint);
+  InsertResult insert_at(VertexId v, const Location& loc);
   void legalize(VertexId p);
   void raise_dimension(VertexId off_line);
   bool pending_contains(const XY& p, VertexId* found) const;
   TriangleId start_triangle(TriangleId hint) const;
-  bool in_conflict(TriangleId nb, const XY& p) const;
 
   Status insert_segment(VertexId a, VertexId b);
   void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
@@ -184,6 +184,10 @@ class Triangulation {
   std::vector<std::array<VertexId, 2>> segments_;
   std::vector<std::pair<TriangleId, int>> stack_;  // flip stack, kept to avoid reallocations
   mutable TriangleId hint_ = kNone;
+  // Walks in a Delaunay triangulation cannot cycle; once constraints exist they can, and the
+  // walk picks its first edge at random (remembering stochastic walk).
+  bool randomize_walk_ = false;
+  bool has_constraints_ = false;
   mutable std::uint32_t rng_ = 0x9E3779B9u;
   std::size_t live_vertices_ = 0;
   bool cut_ = false;
