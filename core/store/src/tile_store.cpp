@@ -19,12 +19,14 @@
 #include <cstdio>
 #include <ctime>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <unordered_map>
 
 #include "etag.hpp"
 #include "schema.hpp"
+#include "writer_test_access.hpp"
 #include "tinstream/tile/codec.hpp"
 
 namespace tinstream::store {
@@ -223,10 +225,6 @@ struct TileStore::Impl {
   DbHandle db;
   // Prepared statements, keyed by their SQL text (the text is a literal in this file).
   std::unordered_map<std::string, StmtHandle> statements;
-  // The open write transaction that batches LayerWriter::put()s, if any.
-  bool in_batch = false;
-  std::size_t batch_tiles = 0;
-  std::size_t batch_bytes = 0;
 
   Error sql_error(const std::string& what) const {
     const int code = db ? sqlite3_errcode(db.get()) : SQLITE_ERROR;
@@ -281,28 +279,9 @@ struct TileStore::Impl {
     return {};
   }
 
-  Status commit_batch() {
-    if (!in_batch) return {};
-    in_batch = false;
-    batch_tiles = batch_bytes = 0;
-    if (Status s = exec("COMMIT", "committing a batch of tiles"); !s) {
-      (void)exec("ROLLBACK", "rolling back");
-      return s;
-    }
-    return {};
-  }
-
-  void rollback_batch() {
-    if (!in_batch) return;
-    in_batch = false;
-    batch_tiles = batch_bytes = 0;
-    (void)exec("ROLLBACK", "rolling back a batch of tiles");
-  }
-
-  // Runs body inside its own write transaction (after committing any pending batch).
+  // Runs body inside its own short write transaction (BEGIN IMMEDIATE … COMMIT).
   template <typename Body>
   Status transaction(const char* what, Body&& body) {
-    if (Status s = commit_batch(); !s) return s;
     if (Status s = exec("BEGIN IMMEDIATE", what); !s) return s;
     Status s = body();
     if (!s) {
@@ -509,10 +488,7 @@ TileStore::TileStore(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 TileStore::TileStore(TileStore&&) noexcept = default;
 TileStore& TileStore::operator=(TileStore&&) noexcept = default;
 TileStore::~TileStore() {
-  if (impl_) {
-    (void)impl_->commit_batch();
-    impl_->statements.clear();  // finalize before closing
-  }
+  if (impl_) impl_->statements.clear();  // finalize before closing
 }
 
 const std::filesystem::path& TileStore::path() const { return impl_->path; }
@@ -620,22 +596,39 @@ Status TileStore::delete_layer(std::string_view name) {
 
 // ---------------------------------------------------------------------------------------------
 
+// A tile encoded and compressed by put(), waiting for the next flush.
+struct PendingTile {
+  geo::TileId id;
+  std::vector<std::uint8_t> compressed;
+  std::string etag;
+  double min_z = 0, max_z = 0, geometric_error = 0;
+  std::uint64_t vertex_count = 0, triangle_count = 0;
+};
+
 struct LayerWriter::Impl {
   TileStore::Impl* store = nullptr;
   std::string name;
   std::int64_t version = 0;
   enum class State { building, published, abandoned } state = State::building;
-  std::optional<Error> failed;  // a failed batch: this version can no longer be published
+  // Tiles batched in memory and written in one short transaction by flush(), so the file's write
+  // lock is held only while rows are inserted, never across the caller's computation between
+  // puts (other writers and publishes on the same file wait at most one flush).
+  std::vector<PendingTile> pending;
+  std::size_t pending_bytes = 0;
+  // Testing only (LayerWriterTestAccess): called inside the flush transaction after each row.
+  std::function<void(std::size_t rows_in_transaction)> after_row_written;
 
   std::string what() const {
     return "layer '" + name + "' version " + std::to_string(version);
   }
   Status usable() const {
-    if (failed) return *failed;
     if (state == State::published) return invalid_argument(what() + " is already published");
     if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
     return {};
   }
+  // Writes the pending tiles in one transaction. On failure they stay pending (flush may be
+  // retried, e.g. after SQLITE_BUSY); on success the batch is durable.
+  Status flush();
 };
 
 Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& info) {
@@ -714,64 +707,83 @@ LayerWriter::~LayerWriter() {
   if (impl_ && impl_->state == Impl::State::building) abandon();
 }
 
+Status LayerWriter::Impl::flush() {
+  if (pending.empty()) return {};
+  TileStore::Impl& db = *store;
+  Status s = db.transaction("writing a batch of tiles", [&]() -> Status {
+    auto q = db.query(
+        "INSERT OR REPLACE INTO tiles (version, z, x, y, data, etag, min_z, max_z, "
+        "geometric_error, vertex_count, triangle_count) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+    if (!q) return q.error();
+    for (std::size_t i = 0; i < pending.size(); ++i) {
+      const PendingTile& t = pending[i];
+      q->bind(1, version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
+      q->bind_blob(5, t.compressed).bind(6, t.etag);
+      q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
+      q->bind(10, t.vertex_count).bind(11, t.triangle_count);
+      if (!TileStore::Impl::done(*q)) return db.sql_error("writing " + what() + " tile " + t.id.to_string());
+      q->reset();
+      if (after_row_written) after_row_written(i + 1);
+    }
+    return {};
+  });
+  if (s) {
+    pending.clear();
+    pending_bytes = 0;
+  }
+  return s;
+}
+
 Status LayerWriter::put(const tile::TinTile& t) {
   if (Status s = impl_->usable(); !s) return s;
-  TileStore::Impl& store = *impl_->store;
-  const std::string what = impl_->what() + " tile " + t.id.to_string();
   if (!t.id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + t.id.to_string());
   const std::size_t vertices = t.vertex_count();
   if (vertices > 0xFFFFFFFFu || t.triangles.size() > 0xFFFFFFFFu) {
-    return invalid_argument(what + ": too many vertices or triangles");
+    return invalid_argument(impl_->what() + " tile " + t.id.to_string() +
+                            ": too many vertices or triangles");
   }
-  const auto compressed = tile::compress(tile::encode(t));
-  if (!store.in_batch) {
-    if (Status s = store.exec("BEGIN IMMEDIATE", "starting a batch of tiles"); !s) return s;
-    store.in_batch = true;
+  PendingTile p;
+  p.id = t.id;
+  p.compressed = tile::compress(tile::encode(t));
+  p.etag = make_etag(p.compressed);
+  p.min_z = t.min_z;
+  p.max_z = t.max_z;
+  p.geometric_error = t.geometric_error;
+  p.vertex_count = vertices;
+  p.triangle_count = t.triangles.size();
+  impl_->pending_bytes += p.compressed.size();
+  impl_->pending.push_back(std::move(p));
+  if (impl_->pending.size() >= kBatchTiles || impl_->pending_bytes >= kBatchBytes) {
+    return impl_->flush();  // on failure the tiles stay pending: a later put/flush retries
   }
-  auto q = store.query(
-      "INSERT OR REPLACE INTO tiles (version, z, x, y, data, etag, min_z, max_z, "
-      "geometric_error, vertex_count, triangle_count) "
-      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
-  Status result;
-  if (!q) {
-    result = q.error();
-  } else {
-    q->bind(1, impl_->version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
-    q->bind_blob(5, compressed).bind(6, make_etag(compressed));
-    q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
-    q->bind(10, static_cast<std::uint64_t>(vertices));
-    q->bind(11, static_cast<std::uint64_t>(t.triangles.size()));
-    if (!TileStore::Impl::done(*q)) result = store.sql_error("writing " + what);
-  }
-  if (result) {
-    ++store.batch_tiles;
-    store.batch_bytes += compressed.size();
-    if (store.batch_tiles >= kBatchTiles || store.batch_bytes >= kBatchBytes) {
-      result = store.commit_batch();
-    }
-  } else {
-    store.rollback_batch();
-  }
-  // A lost batch cannot be recovered tile by tile: the version is unusable from here on.
-  if (!result) impl_->failed = result.error();
-  return result;
+  return {};
 }
 
 Status LayerWriter::flush() {
   if (Status s = impl_->usable(); !s) return s;
-  Status s = impl_->store->commit_batch();
-  if (!s) impl_->failed = s.error();
-  return s;
+  return impl_->flush();
 }
 
 Result<std::optional<tile::TinTile>> LayerWriter::get(const geo::TileId& id) {
   if (Status s = impl_->usable(); !s) return s.error();
   if (!id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + id.to_string());
-  return impl_->store->decoded_tile(impl_->version, id, impl_->what() + " tile " + id.to_string());
+  const std::string what = impl_->what() + " tile " + id.to_string();
+  // The latest put of the id wins: look at the pending batch first, newest first.
+  for (auto it = impl_->pending.rbegin(); it != impl_->pending.rend(); ++it) {
+    if (it->id != id) continue;
+    auto raw = tile::decompress(it->compressed, kMaxTileBytes);
+    if (!raw) return Error(raw.error().code, what + ": " + raw.error().message);
+    auto decoded = tile::decode(*raw);
+    if (!decoded) return Error(decoded.error().code, what + ": " + decoded.error().message);
+    return std::optional<tile::TinTile>(std::move(*decoded));
+  }
+  return impl_->store->decoded_tile(impl_->version, id, what);
 }
 
 Result<std::vector<geo::TileId>> LayerWriter::tile_ids(std::optional<std::uint32_t> level) {
   if (Status s = impl_->usable(); !s) return s.error();
+  if (Status s = impl_->flush(); !s) return s.error();
   return impl_->store->ids(impl_->version, level, impl_->what());
 }
 
@@ -782,6 +794,7 @@ Status LayerWriter::publish(const LayerInfo& info) {
                             info.name + "'");
   }
   if (Status s = validate_info(info); !s) return s;
+  if (Status s = impl_->flush(); !s) return s;
   TileStore::Impl& store = *impl_->store;
   const std::int64_t version = impl_->version;
   Status s = store.transaction("publishing a layer", [&]() -> Status {
@@ -841,6 +854,8 @@ Status LayerWriter::publish(const LayerInfo& info) {
 void LayerWriter::abandon() {
   if (impl_->state != Impl::State::building) return;
   impl_->state = Impl::State::abandoned;
+  impl_->pending.clear();
+  impl_->pending_bytes = 0;
   TileStore::Impl& store = *impl_->store;
   const std::int64_t version = impl_->version;
   // Best effort: if this fails (disk full, say), the next begin_layer of the name collects it.
@@ -878,6 +893,15 @@ Status validate_layer_name(std::string_view name) {
     }
   }
   return {};
+}
+
+}  // namespace tinstream::store
+
+namespace tinstream::store {
+
+void LayerWriterTestAccess::set_after_row_written(LayerWriter& writer,
+                                                  std::function<void(std::size_t)> hook) {
+  writer.impl_->after_row_written = std::move(hook);
 }
 
 }  // namespace tinstream::store

@@ -10,6 +10,7 @@
 
 #include "store_test_util.hpp"
 #include "tinstream/tile/codec.hpp"
+#include "writer_test_access.hpp"
 
 namespace tinstream::store {
 namespace {
@@ -45,27 +46,31 @@ std::map<geo::TileId, std::vector<std::uint8_t>> snapshot(TileStore& store, cons
 
 enum class Death { sigkill, exit_in_transaction };
 
-// The child: opens the store, starts a new version of `layer`, writes tiles forever; after
-// `signal_after` tiles (more than one committed batch, and one batch half-written) it tells the
-// parent through the pipe, then keeps writing until killed — or _exits with the batch open.
+// The child: opens the store, starts a new version of `layer` and writes tiles. Two batches
+// (512 tiles) are committed; inside the third batch's transaction, after 100 rows, it tells the
+// parent through the pipe and then either blocks there until SIGKILLed or _exits on the spot.
 [[noreturn]] void child_writer(const std::filesystem::path& path, int pipe_fd, Death death) {
   auto store = TileStore::open(path, TileStore::Mode::read_write);
   if (!store) _exit(10);
   auto writer = store->begin_layer(basic_info("dem"));
   if (!writer) _exit(11);
+  int flushes = 0;
+  LayerWriterTestAccess::set_after_row_written(**writer, [&](std::size_t row) {
+    if (row == 1) ++flushes;
+    if (flushes == 3 && row == 100) {
+      const char byte = 'w';
+      if (write(pipe_fd, &byte, 1) != 1) _exit(13);
+      if (death == Death::exit_in_transaction) _exit(0);  // no destructors, transaction open
+      for (;;) pause();                                    // hold the transaction until killed
+    }
+  });
   std::mt19937_64 rng(99);
-  const std::size_t signal_after = 700;  // batches of 256: two committed, one open
-  for (std::size_t i = 0; i < 200000; ++i) {  // bounded, in case the parent never kills us
+  for (std::size_t i = 0; i < 5000; ++i) {
     const auto k = static_cast<std::uint32_t>(i);
     const TinTile t = make_grid_tile({14, k % 16384, (k / 16384) % 16384}, 3, 3, rng);
     if (!(*writer)->put(t).ok()) _exit(12);
-    if (i + 1 == signal_after) {
-      const char byte = 'w';
-      if (write(pipe_fd, &byte, 1) != 1) _exit(13);
-      if (death == Death::exit_in_transaction) _exit(0);  // no destructors: batch left open
-    }
   }
-  _exit(14);
+  _exit(14);  // never reached: the hook fires at the third batch
 }
 
 // Kills and reaps the child if the parent leaves the test early (a failed ASSERT).
@@ -112,7 +117,8 @@ void kill_writer_and_check(Death death) {
   close(fds[0]);
   ASSERT_EQ(got, 1) << "the child writer failed before writing its tiles";
   if (death == Death::sigkill) {
-    // The child is still writing: a read-only reader in this process sees version 1 unchanged.
+    // The child holds an open write transaction with 100 rows of its third batch: a read-only
+    // reader in this process still sees version 1, unchanged.
     auto reader = TileStore::open(path, TileStore::Mode::read_only);
     ASSERT_TRUE(reader.ok()) << reader.error().message;
     EXPECT_EQ(reader->layer("dem")->version, v1_version);
@@ -131,7 +137,7 @@ void kill_writer_and_check(Death death) {
 
   // The child's committed batches are in the file, unpublished.
   EXPECT_EQ(sql_value(path, "SELECT count(*) FROM layer_versions WHERE status = 'building'"), "1");
-  EXPECT_GE(std::stoll(sql_value(path, "SELECT count(*) FROM tiles WHERE z = 14")), 512);
+  EXPECT_EQ(sql_value(path, "SELECT count(*) FROM tiles WHERE z = 14"), "512");
   EXPECT_EQ(sql_value(path, "PRAGMA integrity_check"), "ok");
 
   auto store = TileStore::open(path, TileStore::Mode::read_write);

@@ -270,6 +270,57 @@ TEST(TileStore, ReingestReplacesTheLayerAndDropsTheOldVersion) {
   EXPECT_EQ(sql_value(path, "SELECT count(*) FROM published_tiles WHERE layer = 'dem'"), "1");
 }
 
+// Two connections (as two ingest jobs would have) write different layers of one file, their puts
+// interleaved: batches are written in short transactions, so neither waits for the other's work.
+TEST(TileStore, ConcurrentWritersOfDifferentLayers) {
+  TempDir dir;
+  const auto path = dir / "a.tinstream";
+  auto a = open_rw(path);
+  auto b = open_rw(path);
+  auto wa = a.begin_layer(basic_info("alpha"));
+  auto wb = b.begin_layer(basic_info("beta"));
+  ASSERT_TRUE(wa.ok() && wb.ok());
+  const auto ta = some_tiles(30, 700);
+  const auto tb = some_tiles(31, 700);
+  for (std::size_t i = 0; i < std::max(ta.size(), tb.size()); ++i) {
+    if (i < ta.size()) {
+      ASSERT_TRUE((*wa)->put(ta[i]).ok());
+    }
+    if (i < tb.size()) {
+      ASSERT_TRUE((*wb)->put(tb[i]).ok());
+    }
+  }
+  // Reads through the writer see batched and flushed tiles alike.
+  auto first = (*wa)->get(ta.front().id);
+  auto last = (*wa)->get(ta.back().id);
+  ASSERT_TRUE(first.ok() && first->has_value() && last.ok() && last->has_value());
+  EXPECT_TRUE(same_tile(**first, ta.front()));
+  EXPECT_TRUE(same_tile(**last, ta.back()));
+  ASSERT_TRUE((*wb)->publish(basic_info("beta")).ok());
+  ASSERT_TRUE((*wa)->publish(basic_info("alpha")).ok());
+  EXPECT_EQ(a.layer("beta")->tile_count, tb.size());
+  EXPECT_EQ(b.layer("alpha")->tile_count, ta.size());
+  EXPECT_EQ(sql_value(path, "PRAGMA integrity_check"), "ok");
+}
+
+TEST(TileStore, PutOfTheSameIdReplacesTheTile) {
+  TempDir dir;
+  auto store = open_rw(dir / "a.tinstream");
+  auto w = store.begin_layer(basic_info("dem"));
+  std::mt19937_64 rng(32);
+  const TinTile first = make_grid_tile({6, 1, 2}, 2, 2, rng);
+  const TinTile second = make_grid_tile({6, 1, 2}, 3, 3, rng);
+  ASSERT_TRUE((*w)->put(first).ok());
+  ASSERT_TRUE((*w)->flush().ok());
+  ASSERT_TRUE((*w)->put(second).ok());
+  EXPECT_TRUE(same_tile(**(*w)->get(second.id), second));  // pending beats flushed
+  ASSERT_TRUE((*w)->put(first).ok());
+  EXPECT_TRUE(same_tile(**(*w)->get(first.id), first));    // latest pending wins
+  ASSERT_TRUE((*w)->publish(basic_info("dem")).ok());
+  EXPECT_TRUE(same_tile(**store.read_tile("dem", first.id), first));
+  EXPECT_EQ(store.layer("dem")->tile_count, 1u);
+}
+
 TEST(TileStore, DeleteLayerRemovesItAndItsTiles) {
   TempDir dir;
   const auto path = dir / "a.tinstream";

@@ -97,15 +97,18 @@ class TileStore {
   friend class LayerWriter;
 };
 
-// Writes one new layer version. Single-threaded; batches rows into transactions.
+// Writes one new layer version. Single-threaded. put() batches tiles in memory (256 tiles or
+// 32 MiB) and writes each batch in one short transaction, so the file's write lock is never held
+// while the caller computes; tiles still in memory are lost if the process dies (the version is
+// unpublished then anyway).
 class LayerWriter {
  public:
   ~LayerWriter();  // abandons the version unless published
 
   // Encodes, compresses and stores a tile (replacing one with the same id in this version).
   Status put(const tile::TinTile& tile);
-  // Commits the pending batch now (put() commits every 256 tiles or 32 MiB by itself). Useful
-  // before a long pause, since an open batch holds the file's write lock.
+  // Writes the tiles batched in memory now. put() and publish() flush by themselves; a failed
+  // flush (e.g. the file stayed locked past the busy timeout) keeps the batch for a retry.
   Status flush();
   // Reads back a tile written to this (unpublished) version, e.g. children for the LOD pass.
   Result<std::optional<tile::TinTile>> get(const geo::TileId& id);
@@ -121,6 +124,7 @@ class LayerWriter {
 
  private:
   std::unique_ptr<Impl> impl_;
+  friend struct LayerWriterTestAccess;  // core/store/src/writer_test_access.hpp, tests only
 };
 
 // Layer names: 1–64 characters from [A-Za-z0-9_.-], not starting with '.'.
