@@ -56,6 +56,79 @@ struct QueueEntry {
 };
 using MinQueue = std::priority_queue<QueueEntry, std::vector<QueueEntry>, std::greater<>>;
 
+// Binary min-heap of ids ordered by (key, id), with positions so that a key changes in place: the
+// heap never holds more than one entry per id (no stale entries to skip).
+class IndexedHeap {
+ public:
+  explicit IndexedHeap(std::size_t ids) : pos_(ids, kAbsent), key_(ids, 0.0) {}
+  bool empty() const { return heap_.empty(); }
+  std::uint32_t top() const { return heap_.front(); }
+  double key(std::uint32_t id) const { return key_[id]; }
+  void set(std::uint32_t id, double key) {
+    if (pos_[id] == kAbsent) {
+      key_[id] = key;
+      pos_[id] = static_cast<std::uint32_t>(heap_.size());
+      heap_.push_back(id);
+      up(pos_[id]);
+      return;
+    }
+    const double old = key_[id];
+    key_[id] = key;
+    if (key < old) {
+      up(pos_[id]);
+    } else {
+      down(pos_[id]);
+    }
+  }
+  void erase(std::uint32_t id) {
+    const std::uint32_t i = pos_[id];
+    if (i == kAbsent) return;
+    const std::uint32_t last = heap_.back();
+    heap_.pop_back();
+    pos_[id] = kAbsent;
+    if (i == heap_.size()) return;
+    heap_[i] = last;
+    pos_[last] = i;
+    up(i);
+    down(pos_[last]);
+  }
+  void pop() { erase(heap_.front()); }
+
+ private:
+  static constexpr std::uint32_t kAbsent = 0xFFFFFFFFu;
+  bool less(std::uint32_t a, std::uint32_t b) const { return key_[a] < key_[b] || (key_[a] == key_[b] && a < b); }
+  void place(std::uint32_t i, std::uint32_t id) {
+    heap_[i] = id;
+    pos_[id] = i;
+  }
+  void up(std::uint32_t i) {
+    const std::uint32_t id = heap_[i];
+    while (i > 0) {
+      const std::uint32_t parent = (i - 1) / 2;
+      if (!less(id, heap_[parent])) break;
+      place(i, heap_[parent]);
+      i = parent;
+    }
+    place(i, id);
+  }
+  void down(std::uint32_t i) {
+    const std::uint32_t id = heap_[i];
+    const auto n = static_cast<std::uint32_t>(heap_.size());
+    for (;;) {
+      std::uint32_t c = 2 * i + 1;
+      if (c >= n) break;
+      if (c + 1 < n && less(heap_[c + 1], heap_[c])) ++c;
+      if (!less(heap_[c], id)) break;
+      place(i, heap_[c]);
+      i = c;
+    }
+    place(i, id);
+  }
+  std::vector<std::uint32_t> heap_;
+  std::vector<std::uint32_t> pos_;  // by id
+  std::vector<double> key_;         // by id
+};
+
 // Linear interpolation in the closed triangle (a, b, c) at p with barycentric weights clamped to
 // the triangle (p is inside up to rounding); coordinates relative to a for accuracy.
 double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double zb, double zc,
@@ -75,7 +148,7 @@ double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double z
 class InteriorThinner {
  public:
   InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate)
-      : tri_(tri), candidate_(std::move(candidate)), version_(candidate_.size(), 0) {
+      : tri_(tri), candidate_(std::move(candidate)), heap_(candidate_.size()) {
     head_.assign(tri_.mesh().triangle_slots(), kNone);
   }
 
@@ -94,17 +167,14 @@ class InteriorThinner {
   // Removes while above budget or below epsilon. Returns the number removed.
   Result<std::size_t> run(std::size_t max_points, double epsilon, double* last_error) {
     std::size_t removed = 0;
-    while (!queue_.empty()) {
-      const QueueEntry top = queue_.top();
-      if (!candidate_[top.id] || top.version != version_[top.id]) {
-        queue_.pop();
-        continue;
-      }
-      if (tri_.num_vertices() <= max_points && top.error >= epsilon) break;
-      queue_.pop();
-      Status s = remove(top.id);
+    while (!heap_.empty()) {
+      const std::uint32_t v = heap_.top();
+      const double error = heap_.key(v);
+      if (tri_.num_vertices() <= max_points && error >= epsilon) break;
+      heap_.pop();
+      Status s = remove(v);
       if (!s.ok()) return s.error();
-      *last_error = top.error;
+      *last_error = error;
       ++removed;
     }
     return removed;
@@ -187,11 +257,12 @@ class InteriorThinner {
   }
 
   void evaluate_and_push(VertexId v) {
-    ++version_[v];
     const auto e = evaluate(v);
-    if (!e) return;
-    const XY& p = tri_.xy(v);
-    queue_.push({*e, p.x, p.y, v, version_[v]});
+    if (!e) {
+      heap_.erase(v);
+      return;
+    }
+    heap_.set(v, *e);
   }
 
   Status remove(VertexId v) {
@@ -249,6 +320,9 @@ class InteriorThinner {
       surface_at(tris, pv.x, pv.y, &k);
       push_orphan(pv.x, pv.y, zv, new_ids_[k]);
     }
+    // Eager update of the former neighbours. (Lazily re-evaluating them only when they reach the
+    // top of the heap is ~1.5× faster but worse: on bigtujunga at 50k vertices the max error
+    // went from 9.57 m to 11.0 m, since a removal can also *lower* a neighbour's error.)
     for (VertexId w : ring) {
       if (w < candidate_.size() && candidate_[w]) evaluate_and_push(w);
     }
@@ -257,8 +331,7 @@ class InteriorThinner {
 
   Triangulation& tri_;
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
-  std::vector<std::uint32_t> version_;   // by vertex id: lazy invalidation of queue entries
-  MinQueue queue_;
+  IndexedHeap heap_;                     // candidates by (effective error, vertex id)
   std::vector<std::uint32_t> head_;      // by triangle slot
   std::vector<double> ox_, oy_, oz_;
   std::vector<std::uint32_t> next_;
