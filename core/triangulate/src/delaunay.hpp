@@ -1,4 +1,15 @@
-// Private: the one kernel operation pass 3 needs — the Delaunay triangulation of distinct points.
+// Private: the kernel operations pass 3 needs — the *canonical* Delaunay triangulation of
+// distinct points, and the perturbed in-circle test that defines it.
+//
+// Cocircular points (every rectangle of a DEM lattice in Mercator!) have several Delaunay
+// triangulations; the kernel picks one by insertion order. Two tiles triangulating different
+// subsets must agree on the triangles near their shared border, so ties are broken by a
+// symbolic perturbation that depends on the points alone: each point is lifted onto the
+// paraboloid and then raised by δ(p), where δ grows with the lexicographic rank of p and each
+// rank's δ dominates all lower ones. For four cocircular points the sign is then the sign of the
+// cofactor of the highest-ranked point (never zero: no three points of a circle are collinear).
+// The perturbed point set is in general position, so its Delaunay triangulation is unique and
+// Lawson flipping reaches it from any triangulation.
 #pragma once
 
 #include <array>
@@ -11,8 +22,13 @@ namespace tinstream::triangulate::detail {
 
 using IndexTriangle = std::array<std::uint32_t, 3>;
 
-// Counter-clockwise triangles (indices into `points`) covering the convex hull of `points`.
-// Requires: points are pairwise distinct.
+// +1 when d is inside the circle through the counter-clockwise a, b, c under the perturbation,
+// -1 outside (never 0 for distinct points with a, b, c not collinear).
+int perturbed_incircle(const kernel::XY& a, const kernel::XY& b, const kernel::XY& c,
+                       const kernel::XY& d);
+
+// The canonical (perturbed) Delaunay triangulation: counter-clockwise triangles (indices into
+// `points`) covering the convex hull of `points`. Requires: points are pairwise distinct.
 std::vector<IndexTriangle> delaunay(const std::vector<kernel::XY>& points);
 
 }  // namespace tinstream::triangulate::detail

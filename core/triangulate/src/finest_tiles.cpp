@@ -276,6 +276,10 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     }
     return it->second;
   };
+  // The initial gather (own cells + a ring of one cell) covers R grown by one cell width.
+  const double cell_width = R.width() / n;
+  const geo::MercatorRect inner{R.min_x - cell_width, R.min_y - cell_width, R.max_x + cell_width,
+                                R.max_y + cell_width};
   // B: the only region whose points can matter for triangles kept in this tile.
   const double rmax = options.max_circumradius_tiles * R.width();
   const double rmax2 = rmax * rmax;
@@ -330,20 +334,26 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
         return std::any_of(std::begin(corners), std::end(corners),
                            [&](const XY& c) { return kernel::orient2d(a, b, c) <= 0.0; });
       };
-      // Gather only the Delaunay neighbour across the edge (the point q beyond it whose circle
-      // through b, a, q holds no other point beyond); its triangle's circle does the rest.
-      std::optional<XY> best;
-      std::pair<std::uint32_t, std::uint32_t> best_cell{};
-      scan_cells(B, beyond, [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
-        for (const XY& p : points) {
-          if (kernel::orient2d(a, b, p) >= 0.0) continue;
-          if (!best || kernel::incircle(b, a, *best, p) > 0.0) {
-            best = p;
-            best_cell = {cx, cy};
-          }
+      // Search outward from the edge in doubling steps: the points that matter are the nearest
+      // ones beyond it; the circles of the triangles they form then pull in the rest.
+      bool found = false;
+      for (double d = 2 * cell_width;; d *= 2) {
+        const geo::MercatorRect near{std::min(a.x, b.x) - d, std::min(a.y, b.y) - d,
+                                     std::max(a.x, b.x) + d, std::max(a.y, b.y) + d};
+        scan_cells(near, beyond,
+                   [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+                     if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
+                           return kernel::orient2d(a, b, p) < 0.0;
+                         })) {
+                       want(cx, cy);
+                       found = true;
+                     }
+                   });
+        if (found || (near.min_x <= B.min_x && near.min_y <= B.min_y && near.max_x >= B.max_x &&
+                      near.max_y >= B.max_y)) {
+          break;
         }
-      });
-      if (best) want(best_cell.first, best_cell.second);
+      }
     }
     // While the local hull still moves near R, the circles of its slivers are meaningless (and
     // huge): settle the hull first.
@@ -352,6 +362,14 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
       if (!bbox_meets(a, b, c, R)) continue;
       const Circle circle = circumcircle(a, b, c);
+      // Circles inside R grown by one cell lie in cells gathered from the start (own + ring).
+      if (!circle.unbounded) {
+        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+        if (circle.cx - r > inner.min_x && circle.cx + r < inner.max_x &&
+            circle.cy - r > inner.min_y && circle.cy + r < inner.max_y) {
+          continue;
+        }
+      }
       geo::MercatorRect box = B;
       if (!circle.unbounded) {
         const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
@@ -361,7 +379,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
           box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
           [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
             if (std::any_of(points.begin(), points.end(),
-                            [&](const XY& p) { return kernel::incircle(a, b, c, p) > 0.0; })) {
+                            [&](const XY& p) { return detail::perturbed_incircle(a, b, c, p) > 0; })) {
               want(cx, cy);
             }
           });
