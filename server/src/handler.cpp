@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <list>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -152,6 +153,16 @@ Result<store::TileStore*> get_store(Context& ctx) {
   return ctx.store();
 }
 
+// The layer row, through the layer cache when there is one.
+Result<store::LayerInfo> layer_info(Context& ctx, store::TileStore& st, const std::string& name) {
+  if (ctx.layer_cache) {
+    if (auto hit = ctx.layer_cache->get(name)) return std::move(*hit);
+  }
+  auto info = st.layer(name);
+  if (info && ctx.layer_cache) ctx.layer_cache->put(*info);
+  return info;
+}
+
 // Terrain only for spherical layers; a JSON 409 explains why otherwise.
 std::optional<Response> refuse_ellipsoidal(const store::LayerInfo& info) {
   if (info.projection == geo::Projection::spherical) return std::nullopt;
@@ -214,7 +225,7 @@ void send_maybe_gzip(const Request& req, Response& res, const std::string& gz) {
 Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRoute& r) {
   auto st = get_store(ctx);
   if (!st) return error_response(st.error());
-  auto info = (*st)->layer(r.layer);
+  auto info = layer_info(ctx, **st, r.layer);
   if (!info) return error_response(info.error());
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
   const std::string etag = "\"lj-" + std::to_string(info->version) + "\"";
@@ -227,8 +238,8 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     return res;
   }
   const std::string key = "layer.json|" + r.layer + "|" + std::to_string(info->version);
-  std::shared_ptr<const std::string> gz = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
-  if (!gz) {
+  std::shared_ptr<const CachedBody> body = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!body) {
     auto ids = (*st)->tile_ids(r.layer);
     if (!ids) return error_response(ids.error());
     terrain::LayerJsonInput in;
@@ -242,45 +253,46 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     in.tile_ids = std::move(*ids);
     const std::string text = terrain::layer_json(in);
     auto bytes = terrain::gzip_compress(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
-    gz = std::make_shared<const std::string>(bytes.begin(), bytes.end());
-    if (ctx.terrain_cache) ctx.terrain_cache->put(key, gz);
+    body = std::make_shared<const CachedBody>(CachedBody{etag, std::string(bytes.begin(), bytes.end())});
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   res.set("Content-Type", "application/json");
-  send_maybe_gzip(req, res, *gz);
+  send_maybe_gzip(req, res, body->bytes);
   return res;
 }
 
 Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r) {
   auto st = get_store(ctx);
   if (!st) return error_response(st.error());
-  auto info = (*st)->layer(r.layer);
+  auto info = layer_info(ctx, **st, r.layer);
   if (!info) return error_response(info.error());
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
   const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
-
-  auto stored = (*st)->tile(r.layer, r.id);
-  if (!stored) return error_response(stored.error());
-  const bool synthetic = !stored->has_value();
-  if (synthetic && r.id.z >= info->min_level) {
-    return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
-                               std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
-  }
-  std::string base_tag = synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
-                                   : (**stored).etag;
-  base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
-  const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
-  Response res;
-  res.set("ETag", etag);
-  res.set("Cache-Control", cache_control(ctx.config));
-  res.set("Vary", "Accept, Accept-Encoding");
-  if (etag_matches(req.if_none_match, etag)) {
-    res.status = 304;
-    return res;
-  }
   const std::string key = "qm|" + r.layer + "|" + std::to_string(info->version) + "|" +
                           r.id.quadkey() + "|" + (normals ? "n" : "");
-  std::shared_ptr<const std::string> gz = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
-  if (!gz) {
+  Response res;
+  res.set("Cache-Control", cache_control(ctx.config));
+  res.set("Vary", "Accept, Accept-Encoding");
+
+  // Hot path: a cached encoding of this layer version needs no store access at all.
+  std::shared_ptr<const CachedBody> body = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!body) {
+    auto stored = (*st)->tile(r.layer, r.id);
+    if (!stored) return error_response(stored.error());
+    const bool synthetic = !stored->has_value();
+    if (synthetic && r.id.z >= info->min_level) {
+      return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
+                                 std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
+    }
+    std::string base_tag = synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
+                                     : (**stored).etag;
+    base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
+    const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
+    if (etag_matches(req.if_none_match, etag)) {
+      res.set("ETag", etag);
+      res.status = 304;
+      return res;
+    }
     tile::TinTile tin;
     if (synthetic) {
       tin = terrain::flat_tile(r.id);
@@ -294,12 +306,17 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
     auto qm = terrain::encode_quantized_mesh(tin, info->projection, {normals});
     if (!qm) return error_response(qm.error());
     auto bytes = terrain::gzip_compress(*qm);
-    gz = std::make_shared<const std::string>(bytes.begin(), bytes.end());
-    if (ctx.terrain_cache) ctx.terrain_cache->put(key, gz);
+    body = std::make_shared<const CachedBody>(CachedBody{etag, std::string(bytes.begin(), bytes.end())});
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
+  }
+  res.set("ETag", body->etag);
+  if (etag_matches(req.if_none_match, body->etag)) {
+    res.status = 304;
+    return res;
   }
   res.set("Content-Type", normals ? "application/vnd.quantized-mesh;extensions=octvertexnormals"
                                   : "application/vnd.quantized-mesh");
-  send_maybe_gzip(req, res, *gz);
+  send_maybe_gzip(req, res, body->bytes);
   return res;
 }
 
@@ -399,6 +416,7 @@ Response handle_delete(const Request& req, Context& ctx, const DeleteLayerRoute&
   auto rw = store::TileStore::open(ctx.config.store, store::TileStore::Mode::read_write);
   if (!rw) return error_response(rw.error());
   Status st = rw->delete_layer(r.layer);
+  if (ctx.layer_cache) ctx.layer_cache->clear();
   if (!st) return error_response(st.error());
   return json_response(200, json{{"deleted", r.layer}}.dump());
 }
@@ -557,7 +575,8 @@ Response handle(const Request& request, Context& context) {
 // ---------------------------------------------------------------------------------------------
 
 struct TerrainCache::Impl {
-  using Entry = std::pair<std::string, std::shared_ptr<const std::string>>;
+  using Entry = std::pair<std::string, std::shared_ptr<const CachedBody>>;
+  static std::uint64_t cost(const Entry& e) { return e.first.size() + e.second->bytes.size() + e.second->etag.size() + 96; }
   std::uint64_t max_bytes;
   mutable std::mutex mutex;  // guards everything below
   std::list<Entry> lru;      // front = most recent
@@ -570,7 +589,7 @@ TerrainCache::TerrainCache(std::uint64_t max_bytes) : impl_(std::make_unique<Imp
 }
 TerrainCache::~TerrainCache() = default;
 
-std::shared_ptr<const std::string> TerrainCache::get(const std::string& key) {
+std::shared_ptr<const CachedBody> TerrainCache::get(const std::string& key) {
   std::lock_guard lock(impl_->mutex);
   auto it = impl_->index.find(key);
   if (it == impl_->index.end()) return nullptr;
@@ -578,21 +597,22 @@ std::shared_ptr<const std::string> TerrainCache::get(const std::string& key) {
   return it->second->second;
 }
 
-void TerrainCache::put(const std::string& key, std::shared_ptr<const std::string> value) {
-  const std::uint64_t size = value->size() + key.size() + 64;
+void TerrainCache::put(const std::string& key, std::shared_ptr<const CachedBody> value) {
+  Impl::Entry entry{key, std::move(value)};
+  const std::uint64_t size = Impl::cost(entry);
   std::lock_guard lock(impl_->mutex);
   if (size > impl_->max_bytes) return;
   if (auto it = impl_->index.find(key); it != impl_->index.end()) {
-    impl_->bytes -= it->second->second->size() + key.size() + 64;
+    impl_->bytes -= Impl::cost(*it->second);
     impl_->lru.erase(it->second);
     impl_->index.erase(it);
   }
-  impl_->lru.emplace_front(key, std::move(value));
+  impl_->lru.push_front(std::move(entry));
   impl_->index[key] = impl_->lru.begin();
   impl_->bytes += size;
   while (impl_->bytes > impl_->max_bytes && !impl_->lru.empty()) {
     auto& last = impl_->lru.back();
-    impl_->bytes -= last.second->size() + last.first.size() + 64;
+    impl_->bytes -= Impl::cost(last);
     impl_->index.erase(last.first);
     impl_->lru.pop_back();
   }
@@ -601,6 +621,39 @@ void TerrainCache::put(const std::string& key, std::shared_ptr<const std::string
 std::uint64_t TerrainCache::bytes() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->bytes;
+}
+
+struct LayerCache::Impl {
+  std::chrono::milliseconds ttl;
+  std::mutex mutex;  // guards entries
+  std::unordered_map<std::string, std::pair<store::LayerInfo, std::chrono::steady_clock::time_point>> entries;
+};
+
+LayerCache::LayerCache(std::uint32_t ttl_ms) : impl_(std::make_unique<Impl>()) {
+  impl_->ttl = std::chrono::milliseconds(ttl_ms);
+}
+LayerCache::~LayerCache() = default;
+
+std::optional<store::LayerInfo> LayerCache::get(const std::string& name) {
+  std::lock_guard lock(impl_->mutex);
+  auto it = impl_->entries.find(name);
+  if (it == impl_->entries.end()) return std::nullopt;
+  if (std::chrono::steady_clock::now() - it->second.second > impl_->ttl) {
+    impl_->entries.erase(it);
+    return std::nullopt;
+  }
+  return it->second.first;
+}
+
+void LayerCache::put(const store::LayerInfo& info) {
+  std::lock_guard lock(impl_->mutex);
+  if (impl_->entries.size() > 10000) impl_->entries.clear();
+  impl_->entries[info.name] = {info, std::chrono::steady_clock::now()};
+}
+
+void LayerCache::clear() {
+  std::lock_guard lock(impl_->mutex);
+  impl_->entries.clear();
 }
 
 }  // namespace tinstream::server

@@ -52,6 +52,7 @@ struct Server::Impl {
   Metrics metrics;
   std::unique_ptr<JobManager> jobs;
   std::unique_ptr<TerrainCache> cache;
+  LayerCache layers{1000};
   Context ctx;
   std::atomic<bool> stopping{false};
   std::chrono::steady_clock::time_point stop_deadline;
@@ -442,13 +443,20 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   }
   auto impl = std::make_unique<Impl>(config);
   Impl* raw = impl.get();
-  impl->jobs = std::make_unique<JobManager>(std::move(runner), config.max_queued_jobs);
+  // A finished job may have published or replaced a layer: forget cached layer rows.
+  IngestRunner wrapped = [runner = std::move(runner), raw](const IngestJobSpec& job, const ProgressSink& progress) {
+    Status s = runner ? runner(job, progress) : Status(Error(ErrorCode::unsupported, "no ingest runner"));
+    raw->layers.clear();
+    return s;
+  };
+  impl->jobs = std::make_unique<JobManager>(std::move(wrapped), config.max_queued_jobs);
   if (config.terrain_cache_bytes > 0) impl->cache = std::make_unique<TerrainCache>(config.terrain_cache_bytes);
   impl->ctx.config = config;
   impl->ctx.admin_token = resolve_admin_token(config);
   impl->ctx.metrics = &impl->metrics;
   impl->ctx.jobs = impl->jobs.get();
   impl->ctx.terrain_cache = impl->cache.get();
+  impl->ctx.layer_cache = &impl->layers;
   impl->ctx.store = [raw] { return thread_store(raw->serial, raw->config.store); };
 
   beast::error_code ec;

@@ -2,6 +2,8 @@
 // tin_tile.hpp says. Neighbouring tiles built from the same function share their border vertices.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <functional>
 
 #include "tinstream/geo/mercator.hpp"

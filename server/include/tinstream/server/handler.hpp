@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "tinstream/base/result.hpp"
@@ -21,6 +22,7 @@
 namespace tinstream::server {
 
 class TerrainCache;
+class LayerCache;
 
 struct Context {
   ServerConfig config;
@@ -30,6 +32,7 @@ struct Context {
   Metrics* metrics = nullptr;
   JobManager* jobs = nullptr;
   TerrainCache* terrain_cache = nullptr;  // may be null
+  LayerCache* layer_cache = nullptr;      // may be null: every request reads the layer row
 };
 
 Response handle(const Request& request, Context& context);
@@ -46,15 +49,38 @@ bool is_upload(const Request& request_head);
 // Applies CORS headers (when configured) to any response.
 void add_cors(Response& response, const ServerConfig& config);
 
-// A bounded LRU of encoded (gzip) quantized-mesh tiles keyed by layer version, tile and
-// extensions. Thread-safe (one mutex).
+// An encoded response body and its ETag.
+struct CachedBody {
+  std::string etag;
+  std::string bytes;
+};
+
+// A bounded LRU of encoded (gzip) quantized-mesh tiles and layer.json documents, keyed by layer
+// *version*, tile and extensions — a new version of a layer never hits old entries.
+// Thread-safe (one mutex).
 class TerrainCache {
  public:
   explicit TerrainCache(std::uint64_t max_bytes);
   ~TerrainCache();
-  std::shared_ptr<const std::string> get(const std::string& key);
-  void put(const std::string& key, std::shared_ptr<const std::string> value);
+  std::shared_ptr<const CachedBody> get(const std::string& key);
+  void put(const std::string& key, std::shared_ptr<const CachedBody> value);
   std::uint64_t bytes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Layer metadata for the terrain hot path, so that a cached .terrain answer needs no SQLite
+// query. Entries live at most `ttl_ms`; clear() (after an admin ingest or delete) drops them at
+// once. A layer changed by another process is seen after at most ttl_ms. Thread-safe.
+class LayerCache {
+ public:
+  explicit LayerCache(std::uint32_t ttl_ms = 1000);
+  ~LayerCache();
+  std::optional<store::LayerInfo> get(const std::string& name);
+  void put(const store::LayerInfo& info);
+  void clear();
 
  private:
   struct Impl;

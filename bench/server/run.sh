@@ -1,0 +1,176 @@
+#!/usr/bin/env bash
+# Serving benchmark: tinstream-server vs nginx serving the same Cesium terrain tiles on loopback.
+#
+#   bench/server/run.sh            build, make a store, export it, run wrk at 64 and 256 connections
+#   DURATION=30 bench/server/run.sh
+#   BUILD=build SKIP_BUILD=1 bench/server/run.sh
+#
+# Store: `tinstream ingest` of ../shared/data/luxembourg_elev.tif when the ingest pipeline and the
+# file are there, else a synthetic layer (tinstream-bench-store). Static copy: `tinstream export
+# --dir` (fallback: the tiles fetched from tinstream-server, byte-identical). Both servers get the
+# same URL list (every tile), the same headers (gzip + octvertexnormals, as CesiumJS sends) and
+# send the same bytes; tinstream-server answers from its LRU (warmed up first), nginx from the page
+# cache with sendfile. RSS is sampled every 0.5 s (nginx: master + workers). Needs wrk, nginx,
+# curl, python3 (scripts/install-deps.sh --bench).
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+BUILD=${BUILD:-$ROOT/build-bench}
+DURATION=${DURATION:-10}
+THREADS=${THREADS:-2}
+SERVER_PORT=${SERVER_PORT:-18080}
+NGINX_PORT=${NGINX_PORT:-18081}
+WORK=$(mktemp -d /tmp/tinstream-bench.XXXXXX)
+SERVER_PID= NGINX_PID=
+
+cleanup() {
+  [[ -n $SERVER_PID ]] && kill "$SERVER_PID" 2>/dev/null && wait "$SERVER_PID" 2>/dev/null || true
+  [[ -n $NGINX_PID ]] && kill "$NGINX_PID" 2>/dev/null || true
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+for tool in wrk nginx curl python3; do
+  command -v "$tool" >/dev/null || { echo "run.sh: $tool missing (scripts/install-deps.sh --bench)" >&2; exit 1; }
+done
+NGINX=$(command -v nginx)
+
+if [[ -z ${SKIP_BUILD:-} ]]; then
+  cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$BUILD" --target tinstream-server tinstream-bench-store -j"$(nproc)"
+  cmake --build "$BUILD" --target tinstream -j"$(nproc)" || echo "run.sh: tinstream CLI not built; using fallbacks"
+fi
+BIN=$BUILD/bin
+
+# 1. A store.
+STORE=$WORK/bench.db
+LAYER=bench
+DEM=$ROOT/../shared/data/luxembourg_elev.tif
+if [[ -x $BIN/tinstream && -f $DEM ]] &&
+   "$BIN/tinstream" ingest --store "$STORE" --layer "$LAYER" --max-points 16384 --quiet "$DEM" >"$WORK/ingest.log" 2>&1; then
+  SOURCE="luxembourg_elev.tif via tinstream ingest"
+else
+  rm -f "$STORE"*
+  "$BIN/tinstream-bench-store" "$STORE" "$LAYER" >/dev/null
+  SOURCE="synthetic layer (tinstream-bench-store: 336 tiles, 65×65 grids)"
+fi
+
+# 2. tinstream-server.
+cat >"$WORK/server.json" <<JSON
+{"address": "127.0.0.1", "port": $SERVER_PORT, "threads": $THREADS, "access_log": false,
+ "log_level": "warn", "terrain_cache_bytes": 536870912, "max_connections": 4096}
+JSON
+"$BIN/tinstream-server" --config "$WORK/server.json" --store "$STORE" >"$WORK/server.out" 2>"$WORK/server.err" &
+SERVER_PID=$!
+for _ in $(seq 100); do grep -q listening "$WORK/server.out" 2>/dev/null && break; sleep 0.1; done
+BASE=http://127.0.0.1:$SERVER_PORT
+
+# 3. The tile list (from layer.json) and the static copy.
+curl -sf --compressed "$BASE/tiles/$LAYER/layer.json" >"$WORK/layer.json"
+python3 - "$WORK/layer.json" >"$WORK/paths.txt" <<'PY'
+import json, sys
+doc = json.load(open(sys.argv[1]))
+for z, ranges in enumerate(doc["available"]):
+    for r in ranges:
+        for x in range(r["startX"], r["endX"] + 1):
+            for y in range(r["startY"], r["endY"] + 1):
+                print(f"/{z}/{x}/{y}.terrain")
+PY
+STATIC=$WORK/static
+if [[ -x $BIN/tinstream ]] && "$BIN/tinstream" export --store "$STORE" --layer "$LAYER" --dir "$STATIC" >"$WORK/export.log" 2>&1; then
+  EXPORT="tinstream export --dir"
+else
+  EXPORT="fetched from tinstream-server (export --dir unavailable)"
+  while read -r p; do
+    mkdir -p "$STATIC$(dirname "$p")"
+    curl -sf -H 'Accept-Encoding: gzip' -H 'Accept: application/vnd.quantized-mesh;extensions=octvertexnormals' \
+      -o "$STATIC$p" "$BASE/tiles/$LAYER$p"
+  done <"$WORK/paths.txt"
+fi
+TILES=$(wc -l <"$WORK/paths.txt")
+BYTES=$(du -sb "$STATIC" | cut -f1)
+
+# 4. nginx on the same files.
+mkdir -p "$WORK/nginx/logs"
+cat >"$WORK/nginx/nginx.conf" <<NGINX
+worker_processes $THREADS;
+pid $WORK/nginx/nginx.pid;
+error_log $WORK/nginx/logs/error.log warn;
+daemon off;
+events { worker_connections 4096; }
+http {
+  access_log off;
+  sendfile on; tcp_nopush on; tcp_nodelay on;
+  keepalive_requests 1000000; keepalive_timeout 60;
+  open_file_cache max=10000 inactive=60s;
+  types { application/json json; application/vnd.quantized-mesh terrain; }
+  server {
+    listen 127.0.0.1:$NGINX_PORT;
+    root $STATIC;
+    location ~ \.terrain\$ { add_header Content-Encoding gzip; add_header Access-Control-Allow-Origin *; }
+  }
+}
+NGINX
+"$NGINX" -p "$WORK/nginx" -c "$WORK/nginx/nginx.conf" &
+NGINX_PID=$!
+sleep 0.5
+
+# Same bytes from both?
+P1=$(sed -n '1p' "$WORK/paths.txt"); PN=$(tail -n1 "$WORK/paths.txt")
+for p in "$P1" "$PN"; do
+  curl -sf -H 'Accept-Encoding: gzip' -H 'Accept: application/vnd.quantized-mesh;extensions=octvertexnormals' -o "$WORK/a" "$BASE/tiles/$LAYER$p"
+  curl -sf -H 'Accept-Encoding: gzip' -o "$WORK/b" "http://127.0.0.1:$NGINX_PORT$p"
+  cmp -s "$WORK/a" "$WORK/b" || { echo "run.sh: $p differs between the servers" >&2; exit 1; }
+done
+
+rss_kb() {  # total VmRSS of the given pids and their children
+  local total=0 pid
+  for pid in "$@" $(pgrep -P "$(echo "$@" | tr ' ' ',')" 2>/dev/null || true); do
+    total=$((total + $(awk '/VmRSS/ {print $2}' "/proc/$pid/status" 2>/dev/null || echo 0)))
+  done
+  echo "$total"
+}
+
+run_wrk() {  # name pid prefix-url prefix-path connections
+  local name=$1 pid=$2 url=$3 prefix=$4 conns=$5
+  TILE_PATHS=$WORK/paths.txt PREFIX=$prefix wrk -t2 -c"$conns" -d2s -s "$ROOT/bench/server/urls.lua" "$url" >/dev/null
+  local before; before=$(rss_kb "$pid")
+  local max=$before
+  ( while true; do rss_kb "$pid"; sleep 0.5; done ) >"$WORK/rss.$name.$conns" &
+  local sampler=$!
+  TILE_PATHS=$WORK/paths.txt PREFIX=$prefix wrk -t2 -c"$conns" -d"${DURATION}s" --timeout 5s \
+    -s "$ROOT/bench/server/urls.lua" "$url" >"$WORK/wrk.$name.$conns"
+  kill "$sampler" 2>/dev/null; wait "$sampler" 2>/dev/null || true
+  max=$(sort -n "$WORK/rss.$name.$conns" | tail -n1)
+  local after; after=$(rss_kb "$pid")
+  echo "$name $conns $(grep RESULT "$WORK/wrk.$name.$conns" | cut -d' ' -f2-) rss_before_kb=$before rss_max_kb=$max rss_after_kb=$after"
+}
+
+{
+  for c in 64 256; do
+    run_wrk tinstream "$SERVER_PID" "$BASE" "/tiles/$LAYER" "$c"
+    run_wrk nginx "$NGINX_PID" "http://127.0.0.1:$NGINX_PORT" "" "$c"
+  done
+} | tee "$WORK/results.txt"
+
+python3 - "$WORK/results.txt" "$SOURCE" "$EXPORT" "$TILES" "$BYTES" "$DURATION" <<'PY'
+import sys, datetime, os, platform
+rows = {}
+for line in open(sys.argv[1]):
+    parts = line.split()
+    kv = dict(p.split("=") for p in parts[2:])
+    rows[(parts[0], int(parts[1]))] = {k: float(v) for k, v in kv.items()}
+print(f"\n### Serving benchmark — {datetime.datetime.utcnow():%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {platform.node()}\n")
+print(f"Store: {sys.argv[2]}; static copy: {sys.argv[3]}; {sys.argv[4]} tiles, {int(sys.argv[5])/1e6:.1f} MB gzip; "
+      f"wrk -t2, {sys.argv[6]} s per run, keep-alive, all on one machine over loopback.\n")
+print("| server | conns | req/s | p50 ms | p99 ms | errors | RSS before → max → after (MB) |")
+print("|---|---:|---:|---:|---:|---:|---|")
+for (name, c), r in sorted(rows.items(), key=lambda kv: (kv[0][1], kv[0][0] != "tinstream")):
+    print(f"| {name} | {c} | {r['rps']:.0f} | {r['p50_ms']:.2f} | {r['p99_ms']:.2f} | {int(r['errors'])} | "
+          f"{r['rss_before_kb']/1024:.1f} → {r['rss_max_kb']/1024:.1f} → {r['rss_after_kb']/1024:.1f} |")
+print("\n| conns | throughput tinstream/nginx | p99 tinstream/nginx |")
+print("|---:|---:|---:|")
+for c in sorted({c for _, c in rows}):
+    t, n = rows.get(("tinstream", c)), rows.get(("nginx", c))
+    if t and n:
+        print(f"| {c} | {t['rps']/n['rps']:.2f}× | {t['p99_ms']/max(n['p99_ms'],1e-9):.2f}× |")
+PY
