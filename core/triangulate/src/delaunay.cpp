@@ -1,7 +1,6 @@
 #include "delaunay.hpp"
 
 #include <algorithm>
-#include <unordered_map>
 
 #include "tinstream/kernel/triangulation.hpp"
 
@@ -12,77 +11,58 @@ using kernel::XY;
 
 bool lex_greater(const XY& p, const XY& q) { return p.x > q.x || (p.x == q.x && p.y > q.y); }
 
-std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t{a} << 32) | b; }
 
-// Lawson flips under the perturbed predicate, starting from a Delaunay triangulation: only
-// cocircular ties can be flipped, so the work is proportional to the number of ties.
-void canonicalize(const std::vector<XY>& p, std::vector<IndexTriangle>& tris) {
-  // Most inputs have no ties at all: find out cheaply (sorted half-edges) before building maps.
-  {
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> half(tris.size() * 3);
-    for (std::uint32_t t = 0; t < tris.size(); ++t) {
-      for (std::size_t k = 0; k < 3; ++k) {
-        half[t * 3 + k] = {edge_key(tris[t][k], tris[t][(k + 1) % 3]), tris[t][(k + 2) % 3]};
-      }
+// A compact copy of the kernel's finite triangles with neighbour links (n[i] across the edge
+// opposite v[i]; kNoTri on the hull), on which cocircular ties are flipped to the canonical
+// diagonal by Lawson flips under the perturbed predicate. Only ties can flip (the kernel's result
+// is already Delaunay), so the work is proportional to the number of ties.
+constexpr std::uint32_t kNoTri = 0xFFFFFFFFu;
+
+struct FlipMesh {
+  std::vector<IndexTriangle> v;  // input indices
+  std::vector<std::array<std::uint32_t, 3>> n;
+};
+
+void canonicalize(const std::vector<XY>& p, FlipMesh& m) {
+  auto index_in = [&](std::uint32_t t, std::uint32_t of) {
+    for (int i = 0; i < 3; ++i) {
+      if (m.n[t][static_cast<std::size_t>(i)] == of) return i;
     }
-    std::sort(half.begin(), half.end());
-    bool tie = false;
-    for (const auto& [key, c] : half) {
-      const auto a = static_cast<std::uint32_t>(key >> 32), b = static_cast<std::uint32_t>(key);
-      if (a > b) continue;
-      const auto twin = std::lower_bound(half.begin(), half.end(),
-                                         std::make_pair(edge_key(b, a), std::uint32_t{0}));
-      if (twin == half.end() || twin->first != edge_key(b, a)) continue;
-      if (kernel::incircle(p[a], p[b], p[c], p[twin->second]) == 0.0) {
-        tie = true;
-        break;
-      }
-    }
-    if (!tie) return;
-  }
-  // Directed edge (u → v) → triangle index and the position of u in it.
-  std::unordered_map<std::uint64_t, std::uint32_t> owner;
-  owner.reserve(tris.size() * 3);
-  for (std::uint32_t t = 0; t < tris.size(); ++t) {
-    for (std::size_t k = 0; k < 3; ++k) owner[edge_key(tris[t][k], tris[t][(k + 1) % 3])] = t;
-  }
-  std::vector<std::uint64_t> stack;
-  for (std::uint32_t t = 0; t < tris.size(); ++t) {
-    for (std::size_t k = 0; k < 3; ++k) {
-      const std::uint32_t u = tris[t][k], v = tris[t][(k + 1) % 3];
-      if (u < v) stack.push_back(edge_key(u, v));
-    }
-  }
-  auto third = [](const IndexTriangle& t, std::uint32_t u, std::uint32_t v) {
-    for (std::uint32_t w : t) {
-      if (w != u && w != v) return w;
-    }
-    return t[0];
+    return -1;
   };
+  std::vector<std::pair<std::uint32_t, int>> stack;
+  stack.reserve(m.v.size() * 3);
+  for (std::uint32_t t = 0; t < m.v.size(); ++t) {
+    for (int i = 0; i < 3; ++i) {
+      if (m.n[t][static_cast<std::size_t>(i)] != kNoTri && m.n[t][static_cast<std::size_t>(i)] > t) stack.emplace_back(t, i);
+    }
+  }
   while (!stack.empty()) {
-    const std::uint64_t key = stack.back();
+    const auto [t1, i1] = stack.back();
     stack.pop_back();
-    const auto a = static_cast<std::uint32_t>(key >> 32), b = static_cast<std::uint32_t>(key);
-    const auto left = owner.find(edge_key(a, b));   // triangle (a, b, c)
-    const auto right = owner.find(edge_key(b, a));  // triangle (b, a, d)
-    if (left == owner.end() || right == owner.end()) continue;  // hull edge
-    const std::uint32_t t1 = left->second, t2 = right->second;
-    const std::uint32_t c = third(tris[t1], a, b), d = third(tris[t2], a, b);
-    if (kernel::incircle(p[a], p[b], p[c], p[d]) != 0.0) continue;  // not a tie: already right
-    if (perturbed_incircle(p[a], p[b], p[c], p[d]) < 0) continue;
-    // Flip a-b to c-d: (a, b, c) + (b, a, d) → (a, d, c) + (d, b, c).
-    for (std::size_t k = 0; k < 3; ++k) {
-      owner.erase(edge_key(tris[t1][k], tris[t1][(k + 1) % 3]));
-      owner.erase(edge_key(tris[t2][k], tris[t2][(k + 1) % 3]));
-    }
-    tris[t1] = {a, d, c};
-    tris[t2] = {d, b, c};
-    for (std::uint32_t t : {t1, t2}) {
-      for (std::size_t k = 0; k < 3; ++k) owner[edge_key(tris[t][k], tris[t][(k + 1) % 3])] = t;
-    }
-    for (auto [u, v] : {std::pair{a, d}, std::pair{d, b}, std::pair{b, c}, std::pair{c, a}}) {
-      stack.push_back(u < v ? edge_key(u, v) : edge_key(v, u));
-    }
+    const std::uint32_t t2 = m.n[t1][static_cast<std::size_t>(i1)];
+    if (t2 == kNoTri) continue;
+    const int i2 = index_in(t2, t1);
+    if (i2 < 0) continue;
+    const auto at = [](int i) { return static_cast<std::size_t>(i % 3); };
+    // t1 = (c, a, b) from position i1; t2 = (d, b, a) from position i2.
+    const std::uint32_t c = m.v[t1][at(i1)], a = m.v[t1][at(i1 + 1)], b = m.v[t1][at(i1 + 2)];
+    const std::uint32_t d = m.v[t2][at(i2)];
+    if (kernel::incircle(p[c], p[a], p[b], p[d]) != 0.0) continue;  // not a tie: already right
+    if (perturbed_incircle(p[c], p[a], p[b], p[d]) < 0) continue;
+    const std::uint32_t x_bc = m.n[t1][at(i1 + 1)], x_ca = m.n[t1][at(i1 + 2)];
+    const std::uint32_t x_ad = m.n[t2][at(i2 + 1)], x_db = m.n[t2][at(i2 + 2)];
+    // (c, a, d) and (d, b, c): the diagonal c-d replaces a-b.
+    m.v[t1] = {c, a, d};
+    m.n[t1] = {x_ad, t2, x_ca};
+    m.v[t2] = {d, b, c};
+    m.n[t2] = {x_bc, t1, x_db};
+    if (x_ad != kNoTri) m.n[x_ad][static_cast<std::size_t>(index_in(x_ad, t2))] = t1;
+    if (x_bc != kNoTri) m.n[x_bc][static_cast<std::size_t>(index_in(x_bc, t1))] = t2;
+    stack.emplace_back(t1, 0);
+    stack.emplace_back(t1, 2);
+    stack.emplace_back(t2, 0);
+    stack.emplace_back(t2, 2);
   }
 }
 
@@ -125,13 +105,26 @@ std::vector<IndexTriangle> delaunay(const std::vector<XY>& points) {
       index_of[results[i].vertex] = static_cast<std::uint32_t>(i);
     }
   }
-  std::vector<IndexTriangle> out;
-  out.reserve(2 * points.size());
-  dt.for_each_finite_triangle([&](kernel::TriangleId, const auto& t) {
-    out.push_back({index_of[t.v[0]], index_of[t.v[1]], index_of[t.v[2]]});
-  });
-  canonicalize(points, out);
-  return out;
+  const kernel::Mesh& mesh = dt.mesh();
+  std::vector<std::uint32_t> compact(mesh.triangle_slots(), kNoTri);
+  FlipMesh m;
+  m.v.reserve(2 * points.size());
+  for (kernel::TriangleId t = 0; t < mesh.triangle_slots(); ++t) {
+    if (!mesh.is_live(t) || mesh.is_ghost(t)) continue;
+    compact[t] = static_cast<std::uint32_t>(m.v.size());
+    const auto& tri = mesh.tri(t);
+    m.v.push_back({index_of[tri.v[0]], index_of[tri.v[1]], index_of[tri.v[2]]});
+  }
+  m.n.resize(m.v.size());
+  for (kernel::TriangleId t = 0; t < mesh.triangle_slots(); ++t) {
+    if (compact[t] == kNoTri) continue;
+    const auto& tri = mesh.tri(t);
+    for (std::size_t i = 0; i < 3; ++i) {
+      m.n[compact[t]][i] = tri.n[i] < compact.size() ? compact[tri.n[i]] : kNoTri;
+    }
+  }
+  canonicalize(points, m);
+  return std::move(m.v);
 }
 
 }  // namespace tinstream::triangulate::detail
