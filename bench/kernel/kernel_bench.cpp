@@ -19,6 +19,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -31,9 +32,11 @@ using tinstream::kernel::Rect;
 using tinstream::kernel::Triangulation;
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using CgalDt = CGAL::Delaunay_triangulation_2<K>;
-using CgalCdt = CGAL::Constrained_Delaunay_triangulation_2<K, CGAL::Default, CGAL::Exact_predicates_tag>;
+using CgalCdt =
+    CGAL::Constrained_Delaunay_triangulation_2<K, CGAL::Default, CGAL::Exact_predicates_tag>;
 
-// ---- data sets -----------------------------------------------------------------------------------
+// ---- data sets
+// -----------------------------------------------------------------------------------
 std::vector<Point3> uniform(std::size_t n) {
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -124,7 +127,8 @@ std::vector<std::array<Point3, 2>> segments() {
   return s;
 }
 
-// ---- benchmarks ----------------------------------------------------------------------------------
+// ---- benchmarks
+// ----------------------------------------------------------------------------------
 void BM_build_ours(benchmark::State& st) {
   const auto& pts = dataset(static_cast<int>(st.range(0)), static_cast<std::size_t>(st.range(1)));
   double bytes = 0;
@@ -187,7 +191,8 @@ void BM_constrain_cgal(benchmark::State& st) {
     auto t = std::make_unique<CgalCdt>();
     t->insert(cp.begin(), cp.end());
     st.ResumeTiming();
-    for (const auto& s : segs) t->insert_constraint(K::Point_2(s[0].x, s[0].y), K::Point_2(s[1].x, s[1].y));
+    for (const auto& s : segs)
+      t->insert_constraint(K::Point_2(s[0].x, s[0].y), K::Point_2(s[1].x, s[1].y));
     st.PauseTiming();
     t.reset();
     st.ResumeTiming();
@@ -195,19 +200,22 @@ void BM_constrain_cgal(benchmark::State& st) {
   st.SetLabel("uniform + border + 1e4 segments");
 }
 
+std::vector<std::size_t> removal_victims(std::size_t n);
+
 void BM_remove_half_ours(benchmark::State& st) {
   const auto& pts = dataset(static_cast<int>(st.range(0)), static_cast<std::size_t>(st.range(1)));
+  const auto victims = removal_victims(pts.size());
   for (auto _ : st) {
     st.PauseTiming();
     auto t = std::make_unique<Triangulation>();
     const auto ids = t->insert_bulk(pts);
-    std::vector<tinstream::kernel::VertexId> victims;
-    std::mt19937 rng(5);
-    for (const auto& r : ids) {
-      if (r.outcome == tinstream::kernel::InsertOutcome::inserted && rng() % 2) victims.push_back(r.vertex);
+    std::vector<tinstream::kernel::VertexId> handles;
+    std::set<tinstream::kernel::VertexId> taken;
+    for (std::size_t i : victims) {
+      if (taken.insert(ids[i].vertex).second) handles.push_back(ids[i].vertex);
     }
     st.ResumeTiming();
-    for (auto v : victims) {
+    for (auto v : handles) {
       if (!t->remove_vertex(v).ok()) st.SkipWithError("remove failed");
     }
     st.PauseTiming();
@@ -217,19 +225,36 @@ void BM_remove_half_ours(benchmark::State& st) {
   st.SetLabel(kKind[st.range(0)]);
 }
 
+// Both sides remove the same points (a fixed random half of the input, by input index) in the
+// same order (input order: random for the uniform set, scan order for the LiDAR-like ones).
+std::vector<std::size_t> removal_victims(std::size_t n) {
+  std::vector<std::size_t> v;
+  std::mt19937 rng(5);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (rng() % 2) v.push_back(i);
+  }
+  return v;
+}
+
 void BM_remove_half_cgal(benchmark::State& st) {
   const auto& pts = dataset(static_cast<int>(st.range(0)), static_cast<std::size_t>(st.range(1)));
   const auto cp = cgal_points(pts);
+  const auto victims = removal_victims(pts.size());
   for (auto _ : st) {
     st.PauseTiming();
     auto t = std::make_unique<CgalDt>();
     t->insert(cp.begin(), cp.end());
-    std::vector<CgalDt::Vertex_handle> all;
-    for (auto v : t->finite_vertex_handles()) all.push_back(v);
-    std::shuffle(all.begin(), all.end(), std::mt19937(5));
-    all.resize(all.size() / 2);
+    // Handles by input index (the first of duplicates), without touching the timed part.
+    std::map<std::pair<double, double>, CgalDt::Vertex_handle> at;
+    for (auto v : t->finite_vertex_handles()) at[{v->point().x(), v->point().y()}] = v;
+    std::vector<CgalDt::Vertex_handle> handles;
+    std::set<std::pair<double, double>> taken;
+    for (std::size_t i : victims) {
+      const std::pair<double, double> key{pts[i].x, pts[i].y};
+      if (taken.insert(key).second) handles.push_back(at.at(key));
+    }
     st.ResumeTiming();
-    for (auto v : all) t->remove(v);
+    for (auto v : handles) t->remove(v);
     st.PauseTiming();
     t.reset();
     st.ResumeTiming();
@@ -253,12 +278,37 @@ void constrain_args(benchmark::internal::Benchmark* b) {
   for (long n : {1000000L, 4000000L}) b->Args({0, n});
 }
 
-BENCHMARK(BM_build_ours)->Apply(build_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3)->ReportAggregatesOnly(false);
-BENCHMARK(BM_build_cgal)->Apply(build_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3);
-BENCHMARK(BM_constrain_ours)->Apply(constrain_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3);
-BENCHMARK(BM_constrain_cgal)->Apply(constrain_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3);
-BENCHMARK(BM_remove_half_ours)->Apply(half_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3);
-BENCHMARK(BM_remove_half_cgal)->Apply(half_args)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(3);
+BENCHMARK(BM_build_ours)
+    ->Apply(build_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3)
+    ->ReportAggregatesOnly(false);
+BENCHMARK(BM_build_cgal)
+    ->Apply(build_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3);
+BENCHMARK(BM_constrain_ours)
+    ->Apply(constrain_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3);
+BENCHMARK(BM_constrain_cgal)
+    ->Apply(constrain_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3);
+BENCHMARK(BM_remove_half_ours)
+    ->Apply(half_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3);
+BENCHMARK(BM_remove_half_cgal)
+    ->Apply(half_args)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->Repetitions(3);
 
 // Collects the minimum time of each case and prints CGAL / ours ratios at the end.
 class RatioReporter : public benchmark::ConsoleReporter {
@@ -271,14 +321,15 @@ class RatioReporter : public benchmark::ConsoleReporter {
       auto& slot = best_[{name, args}];
       const double t = r.GetAdjustedCPUTime();  // CPU time: the 2-core machine is shared
       if (slot == 0 || t < slot) slot = t;
-      if (r.counters.count("bytes_per_point")) bytes_[{name, args}] = r.counters.at("bytes_per_point");
+      if (r.counters.count("bytes_per_point"))
+        bytes_[{name, args}] = r.counters.at("bytes_per_point");
     }
     ConsoleReporter::ReportRuns(runs);
   }
   void Finalize() override {
     ConsoleReporter::Finalize();
-    std::printf("\n%-14s %-18s %12s %12s %8s %10s %10s\n", "case", "data/n", "ours cpu ms", "cgal cpu ms",
-                "ratio", "ours B/pt", "cgal B/pt");
+    std::printf("\n%-14s %-18s %12s %12s %8s %10s %10s\n", "case", "data/n", "ours cpu ms",
+                "cgal cpu ms", "ratio", "ours B/pt", "cgal B/pt");
     for (const auto& [key, ours] : best_) {
       const auto& [name, args] = key;
       if (name.size() < 5 || name.compare(name.size() - 5, 5, "_ours") != 0) continue;
@@ -286,9 +337,10 @@ class RatioReporter : public benchmark::ConsoleReporter {
       const auto it = best_.find({peer, args});
       if (it == best_.end()) continue;
       const std::string shortname = name.substr(3, name.size() - 8);
-      const double bo = bytes_.count(key) ? bytes_.at(key) : 0, bc = bytes_.count({peer, args}) ? bytes_.at({peer, args}) : 0;
-      std::printf("%-14s %-18s %12.1f %12.1f %8.2f %10.0f %10.0f\n", shortname.c_str(), args.c_str(), ours,
-                  it->second, it->second / ours, bo, bc);
+      const double bo = bytes_.count(key) ? bytes_.at(key) : 0,
+                   bc = bytes_.count({peer, args}) ? bytes_.at({peer, args}) : 0;
+      std::printf("%-14s %-18s %12.1f %12.1f %8.2f %10.0f %10.0f\n", shortname.c_str(),
+                  args.c_str(), ours, it->second, it->second / ours, bo, bc);
     }
   }
 

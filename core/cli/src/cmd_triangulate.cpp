@@ -2,7 +2,6 @@
 // triangulation as an OFF mesh. A thin front end over tinstream::kernel; point loading is one
 // function (load_points) so that the sources module can take over LAS and other formats.
 #include <CLI/CLI.hpp>
-
 #include <charconv>
 #include <chrono>
 #include <cstdio>
@@ -65,7 +64,7 @@ bool skippable(const std::string& line) {
 
 // Reads lines of `columns` numbers; blank and '#' lines are skipped.
 Result<std::vector<std::array<double, 6>>> read_rows(const std::string& path, std::size_t columns,
-                                                      const char* what) {
+                                                     const char* what) {
   std::ifstream f(path);
   if (!f) return not_found(path + ": cannot open " + what + " file");
   std::vector<std::array<double, 6>> rows;
@@ -89,8 +88,9 @@ Result<std::vector<std::array<double, 6>>> read_rows(const std::string& path, st
 // The one place that turns an input path into points.
 Result<std::vector<Point3>> load_points(const std::string& path) {
   if (ends_with(path, ".las") || ends_with(path, ".laz")) {
-    return unsupported(path + ": LAS input needs the sources module (not wired into this command yet); "
-                              "convert to .xyz text for now");
+    return unsupported(path +
+                       ": LAS input needs the sources module (not wired into this command yet); "
+                       "convert to .xyz text for now");
   }
   auto rows = read_rows(path, 3, "x y z");
   if (!rows.ok()) return rows.error();
@@ -124,8 +124,8 @@ int run(const Options& o) {
     const auto& s = segments[i];
     auto r = tri.insert_constraint(Point3{s[0], s[1], s[2], 0.0}, Point3{s[3], s[4], s[5], 0.0});
     if (!r.ok()) {
-      return fail(Error(r.error().code, o.constraints + ": segment " + std::to_string(i + 1) + ": " +
-                                            r.error().message));
+      return fail(Error(r.error().code, o.constraints + ": segment " + std::to_string(i + 1) +
+                                            ": " + r.error().message));
     }
   }
   const double seconds =
@@ -142,7 +142,8 @@ int run(const Options& o) {
   char buf[128];
   for (kernel::VertexId v = 1; v < tri.vertex_id_bound(); ++v) {
     if (!tri.is_vertex(v)) continue;
-    const int len = std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g\n", tri.xy(v).x, tri.xy(v).y, tri.z(v));
+    const int len =
+        std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g\n", tri.xy(v).x, tri.xy(v).y, tri.z(v));
     out.write(buf, len);
   }
   tri.for_each_finite_triangle([&](kernel::TriangleId, const kernel::Triangle& t) {
@@ -169,10 +170,11 @@ const CommandRegistration kRegistration{
                      "extra columns ignored; blank and '#' lines skipped). .las/.laz need the "
                      "sources module and are refused for now.")
           ->required();
-      sub.add_option("--out", opts->out,
-                     "Output mesh (OFF): the distinct input points plus any vertices created where "
-                     "constraints cross, then the finite triangles, counter-clockwise, covering the "
-                     "convex hull of the points.")
+      sub.add_option(
+             "--out", opts->out,
+             "Output mesh (OFF): the distinct input points plus any vertices created where "
+             "constraints cross, then the finite triangles, counter-clockwise, covering the "
+             "convex hull of the points.")
           ->required();
       sub.add_option("--constraints", opts->constraints,
                      "Optional constraint segments, one per line 'x1 y1 z1 x2 y2 z2' (breaklines, "
@@ -182,7 +184,8 @@ const CommandRegistration kRegistration{
           "Prints one JSON line to stderr: {\"points\":N,\"triangles\":T,\"seconds\":S,"
           "\"duplicates\":D} with N the output vertices, D the input points dropped as exact (x,y) "
           "duplicates (the first one kept) and S the triangulation time without file I/O "
-          "(spatial sorting included). Exit status 0 on success, 1 with a one-line error naming the "
+          "(spatial sorting included). Exit status 0 on success, 1 with a one-line error naming "
+          "the "
           "file and line otherwise.");
       return [opts] { return run(*opts); };
     }};

@@ -18,7 +18,8 @@ std::string seg_name(VertexId a, VertexId b) {
 
 Status Triangulation::insert_constraint(VertexId a, VertexId b) {
   if (cut_) return unsupported(seg_name(a, b) + ": the mesh was cut, it no longer accepts edits");
-  if (!is_vertex(a) || !is_vertex(b)) return invalid_argument(seg_name(a, b) + ": not a live vertex");
+  if (!is_vertex(a) || !is_vertex(b))
+    return invalid_argument(seg_name(a, b) + ": not a live vertex");
   if (a == b) return invalid_argument(seg_name(a, b) + ": both ends are the same vertex");
   if (dimension() < 2) {
     return unsupported(seg_name(a, b) +
@@ -32,9 +33,11 @@ Status Triangulation::insert_constraint(VertexId a, VertexId b) {
 
 Result<std::array<VertexId, 2>> Triangulation::insert_constraint(const Point3& a, const Point3& b) {
   const InsertResult ra = insert(a);
-  if (ra.vertex == kNone) return invalid_argument("constraint start point is outside the domain or not finite");
+  if (ra.vertex == kNone)
+    return invalid_argument("constraint start point is outside the domain or not finite");
   const InsertResult rb = insert(b);
-  if (rb.vertex == kNone) return invalid_argument("constraint end point is outside the domain or not finite");
+  if (rb.vertex == kNone)
+    return invalid_argument("constraint end point is outside the domain or not finite");
   Status s = insert_constraint(ra.vertex, rb.vertex);
   if (!s.ok()) return s.error();
   return std::array<VertexId, 2>{ra.vertex, rb.vertex};
@@ -89,7 +92,8 @@ void Triangulation::restore_delaunay(std::vector<std::array<VertexId, 2>>& edges
     if (u == kNone || mesh_.is_ghost(f) || mesh_.is_ghost(u)) continue;
     const Triangle& F = mesh_.tri(f);
     const VertexId q = mesh_.tri(u).v[mesh_.mirror(f, i)];
-    if (incircle(mesh_.xy(F.v[0]), mesh_.xy(F.v[1]), mesh_.xy(F.v[2]), mesh_.xy(q)) <= 0.0) continue;
+    if (incircle(mesh_.xy(F.v[0]), mesh_.xy(F.v[1]), mesh_.xy(F.v[2]), mesh_.xy(q)) <= 0.0)
+      continue;
     const VertexId p = F.v[i], w = F.v[prev3(i)], uu = F.v[next3(i)];
     mesh_.flip(f, i);
     edges.push_back({p, uu});
@@ -123,7 +127,8 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
       const VertexId x = mesh_.tri(r).v[next3(k)], y = mesh_.tri(r).v[prev3(k)];
       if (x != kInfiniteVertex) {
         const XY& px = mesh_.xy(x);
-        if (orient2d(ps, pe, px) == 0.0 && (px.x - ps.x) * (pe.x - ps.x) + (px.y - ps.y) * (pe.y - ps.y) > 0.0) {
+        if (orient2d(ps, pe, px) == 0.0 &&
+            (px.x - ps.x) * (pe.x - ps.x) + (px.y - ps.y) * (pe.y - ps.y) > 0.0) {
           on_segment = x;
           break;
         }
@@ -139,7 +144,9 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
       work.push_back({s, on_segment});
       continue;
     }
-    if (cur == kNone) return Error(ErrorCode::internal, seg_name(s, e) + ": no triangle around the start vertex faces the end vertex");
+    if (cur == kNone)
+      return Error(ErrorCode::internal,
+                   seg_name(s, e) + ": no triangle around the start vertex faces the end vertex");
     // Walk along the segment, collecting crossed edges as vertex pairs (right, left).
     std::deque<std::array<VertexId, 2>> crossed;
     VertexId end = e;
@@ -147,7 +154,9 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
     for (;;) {
       if (mesh_.constrained(cur, ci)) {
         const VertexId x = insert_intersection(s, e, cur, ci);
-        if (x == kNone) return Error(ErrorCode::internal, seg_name(s, e) + ": could not insert the intersection point");
+        if (x == kNone)
+          return Error(ErrorCode::internal,
+                       seg_name(s, e) + ": could not insert the intersection point");
         work.push_back({x, e});
         work.push_back({s, x});
         split = true;
@@ -159,7 +168,8 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
       const int j = mesh_.mirror(cur, ci);
       const VertexId o = mesh_.tri(nb).v[j];
       if (o == e) break;
-      if (o == kInfiniteVertex) return Error(ErrorCode::internal, seg_name(s, e) + ": walked out of the hull");
+      if (o == kInfiniteVertex)
+        return Error(ErrorCode::internal, seg_name(s, e) + ": walked out of the hull");
       const double side = orient2d(ps, pe, mesh_.xy(o));
       if (side == 0.0) {  // o lies on the segment: finish s-o now, o-e later
         end = o;
@@ -187,7 +197,8 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
       if (!((ox > 0.0 && oy < 0.0) || (ox < 0.0 && oy > 0.0))) {
         crossed.push_back({x, y});
         if (++stall > 4 * crossed.size() + 16) {
-          return Error(ErrorCode::internal, seg_name(s, end) + ": crossed edges cannot be flipped away");
+          return Error(ErrorCode::internal,
+                       seg_name(s, end) + ": crossed edges cannot be flipped away");
         }
         continue;
       }
@@ -203,7 +214,8 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
       }
     }
     t = find_edge(s, end, &idx);
-    if (t == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
+    if (t == kNone)
+      return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
     mesh_.set_edge_constrained(t, idx, true);
     restore_delaunay(fresh);
   }

@@ -47,6 +47,10 @@ Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) cons
   double o[3];
   for (;;) {
     const Triangle& T = mesh_.tri(t);
+    if (T.v[0] == kInfiniteVertex || T.v[1] == kInfiniteVertex || T.v[2] == kInfiniteVertex) {
+      return {Where::outside_hull, t, 0};  // crossed a hull edge that p sees from outside
+    }
+    const XY* P[3] = {&mesh_.xy(T.v[0]), &mesh_.xy(T.v[1]), &mesh_.xy(T.v[2])};
     if (randomize_walk_) {
       rng_ ^= rng_ << 13;
       rng_ ^= rng_ >> 17;
@@ -56,17 +60,16 @@ Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) cons
       start = next3(start);
     }
     TriangleId next = kNone;
-    for (int k = 0; k < 3; ++k) {
-      const int i = (start + k) % 3;
+    int i = start;
+    for (int k = 0; k < 3; ++k, i = next3(i)) {
       const TriangleId nb = T.n[i];
       if (nb == prev && prev != kNone) {
         o[i] = 1.0;  // p is strictly on this side: we just crossed that edge towards it
         continue;
       }
-      o[i] = orient2d(mesh_.xy(T.v[next3(i)]), mesh_.xy(T.v[prev3(i)]), p);
+      o[i] = orient2d(*P[next3(i)], *P[prev3(i)], p);
       if (o[i] < 0.0) {
         if (nb == kNone) return {Where::outside_hull, kNone, 0};  // cut mesh: blocked
-        if (mesh_.is_ghost(nb)) return {Where::outside_hull, nb, 0};
         next = nb;
         break;
       }
@@ -162,8 +165,7 @@ InsertResult Triangulation::insert(const Point3& p) {
     if (pending_contains(xy, &existing)) return {InsertOutcome::duplicate, existing};
     const VertexId v = mesh_.add_vertex(p.x, p.y, p.z, p.weight);
     ++live_vertices_;
-    if (pending_.size() >= 2 &&
-        orient2d(mesh_.xy(pending_[0]), mesh_.xy(pending_[1]), xy) != 0.0) {
+    if (pending_.size() >= 2 && orient2d(mesh_.xy(pending_[0]), mesh_.xy(pending_[1]), xy) != 0.0) {
       raise_dimension(v);
     } else {
       mesh_.set_vertex_triangle(v, kPendingTriangle);

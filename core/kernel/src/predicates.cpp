@@ -6,12 +6,12 @@
 // is error-free (its result represents the exact real value) as long as nothing overflows or
 // underflows, given IEEE-754 round-to-nearest double arithmetic (no x87, no FMA contraction:
 // the kernel target compiles with -ffp-contract=off).
+#include "tinstream/kernel/predicates.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cassert>
 #include <cstddef>
-
-#include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::kernel::detail {
 namespace {

@@ -211,11 +211,13 @@ Status Triangulation::check_valid(CheckLevel level) const {
     const Triangle& T = mesh_.tri(t);
     int g = 0;
     for (int i = 0; i < 3; ++i) {
-      if (T.v[i] >= mesh_.vertex_slots()) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": vertex id out of range");
+      if (T.v[i] >= mesh_.vertex_slots())
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": vertex id out of range");
       if (T.v[i] == kInfiniteVertex) {
         ++g;
       } else if (!is_vertex(T.v[i])) {
-        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": references removed vertex " + std::to_string(T.v[i]));
+        return Error(ErrorCode::internal,
+                     tri_name(mesh_, t) + ": references removed vertex " + std::to_string(T.v[i]));
       }
     }
     if (T.v[0] == T.v[1] || T.v[1] == T.v[2] || T.v[0] == T.v[2]) {
@@ -224,42 +226,52 @@ Status Triangulation::check_valid(CheckLevel level) const {
     if (g > 1) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": two infinite vertices");
     if (g == 1) {
       ++ghosts;
-      if (cut_) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": ghost triangle in a cut mesh");
+      if (cut_)
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": ghost triangle in a cut mesh");
     } else if (orient2d(mesh_.xy(T.v[0]), mesh_.xy(T.v[1]), mesh_.xy(T.v[2])) <= 0.0) {
       return Error(ErrorCode::internal, tri_name(mesh_, t) + ": not counter-clockwise");
     }
     for (int i = 0; i < 3; ++i) {
       const TriangleId u = T.n[i];
       if (u == kNone) {
-        if (!cut_) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": missing neighbour " + std::to_string(i));
+        if (!cut_)
+          return Error(ErrorCode::internal,
+                       tri_name(mesh_, t) + ": missing neighbour " + std::to_string(i));
         continue;
       }
       if (u >= nt || !mesh_.is_live(u)) {
-        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": neighbour " + std::to_string(i) + " is not a live triangle");
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": neighbour " + std::to_string(i) +
+                                              " is not a live triangle");
       }
       const Triangle& U = mesh_.tri(u);
       const int j = U.n[0] == t ? 0 : U.n[1] == t ? 1 : U.n[2] == t ? 2 : -1;
-      if (j < 0) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": neighbour " + std::to_string(u) + " does not point back");
+      if (j < 0)
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": neighbour " + std::to_string(u) +
+                                              " does not point back");
       if (U.v[next3(j)] != T.v[prev3(i)] || U.v[prev3(j)] != T.v[next3(i)]) {
-        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": shared edge with " + std::to_string(u) + " does not match");
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": shared edge with " +
+                                              std::to_string(u) + " does not match");
       }
       if (mesh_.constrained(t, i) != mesh_.constrained(u, j)) {
         return Error(ErrorCode::internal, tri_name(mesh_, t) + ": constraint flag not symmetric");
       }
     }
   }
-  if (ghosts != mesh_.ghost_triangles()) return Error(ErrorCode::internal, "ghost triangle count is wrong");
+  if (ghosts != mesh_.ghost_triangles())
+    return Error(ErrorCode::internal, "ghost triangle count is wrong");
   std::size_t live = 0;
   for (VertexId v = 1; v < mesh_.vertex_slots(); ++v) {
     const TriangleId t = mesh_.vertex_triangle(v);
     if (t == kNone) continue;
     ++live;
     if (t == kPendingTriangle) {
-      if (mesh_.live_triangles() != 0) return Error(ErrorCode::internal, "vertex " + std::to_string(v) + " still pending in 2D");
+      if (mesh_.live_triangles() != 0)
+        return Error(ErrorCode::internal, "vertex " + std::to_string(v) + " still pending in 2D");
       continue;
     }
     if (t >= nt || !mesh_.is_live(t) || mesh_.index_of(t, v) < 0) {
-      return Error(ErrorCode::internal, "vertex " + std::to_string(v) + ": its triangle does not contain it");
+      return Error(ErrorCode::internal,
+                   "vertex " + std::to_string(v) + ": its triangle does not contain it");
     }
   }
   if (live != live_vertices_) return Error(ErrorCode::internal, "live vertex count is wrong");
@@ -271,13 +283,16 @@ Status Triangulation::check_valid(CheckLevel level) const {
     if (mesh_.is_ghost(t)) {
       const int g = mesh_.index_of(t, kInfiniteVertex);
       const TriangleId u = T.n[next3(g)];  // next ghost along the hull, across edge (y, 0)
-      if (!mesh_.is_ghost(u)) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": ghost neighbour is finite");
+      if (!mesh_.is_ghost(u))
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": ghost neighbour is finite");
       const Triangle& U = mesh_.tri(u);
       const int gu = mesh_.index_of(u, kInfiniteVertex);
       const VertexId x = T.v[next3(g)], y = T.v[prev3(g)], z = U.v[prev3(gu)];
-      if (U.v[next3(gu)] != y) return Error(ErrorCode::internal, tri_name(mesh_, t) + ": hull chain broken");
+      if (U.v[next3(gu)] != y)
+        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": hull chain broken");
       if (z != x && orient2d(mesh_.xy(x), mesh_.xy(y), mesh_.xy(z)) > 0.0) {
-        return Error(ErrorCode::internal, tri_name(mesh_, t) + ": hull not convex at vertex " + std::to_string(y));
+        return Error(ErrorCode::internal,
+                     tri_name(mesh_, t) + ": hull not convex at vertex " + std::to_string(y));
       }
       continue;
     }
@@ -295,7 +310,8 @@ Status Triangulation::check_valid(CheckLevel level) const {
   for (const auto& s : segments_) {
     if (!segment_chain_present(s[0], s[1])) {
       return Error(ErrorCode::internal, "constraint segment " + std::to_string(s[0]) + "-" +
-                                            std::to_string(s[1]) + " is not a chain of constrained edges");
+                                            std::to_string(s[1]) +
+                                            " is not a chain of constrained edges");
     }
   }
   return {};

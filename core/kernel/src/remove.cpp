@@ -17,92 +17,100 @@ namespace tinstream::kernel {
 
 using detail::kPendingTriangle;
 
-// Local triangles of the re-triangulated hole. adj codes: >= 0 local (triangle * 3 + edge);
-// < 0 boundary edge -(i + 1) of the ring (ring[i] -> ring[i + 1]).
-struct Triangulation::Hole {
-  std::vector<VertexId> ring;
-  std::vector<TriangleId> star;
-  std::vector<TriangleId> outer;
-  std::vector<int> outer_index;
-  std::vector<VertexTriple> tris;
-  std::vector<std::array<int, 3>> adj;
-  std::vector<std::uint8_t> fixed;  // per local triangle: bit i = edge i constrained (re-join)
-  VertexId join_a = kNone, join_b = kNone;
-  bool degenerate = false;  // only collinear vertices remain after the removal
+void Triangulation::Hole::clear() {
+  ring.clear();
+  star.clear();
+  outer.clear();
+  outer_index.clear();
+  tris.clear();
+  adj.clear();
+  fixed.clear();
+  join_a = join_b = kNone;
+  degenerate = false;
+}
 
-  int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc) {
-    const int L = static_cast<int>(tris.size());
-    tris.push_back({a, b, c});
-    adj.push_back({oa, ob, oc});
-    fixed.push_back(0);
-    for (int i = 0; i < 3; ++i) {
-      const int o = adj[static_cast<std::size_t>(L)][static_cast<std::size_t>(i)];
-      if (o >= 0) adj[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)] = L * 3 + i;
-    }
-    return L;
+// Adds local triangle (a, b, c) whose edges opposite a, b, c have owner codes oa, ob, oc; a
+// local owner gets its back reference.
+int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc) {
+  const int L = static_cast<int>(tris.size());
+  tris.push_back({a, b, c});
+  adj.push_back({oa, ob, oc});
+  fixed.push_back(0);
+  for (int i = 0; i < 3; ++i) {
+    const int o = adj[static_cast<std::size_t>(L)][static_cast<std::size_t>(i)];
+    if (o >= 0) adj[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)] = L * 3 + i;
   }
-};
+  return L;
+}
 
 namespace {
 
-// Open chain pos[0..m-1] (polygon closed by the edge pos[m-1] -> pos[0] on v's side) made convex
-// as seen from v by clipping ears; `owner[k]` is the owner code of the edge pos[k] -> pos[k+1].
-// Returns the remaining chain; owner is updated for the remaining edges.
-template <typename Mesh_, typename Hole_>
-std::vector<int> convexify(const Mesh_& mesh, Hole_& hole, const std::vector<VertexId>& chain,
-                           std::vector<int>& owner) {
-  std::vector<int> st;  // positions into chain
+constexpr int kUnset = -0x7FFFFFFF;  // an edge whose other side is created later
+
+// Open chain hole.chain[0..m-1] (closed by an edge chain[m-1] -> chain[0] on v's side) made
+// convex as seen from v by clipping ears; hole.owner[k] is the owner code of the edge
+// chain[k] -> chain[k+1]. Leaves the positions of the remaining chain in hole.stack.
+}  // namespace
+
+void Triangulation::Hole::convexify(const Mesh& mesh) {
+  Hole& hole = *this;
+  auto& st = hole.stack;
+  st.clear();
   for (int i = 0; i < static_cast<int>(chain.size()); ++i) {
     while (st.size() >= 2) {
-      const int a = st[st.size() - 2], b = st.back();
-      if (orient2d(mesh.xy(chain[static_cast<std::size_t>(a)]), mesh.xy(chain[static_cast<std::size_t>(b)]),
-                   mesh.xy(chain[static_cast<std::size_t>(i)])) <= 0.0) {
-        break;
-      }
+      const auto a = static_cast<std::size_t>(st[st.size() - 2]);
+      const auto b = static_cast<std::size_t>(st.back());
+      const auto c = static_cast<std::size_t>(i);
+      if (orient2d(mesh.xy(chain[a]), mesh.xy(chain[b]), mesh.xy(chain[c])) <= 0.0) break;
       // Ear (a, b, i): edges opposite a = (b, i), opposite b = (i, a) new, opposite i = (a, b).
-      const int L = hole.add(chain[static_cast<std::size_t>(a)], chain[static_cast<std::size_t>(b)],
-                             chain[static_cast<std::size_t>(i)], owner[static_cast<std::size_t>(b)], -0x7FFFFFFF,
-                             owner[static_cast<std::size_t>(a)]);
-      owner[static_cast<std::size_t>(a)] = L * 3 + 1;
+      const int L = hole.add(chain[a], chain[b], chain[c], owner[b], kUnset, owner[a]);
+      owner[a] = L * 3 + 1;
       st.pop_back();
     }
     st.push_back(i);
   }
-  return st;
 }
 
-}  // namespace
-
 Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
-  const std::string name = "vertex " + std::to_string(v);
-  if (cut_) return unsupported(name + ": the mesh was cut, it no longer accepts edits");
-  if (!is_vertex(v)) return invalid_argument(name + ": not a live vertex");
-  const std::vector<TriangleId> ring_tris = incident_triangles(v, false);
-  const std::size_t k = ring_tris.size();
-  std::vector<VertexId> spokes_constrained;
+  auto name = [v] { return "vertex " + std::to_string(v); };
+  if (cut_) return unsupported(name() + ": the mesh was cut, it no longer accepts edits");
+  if (!is_vertex(v) || mesh_.vertex_triangle(v) == kPendingTriangle) {
+    return invalid_argument(name() + ": not a live vertex of the triangulation");
+  }
+  hole.clear();
+  VertexId spokes_constrained[2] = {kNone, kNone};
+  std::size_t n_constrained = 0;
   std::size_t finite_in_star = 0;
   int ghost_pos = -1;
-  for (std::size_t i = 0; i < k; ++i) {
-    const TriangleId t = ring_tris[i];
+  const TriangleId t0 = mesh_.vertex_triangle(v);
+  TriangleId t = t0;
+  std::size_t pos = 0;
+  do {
     const int j = mesh_.index_of(t, v);
     const Triangle& T = mesh_.tri(t);
     hole.ring.push_back(T.v[next3(j)]);
     hole.star.push_back(t);
     hole.outer.push_back(T.n[j]);
     hole.outer_index.push_back(mesh_.mirror(t, j));
-    if (mesh_.constrained(t, prev3(j))) spokes_constrained.push_back(T.v[next3(j)]);
-    if (mesh_.is_ghost(t)) {
-      if (T.v[next3(j)] == kInfiniteVertex) ghost_pos = static_cast<int>(i);
-    } else {
+    if (has_constraints_ && mesh_.constrained(t, prev3(j))) {
+      if (n_constrained < 2) spokes_constrained[n_constrained] = T.v[next3(j)];
+      ++n_constrained;
+    }
+    if (T.v[next3(j)] == kInfiniteVertex) {
+      ghost_pos = static_cast<int>(pos);
+    } else if (T.v[prev3(j)] != kInfiniteVertex) {
       ++finite_in_star;
     }
-  }
-  if (!spokes_constrained.empty()) {
-    if (spokes_constrained.size() != 2 ||
-        orient2d(mesh_.xy(spokes_constrained[0]), mesh_.xy(v), mesh_.xy(spokes_constrained[1])) != 0.0) {
-      return invalid_argument(name + " is an end or a corner of constrained edges (" +
-                              std::to_string(spokes_constrained.size()) +
-                              " incident); only a vertex splitting a straight constraint can be removed");
+    t = T.n[next3(j)];
+    ++pos;
+  } while (t != t0);
+  const std::size_t k = hole.ring.size();
+  if (n_constrained > 0) {
+    if (n_constrained != 2 || orient2d(mesh_.xy(spokes_constrained[0]), mesh_.xy(v),
+                                       mesh_.xy(spokes_constrained[1])) != 0.0) {
+      return invalid_argument(
+          name() + " is an end or a corner of constrained edges (" + std::to_string(n_constrained) +
+          " incident); only a vertex splitting a straight constraint can be removed");
     }
     hole.join_a = spokes_constrained[0];
     hole.join_b = spokes_constrained[1];
@@ -115,21 +123,22 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   if (ghost_pos >= 0) {
     // Hull vertex: ring[ghost_pos] == 0; the chain runs from ring[ghost_pos + 1] around to
     // ring[ghost_pos - 1].
-    std::vector<VertexId> chain;
-    std::vector<int> owner;
-    std::vector<std::size_t> ring_index;
+    auto& chain = hole.chain;
+    auto& owner = hole.owner;
+    chain.clear();
+    owner.clear();
     for (std::size_t s = 1; s < k; ++s) {
       const std::size_t r = (static_cast<std::size_t>(ghost_pos) + s) % k;
       chain.push_back(hole.ring[r]);
       owner.push_back(code(r));
-      ring_index.push_back(r);
     }
-    const std::vector<int> hull = convexify(mesh_, hole, chain, owner);
+    hole.convexify(mesh_);
+    const auto& hull = hole.stack;
     // Ghost triangles (c_j, c_{j+1}, 0) along the new hull.
     int prev_ghost = code(static_cast<std::size_t>(ghost_pos));  // edge (0, chain[0])
     for (std::size_t j = 0; j + 1 < hull.size(); ++j) {
       const auto a = static_cast<std::size_t>(hull[j]), b = static_cast<std::size_t>(hull[j + 1]);
-      const int L = hole.add(chain[a], chain[b], kInfiniteVertex, -0x7FFFFFFF, prev_ghost, owner[a]);
+      const int L = hole.add(chain[a], chain[b], kInfiniteVertex, kUnset, prev_ghost, owner[a]);
       prev_ghost = L * 3 + 0;
     }
     // Last ghost's edge (c_r, 0) is the ring edge ending at the ghost vertex.
@@ -140,35 +149,50 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // join_a-join_b is marked constrained by remove_vertex.
   } else if (hole.join_a != kNone) {
     // Two open chains join_a -> ... -> join_b and join_b -> ... -> join_a.
-    const auto ia = static_cast<std::size_t>(std::find(hole.ring.begin(), hole.ring.end(), hole.join_a) - hole.ring.begin());
-    const auto ib = static_cast<std::size_t>(std::find(hole.ring.begin(), hole.ring.end(), hole.join_b) - hole.ring.begin());
+    const auto ia = static_cast<std::size_t>(
+        std::find(hole.ring.begin(), hole.ring.end(), hole.join_a) - hole.ring.begin());
+    const auto ib = static_cast<std::size_t>(
+        std::find(hole.ring.begin(), hole.ring.end(), hole.join_b) - hole.ring.begin());
     int last_owner[2];
     for (int side = 0; side < 2; ++side) {
       const std::size_t from = side == 0 ? ia : ib, to = side == 0 ? ib : ia;
-      std::vector<VertexId> chain;
-      std::vector<int> owner;
+      auto& chain = hole.chain;
+      auto& owner = hole.owner;
+      chain.clear();
+      owner.clear();
       for (std::size_t r = from;; r = (r + 1) % k) {
         chain.push_back(hole.ring[r]);
         owner.push_back(code(r));
         if (r == to) break;
       }
-      const std::vector<int> rest = convexify(mesh_, hole, chain, owner);
-      if (rest.size() != 2) return Error(ErrorCode::internal, name + ": re-joining the constraint failed");
+      hole.convexify(mesh_);
+      const auto& rest = hole.stack;
+      if (rest.size() != 2)
+        return Error(ErrorCode::internal, name() + ": re-joining the constraint failed");
       last_owner[side] = owner[static_cast<std::size_t>(rest[0])];
     }
     if (last_owner[0] < 0 || last_owner[1] < 0) {
-      return Error(ErrorCode::internal, name + ": degenerate star around a constraint");
+      return Error(ErrorCode::internal, name() + ": degenerate star around a constraint");
     }
-    hole.adj[static_cast<std::size_t>(last_owner[0] / 3)][static_cast<std::size_t>(last_owner[0] % 3)] = last_owner[1];
-    hole.adj[static_cast<std::size_t>(last_owner[1] / 3)][static_cast<std::size_t>(last_owner[1] % 3)] = last_owner[0];
-    hole.fixed[static_cast<std::size_t>(last_owner[0] / 3)] |= static_cast<std::uint8_t>(1u << (last_owner[0] % 3));
-    hole.fixed[static_cast<std::size_t>(last_owner[1] / 3)] |= static_cast<std::uint8_t>(1u << (last_owner[1] % 3));
+    hole.adj[static_cast<std::size_t>(last_owner[0] / 3)]
+            [static_cast<std::size_t>(last_owner[0] % 3)] = last_owner[1];
+    hole.adj[static_cast<std::size_t>(last_owner[1] / 3)]
+            [static_cast<std::size_t>(last_owner[1] % 3)] = last_owner[0];
+    hole.fixed[static_cast<std::size_t>(last_owner[0] / 3)] |=
+        static_cast<std::uint8_t>(1u << (last_owner[0] % 3));
+    hole.fixed[static_cast<std::size_t>(last_owner[1] / 3)] |=
+        static_cast<std::uint8_t>(1u << (last_owner[1] % 3));
   } else {
     // Interior vertex: clip ears of the closed, star-shaped link polygon. An ear (p, c, n) with a
     // convex corner at c and v strictly left of p->n lies inside the two star triangles at c,
     // so it contains no other vertex and the rest stays star-shaped around v.
     const XY pv = mesh_.xy(v);
-    std::vector<int> nxt(k), prv(k), owner(k);
+    auto& nxt = hole.nxt;
+    auto& prv = hole.prv;
+    auto& owner = hole.owner;
+    nxt.resize(k);
+    prv.resize(k);
+    owner.resize(k);
     for (std::size_t i = 0; i < k; ++i) {
       nxt[i] = static_cast<int>((i + 1) % k);
       prv[i] = static_cast<int>((i + k - 1) % k);
@@ -180,13 +204,15 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     bool relaxed = false;
     while (left > 3) {
       const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
-      const XY &a = mesh_.xy(hole.ring[static_cast<std::size_t>(p)]), &b = mesh_.xy(hole.ring[static_cast<std::size_t>(c)]),
+      const XY &a = mesh_.xy(hole.ring[static_cast<std::size_t>(p)]),
+               &b = mesh_.xy(hole.ring[static_cast<std::size_t>(c)]),
                &d = mesh_.xy(hole.ring[static_cast<std::size_t>(n)]);
       const double side = orient2d(a, d, pv);
       if (orient2d(a, b, d) > 0.0 && (side > 0.0 || (relaxed && side == 0.0))) {
-        const int L = hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
-                               hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)], -0x7FFFFFFF,
-                               owner[static_cast<std::size_t>(p)]);
+        const int L =
+            hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
+                     hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)],
+                     kUnset, owner[static_cast<std::size_t>(p)]);
         owner[static_cast<std::size_t>(p)] = L * 3 + 1;
         nxt[static_cast<std::size_t>(p)] = n;
         prv[static_cast<std::size_t>(n)] = p;
@@ -198,26 +224,28 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
       }
       c = n;
       if (++misses > static_cast<int>(left)) {
-        if (relaxed) return Error(ErrorCode::internal, name + ": no ear in its star polygon");
+        if (relaxed) return Error(ErrorCode::internal, name() + ": no ear in its star polygon");
         relaxed = true;  // only when v lies on every candidate diagonal (k = 4, a "square")
         misses = 0;
       }
     }
     const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
-    hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)], hole.ring[static_cast<std::size_t>(n)],
-             owner[static_cast<std::size_t>(c)], owner[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(p)]);
+    hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
+             hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)],
+             owner[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(p)]);
   }
 
   // Lawson flips inside the hole (finite local triangles, unfixed local edges only).
-  std::vector<std::pair<int, int>> st;
+  auto& st = hole.flips;
+  st.clear();
   for (std::size_t L = 0; L < hole.tris.size(); ++L) {
     for (int i = 0; i < 3; ++i) {
       if (hole.adj[L][static_cast<std::size_t>(i)] >= 0) st.emplace_back(static_cast<int>(L), i);
     }
   }
   auto finite = [&](int L) {
-    const auto& t = hole.tris[static_cast<std::size_t>(L)];
-    return t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex;
+    const auto& tr = hole.tris[static_cast<std::size_t>(L)];
+    return tr[0] != kInfiniteVertex && tr[1] != kInfiniteVertex && tr[2] != kInfiniteVertex;
   };
   std::size_t guard = 0;
   while (!st.empty()) {
@@ -229,13 +257,18 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     const int U = o / 3, j = o % 3;
     const auto uU = static_cast<std::size_t>(U);
     const VertexTriple T = hole.tris[uL], S = hole.tris[uU];
-    if (incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]), mesh_.xy(S[static_cast<std::size_t>(j)])) <= 0.0) continue;
-    if (++guard > 64 * hole.tris.size() * hole.tris.size() + 64) return Error(ErrorCode::internal, name + ": flips do not converge");
+    if (incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]),
+                 mesh_.xy(S[static_cast<std::size_t>(j)])) <= 0.0)
+      continue;
+    if (++guard > 64 * hole.tris.size() * hole.tris.size() + 64)
+      return Error(ErrorCode::internal, name() + ": flips do not converge");
     // Same flip as Mesh::flip: T = (p, u, w), S = (q, w, u) -> T = (p, u, q), S = (q, w, p).
     const VertexId p = T[static_cast<std::size_t>(i)], u = T[static_cast<std::size_t>(next3(i))],
                    w = T[static_cast<std::size_t>(prev3(i))], q = S[static_cast<std::size_t>(j)];
-    const int A = hole.adj[uL][static_cast<std::size_t>(next3(i))], B = hole.adj[uL][static_cast<std::size_t>(prev3(i))];
-    const int C = hole.adj[uU][static_cast<std::size_t>(next3(j))], D = hole.adj[uU][static_cast<std::size_t>(prev3(j))];
+    const int A = hole.adj[uL][static_cast<std::size_t>(next3(i))],
+              B = hole.adj[uL][static_cast<std::size_t>(prev3(i))];
+    const int C = hole.adj[uU][static_cast<std::size_t>(next3(j))],
+              D = hole.adj[uU][static_cast<std::size_t>(prev3(j))];
     const bool fA = (hole.fixed[uL] >> next3(i)) & 1u, fB = (hole.fixed[uL] >> prev3(i)) & 1u;
     const bool fC = (hole.fixed[uU] >> next3(j)) & 1u, fD = (hole.fixed[uU] >> prev3(j)) & 1u;
     hole.tris[uL] = {p, u, q};
@@ -245,7 +278,8 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     hole.fixed[uL] = static_cast<std::uint8_t>((fC ? 1u : 0u) | (fB ? 4u : 0u));
     hole.fixed[uU] = static_cast<std::uint8_t>((fA ? 1u : 0u) | (fD ? 4u : 0u));
     auto relink = [&](int code_, int target) {
-      if (code_ >= 0) hole.adj[static_cast<std::size_t>(code_ / 3)][static_cast<std::size_t>(code_ % 3)] = target;
+      if (code_ >= 0)
+        hole.adj[static_cast<std::size_t>(code_ / 3)][static_cast<std::size_t>(code_ % 3)] = target;
     };
     relink(C, L * 3 + 0);
     relink(B, L * 3 + 2);
@@ -260,13 +294,14 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
 }
 
 Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) const {
-  Hole hole;
+  Hole& hole = hole_;
   Result<bool> planned = plan_removal(v, hole);
   if (!planned.ok()) return planned.error();
   std::vector<VertexTriple> out;
   if (hole.degenerate) return out;
   for (const auto& t : hole.tris) {
-    if (t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex) out.push_back(t);
+    if (t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex)
+      out.push_back(t);
   }
   return out;
 }
@@ -291,7 +326,7 @@ Status Triangulation::remove_vertex(VertexId v) {
     --live_vertices_;
     return {};
   }
-  Hole hole;
+  Hole& hole = hole_;
   Result<bool> planned = plan_removal(v, hole);
   if (!planned.ok()) return planned.error();
   if (hole.degenerate) {
@@ -301,8 +336,7 @@ Status Triangulation::remove_vertex(VertexId v) {
   }
   // Re-use the star's triangle slots for the new triangles and free the two left over.
   const std::size_t nnew = hole.tris.size();
-  std::vector<TriangleId> id(nnew);
-  for (std::size_t L = 0; L < nnew; ++L) id[L] = hole.star[L];
+  const std::vector<TriangleId>& id = hole.star;
   for (std::size_t L = nnew; L < hole.star.size(); ++L) mesh_.free_triangle(hole.star[L]);
   for (std::size_t L = 0; L < nnew; ++L) {
     const auto& t = hole.tris[L];
@@ -318,7 +352,8 @@ Status Triangulation::remove_vertex(VertexId v) {
         const auto r = static_cast<std::size_t>(-o - 1);
         const TriangleId out = hole.outer[r];
         mesh_.link(id[L], i, out, hole.outer_index[r]);
-        mesh_.set_constrained(id[L], i, out != kNone && mesh_.constrained(out, hole.outer_index[r]));
+        mesh_.set_constrained(id[L], i,
+                              out != kNone && mesh_.constrained(out, hole.outer_index[r]));
       }
     }
     for (VertexId w : hole.tris[L]) mesh_.set_vertex_triangle(w, id[L]);
@@ -337,7 +372,8 @@ Status Triangulation::remove_vertex(VertexId v) {
         if (s[static_cast<std::size_t>(e)] != v) continue;
         const XY& other = mesh_.xy(s[static_cast<std::size_t>(1 - e)]);
         const XY& pa = mesh_.xy(hole.join_a);
-        const bool a_same_side = (pa.x - pv.x) * (other.x - pv.x) + (pa.y - pv.y) * (other.y - pv.y) > 0.0;
+        const bool a_same_side =
+            (pa.x - pv.x) * (other.x - pv.x) + (pa.y - pv.y) * (other.y - pv.y) > 0.0;
         s[static_cast<std::size_t>(e)] = a_same_side ? hole.join_b : hole.join_a;
       }
     }

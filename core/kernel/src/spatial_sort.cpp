@@ -88,7 +88,8 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
     const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz));
     keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits), i};
   }
-  const int key_bits = 2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));
+  const int key_bits =
+      2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));
   constexpr int kDigit = 11;
   for (int shift = 0; shift < key_bits; shift += kDigit) {
     std::vector<std::uint32_t> count((1u << kDigit) + 1, 0);

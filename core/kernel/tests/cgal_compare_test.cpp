@@ -32,7 +32,8 @@ using Key = std::pair<double, double>;
 struct Canon {
   std::map<Key, std::uint32_t> first;
   explicit Canon(const std::vector<Point3>& pts) {
-    for (std::size_t i = 0; i < pts.size(); ++i) first.emplace(Key{pts[i].x, pts[i].y}, static_cast<std::uint32_t>(i));
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      first.emplace(Key{pts[i].x, pts[i].y}, static_cast<std::uint32_t>(i));
   }
   std::uint32_t operator()(double x, double y) const { return first.at(Key{x, y}); }
 };
@@ -41,7 +42,9 @@ std::set<VertexTriple> ours(const Triangulation& t, const Canon& c) {
   std::set<VertexTriple> s;
   t.for_each_finite_triangle([&](TriangleId, const Triangle& tr) {
     VertexTriple k;
-    for (int i = 0; i < 3; ++i) k[static_cast<std::size_t>(i)] = c(t.xy(tr.v[static_cast<std::size_t>(i)]).x, t.xy(tr.v[static_cast<std::size_t>(i)]).y);
+    for (int i = 0; i < 3; ++i)
+      k[static_cast<std::size_t>(i)] =
+          c(t.xy(tr.v[static_cast<std::size_t>(i)]).x, t.xy(tr.v[static_cast<std::size_t>(i)]).y);
     s.insert(sorted(k));
   });
   return s;
@@ -52,7 +55,8 @@ std::set<VertexTriple> theirs(const Tr& tr, const Canon& c) {
   std::set<VertexTriple> s;
   for (auto f : tr.finite_face_handles()) {
     VertexTriple k;
-    for (int i = 0; i < 3; ++i) k[static_cast<std::size_t>(i)] = c(f->vertex(i)->point().x(), f->vertex(i)->point().y());
+    for (int i = 0; i < 3; ++i)
+      k[static_cast<std::size_t>(i)] = c(f->vertex(i)->point().x(), f->vertex(i)->point().y());
     s.insert(sorted(k));
   }
   return s;
@@ -61,18 +65,22 @@ std::set<VertexTriple> theirs(const Tr& tr, const Canon& c) {
 std::vector<std::pair<K::Point_2, std::uint32_t>> cgal_points(const std::vector<Point3>& pts) {
   std::vector<std::pair<K::Point_2, std::uint32_t>> v;
   v.reserve(pts.size());
-  for (std::size_t i = 0; i < pts.size(); ++i) v.emplace_back(K::Point_2(pts[i].x, pts[i].y), static_cast<std::uint32_t>(i));
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    v.emplace_back(K::Point_2(pts[i].x, pts[i].y), static_cast<std::uint32_t>(i));
   return v;
 }
 
 // Every triangle of ours that CGAL does not have must have a cocircular neighbour (a tie that
 // either answer may break differently); otherwise the difference is a bug.
-std::size_t non_tie_differences(const Triangulation& t, const Canon& c, const std::set<VertexTriple>& cgal) {
+std::size_t non_tie_differences(const Triangulation& t, const Canon& c,
+                                const std::set<VertexTriple>& cgal) {
   std::size_t bad = 0;
   const Mesh& m = t.mesh();
   t.for_each_finite_triangle([&](TriangleId id, const Triangle& tr) {
     VertexTriple k;
-    for (int i = 0; i < 3; ++i) k[static_cast<std::size_t>(i)] = c(t.xy(tr.v[static_cast<std::size_t>(i)]).x, t.xy(tr.v[static_cast<std::size_t>(i)]).y);
+    for (int i = 0; i < 3; ++i)
+      k[static_cast<std::size_t>(i)] =
+          c(t.xy(tr.v[static_cast<std::size_t>(i)]).x, t.xy(tr.v[static_cast<std::size_t>(i)]).y);
     if (cgal.count(sorted(k))) return;
     bool tie = false;
     for (int i = 0; i < 3; ++i) {
@@ -105,9 +113,13 @@ void compare_delaunay(const std::vector<Point3>& pts, bool expect_unique) {
   EXPECT_TRUE(s.ok()) << s.error().message;
 }
 
-TEST(CgalDelaunay, UniformRandom100kMatchesCgal) { compare_delaunay(test::uniform_points(100000, 71), true); }
+TEST(CgalDelaunay, UniformRandom100kMatchesCgal) {
+  compare_delaunay(test::uniform_points(100000, 71), true);
+}
 
-TEST(CgalDelaunay, Clustered100kMatchesCgal) { compare_delaunay(test::clustered_points(100000, 72), true); }
+TEST(CgalDelaunay, Clustered100kMatchesCgal) {
+  compare_delaunay(test::clustered_points(100000, 72), true);
+}
 
 TEST(CgalDelaunay, MercatorTileScale100kMatchesCgal) {
   compare_delaunay(test::mercator_tile_points(100000, 73), true);
@@ -124,11 +136,14 @@ TEST(CgalDelaunay, ManyDuplicatesMatchCgal) {
   compare_delaunay(pts, true);
 }
 
-TEST(CgalDelaunay, CocircularLatticeAgreesUpToTies) { compare_delaunay(test::lattice_points(320), false); }
+TEST(CgalDelaunay, CocircularLatticeAgreesUpToTies) {
+  compare_delaunay(test::lattice_points(320), false);
+}
 
 TEST(CgalDelaunay, AutzenLidarAgreesUpToTies) {
   std::vector<Point3> pts;
-  if (!test::read_las_xyz(test::autzen_path(), pts)) GTEST_SKIP() << "real data not found: " << test::autzen_path();
+  if (!test::read_las_xyz(test::autzen_path(), pts))
+    GTEST_SKIP() << "real data not found: " << test::autzen_path();
   ASSERT_GT(pts.size(), 100000u);
   compare_delaunay(pts, false);
 }
@@ -162,7 +177,8 @@ TEST(CgalConstrained, TileBorderAndRandomSegmentsMatchCgal) {
   std::uniform_real_distribution<double> u(0.1, 0.9);
   for (int i = 0; i < 100; ++i) {  // 1e4 segments, one per cell: no crossings
     for (int j = 0; j < 100; ++j) {
-      segs.push_back({Point3{(i + u(rng)) / 100, (j + u(rng)) / 100, 0}, Point3{(i + u(rng)) / 100, (j + u(rng)) / 100, 0}});
+      segs.push_back({Point3{(i + u(rng)) / 100, (j + u(rng)) / 100, 0},
+                      Point3{(i + u(rng)) / 100, (j + u(rng)) / 100, 0}});
     }
   }
   std::vector<Point3> all = pts;
@@ -176,7 +192,8 @@ TEST(CgalConstrained, TileBorderAndRandomSegmentsMatchCgal) {
   Cgal_cdt cdt;
   const auto cp = cgal_points(pts);
   cdt.insert(cp.begin(), cp.end());
-  for (const auto& s : segs) cdt.insert_constraint(K::Point_2(s[0].x, s[0].y), K::Point_2(s[1].x, s[1].y));
+  for (const auto& s : segs)
+    cdt.insert_constraint(K::Point_2(s[0].x, s[0].y), K::Point_2(s[1].x, s[1].y));
   const Canon c(all);
   EXPECT_EQ(t.num_vertices(), cdt.number_of_vertices());
   EXPECT_TRUE(ours(t, c) == theirs(cdt, c));
@@ -184,8 +201,9 @@ TEST(CgalConstrained, TileBorderAndRandomSegmentsMatchCgal) {
   EXPECT_TRUE(s.ok()) << s.error().message;
   for (std::size_t k = 0; k < 50; ++k) {
     const auto& sg = segs[k * 97 % segs.size()];
-    EXPECT_TRUE(t.is_constrained_edge(*t.find_vertex(sg[0].x, sg[0].y), *t.find_vertex(sg[1].x, sg[1].y)) ||
-                k * 97 % segs.size() < 4);
+    EXPECT_TRUE(
+        t.is_constrained_edge(*t.find_vertex(sg[0].x, sg[0].y), *t.find_vertex(sg[1].x, sg[1].y)) ||
+        k * 97 % segs.size() < 4);
   }
 }
 

@@ -41,7 +41,8 @@ TEST(Delaunay, InsertInsideMakesThreeTriangles) {
 
 TEST(Delaunay, InsertOnEdgeMakesFourTriangles) {
   Triangulation t;
-  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{2, 2, 0}, Point3{0, 2, 0}}) t.insert(p);
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{2, 2, 0}, Point3{0, 2, 0}})
+    t.insert(p);
   ASSERT_EQ(t.num_finite_triangles(), 2u);
   const InsertResult r = t.insert({1, 1, 0});  // on whichever diagonal exists
   ASSERT_EQ(r.outcome, InsertOutcome::inserted);
@@ -131,7 +132,8 @@ const Generator kGenerators[] = {
     {"clustered", [] { return test::clustered_points(300, 2); }},
     {"lattice", [] { return test::lattice_points(17); }},
     {"circle", [] { return test::circle_points(64); }},
-    {"collinear_then_more", [] {
+    {"collinear_then_more",
+     [] {
        auto p = test::collinear_points(100, 3);
        auto q = test::uniform_points(100, 4);
        p.insert(p.end(), q.begin(), q.end());
@@ -197,8 +199,10 @@ TEST(Delaunay, GeneralPositionResultDoesNotDependOnInsertionOrder) {
     b_to_input[rb[i].vertex] = static_cast<std::uint32_t>(i);
   }
   std::set<VertexTriple> sa, sb;
-  for (auto t : a.finite_triangles()) sa.insert(sorted({a_to_input[t[0]], a_to_input[t[1]], a_to_input[t[2]]}));
-  for (auto t : b.finite_triangles()) sb.insert(sorted({b_to_input[t[0]], b_to_input[t[1]], b_to_input[t[2]]}));
+  for (auto t : a.finite_triangles())
+    sa.insert(sorted({a_to_input[t[0]], a_to_input[t[1]], a_to_input[t[2]]}));
+  for (auto t : b.finite_triangles())
+    sb.insert(sorted({b_to_input[t[0]], b_to_input[t[1]], b_to_input[t[2]]}));
   EXPECT_EQ(sa, sb);
 }
 

@@ -1,10 +1,10 @@
+#include "tinstream/kernel/predicates.hpp"
+
 #include <gmpxx.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
-
-#include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::kernel {
 namespace {
@@ -116,7 +116,8 @@ TEST(Predicates, IncircleMercatorTileScaleMatchesExactSign) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int k = 0; k < 20000; ++k) {
     XY p[4];
-    for (auto& q : p) q = {0.3 + 1e-9 * std::floor(u(rng) * 16.0), -0.2 + 1e-9 * std::floor(u(rng) * 16.0)};
+    for (auto& q : p)
+      q = {0.3 + 1e-9 * std::floor(u(rng) * 16.0), -0.2 + 1e-9 * std::floor(u(rng) * 16.0)};
     p[3].y = std::nextafter(p[3].y, double(k % 2));
     ASSERT_EQ(sign(incircle(p[0], p[1], p[2], p[3])), exact_incircle(p[0], p[1], p[2], p[3])) << k;
   }
@@ -130,7 +131,8 @@ TEST(Predicates, IncircleHugeAndTinyCoordinatesMatchExactSign) {
       XY p[4];
       // lattice points (cocircular quadruples are common) kept away from 0 so that a one-ulp
       // nudge stays a normal number
-      for (auto& q : p) q = {scale * (20.0 + std::round(u(rng) * 8.0)), scale * (20.0 + std::round(u(rng) * 8.0))};
+      for (auto& q : p)
+        q = {scale * (20.0 + std::round(u(rng) * 8.0)), scale * (20.0 + std::round(u(rng) * 8.0))};
       p[3].x = std::nextafter(p[3].x, (k % 2) ? 1e300 : -1e300);
       ASSERT_EQ(sign(incircle(p[0], p[1], p[2], p[3])), exact_incircle(p[0], p[1], p[2], p[3]));
     }

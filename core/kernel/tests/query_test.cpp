@@ -45,7 +45,8 @@ TEST(Accessors, StarOfACentreVertexIsCounterClockwise) {
   const auto adj = t.adjacent_vertices(c);
   ASSERT_EQ(adj.size(), 6u);
   const auto start = std::find(adj.begin(), adj.end(), ring[0]) - adj.begin();
-  for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(adj[(static_cast<std::size_t>(start) + i) % 6], ring[i]);
+  for (std::size_t i = 0; i < 6; ++i)
+    EXPECT_EQ(adj[(static_cast<std::size_t>(start) + i) % 6], ring[i]);
   EXPECT_EQ(t.incident_triangles(c).size(), 6u);
   EXPECT_FALSE(t.is_on_hull(c));
   EXPECT_TRUE(t.is_on_hull(ring[2]));
@@ -87,7 +88,7 @@ TEST(Islands, PredicateRemovalCanLeaveSeveralIslands) {
   t.insert_bulk(test::uniform_points(2000, 64));
   // keep two disjoint discs
   t.remove_triangles_if([&](const VertexTriple& tr) {
-    const XY &a = t.xy(tr[0]);
+    const XY& a = t.xy(tr[0]);
     const double d1 = std::hypot(a.x - 0.25, a.y - 0.25), d2 = std::hypot(a.x - 0.75, a.y - 0.75);
     return d1 > 0.15 && d2 > 0.15;
   });

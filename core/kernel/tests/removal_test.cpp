@@ -90,7 +90,8 @@ const Generator kGenerators[] = {
     {"duplicates", [] { return test::duplicate_heavy_points(300, 43); }},
     {"ulp_apart", [] { return test::ulp_points(250, 44); }},
     {"mercator_tile", [] { return test::mercator_tile_points(250, 45); }},
-    {"collinear_plus_one", [] {
+    {"collinear_plus_one",
+     [] {
        auto p = test::collinear_points(40, 46);
        p.push_back({0.0, 1.0, 0.0, 0.0});
        return p;
@@ -133,8 +134,10 @@ TEST(Removal, HullVertexRemovalShrinksTheHull) {
   ASSERT_TRUE(t.is_on_hull(corner));
   ASSERT_TRUE(t.remove_vertex(corner).ok());
   expect_valid(t);
-  EXPECT_NEAR(static_cast<double>(test::triangle_area_sum(t)),
-              static_cast<double>(test::hull_area({{0, 0}, {4, 0}, {0, 4}, {2, 1}, {1, 2}, {3, 2}})), 1e-12);
+  EXPECT_NEAR(
+      static_cast<double>(test::triangle_area_sum(t)),
+      static_cast<double>(test::hull_area({{0, 0}, {4, 0}, {0, 4}, {2, 1}, {1, 2}, {3, 2}})),
+      1e-12);
 }
 
 TEST(Removal, RemovingAVertexThatLeavesCollinearPointsDropsAllTriangles) {

@@ -63,8 +63,8 @@ inline std::vector<Point3> circle_points(std::size_t n) {
     pts.push_back({std::cos(a), std::sin(a), double(i), 0.0});
   }
   // exactly cocircular: radius 5 circle through integer points
-  const int c[][2] = {{5, 0}, {4, 3}, {3, 4}, {0, 5}, {-3, 4}, {-4, 3}, {-5, 0}, {-4, -3},
-                      {-3, -4}, {0, -5}, {3, -4}, {4, -3}};
+  const int c[][2] = {{5, 0},  {4, 3},   {3, 4},   {0, 5},  {-3, 4}, {-4, 3},
+                      {-5, 0}, {-4, -3}, {-3, -4}, {0, -5}, {3, -4}, {4, -3}};
   for (auto& q : c) pts.push_back({double(q[0]) + 10.0, double(q[1]), 0.0, 0.0});
   return pts;
 }
@@ -122,8 +122,9 @@ inline VertexTriple sorted(VertexTriple t) {
 
 // Area of the convex hull of the distinct points (monotone chain, long double).
 inline long double hull_area(std::vector<Point3> pts) {
-  std::sort(pts.begin(), pts.end(),
-            [](const Point3& a, const Point3& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  std::sort(pts.begin(), pts.end(), [](const Point3& a, const Point3& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
   auto cross = [](const Point3& o, const Point3& a, const Point3& b) {
     return (long double)(a.x - o.x) * (b.y - o.y) - (long double)(a.y - o.y) * (b.x - o.x);
   };
@@ -163,12 +164,25 @@ inline bool read_las_xyz(const std::string& path, std::vector<Point3>& out) {
   if (!f) return false;
   std::vector<char> head(227);
   if (!f.read(head.data(), 227)) return false;
-  auto u32 = [&](std::size_t o) { std::uint32_t v; std::memcpy(&v, head.data() + o, 4); return v; };
-  auto u16 = [&](std::size_t o) { std::uint16_t v; std::memcpy(&v, head.data() + o, 2); return v; };
-  auto f64 = [&](std::size_t o) { double v; std::memcpy(&v, head.data() + o, 8); return v; };
+  auto u32 = [&](std::size_t o) {
+    std::uint32_t v;
+    std::memcpy(&v, head.data() + o, 4);
+    return v;
+  };
+  auto u16 = [&](std::size_t o) {
+    std::uint16_t v;
+    std::memcpy(&v, head.data() + o, 2);
+    return v;
+  };
+  auto f64 = [&](std::size_t o) {
+    double v;
+    std::memcpy(&v, head.data() + o, 8);
+    return v;
+  };
   const std::uint32_t offset = u32(96), count = u32(107);
   const std::uint16_t reclen = u16(105);
-  const double sx = f64(131), sy = f64(139), sz = f64(147), ox = f64(155), oy = f64(163), oz = f64(171);
+  const double sx = f64(131), sy = f64(139), sz = f64(147), ox = f64(155), oy = f64(163),
+               oz = f64(171);
   f.seekg(offset);
   std::vector<char> rec(reclen);
   out.clear();

@@ -172,7 +172,25 @@ class Triangulation {
   void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
   VertexId insert_intersection(VertexId a, VertexId b, TriangleId t, int edge);
 
-  struct Hole;
+  // The re-triangulated star of a vertex being removed, in local indices (see remove.cpp).
+  // Kept as a member so that removals reuse its buffers instead of allocating.
+  struct Hole {
+    std::vector<VertexId> ring;           // link vertices, counter-clockwise around v
+    std::vector<TriangleId> star;         // star[i] = (v, ring[i], ring[i + 1])
+    std::vector<TriangleId> outer;        // neighbour across ring edge i
+    std::vector<int> outer_index;         // its edge index
+    std::vector<VertexTriple> tris;       // new triangles
+    std::vector<std::array<int, 3>> adj;  // >= 0: local tri * 3 + edge; < 0: -(ring edge + 1)
+    std::vector<std::uint8_t> fixed;      // per new triangle: bit i = edge i constrained
+    std::vector<int> nxt, prv, owner, stack;
+    std::vector<VertexId> chain;
+    std::vector<std::pair<int, int>> flips;
+    VertexId join_a = kNone, join_b = kNone;
+    bool degenerate = false;
+    void clear();
+    int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
+    void convexify(const Mesh& mesh);
+  };
   Result<bool> plan_removal(VertexId v, Hole& hole) const;
   void demote_to_collinear(VertexId removed);
   TriangleId find_edge(VertexId a, VertexId b, int* index) const;
@@ -183,6 +201,7 @@ class Triangulation {
   std::vector<VertexId> pending_;  // vertices while dimension < 2
   std::vector<std::array<VertexId, 2>> segments_;
   std::vector<std::pair<TriangleId, int>> stack_;  // flip stack, kept to avoid reallocations
+  mutable Hole hole_;
   mutable TriangleId hint_ = kNone;
   // Walks in a Delaunay triangulation cannot cycle; once constraints exist they can, and the
   // walk picks its first edge at random (remembering stochastic walk).
