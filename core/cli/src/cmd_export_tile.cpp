@@ -7,7 +7,6 @@
 // 1-based, counter-clockwise seen from above. JSON carries the same plus each vertex's role,
 // NODATA flag, normalised Mercator coordinates and weight; its triangle indices are 0-based.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -40,12 +39,18 @@ int fail(const std::string& message) {
 
 const char* role_name(tile::VertexRole role) {
   switch (role) {
-    case tile::VertexRole::corner: return "corner";
-    case tile::VertexRole::north: return "north";
-    case tile::VertexRole::east: return "east";
-    case tile::VertexRole::south: return "south";
-    case tile::VertexRole::west: return "west";
-    case tile::VertexRole::interior: return "interior";
+    case tile::VertexRole::corner:
+      return "corner";
+    case tile::VertexRole::north:
+      return "north";
+    case tile::VertexRole::east:
+      return "east";
+    case tile::VertexRole::south:
+      return "south";
+    case tile::VertexRole::west:
+      return "west";
+    case tile::VertexRole::interior:
+      return "interior";
   }
   return "unknown";
 }
@@ -114,7 +119,8 @@ int export_tile(const ExportOptions& o) {
                 ")");
   }
   const geo::NormalisedMercator projection(layer->projection);
-  const std::string text = o.format == "obj" ? to_obj(**t, projection) : to_json(**t, *layer, projection);
+  const std::string text =
+      o.format == "obj" ? to_obj(**t, projection) : to_json(**t, *layer, projection);
   if (o.out.empty()) {
     std::cout << text;
     std::cout.flush();
@@ -130,7 +136,8 @@ int export_tile(const ExportOptions& o) {
 
 int run_export(ExportOptions& o) {
   const bool dir_mode = !o.dir.empty();
-  if (dir_mode && o.has_tile) return fail("give either --tile (one tile) or --dir (Cesium tree), not both");
+  if (dir_mode && o.has_tile)
+    return fail("give either --tile (one tile) or --dir (Cesium tree), not both");
   if (dir_mode) {
     if (o.layer.empty()) return fail("--layer is required with --dir");
     o.cesium.store = o.store;
@@ -138,7 +145,8 @@ int run_export(ExportOptions& o) {
     o.cesium.dir = o.dir;
     return run_export_cesium_dir(o.cesium);
   }
-  if (!o.has_tile) return fail("nothing to export: give --tile QUADKEY (one tile) or --dir DIR (Cesium tree)");
+  if (!o.has_tile)
+    return fail("nothing to export: give --tile QUADKEY (one tile) or --dir DIR (Cesium tree)");
   return export_tile(o);
 }
 
@@ -148,7 +156,8 @@ const CommandRegistration kRegistration{
       auto o = std::make_shared<ExportOptions>();
       sub.add_option("--store", o->store, "Tile store file (SQLite)")->required();
       sub.add_option("--layer", o->layer, "Layer name");
-      CLI::Option* tile = sub.add_option("--tile", o->tile, "Quadkey of the tile to export (\"\" = level 0)");
+      CLI::Option* tile =
+          sub.add_option("--tile", o->tile, "Quadkey of the tile to export (\"\" = level 0)");
       sub.add_option("--format", o->format, "Tile format: obj or json")
           ->check(CLI::IsMember({"obj", "json"}))
           ->default_val("obj");
@@ -156,7 +165,8 @@ const CommandRegistration kRegistration{
       sub.add_option("--dir", o->dir, "Output directory: static Cesium quantized-mesh tree");
       add_cesium_dir_options(sub, o->cesium);
       sub.footer(
-          "OBJ: `v <lon deg> <lat deg> <ellipsoidal height m>` per vertex (tile numbering: corners\n"
+          "OBJ: `v <lon deg> <lat deg> <ellipsoidal height m>` per vertex (tile numbering: "
+          "corners\n"
           "NW NE SW SE, north, east, south, west edges, interior), then `f a b c` per triangle\n"
           "(1-based, counter-clockwise seen from above). JSON: the same plus role, nodata,\n"
           "Mercator x/y and weight per vertex; triangle indices 0-based.");

@@ -4,7 +4,6 @@
 //   --tile       one tile's statistics: counts, vertex roles, NODATA corners, bounds (Mercator and
 //                lon/lat), stored size and ETag, and whether it passes check_structure
 #include <CLI/CLI.hpp>
-
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -89,11 +88,12 @@ int run_info(const InfoOptions& o) {
   auto stored = store->tile(o.layer, *id);
   if (!stored) return fail(stored.error().message);
   if (!stored->has_value()) {
-    return fail("layer '" + o.layer + "' has no tile " + id->to_string() + " (quadkey " +
-                o.tile + ")");
+    return fail("layer '" + o.layer + "' has no tile " + id->to_string() + " (quadkey " + o.tile +
+                ")");
   }
   auto raw = tile::decompress((*stored)->compressed);
-  if (!raw) return fail("layer '" + o.layer + "' tile " + id->to_string() + ": " + raw.error().message);
+  if (!raw)
+    return fail("layer '" + o.layer + "' tile " + id->to_string() + ": " + raw.error().message);
   auto t = tile::decode(*raw);
   if (!t) return fail("layer '" + o.layer + "' tile " + id->to_string() + ": " + t.error().message);
 
@@ -108,7 +108,11 @@ int run_info(const InfoOptions& o) {
   nlohmann::json j = {
       {"layer", o.layer},
       {"tile",
-       {{"quadkey", id->quadkey()}, {"z", id->z}, {"x", id->x}, {"y", id->y}, {"tms_y", id->tms_row()}}},
+       {{"quadkey", id->quadkey()},
+        {"z", id->z},
+        {"x", id->x},
+        {"y", id->y},
+        {"tms_y", id->tms_row()}}},
       {"vertex_count", t->vertex_count()},
       {"triangle_count", t->triangles.size()},
       {"roles",
@@ -125,11 +129,14 @@ int run_info(const InfoOptions& o) {
       {"rms_error", t->rms_error},
       {"source_points", t->source_points},
       {"bounds",
-       {{"mercator", {{"min_x", m.min_x}, {"min_y", m.min_y}, {"max_x", m.max_x}, {"max_y", m.max_y}}},
-        {"lonlat", {{"west", ll.west}, {"south", ll.south}, {"east", ll.east}, {"north", ll.north}}}}},
-      {"stored", {{"compressed_bytes", (*stored)->compressed.size()},
-                  {"encoded_bytes", raw->size()},
-                  {"etag", (*stored)->etag}}},
+       {{"mercator",
+         {{"min_x", m.min_x}, {"min_y", m.min_y}, {"max_x", m.max_x}, {"max_y", m.max_y}}},
+        {"lonlat",
+         {{"west", ll.west}, {"south", ll.south}, {"east", ll.east}, {"north", ll.north}}}}},
+      {"stored",
+       {{"compressed_bytes", (*stored)->compressed.size()},
+        {"encoded_bytes", raw->size()},
+        {"etag", (*stored)->etag}}},
       {"structure", structure.ok() ? std::string("ok") : structure.error().message}};
   std::cout << j.dump(2) << "\n";
   return 0;
@@ -140,9 +147,11 @@ const CommandRegistration kRegistration{
     [](CLI::App& sub) -> CommandRun {
       auto o = std::make_shared<InfoOptions>();
       sub.add_option("--store", o->store, "Tile store file (SQLite)")->required();
-      sub.add_option("--layer", o->layer, "Layer name: print its metadata instead of the layer list");
-      CLI::Option* tile = sub.add_option(
-          "--tile", o->tile, "Quadkey of a tile of --layer (\"\" for level 0): print its statistics");
+      sub.add_option("--layer", o->layer,
+                     "Layer name: print its metadata instead of the layer list");
+      CLI::Option* tile =
+          sub.add_option("--tile", o->tile,
+                         "Quadkey of a tile of --layer (\"\" for level 0): print its statistics");
       sub.footer(
           "Without --layer: {store, layers: [summary…]}. With --layer: the layer's metadata.\n"
           "With --tile: counts, vertex roles, NODATA corners, bounds in normalised Mercator and\n"

@@ -26,7 +26,8 @@ struct CesiumDirExport {
   // The Cesium exporter may add fields here, filled by the options it registers below.
 };
 
-// Registers options specific to the --dir mode on the `export` subcommand (called once, at start-up).
+// Registers options specific to the --dir mode on the `export` subcommand (called once, at
+// start-up).
 void add_cesium_dir_options(CLI::App& export_command, CesiumDirExport& request);
 
 // Runs the export; returns the process exit status, printing one-line errors to stderr.

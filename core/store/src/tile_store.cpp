@@ -26,8 +26,8 @@
 
 #include "etag.hpp"
 #include "schema.hpp"
-#include "writer_test_access.hpp"
 #include "tinstream/tile/codec.hpp"
+#include "writer_test_access.hpp"
 
 namespace tinstream::store {
 
@@ -62,11 +62,17 @@ class Query {
     }
   }
 
-  Query& bind(int i, std::int64_t v) { (void)sqlite3_bind_int64(s_, i, v); return *this; }
+  Query& bind(int i, std::int64_t v) {
+    (void)sqlite3_bind_int64(s_, i, v);
+    return *this;
+  }
   Query& bind(int i, std::uint64_t v) { return bind(i, static_cast<std::int64_t>(v)); }
   Query& bind(int i, std::uint32_t v) { return bind(i, static_cast<std::int64_t>(v)); }
   Query& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
-  Query& bind(int i, double v) { (void)sqlite3_bind_double(s_, i, v); return *this; }
+  Query& bind(int i, double v) {
+    (void)sqlite3_bind_double(s_, i, v);
+    return *this;
+  }
   Query& bind(int i, std::string_view v) {
     (void)sqlite3_bind_text(s_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
     return *this;
@@ -75,7 +81,10 @@ class Query {
     (void)sqlite3_bind_blob64(s_, i, v.data(), v.size(), SQLITE_STATIC);
     return *this;
   }
-  Query& bind_null(int i) { (void)sqlite3_bind_null(s_, i); return *this; }
+  Query& bind_null(int i) {
+    (void)sqlite3_bind_null(s_, i);
+    return *this;
+  }
 
   int step() { return sqlite3_step(s_); }
   // Makes the statement reusable within the same Query (new bindings, new step).
@@ -97,8 +106,9 @@ class Query {
   bool is_null(int c) const { return sqlite3_column_type(s_, c) == SQLITE_NULL; }
   std::string text(int c) const {
     const auto* p = sqlite3_column_text(s_, c);
-    return p == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(p),
-                                                     static_cast<std::size_t>(sqlite3_column_bytes(s_, c)));
+    return p == nullptr ? std::string()
+                        : std::string(reinterpret_cast<const char*>(p),
+                                      static_cast<std::size_t>(sqlite3_column_bytes(s_, c)));
   }
   std::vector<std::uint8_t> blob(int c) const {
     const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(s_, c));
@@ -228,8 +238,8 @@ struct TileStore::Impl {
 
   Error sql_error(const std::string& what) const {
     const int code = db ? sqlite3_errcode(db.get()) : SQLITE_ERROR;
-    std::string message = path.string() + ": " + what + ": " +
-                          (db ? sqlite3_errmsg(db.get()) : sqlite3_errstr(code));
+    std::string message =
+        path.string() + ": " + what + ": " + (db ? sqlite3_errmsg(db.get()) : sqlite3_errstr(code));
     switch (code) {
       case SQLITE_NOTADB:
       case SQLITE_CORRUPT:
@@ -349,8 +359,9 @@ struct TileStore::Impl {
 
   Result<std::vector<geo::TileId>> ids(std::int64_t version, std::optional<std::uint32_t> level,
                                        const std::string& what) {
-    auto q = level ? query("SELECT z, x, y FROM tiles WHERE version = ?1 AND z = ?2 ORDER BY z, x, y")
-                   : query("SELECT z, x, y FROM tiles WHERE version = ?1 ORDER BY z, x, y");
+    auto q = level
+                 ? query("SELECT z, x, y FROM tiles WHERE version = ?1 AND z = ?2 ORDER BY z, x, y")
+                 : query("SELECT z, x, y FROM tiles WHERE version = ?1 ORDER BY z, x, y");
     if (!q) return q.error();
     q->bind(1, version);
     if (level) q->bind(2, *level);
@@ -569,7 +580,8 @@ Result<std::optional<tile::TinTile>> TileStore::read_tile(std::string_view layer
   if (!raw) return Error(raw.error().code, where + raw.error().message);
   auto decoded = tile::decode(*raw);
   if (!decoded) return Error(decoded.error().code, where + decoded.error().message);
-  if (decoded->id != id) return corrupt_data(where + "the blob holds tile " + decoded->id.to_string());
+  if (decoded->id != id)
+    return corrupt_data(where + "the blob holds tile " + decoded->id.to_string());
   return std::optional<tile::TinTile>(std::move(*decoded));
 }
 
@@ -618,9 +630,7 @@ struct LayerWriter::Impl {
   // Testing only (LayerWriterTestAccess): called inside the flush transaction after each row.
   std::function<void(std::size_t rows_in_transaction)> after_row_written;
 
-  std::string what() const {
-    return "layer '" + name + "' version " + std::to_string(version);
-  }
+  std::string what() const { return "layer '" + name + "' version " + std::to_string(version); }
   Status usable() const {
     if (state == State::published) return invalid_argument(what() + " is already published");
     if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
@@ -689,7 +699,8 @@ Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& inf
     insert->bind(18, info.point_count).bind(19, info.source_points);
     insert->bind(20, info.min_z).bind(21, info.max_z).bind(22, errors);
     insert->bind(23, info.options_json).bind(24, info.attribution).bind(25, now_unix());
-    if (!Impl::done(*insert)) return impl_->sql_error("creating a version of layer '" + info.name + "'");
+    if (!Impl::done(*insert))
+      return impl_->sql_error("creating a version of layer '" + info.name + "'");
     version = sqlite3_last_insert_rowid(impl_->db.get());
     return {};
   });
@@ -722,7 +733,8 @@ Status LayerWriter::Impl::flush() {
       q->bind_blob(5, t.compressed).bind(6, t.etag);
       q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
       q->bind(10, t.vertex_count).bind(11, t.triangle_count);
-      if (!TileStore::Impl::done(*q)) return db.sql_error("writing " + what() + " tile " + t.id.to_string());
+      if (!TileStore::Impl::done(*q))
+        return db.sql_error("writing " + what() + " tile " + t.id.to_string());
       q->reset();
       if (after_row_written) after_row_written(i + 1);
     }
@@ -737,7 +749,8 @@ Status LayerWriter::Impl::flush() {
 
 Status LayerWriter::put(const tile::TinTile& t) {
   if (Status s = impl_->usable(); !s) return s;
-  if (!t.id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + t.id.to_string());
+  if (!t.id.valid())
+    return invalid_argument(impl_->what() + ": invalid tile id " + t.id.to_string());
   const std::size_t vertices = t.vertex_count();
   if (vertices > 0xFFFFFFFFu || t.triangles.size() > 0xFFFFFFFFu) {
     return invalid_argument(impl_->what() + " tile " + t.id.to_string() +
@@ -801,7 +814,8 @@ Status LayerWriter::publish(const LayerInfo& info) {
     auto count = store.query("SELECT count(*) FROM tiles WHERE version = ?1");
     if (!count) return count.error();
     count->bind(1, version);
-    if (count->step() != SQLITE_ROW) return store.sql_error("counting the tiles of " + impl_->what());
+    if (count->step() != SQLITE_ROW)
+      return store.sql_error("counting the tiles of " + impl_->what());
     const std::int64_t tiles = count->i64(0);
 
     auto update = store.query(
@@ -871,7 +885,8 @@ Status validate_layer_name(std::string_view name) {
         s += c;
       } else {
         char hex[8];
-        std::snprintf(hex, sizeof hex, "\\x%02x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+        std::snprintf(hex, sizeof hex, "\\x%02x",
+                      static_cast<unsigned>(static_cast<unsigned char>(c)));
         s += hex;
       }
     }

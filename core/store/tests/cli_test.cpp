@@ -81,7 +81,9 @@ class CliTest : public ::testing::Test {
 };
 
 // Spherical Mercator inverse, written independently of core/geo.
-double lat_from_y(double y) { return std::atan(std::sinh(std::numbers::pi * y)) * 180.0 / std::numbers::pi; }
+double lat_from_y(double y) {
+  return std::atan(std::sinh(std::numbers::pi * y)) * 180.0 / std::numbers::pi;
+}
 
 std::size_t decimals(const std::string& token) {
   const auto dot = token.find('.');
@@ -112,7 +114,8 @@ TEST_F(CliTest, InfoShowsOneLayer) {
 
 TEST_F(CliTest, InfoShowsOneTile) {
   const std::string qk = tile_.id.quadkey();
-  const ProcessResult r = run(dir_, {"info", "--store", path_.string(), "--layer", "dem", "--tile", qk});
+  const ProcessResult r =
+      run(dir_, {"info", "--store", path_.string(), "--layer", "dem", "--tile", qk});
   ASSERT_EQ(r.status, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["tile"]["quadkey"], qk);
@@ -128,14 +131,15 @@ TEST_F(CliTest, InfoShowsOneTile) {
   EXPECT_NEAR(j["bounds"]["lonlat"]["north"].get<double>(), lat_from_y(b.max_y), 1e-9);
   EXPECT_NEAR(j["bounds"]["lonlat"]["west"].get<double>(), 180.0 * b.min_x, 1e-9);
   // The level-0 tile is the empty quadkey.
-  const ProcessResult w = run(dir_, {"info", "--store", path_.string(), "--layer", "dem", "--tile", ""});
+  const ProcessResult w =
+      run(dir_, {"info", "--store", path_.string(), "--layer", "dem", "--tile", ""});
   ASSERT_EQ(w.status, 0) << w.err;
   EXPECT_EQ(nlohmann::json::parse(w.out)["tile"]["z"], 0);
 }
 
 TEST_F(CliTest, ExportObjIsParsableCcwAndPrecise) {
-  const ProcessResult r = run(dir_, {"export", "--store", path_.string(), "--layer", "dem", "--tile",
-                           tile_.id.quadkey(), "--format", "obj"});
+  const ProcessResult r = run(dir_, {"export", "--store", path_.string(), "--layer", "dem",
+                                     "--tile", tile_.id.quadkey(), "--format", "obj"});
   ASSERT_EQ(r.status, 0) << r.err;
   std::istringstream in(r.out);
   std::string line;
@@ -187,8 +191,9 @@ TEST_F(CliTest, ExportObjIsParsableCcwAndPrecise) {
 
 TEST_F(CliTest, ExportJsonCarriesRolesNodataAndMercator) {
   const auto out = dir_ / "tile.json";
-  const ProcessResult r = run(dir_, {"export", "--store", path_.string(), "--layer", "dem", "--tile",
-                           tile_.id.quadkey(), "--format", "json", "--out", out.string()});
+  const ProcessResult r =
+      run(dir_, {"export", "--store", path_.string(), "--layer", "dem", "--tile",
+                 tile_.id.quadkey(), "--format", "json", "--out", out.string()});
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_TRUE(r.out.empty());
   const auto j = nlohmann::json::parse(slurp(out));
@@ -240,7 +245,9 @@ TEST_F(CliTest, ErrorsAreOneLineAndNonZero) {
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.err.find(notes.string()), std::string::npos) << bad.err;
   EXPECT_NE(run(dir_, {"export", "--store", path_.string(), "--layer", "dem", "--tile", "0",
-                       "--format", "ply"}).status, 0);
+                       "--format", "ply"})
+                .status,
+            0);
 }
 
 TEST_F(CliTest, HelpTexts) {

@@ -33,7 +33,8 @@ std::vector<TinTile> level_tiles(std::uint32_t z, std::uint64_t seed, std::size_
 }
 
 // Everything the published layer serves, as raw stored bytes per tile.
-std::map<geo::TileId, std::vector<std::uint8_t>> snapshot(TileStore& store, const std::string& layer) {
+std::map<geo::TileId, std::vector<std::uint8_t>> snapshot(TileStore& store,
+                                                          const std::string& layer) {
   std::map<geo::TileId, std::vector<std::uint8_t>> out;
   auto ids = store.tile_ids(layer);
   if (!ids) return out;
@@ -61,7 +62,7 @@ enum class Death { sigkill, exit_in_transaction };
       const char byte = 'w';
       if (write(pipe_fd, &byte, 1) != 1) _exit(13);
       if (death == Death::exit_in_transaction) _exit(0);  // no destructors, transaction open
-      for (;;) pause();                                    // hold the transaction until killed
+      for (;;) pause();                                   // hold the transaction until killed
     }
   });
   std::mt19937_64 rng(99);

@@ -16,7 +16,8 @@ namespace tinstream::store::testing {
 class TempDir {
  public:
   TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "tinstream-store-XXXXXX").string();
+    std::string pattern =
+        (std::filesystem::temp_directory_path() / "tinstream-store-XXXXXX").string();
     if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
     path_ = pattern;
   }

@@ -265,7 +265,9 @@ TEST(TileStore, ReingestReplacesTheLayerAndDropsTheOldVersion) {
   ASSERT_EQ(ids->size(), 1u);
   EXPECT_EQ((*ids)[0], only.id);
   EXPECT_EQ(sql_value(path, "SELECT count(*) FROM layer_versions"), "2");
-  EXPECT_EQ(sql_value(path, "SELECT count(*) FROM tiles WHERE version = " + std::to_string(v1->version)), "0");
+  EXPECT_EQ(
+      sql_value(path, "SELECT count(*) FROM tiles WHERE version = " + std::to_string(v1->version)),
+      "0");
   EXPECT_EQ(store.tile_ids("other")->size(), 3u);
   EXPECT_EQ(sql_value(path, "SELECT count(*) FROM published_tiles WHERE layer = 'dem'"), "1");
 }
@@ -315,7 +317,7 @@ TEST(TileStore, PutOfTheSameIdReplacesTheTile) {
   ASSERT_TRUE((*w)->put(second).ok());
   EXPECT_TRUE(same_tile(**(*w)->get(second.id), second));  // pending beats flushed
   ASSERT_TRUE((*w)->put(first).ok());
-  EXPECT_TRUE(same_tile(**(*w)->get(first.id), first));    // latest pending wins
+  EXPECT_TRUE(same_tile(**(*w)->get(first.id), first));  // latest pending wins
   ASSERT_TRUE((*w)->publish(basic_info("dem")).ok());
   EXPECT_TRUE(same_tile(**store.read_tile("dem", first.id), first));
   EXPECT_EQ(store.layer("dem")->tile_count, 1u);
@@ -466,7 +468,8 @@ TEST(TileStore, ReadOnlyOpenOfAMissingFileIsNotFound) {
   EXPECT_EQ(s.error().code, ErrorCode::not_found);
   EXPECT_NE(s.error().message.find(path.string()), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(path));
-  auto in_missing_dir = TileStore::open(dir / "no/such/dir/a.tinstream", TileStore::Mode::read_write);
+  auto in_missing_dir =
+      TileStore::open(dir / "no/such/dir/a.tinstream", TileStore::Mode::read_write);
   ASSERT_FALSE(in_missing_dir.ok());
   EXPECT_NE(in_missing_dir.error().message.find("no/such/dir"), std::string::npos);
 }
@@ -474,7 +477,10 @@ TEST(TileStore, ReadOnlyOpenOfAMissingFileIsNotFound) {
 TEST(TileStore, ReadOnlyStoreRefusesWrites) {
   TempDir dir;
   const auto path = dir / "a.tinstream";
-  { auto store = open_rw(path); write_layer(store, "dem", some_tiles(17, 2)); }
+  {
+    auto store = open_rw(path);
+    write_layer(store, "dem", some_tiles(17, 2));
+  }
   auto ro = open_ro(path);
   EXPECT_FALSE(ro.begin_layer(basic_info("x")).ok());
   EXPECT_FALSE(ro.delete_layer("dem").ok());
@@ -485,7 +491,10 @@ TEST(TileStore, ReopenKeepsEverythingAndTheFileIsInWalMode) {
   TempDir dir;
   const auto path = dir / "a.tinstream";
   const auto tiles = some_tiles(18);
-  { auto store = open_rw(path); write_layer(store, "dem", tiles); }
+  {
+    auto store = open_rw(path);
+    write_layer(store, "dem", tiles);
+  }
   EXPECT_EQ(sql_value(path, "PRAGMA journal_mode"), "wal");
   EXPECT_EQ(sql_value(path, "SELECT value FROM metadata WHERE name = 'format'"), "tinstream-store");
   auto store = open_rw(path);
@@ -521,7 +530,8 @@ TEST(LayerName, Validation) {
     EXPECT_TRUE(validate_layer_name(good).ok()) << good;
   }
   EXPECT_TRUE(validate_layer_name(std::string(64, 'x')).ok());
-  for (const char* bad : {"", ".hidden", "..", "a/b", "a\\b", "a b", "dem?", "ä", "a:b", "%2e%2e"}) {
+  for (const char* bad :
+       {"", ".hidden", "..", "a/b", "a\\b", "a b", "dem?", "ä", "a:b", "%2e%2e"}) {
     EXPECT_FALSE(validate_layer_name(bad).ok()) << bad;
   }
   EXPECT_FALSE(validate_layer_name(std::string(65, 'x')).ok());

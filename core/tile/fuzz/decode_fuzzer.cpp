@@ -3,8 +3,8 @@
 // Properties: decode never crashes, never allocates beyond what the input can describe, and what it
 // accepts re-encodes to the same bytes (the format is canonical); check_structure must not crash on
 // whatever decode accepts. The same input is also fed through decompress() with a small limit.
-#include <cstdint>
 #include <algorithm>
+#include <cstdint>
 #include <cstdlib>
 #include <span>
 

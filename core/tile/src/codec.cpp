@@ -135,8 +135,8 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes) {
   const std::uint16_t version = r.u16();
   if (version != kVersion) {
     return unsupported("tile blob: format version " + std::to_string(version) +
-                       " is not supported (this build reads version " +
-                       std::to_string(kVersion) + ")");
+                       " is not supported (this build reads version " + std::to_string(kVersion) +
+                       ")");
   }
   const std::uint8_t index_width = r.u8();
   const std::uint8_t nodata = r.u8();
@@ -167,8 +167,8 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes) {
     return corrupt_data(name + "triangle index width " + std::to_string(index_width) +
                         " does not match " + std::to_string(vertex_count) + " vertices");
   }
-  const std::uint64_t expected_size = kHeaderSize + vertex_count * kVertexSize +
-                                      std::uint64_t{triangle_count} * 3 * index_width;
+  const std::uint64_t expected_size =
+      kHeaderSize + vertex_count * kVertexSize + std::uint64_t{triangle_count} * 3 * index_width;
   if (expected_size != bytes.size()) {
     return corrupt_data(name + "counts (" + std::to_string(vertex_count) + " vertices, " +
                         std::to_string(triangle_count) + " triangles) need " +
@@ -194,7 +194,8 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes) {
     v.z = r.f64();
     v.weight = r.f64();
     ++vertex_index;
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && std::isfinite(v.weight);
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) &&
+           std::isfinite(v.weight);
   };
   const auto non_finite = [&] {
     return corrupt_data(name + "vertex " + std::to_string(vertex_index - 1) +
@@ -204,7 +205,7 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes) {
     if (!read_vertex(v)) return non_finite();
   }
   std::array<std::vector<Vertex>*, 5> lists{&tile.north, &tile.east, &tile.south, &tile.west,
-                                           &tile.interior};
+                                            &tile.interior};
   for (std::size_t l = 0; l < lists.size(); ++l) {
     lists[l]->resize(list_sizes[l]);
     for (Vertex& v : *lists[l]) {
@@ -267,8 +268,8 @@ Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes
       if (rc == Z_BUF_ERROR && stream.avail_in == 0 && input_used == bytes.size()) {
         return corrupt_data("zlib: truncated stream");
       }
-      return corrupt_data("zlib: inflated data exceed the limit of " +
-                          std::to_string(max_output) + " bytes");
+      return corrupt_data("zlib: inflated data exceed the limit of " + std::to_string(max_output) +
+                          " bytes");
     }
     const std::size_t old = out.size();
     const std::size_t grow = std::min(std::max(kChunk, old), max_output - old);

@@ -76,10 +76,18 @@ std::vector<Vertex> TinTile::border(geo::Direction side) const {
   std::size_t first = 0, last = 0;
   const std::vector<Vertex>* list = nullptr;
   switch (side) {
-    case geo::Direction::north: first = 0, last = 1, list = &north; break;
-    case geo::Direction::east: first = 1, last = 3, list = &east; break;
-    case geo::Direction::south: first = 2, last = 3, list = &south; break;
-    case geo::Direction::west: first = 0, last = 2, list = &west; break;
+    case geo::Direction::north:
+      first = 0, last = 1, list = &north;
+      break;
+    case geo::Direction::east:
+      first = 1, last = 3, list = &east;
+      break;
+    case geo::Direction::south:
+      first = 2, last = 3, list = &south;
+      break;
+    case geo::Direction::west:
+      first = 0, last = 2, list = &west;
+      break;
   }
   std::vector<Vertex> out;
   if (list == nullptr) return out;
@@ -153,9 +161,9 @@ Status check_structure(const TinTile& tile) {
   struct Side {
     const char* label;
     const std::vector<Vertex>* list;
-    bool along_x;      // the coordinate that varies along the edge is x
-    double fixed;      // the exact value of the other coordinate
-    bool increasing;   // edge order
+    bool along_x;     // the coordinate that varies along the edge is x
+    double fixed;     // the exact value of the other coordinate
+    bool increasing;  // edge order
   };
   const std::array<Side, 4> sides{{{"north", &tile.north, true, r.max_y, true},
                                    {"east", &tile.east, false, r.max_x, false},
@@ -168,8 +176,8 @@ Status check_structure(const TinTile& tile) {
       const Vertex& v = (*s.list)[i];
       const double along = s.along_x ? v.x : v.y;
       const double across = s.along_x ? v.y : v.x;
-      const std::string where = name + ": " + s.label + " edge point " + std::to_string(i) + " " +
-                                point_text(v);
+      const std::string where =
+          name + ": " + s.label + " edge point " + std::to_string(i) + " " + point_text(v);
       if (across != s.fixed) return invalid_argument(where + " is not exactly on the border");
       const bool ordered = s.increasing ? along > previous : along < previous;
       if (!ordered) {
@@ -189,8 +197,8 @@ Status check_structure(const TinTile& tile) {
   for (std::size_t i = 0; i < tile.interior.size(); ++i) {
     const Vertex& v = tile.interior[i];
     if (!(v.x > r.min_x && v.x < r.max_x && v.y > r.min_y && v.y < r.max_y)) {
-      return invalid_argument(name + ": interior point " + std::to_string(i) + " " +
-                              point_text(v) + " is not strictly inside the tile");
+      return invalid_argument(name + ": interior point " + std::to_string(i) + " " + point_text(v) +
+                              " is not strictly inside the tile");
     }
   }
 
@@ -220,9 +228,8 @@ Status check_structure(const TinTile& tile) {
     area2 += bx * cy - by * cx;
   }
   const double expected = 2 * r.width() * r.height();
-  const double tolerance =
-      expected * (1e-12 + 64.0 * std::numeric_limits<double>::epsilon() *
-                              static_cast<double>(tile.triangles.size()));
+  const double tolerance = expected * (1e-12 + 64.0 * std::numeric_limits<double>::epsilon() *
+                                                   static_cast<double>(tile.triangles.size()));
   if (std::abs(area2 - expected) > tolerance) {
     return invalid_argument(name + ": triangles cover " + fmt(area2 / expected) +
                             " of the tile area (overlaps or holes)");

@@ -1,3 +1,5 @@
+#include "tinstream/tile/codec.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -7,7 +9,6 @@
 #include <random>
 
 #include "test_tiles.hpp"
-#include "tinstream/tile/codec.hpp"
 
 namespace tinstream::tile {
 namespace {
@@ -23,7 +24,8 @@ TinTile random_tile(std::mt19937_64& rng, std::uint32_t max_cells = 12) {
 }
 
 void put_u32(std::vector<std::uint8_t>& b, std::size_t at, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+  for (int i = 0; i < 4; ++i)
+    b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 
 TEST(Codec, RoundTripsRandomTilesBitExactly) {
@@ -82,11 +84,11 @@ TEST(Codec, HeaderLayoutMatchesTheSpecification) {
   EXPECT_EQ(b[8], 3);
   EXPECT_EQ(b[12], 5);
   EXPECT_EQ(b[16], 6);
-  EXPECT_EQ(b[20], 1);  // north count
-  EXPECT_EQ(b[24], 2);  // east count
-  EXPECT_EQ(b[28], 1);  // south
-  EXPECT_EQ(b[32], 2);  // west
-  EXPECT_EQ(b[36], 2);  // interior
+  EXPECT_EQ(b[20], 1);   // north count
+  EXPECT_EQ(b[24], 2);   // east count
+  EXPECT_EQ(b[28], 1);   // south
+  EXPECT_EQ(b[32], 2);   // west
+  EXPECT_EQ(b[36], 2);   // interior
   EXPECT_EQ(b[40], 12);  // triangles
   double first_x = 0;
   std::memcpy(&first_x, b.data() + 84, 8);  // little-endian host assumed by this check
@@ -184,10 +186,19 @@ TEST(Codec, MiniFuzzRandomByteFlips) {
     const int flips = 1 + static_cast<int>(rng() % 4);
     for (int f = 0; f < flips; ++f) {
       switch (rng() % 4) {
-        case 0: b[rng() % b.size()] ^= static_cast<std::uint8_t>(1u << (rng() % 8)); break;
-        case 1: b[rng() % b.size()] = static_cast<std::uint8_t>(rng()); break;
-        case 2: b[rng() % 84] = static_cast<std::uint8_t>(rng()); break;  // header
-        case 3: b.resize(rng() % (b.size() + 1)); if (b.empty()) b.push_back(0); break;
+        case 0:
+          b[rng() % b.size()] ^= static_cast<std::uint8_t>(1u << (rng() % 8));
+          break;
+        case 1:
+          b[rng() % b.size()] = static_cast<std::uint8_t>(rng());
+          break;
+        case 2:
+          b[rng() % 84] = static_cast<std::uint8_t>(rng());
+          break;  // header
+        case 3:
+          b.resize(rng() % (b.size() + 1));
+          if (b.empty()) b.push_back(0);
+          break;
       }
     }
     const auto r = decode(b);
@@ -283,7 +294,8 @@ namespace {
 // The fuzzer's seed corpus was written by an independent Python encoder following
 // docs/tile-format.md, so this also checks the specification against the implementation.
 TEST(Codec, SeedCorpusFromTheSpecificationDecodes) {
-  const std::filesystem::path dir = std::filesystem::path(TINSTREAM_SOURCE_DIR) / "core/tile/fuzz/corpus";
+  const std::filesystem::path dir =
+      std::filesystem::path(TINSTREAM_SOURCE_DIR) / "core/tile/fuzz/corpus";
   int tiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     std::ifstream in(entry.path(), std::ios::binary);

@@ -113,11 +113,10 @@ bool same_double(double a, double b) {
 bool same_tile(const TinTile& a, const TinTile& b) {
   return a.id == b.id && a.corner_nodata == b.corner_nodata &&
          std::equal(a.corners.begin(), a.corners.end(), b.corners.begin(), same_vertex) &&
-         same_list(a.north, b.north) && same_list(a.east, b.east) &&
-         same_list(a.south, b.south) && same_list(a.west, b.west) &&
-         same_list(a.interior, b.interior) && a.triangles == b.triangles &&
-         same_double(a.min_z, b.min_z) && same_double(a.max_z, b.max_z) &&
-         same_double(a.geometric_error, b.geometric_error) &&
+         same_list(a.north, b.north) && same_list(a.east, b.east) && same_list(a.south, b.south) &&
+         same_list(a.west, b.west) && same_list(a.interior, b.interior) &&
+         a.triangles == b.triangles && same_double(a.min_z, b.min_z) &&
+         same_double(a.max_z, b.max_z) && same_double(a.geometric_error, b.geometric_error) &&
          same_double(a.rms_error, b.rms_error) && a.source_points == b.source_points;
 }
 

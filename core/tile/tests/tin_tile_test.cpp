@@ -1,3 +1,5 @@
+#include "tinstream/tile/tin_tile.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -5,7 +7,6 @@
 
 #include "exact_orientation.hpp"
 #include "test_tiles.hpp"
-#include "tinstream/tile/tin_tile.hpp"
 
 namespace tinstream::tile {
 namespace {
@@ -187,8 +188,10 @@ TEST(ExactOrientation, MatchesIntegerArithmetic) {
   };
   for (int i = 0; i < 200000; ++i) {
     const std::int64_t range = std::int64_t{1} << 40;
-    const std::int64_t b0 = static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
-    const std::int64_t b1 = static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
+    const std::int64_t b0 =
+        static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
+    const std::int64_t b1 =
+        static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
     const bool degenerate = i % 2 == 0;
     std::int64_t k[6];
     if (degenerate) {
@@ -198,7 +201,8 @@ TEST(ExactOrientation, MatchesIntegerArithmetic) {
       k[0] = b0, k[1] = b1, k[2] = b0 + dx, k[3] = b1 + dy;
       k[4] = coord(b0 + 2 * dx), k[5] = coord(b1 + 2 * dy);
     } else {
-      for (auto& v : k) v = static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
+      for (auto& v : k)
+        v = static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(range)) - range / 2;
     }
     const Int128 det = static_cast<Int128>(k[2] - k[0]) * (k[5] - k[1]) -
                        static_cast<Int128>(k[3] - k[1]) * (k[4] - k[0]);

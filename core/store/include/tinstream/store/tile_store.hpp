@@ -1,4 +1,5 @@
-// tinstream/store/tile_store.hpp — the SQLite tile store (DESIGN.md §4; schema in docs/store-format.md).
+// tinstream/store/tile_store.hpp — the SQLite tile store (DESIGN.md §4; schema in
+// docs/store-format.md).
 //
 // One SQLite file holds any number of layers. A layer is a named, published *version*; tiles are
 // immutable zlib-compressed blobs (tile/codec.hpp) keyed by (version, z, x, y). An ingest writes a
@@ -29,24 +30,24 @@
 namespace tinstream::store {
 
 struct LayerInfo {
-  std::string name;                          // [A-Za-z0-9_.-]{1,64}
+  std::string name;  // [A-Za-z0-9_.-]{1,64}
   geo::Projection projection = geo::Projection::spherical;
   std::string vertical_datum = "ellipsoidal";  // heights are ellipsoidal after ingest; this names
                                                // the datum the sources were converted from
-  geo::MercatorRect mercator_bounds{};       // of the data
-  geo::LonLatRect bounds{};                  // of the data, degrees
+  geo::MercatorRect mercator_bounds{};         // of the data
+  geo::LonLatRect bounds{};                    // of the data, degrees
   std::uint32_t min_level = 0;
-  std::uint32_t max_level = 0;               // the finest level L
-  std::uint32_t max_points = 0;              // per-tile budget used
+  std::uint32_t max_level = 0;   // the finest level L
+  std::uint32_t max_points = 0;  // per-tile budget used
   std::uint64_t tile_count = 0;
-  std::uint64_t point_count = 0;             // distinct points at the finest level
-  std::uint64_t source_points = 0;           // points read from the sources
+  std::uint64_t point_count = 0;    // distinct points at the finest level
+  std::uint64_t source_points = 0;  // points read from the sources
   double min_z = 0, max_z = 0;
-  std::vector<double> level_max_error;       // index z: max geometric error of level z tiles
-  std::string options_json = "{}";           // ingest options used, as JSON
+  std::vector<double> level_max_error;  // index z: max geometric error of level z tiles
+  std::string options_json = "{}";      // ingest options used, as JSON
   std::string attribution;
-  std::int64_t created_unix = 0;             // seconds; set by publish()
-  std::int64_t version = 0;                  // set by the store
+  std::int64_t created_unix = 0;  // seconds; set by publish()
+  std::int64_t version = 0;       // set by the store
 };
 
 // A tile as stored: compressed bytes plus what a server needs without decoding.

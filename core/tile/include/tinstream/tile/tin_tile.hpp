@@ -50,17 +50,17 @@ using Triangle = std::array<std::uint32_t, 3>;
 
 struct TinTile {
   geo::TileId id;
-  std::array<Vertex, 4> corners{};              // 0 NW, 1 NE, 2 SW, 3 SE
-  std::array<bool, 4> corner_nodata{};          // true: no data there, z = 0
+  std::array<Vertex, 4> corners{};               // 0 NW, 1 NE, 2 SW, 3 SE
+  std::array<bool, 4> corner_nodata{};           // true: no data there, z = 0
   std::vector<Vertex> north, east, south, west;  // ordered as drawn above, corners excluded
   std::vector<Vertex> interior;
-  std::vector<Triangle> triangles;              // indices in the numbering above, CCW
+  std::vector<Triangle> triangles;  // indices in the numbering above, CCW
 
   // Statistics, filled by the producer.
-  double min_z = 0, max_z = 0;        // over all vertices with data
-  double geometric_error = 0;         // max vertical error vs the finest surface (0 at the finest level)
-  double rms_error = 0;               // RMS vertical error vs the finest surface
-  std::uint64_t source_points = 0;    // input points that fell in this tile (finest level)
+  double min_z = 0, max_z = 0;  // over all vertices with data
+  double geometric_error = 0;   // max vertical error vs the finest surface (0 at the finest level)
+  double rms_error = 0;         // RMS vertical error vs the finest surface
+  std::uint64_t source_points = 0;  // input points that fell in this tile (finest level)
 
   std::size_t vertex_count() const;
   // Requires: i < vertex_count().
