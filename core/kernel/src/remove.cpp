@@ -239,11 +239,14 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   auto& st = hole.flips;
   st.clear();
   for (std::size_t L = 0; L < hole.tris.size(); ++L) {
-    for (int i = 0; i < 3; ++i) {
-      if (hole.adj[L][static_cast<std::size_t>(i)] >= 0) st.emplace_back(static_cast<int>(L), i);
+    for (int i = 0; i < 3; ++i) {  // each diagonal once, from its lower-numbered side
+      const int o = hole.adj[L][static_cast<std::size_t>(i)];
+      if (o >= 0 && static_cast<std::size_t>(o / 3) > L) st.emplace_back(static_cast<int>(L), i);
     }
   }
+  const bool has_ghosts = ghost_pos >= 0;
   auto finite = [&](int L) {
+    if (!has_ghosts) return true;
     const auto& tr = hole.tris[static_cast<std::size_t>(L)];
     return tr[0] != kInfiniteVertex && tr[1] != kInfiniteVertex && tr[2] != kInfiniteVertex;
   };
@@ -347,13 +350,15 @@ Status Triangulation::remove_vertex(VertexId v) {
       const int o = hole.adj[L][static_cast<std::size_t>(i)];
       if (o >= 0) {
         mesh_.set_neighbour(id[L], i, id[static_cast<std::size_t>(o / 3)]);
-        mesh_.set_constrained(id[L], i, (hole.fixed[L] >> i) & 1u);
+        if (has_constraints_) mesh_.set_constrained(id[L], i, (hole.fixed[L] >> i) & 1u);
       } else {
         const auto r = static_cast<std::size_t>(-o - 1);
         const TriangleId out = hole.outer[r];
         mesh_.link(id[L], i, out, hole.outer_index[r]);
-        mesh_.set_constrained(id[L], i,
-                              out != kNone && mesh_.constrained(out, hole.outer_index[r]));
+        if (has_constraints_) {
+          mesh_.set_constrained(id[L], i,
+                                out != kNone && mesh_.constrained(out, hole.outer_index[r]));
+        }
       }
     }
     for (VertexId w : hole.tris[L]) mesh_.set_vertex_triangle(w, id[L]);
