@@ -20,6 +20,7 @@ THREADS=${THREADS:-2}
 SERVER_PORT=${SERVER_PORT:-18080}
 NGINX_PORT=${NGINX_PORT:-18081}
 WORK=$(mktemp -d /tmp/tinstream-bench.XXXXXX)
+chmod 755 "$WORK"  # nginx workers run as an unprivileged user
 SERVER_PID= NGINX_PID=
 
 cleanup() {

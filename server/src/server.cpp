@@ -218,6 +218,10 @@ class Session : public std::enable_shared_from_this<Session> {
       return send(json_error(413, "request body larger than max_body_bytes = " +
                                       std::to_string(cfg().max_body_bytes)), true);
     }
+    if (header_parser_->is_done()) {  // no body (GET and friends): answer right away
+      header_parser_.reset();
+      return respond();
+    }
     string_parser_.emplace(std::move(*header_parser_));
     string_parser_->body_limit(cfg().max_body_bytes);
     continue_then([self = shared_from_this()] {
@@ -379,6 +383,8 @@ void Server::Impl::do_accept() {
       if (!acceptor.is_open() || stopping) return;
       spdlog::warn("accept failed: {}", ec.message());
     } else {
+      beast::error_code nd;
+      socket.set_option(tcp::no_delay(true), nd);  // responses go out in one write; no Nagle wait
       auto session = std::make_shared<Session>(std::move(socket), *this);
       if (metrics.open_connections() > static_cast<std::int64_t>(config.max_connections)) {
         metrics.connection_rejected();
