@@ -199,17 +199,32 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   // ── Pass 4: the LOD pyramid ──
   info.level_max_error.assign(sorted->finest_level + 1, 0.0);
 #ifdef TINSTREAM_HAVE_LOD
-  if (options.pyramid && info.min_level < sorted->finest_level) {
+  // Gridded inputs become "reduced TINs" at the finest level when an epsilon is given.
+  const bool gridded = std::any_of(summary.inputs.begin(), summary.inputs.end(),
+                                   [](const transform::InputSummary& in) {
+                                     return in.format.rfind("GDAL", 0) == 0;
+                                   });
+  const bool reduce = gridded && options.epsilon > 0.0;
+  if ((options.pyramid && info.min_level < sorted->finest_level) || reduce) {
     lod::PyramidOptions popt;
-    popt.max_points = options.max_points;
-    popt.epsilon = options.epsilon;
-    auto pyramid = lod::build_pyramid(**writer, sorted->finest_level, info.min_level, popt,
-                                      threads, progress);
+    popt.lod.max_points = options.max_points;
+    popt.lod.epsilon = options.epsilon;
+    popt.lod.finest_level = sorted->finest_level;
+    popt.reduce_finest = reduce;
+    const std::uint32_t coarsest = options.pyramid ? info.min_level : sorted->finest_level;
+    auto pyramid = lod::build_pyramid(**writer, sorted->finest_level, coarsest, popt, threads,
+                                      progress);
     if (!pyramid) return pyramid.error();
-    for (const auto& level : pyramid->levels) {
-      summary.levels.push_back({level.level, level.tiles, level.max_error});
-      summary.tiles += level.tiles;
-      if (level.level < info.level_max_error.size()) info.level_max_error[level.level] = level.max_error;
+    for (std::uint32_t z = coarsest; z <= sorted->finest_level; ++z) {
+      const double err = z < pyramid->level_max_error.size() ? pyramid->level_max_error[z] : 0.0;
+      info.level_max_error[z] = err;
+      if (z == sorted->finest_level) {
+        summary.levels.front().max_error = err;
+        continue;
+      }
+      const std::uint64_t tiles = z < pyramid->level_tiles.size() ? pyramid->level_tiles[z] : 0;
+      summary.levels.push_back({z, tiles, err});
+      summary.tiles += tiles;
     }
   }
 #else
