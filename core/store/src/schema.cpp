@@ -3,7 +3,9 @@
 namespace tinstream::store::schema {
 
 // Keep in sync with docs/store-format.md.
-const char* const kCreate = R"sql(
+namespace {
+
+constexpr const char* kTables = R"sql(
 CREATE TABLE IF NOT EXISTS metadata (
   name  TEXT PRIMARY KEY,
   value TEXT NOT NULL
@@ -55,11 +57,35 @@ CREATE TABLE IF NOT EXISTS tiles (
   PRIMARY KEY (version, z, x, y)
 ) WITHOUT ROWID;
 
-CREATE VIEW IF NOT EXISTS published_tiles AS
-  SELECT l.name AS layer, t.z, t.x, t.y, (1 << t.z) - 1 - t.y AS tms_y,
-         t.etag, length(t.data) AS bytes, t.min_z, t.max_z, t.geometric_error,
-         t.vertex_count, t.triangle_count, t.data
-  FROM layers AS l JOIN tiles AS t ON t.version = l.version;
 )sql";
+
+}  // namespace
+
+std::string quadkey_expression(const std::string& z, const std::string& x, const std::string& y) {
+  // Digit i (most significant level first) is 2·ybit + xbit of bit (z − 1 − i); levels past z
+  // contribute ''. 30 terms: the deepest level (geo::kMaxLevel).
+  std::string e;
+  for (int i = 0; i < 30; ++i) {
+    const std::string shift = "(" + z + " - " + std::to_string(i + 1) + ")";
+    if (!e.empty()) e += " || ";
+    e += "(CASE WHEN " + z + " > " + std::to_string(i) + " THEN (((" + y + " >> " + shift +
+         ") & 1) * 2 + ((" + x + " >> " + shift + ") & 1)) ELSE '' END)";
+  }
+  return e;
+}
+
+const std::string& create_sql() {
+  static const std::string sql =
+      std::string(kTables) +
+      "CREATE VIEW IF NOT EXISTS published_tiles AS\n"
+      "  SELECT l.name AS layer, t.z, t.x, t.y, (1 << t.z) - 1 - t.y AS tms_y,\n"
+      "         " +
+      quadkey_expression("t.z", "t.x", "t.y") +
+      " AS quadkey,\n"
+      "         t.etag, length(t.data) AS bytes, t.min_z, t.max_z, t.geometric_error,\n"
+      "         t.vertex_count, t.triangle_count, t.data\n"
+      "  FROM layers AS l JOIN tiles AS t ON t.version = l.version;\n";
+  return sql;
+}
 
 }  // namespace tinstream::store::schema

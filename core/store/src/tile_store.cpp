@@ -421,7 +421,7 @@ Status TileStore::Impl::create_or_check_schema() {
         return corrupt_data(path.string() +
                             ": an SQLite database that is not a tinstream tile store");
       }
-      if (Status c = exec(schema::kCreate, "creating the schema"); !c) return c;
+      if (Status c = exec(schema::create_sql().c_str(), "creating the schema"); !c) return c;
       auto meta = query("INSERT INTO metadata (name, value) VALUES (?1, ?2)");
       if (!meta) return meta.error();
       const std::pair<std::string, std::string> rows[] = {

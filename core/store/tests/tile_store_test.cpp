@@ -323,6 +323,27 @@ TEST(TileStore, PutOfTheSameIdReplacesTheTile) {
   EXPECT_EQ(store.layer("dem")->tile_count, 1u);
 }
 
+TEST(TileStore, PublishedTilesViewHasQuadkeyAndTmsRow) {
+  TempDir dir;
+  const auto path = dir / "a.tinstream";
+  auto store = open_rw(path);
+  std::mt19937_64 rng(33);
+  std::vector<TinTile> tiles;
+  for (const geo::TileId id : {geo::TileId{0, 0, 0}, geo::TileId{3, 3, 5},
+                               geo::TileId{30, (1u << 30) - 1, 12345}, geo::TileId{17, 70000, 1}}) {
+    tiles.push_back(make_grid_tile(id, 1, 1, rng));
+  }
+  write_layer(store, "dem", tiles);
+  for (const auto& t : tiles) {
+    const std::string where =
+        " FROM published_tiles WHERE layer = 'dem' AND z = " + std::to_string(t.id.z) +
+        " AND x = " + std::to_string(t.id.x) + " AND y = " + std::to_string(t.id.y);
+    EXPECT_EQ(sql_value(path, "SELECT quadkey" + where), t.id.quadkey()) << t.id.to_string();
+    EXPECT_EQ(sql_value(path, "SELECT tms_y" + where), std::to_string(t.id.tms_row()));
+  }
+  EXPECT_EQ(sql_value(path, "SELECT z FROM published_tiles WHERE quadkey = '213'"), "3");
+}
+
 TEST(TileStore, DeleteLayerRemovesItAndItsTiles) {
   TempDir dir;
   const auto path = dir / "a.tinstream";
