@@ -24,9 +24,9 @@ mkdir -p "$out"
 if [ ! -f "$BUILD/build.ninja" ]; then
   cmake -S "$root" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release \
     -DTINSTREAM_ONLY_MODULES="base;geo;kernel;tile;store;lod" -DTINSTREAM_BUILD_TESTS=OFF \
-    -DTINSTREAM_BUILD_SERVER=OFF -DTINSTREAM_BUILD_CLIENT=OFF
+    -DTINSTREAM_BUILD_SERVER=OFF -DTINSTREAM_BUILD_CLIENT=OFF >&2
 fi
-cmake --build "$BUILD" --target tinstream_lod -j"$JOBS"
+cmake --build "$BUILD" --target tinstream_lod -j"$JOBS" >&2
 
 inc=()
 for m in base geo kernel tile store lod; do inc+=(-I"$root/core/$m/include"); done
