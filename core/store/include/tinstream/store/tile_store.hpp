@@ -3,7 +3,7 @@
 //
 // One SQLite file holds any number of layers. A layer is a named, published *version*; tiles are
 // immutable zlib-compressed blobs (tile/codec.hpp) keyed by (version, z, x, y). An ingest writes a
-// new version through a LayerWriter inside batched transactions; nothing of it is visible to
+// new version through a LayerWriter in batched transactions; nothing of it is visible to
 // readers until publish(), which switches the layer to the new version in one transaction and
 // drops the old one. A crash or kill at any point leaves the previously published state intact and
 // readable (WAL mode); the abandoned version is garbage-collected by the next writer.
@@ -86,6 +86,8 @@ class TileStore {
                                             std::optional<std::uint32_t> level = std::nullopt);
 
   // Starts a new, invisible version of layer `info.name` (which may or may not exist yet).
+  // One writer per layer: fails (invalid_argument) while another live process or LayerWriter is
+  // building the same layer; versions left by dead writers are deleted here.
   Result<std::unique_ptr<LayerWriter>> begin_layer(const LayerInfo& info);
   // Removes a published layer and its tiles. not_found when absent.
   Status delete_layer(std::string_view name);
@@ -115,7 +117,8 @@ class LayerWriter {
   Result<std::optional<tile::TinTile>> get(const geo::TileId& id);
   Result<std::vector<geo::TileId>> tile_ids(std::optional<std::uint32_t> level = std::nullopt);
   // Makes the version the layer's published one, atomically; `info` replaces the metadata given
-  // to begin_layer (counts, bounds, errors are known only at the end).
+  // to begin_layer (counts, bounds, errors are known only at the end). `info.name` must be the
+  // writer's layer; tile_count is counted by the store and created_unix set to now.
   Status publish(const LayerInfo& info);
   // Drops the version and its tiles.
   void abandon();
