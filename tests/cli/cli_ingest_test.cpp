@@ -1,0 +1,353 @@
+// Integration tests of the `tinstream` command line: ingest real LAS and GeoTIFF files into a real
+// SQLite store, verify, inspect and export; bad inputs; killing an ingest midway.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstring>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "tinstream/store/tile_store.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kTinstream = fs::path(TINSTREAM_BINARY_DIR) / "bin" / "tinstream";
+const fs::path kData = TINSTREAM_SHARED_DATA;
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+// Runs argv (no shell), capturing stdout and stderr.
+Outcome run(const std::vector<std::string>& args) {
+  const fs::path out_file = fs::temp_directory_path() / ("tinstream-cli-out-" + std::to_string(::getpid()));
+  const fs::path err_file = out_file.string() + ".err";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::freopen(out_file.c_str(), "w", stdout);
+    std::freopen(err_file.c_str(), "w", stderr);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  int wstatus = 0;
+  ::waitpid(pid, &wstatus, 0);
+  Outcome r;
+  r.status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : 128 + WTERMSIG(wstatus);
+  std::stringstream o, e;
+  o << std::ifstream(out_file).rdbuf();
+  e << std::ifstream(err_file).rdbuf();
+  r.out = o.str();
+  r.err = e.str();
+  fs::remove(out_file);
+  fs::remove(err_file);
+  return r;
+}
+
+std::string sql_value(const fs::path& db_path, const std::string& sql) {
+  sqlite3* db = nullptr;
+  std::string value;
+  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK && sqlite3_step(st) == SQLITE_ROW) {
+      value = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+    }
+    sqlite3_finalize(st);
+  }
+  sqlite3_close(db);
+  return value;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("tinstream-cli-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+            "-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    store_ = dir_ / "tiles.sqlite";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  void require_data(const std::string& name) {
+    if (!fs::exists(kData / name)) GTEST_SKIP() << "real dataset " << (kData / name) << " not present";
+  }
+  Outcome ingest(const std::string& layer, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {kTinstream.string(), "ingest", "--store", store_.string(),
+                                     "--layer", layer, "--threads", "2", "--tmp", (dir_ / "tmp").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run(args);
+  }
+  Outcome verify(const std::string& layer) {
+    return run({kTinstream.string(), "verify", "--store", store_.string(), "--layer", layer, "-q"});
+  }
+  fs::path dir_, store_;
+};
+
+// Hilly terrain near Lausanne as lon/lat/height text.
+void write_xyz(const fs::path& path, std::size_t n, std::uint64_t seed) {
+  std::ofstream out(path);
+  out.precision(12);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double lon = 6.6 + 0.05 * u(rng), lat = 46.5 + 0.05 * u(rng);
+    out << lon << " " << lat << " " << 500 + 120 * std::sin(lon * 200) * std::cos(lat * 170) << "\n";
+  }
+}
+
+TEST_F(Cli, EveryCommandHasHelp) {
+  for (const char* cmd : {"ingest", "verify", "info", "export", "triangulate"}) {
+    const Outcome r = run({kTinstream.string(), cmd, "--help"});
+    EXPECT_EQ(r.status, 0) << cmd;
+    EXPECT_NE(r.out.find("--"), std::string::npos) << cmd;
+  }
+  const Outcome ingest_help = run({kTinstream.string(), "ingest", "--help"});
+  EXPECT_NE(ingest_help.out.find("class 2"), std::string::npos) << "the class filter rule is in --help";
+}
+
+TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
+  require_data("autzen_trim.las");
+  const Outcome r = ingest("autzen", {"--json", "-q", (kData / "autzen_trim.las").string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  // SOURCES.md: 110,000 points of which 26,107 ground (class 2) — the default filter keeps ground.
+  EXPECT_EQ(summary["records_read"], 110000);
+  EXPECT_EQ(summary["points_accepted"], 26107);
+  EXPECT_EQ(summary["min_level"], 0);
+  EXPECT_GE(summary["finest_level"], 14);
+
+  const Outcome v = verify("autzen");
+  EXPECT_EQ(v.status, 0) << v.out << v.err;
+  EXPECT_EQ(nlohmann::json::parse(v.out)["ok"], true);
+
+  const Outcome info = run({kTinstream.string(), "info", "--store", store_.string(), "--layer", "autzen"});
+  ASSERT_EQ(info.status, 0) << info.err;
+  const auto layer = nlohmann::json::parse(info.out);
+  // Autzen Stadium, Eugene, Oregon (SOURCES.md: lon -123.0734..-123.0690, lat 44.0499..44.0516).
+  const std::string text = layer.dump();
+  EXPECT_NE(text.find("-123.07"), std::string::npos) << text;
+
+  // A finest tile as OBJ: lon/lat/height vertices near Eugene, heights in metres (ft → m).
+  auto store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  ASSERT_TRUE(store.ok());
+  const auto finest = store->tile_ids("autzen", summary["finest_level"].get<std::uint32_t>());
+  ASSERT_TRUE(finest.ok());
+  ASSERT_FALSE(finest->empty());
+  const Outcome obj = run({kTinstream.string(), "export", "--store", store_.string(), "--layer", "autzen",
+                       "--tile", finest->front().quadkey(), "--format", "obj"});
+  ASSERT_EQ(obj.status, 0) << obj.err;
+  std::istringstream lines(obj.out);
+  std::string kind;
+  int vertices = 0, faces = 0;
+  double min_h = 1e9, max_h = -1e9;
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream ls(line);
+    ls >> kind;
+    if (kind == "v") {
+      double lon, lat, h;
+      ls >> lon >> lat >> h;
+      EXPECT_NEAR(lon, -123.071, 0.01);
+      EXPECT_NEAR(lat, 44.051, 0.01);
+      ++vertices;
+      min_h = std::min(min_h, h);
+      max_h = std::max(max_h, h);
+    } else if (kind == "f") {
+      ++faces;
+    }
+  }
+  EXPECT_GT(vertices, 100);
+  EXPECT_GT(faces, vertices);
+  EXPECT_LT(max_h, 140.0);
+  EXPECT_GE(min_h, 0.0);  // NODATA corners are at 0
+
+  // The JSON form flags NODATA corners; every vertex with data is ground: 406.26–434.06 ft
+  // = 123.8–132.3 m (heights taken as ellipsoidal: the file states no vertical datum).
+  const Outcome js = run({kTinstream.string(), "export", "--store", store_.string(), "--layer", "autzen",
+                          "--tile", finest->front().quadkey(), "--format", "json"});
+  ASSERT_EQ(js.status, 0) << js.err;
+  const auto mesh = nlohmann::json::parse(js.out);
+  ASSERT_EQ(mesh["vertices"].size(), static_cast<std::size_t>(vertices));
+  int with_data = 0;
+  for (const auto& v : mesh["vertices"]) {
+    if (v["nodata"].get<bool>()) {
+      EXPECT_EQ(v["role"], "corner");
+      continue;
+    }
+    ++with_data;
+    EXPECT_GE(v["height"].get<double>(), 123.8 - 1e-6);
+    EXPECT_LE(v["height"].get<double>(), 132.31);
+  }
+  EXPECT_GT(with_data, 100);
+}
+
+TEST_F(Cli, GeoTiffWithNodataIngestsAndVerifies) {
+  require_data("luxembourg_elev.tif");
+  const Outcome r = ingest("lux", {"--json", "-q", "--max-points", "1000", (kData / "luxembourg_elev.tif").string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  // SOURCES.md: 95 × 90 cells, 3,942 NoData → 4,608 points.
+  EXPECT_EQ(summary["points"], 4608);
+  EXPECT_EQ(summary["points_rejected"], 3942);
+  const Outcome v = verify("lux");
+  EXPECT_EQ(v.status, 0) << v.out;
+}
+
+TEST_F(Cli, MixedInputsInOneIngest) {
+  require_data("luxembourg_elev.tif");
+  const fs::path xyz = dir_ / "extra.xyz";
+  {
+    std::ofstream out(xyz);
+    out << "6.0 49.8 300\n6.1 49.85 320\n6.2 49.9 310\n";
+  }
+  const Outcome r = ingest("mixed", {"--json", "-q", "--crs", "EPSG:4326", (kData / "luxembourg_elev.tif").string(),
+                                 xyz.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["points"], 4611);
+  EXPECT_EQ(verify("mixed").status, 0);
+}
+
+TEST_F(Cli, BadInputsGiveClearErrorsAndLeaveTheStoreUnchanged) {
+  const fs::path good = dir_ / "good.xyz";
+  write_xyz(good, 3000, 1);
+  ASSERT_EQ(ingest("t", {"-q", "--crs", "EPSG:4326", good.string()}).status, 0);
+  const std::string before = sql_value(store_, "SELECT group_concat(version) FROM layers");
+
+  // Truncated LAS: a header that promises more points than the file holds.
+  const fs::path las = dir_ / "truncated.las";
+  {
+    std::ofstream out(las, std::ios::binary);
+    std::array<char, 227> header{};
+    std::memcpy(header.data(), "LASF", 4);
+    header[24] = 1;  // version 1.2
+    header[25] = 2;
+    header[94] = static_cast<char>(227);  // header size
+    header[96] = static_cast<char>(227);  // offset to points
+    header[104] = 0;                      // point format 0
+    header[105] = 20;                     // record length
+    header[107] = 100;                    // 100 points
+    const double scale = 0.01;
+    for (int i = 0; i < 3; ++i) std::memcpy(header.data() + 131 + 8 * i, &scale, 8);
+    out.write(header.data(), header.size());
+    out.write("short", 5);
+  }
+  Outcome r = ingest("t", {"-q", "--crs", "EPSG:32632", las.string()});
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("truncated.las"), std::string::npos) << r.err;
+
+  // Unknown CRS.
+  r = ingest("t", {"-q", "--crs", "EPSG:999999", good.string()});
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("999999"), std::string::npos) << r.err;
+
+  // Wrong CRS: projected metres read as degrees fall off the globe.
+  const fs::path utm = dir_ / "utm.xyz";
+  {
+    std::ofstream out(utm);
+    out << "376313.6 3788627.8 500\n376343.6 3788657.8 510\n";
+  }
+  r = ingest("t", {"-q", "--crs", "EPSG:4326", utm.string()});
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("utm.xyz"), std::string::npos) << r.err;
+
+  // NaN in text.
+  const fs::path nan = dir_ / "nan.xyz";
+  {
+    std::ofstream out(nan);
+    out << "6.6 46.5 500\n6.61 46.51 nan\n";
+  }
+  r = ingest("t", {"-q", "--crs", "EPSG:4326", nan.string()});
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("nan.xyz"), std::string::npos) << r.err;
+
+  EXPECT_EQ(sql_value(store_, "SELECT group_concat(version) FROM layers"), before);
+  EXPECT_EQ(verify("t").status, 0);
+  EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
+}
+
+TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
+  const fs::path small = dir_ / "small.xyz";
+  write_xyz(small, 2000, 2);
+  ASSERT_EQ(ingest("k", {"-q", "--crs", "EPSG:4326", small.string()}).status, 0);
+  auto store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  ASSERT_TRUE(store.ok());
+  const auto before = store->layer("k");
+  ASSERT_TRUE(before.ok());
+  const auto ids = store->tile_ids("k");
+  ASSERT_TRUE(ids.ok());
+  std::vector<std::vector<std::uint8_t>> before_bytes;
+  for (const auto& id : *ids) before_bytes.push_back((*store->tile("k", id))->compressed);
+
+  const fs::path big = dir_ / "big.xyz";
+  write_xyz(big, 400000, 3);
+  // Start a replacing ingest and kill it once it has started writing tiles.
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::freopen("/dev/null", "w", stdout);
+    std::freopen((dir_ / "killed.err").c_str(), "w", stderr);
+    const std::string s = store_.string(), t = (dir_ / "tmp").string(), b = big.string();
+    ::execl(kTinstream.c_str(), kTinstream.c_str(), "ingest", "--store", s.c_str(), "--layer", "k",
+            "--crs", "EPSG:4326", "--max-points", "2000", "--threads", "1", "--tmp", t.c_str(),
+            b.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Wait until the new version is being built (a 'building' row; tiles of it once a batch is
+  // flushed), then SIGKILL the ingest.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  bool killed_mid_write = false;
+  auto building_seen = std::chrono::steady_clock::time_point::max();
+  while (std::chrono::steady_clock::now() < deadline) {
+    int wstatus = 0;
+    if (::waitpid(pid, &wstatus, WNOHANG) == pid) break;  // finished before we could kill it
+    const std::string tiles = sql_value(store_, "SELECT count(*) FROM tiles WHERE version NOT IN (SELECT version FROM layers)");
+    const std::string building = sql_value(store_, "SELECT count(*) FROM layer_versions WHERE status = 'building'");
+    if (building_seen == std::chrono::steady_clock::time_point::max() && !building.empty() && std::stoll(building) > 0) {
+      building_seen = std::chrono::steady_clock::now();
+    }
+    if ((!tiles.empty() && std::stoll(tiles) > 0) ||
+        std::chrono::steady_clock::now() - building_seen > std::chrono::milliseconds(300)) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &wstatus, 0);
+      killed_mid_write = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(killed_mid_write) << "the ingest finished before it could be killed";
+
+  // The previous version is intact, byte for byte, and the file is consistent.
+  EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
+  auto after_store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  ASSERT_TRUE(after_store.ok());
+  const auto after = after_store->layer("k");
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->version, before->version);
+  for (std::size_t i = 0; i < ids->size(); ++i) {
+    const auto t = after_store->tile("k", (*ids)[i]);
+    ASSERT_TRUE(t.ok() && t->has_value());
+    EXPECT_EQ((*t)->compressed, before_bytes[i]);
+  }
+  EXPECT_EQ(verify("k").status, 0);
+
+  // Re-running the ingest succeeds and replaces the layer.
+  const Outcome rerun = ingest("k", {"-q", "--crs", "EPSG:4326", "--max-points", "2000", small.string()});
+  EXPECT_EQ(rerun.status, 0) << rerun.err;
+  EXPECT_EQ(verify("k").status, 0);
+}
+
+}  // namespace
