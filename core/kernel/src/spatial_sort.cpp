@@ -31,14 +31,34 @@ constexpr std::array<std::uint8_t, 16> make_hilbert_table() {
 }
 constexpr std::array<std::uint8_t, 16> kHilbert = make_hilbert_table();
 
-// Hilbert index of (x, y) on a 2^bits x 2^bits grid.
-std::uint32_t hilbert_index(std::uint32_t x, std::uint32_t y, int bits) {
+// Four levels at once: entry [state << 8 | xnibble << 4 | ynibble] = (8 digit bits << 2) | state.
+std::array<std::uint16_t, 1024> make_hilbert_table4() {
+  std::array<std::uint16_t, 1024> table{};
+  for (unsigned state = 0; state < 4; ++state) {
+    for (unsigned xn = 0; xn < 16; ++xn) {
+      for (unsigned yn = 0; yn < 16; ++yn) {
+        unsigned st = state, digits = 0;
+        for (int b = 3; b >= 0; --b) {
+          const unsigned quad = (((xn >> b) & 1u) << 1) | ((yn >> b) & 1u);
+          const unsigned e = kHilbert[st * 4 + quad];
+          digits = (digits << 2) | (e >> 2);
+          st = e & 3u;
+        }
+        table[(state << 8) | (xn << 4) | yn] = static_cast<std::uint16_t>((digits << 2) | st);
+      }
+    }
+  }
+  return table;
+}
+
+// Hilbert index of (x, y) on a 2^bits x 2^bits grid, bits a multiple of 4.
+std::uint32_t hilbert_index(std::uint32_t x, std::uint32_t y, int bits,
+                            const std::array<std::uint16_t, 1024>& table) {
   std::uint32_t d = 0;
   unsigned state = 0;
-  for (int b = bits - 1; b >= 0; --b) {
-    const unsigned quad = (((x >> b) & 1u) << 1) | ((y >> b) & 1u);
-    const unsigned e = kHilbert[state * 4 + quad];
-    d = (d << 2) | (e >> 2);
+  for (int b = bits - 4; b >= 0; b -= 4) {
+    const unsigned e = table[(state << 8) | (((x >> b) & 15u) << 4) | ((y >> b) & 15u)];
+    d = (d << 8) | (e >> 2);
     state = e & 3u;
   }
   return d;
@@ -65,7 +85,9 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
     ymax = std::max(ymax, points[i].y);
   }
   // About one grid cell per point: finer cells would not improve locality.
-  const int bits = std::clamp(static_cast<int>(std::bit_width(n) + 1) / 2 + 1, 2, 15);
+  // (rounded up to whole 4-level table steps, at most 12 bits per axis).
+  const int bits = std::clamp((static_cast<int>(std::bit_width(n) + 1) / 2 + 1 + 3) / 4 * 4, 4, 12);
+  static const std::array<std::uint16_t, 1024> table = make_hilbert_table4();
   const double cells = double((1u << bits) - 1u);
   const double span = std::max(xmax - xmin, ymax - ymin);
   const double scale = span > 0.0 ? cells / span : 0.0;
@@ -86,7 +108,7 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
     const auto gy = std::min(static_cast<std::uint32_t>((points[i].y - ymin) * scale), max_cell);
     const int tz = std::countr_zero(mix(i) | (1ull << 62));
     const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz));
-    keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits), i};
+    keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits, table), i};
   }
   const int key_bits =
       2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));

@@ -86,10 +86,16 @@ class Mesh {
     const auto& v = tris_[t].v;
     return v[0] == kInfiniteVertex || v[1] == kInfiniteVertex || v[2] == kInfiniteVertex;
   }
-  bool constrained(TriangleId t, int i) const { return (flags_[t] >> i) & 1u; }
+  bool constrained(TriangleId t, int i) const {
+    return any_constrained_ && ((flags_[t] >> i) & 1u);
+  }
   void set_constrained(TriangleId t, int i, bool on) {
+    if (!any_constrained_) {
+      if (!on) return;
+      any_constrained_ = true;  // the flag array exists from the first constrained edge on
+      flags_.assign(tris_.size(), 0);
+    }
     if (on) {
-      any_constrained_ = true;
       flags_[t] = static_cast<std::uint8_t>(flags_[t] | (1u << i));
     } else {
       flags_[t] = static_cast<std::uint8_t>(flags_[t] & ~(1u << i));
@@ -118,11 +124,11 @@ class Mesh {
       t = free_.back();
       free_.pop_back();
       tris_[t] = Triangle{{a, b, c}, {kNone, kNone, kNone}};
-      flags_[t] = 0;
+      if (any_constrained_) flags_[t] = 0;
     } else {
       t = static_cast<TriangleId>(tris_.size());
       tris_.push_back(Triangle{{a, b, c}, {kNone, kNone, kNone}});
-      flags_.push_back(0);
+      if (any_constrained_) flags_.push_back(0);
     }
     if (a == kInfiniteVertex || b == kInfiniteVertex || c == kInfiniteVertex) ++ghosts_;
     return t;
@@ -131,7 +137,7 @@ class Mesh {
     if (is_ghost(t)) --ghosts_;
     tris_[t].v = {kNone, kNone, kNone};
     tris_[t].n = {kNone, kNone, kNone};
-    flags_[t] = 0;
+    if (any_constrained_) flags_[t] = 0;
     free_.push_back(t);
   }
   // Rewrites the vertices of a live triangle (keeps the ghost count right).
@@ -196,7 +202,7 @@ class Mesh {
     const TriangleId u = tris_[t].n[i];
     const int j = mirror(t, i);
     const Triangle ot = tris_[t], ou = tris_[u];
-    const std::uint8_t ft = flags_[t], fu = flags_[u];
+    const std::uint8_t ft = any_constrained_ ? flags_[t] : 0, fu = any_constrained_ ? flags_[u] : 0;
     const VertexId a = ot.v[i], uu = ot.v[next3(i)], w = ot.v[prev3(i)], q = ou.v[j];
     const TriangleId A = ot.n[next3(i)], B = ot.n[prev3(i)];
     const TriangleId C = ou.n[next3(j)], D = ou.n[prev3(j)];
@@ -209,16 +215,16 @@ class Mesh {
     set_vertices(u, q, w, p);
     // t = (a, u, p): n = [(u,p)->u1, (p,a)->t1, (a,u)->B]
     tris_[t].n = {u1, t1, B};
-    flags_[t] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fB ? 4u : 0u));
+    if (any_constrained_) flags_[t] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fB ? 4u : 0u));
     // t1 = (a, p, w): n = [(p,w)->u, (w,a)->A, (a,p)->t]
     tris_[t1].n = {u, A, t};
-    flags_[t1] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fA ? 2u : 0u));
+    if (any_constrained_) flags_[t1] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fA ? 2u : 0u));
     // u = (q, w, p): n = [(w,p)->t1, (p,q)->u1, (q,w)->D]
     tris_[u].n = {t1, u1, D};
-    flags_[u] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fD ? 4u : 0u));
+    if (any_constrained_) flags_[u] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fD ? 4u : 0u));
     // u1 = (q, p, u): n = [(p,u)->t, (u,q)->C, (q,p)->u]
     tris_[u1].n = {t, C, u};
-    flags_[u1] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fC ? 2u : 0u));
+    if (any_constrained_) flags_[u1] = static_cast<std::uint8_t>((fe ? 1u : 0u) | (fC ? 2u : 0u));
     replace_neighbour(A, t, t1);
     replace_neighbour(C, u, u1);
     vtri_[uu] = t;  // a stays in t, q in u
@@ -263,13 +269,14 @@ class Mesh {
   void clear_triangles() {
     tris_.clear();
     flags_.clear();
+    any_constrained_ = false;
     free_.clear();
     ghosts_ = 0;
     for (auto& t : vtri_) t = kNone;
   }
   void reserve_triangles(std::size_t n) {
     tris_.reserve(n);
-    flags_.reserve(n);
+    if (any_constrained_) flags_.reserve(n);
   }
   std::size_t memory_bytes() const {
     return xy_.capacity() * sizeof(XY) + (z_.capacity() + weight_.capacity()) * sizeof(double) +
