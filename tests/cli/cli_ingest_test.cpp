@@ -184,14 +184,14 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   const auto mesh = nlohmann::json::parse(js.out);
   ASSERT_EQ(mesh["vertices"].size(), static_cast<std::size_t>(vertices));
   int with_data = 0;
-  for (const auto& v : mesh["vertices"]) {
-    if (v["nodata"].get<bool>()) {
-      EXPECT_EQ(v["role"], "corner");
+  for (const auto& vertex : mesh["vertices"]) {
+    if (vertex["nodata"].get<bool>()) {
+      EXPECT_EQ(vertex["role"], "corner");
       continue;
     }
     ++with_data;
-    EXPECT_GE(v["height"].get<double>(), 123.8 - 1e-6);
-    EXPECT_LE(v["height"].get<double>(), 132.31);
+    EXPECT_GE(vertex["height"].get<double>(), 123.8 - 1e-6);
+    EXPECT_LE(vertex["height"].get<double>(), 132.31);
   }
   EXPECT_GT(with_data, 100);
 }
