@@ -8,7 +8,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "grid_tile.hpp"
+#include "qm_decoder.hpp"
 #include "test_support.hpp"
+#include "tinstream/server/handler.hpp"
 
 namespace tinstream::server {
 namespace {
@@ -92,6 +95,200 @@ TEST(ServerProcess, HelpAndBadConfig) {
   }
   std::fclose(bad.out);
   EXPECT_NE(wait_exit(bad.pid), 0);
+}
+
+const std::string kCli = std::string(TINSTREAM_BINARY_DIR) + "/bin/tinstream";
+
+std::string read_file(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Decoded terrain tile with its rectangle, for edge comparisons.
+struct Terrain {
+  geo::TileId id;
+  testing::DecodedMesh mesh;
+  geo::LonLatRect rect;
+  double lon(std::uint32_t i) const { return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0; }
+  double lat(std::uint32_t i) const { return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0; }
+  double h(std::uint32_t i) const {
+    return mesh.min_height + (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
+  }
+  double step() const { return (static_cast<double>(mesh.max_height) - mesh.min_height) / 32767.0; }
+};
+
+// Checks every pair of same-level east/west and north/south neighbours among `tiles`: each edge
+// vertex of one has a vertex of the other at the same lon/lat, with heights within both
+// quantisation steps. Returns the number of shared borders compared.
+int check_shared_edges(const std::map<geo::TileId, Terrain>& tiles) {
+  int borders = 0;
+  for (const auto& [id, a] : tiles) {
+    for (auto dir : {geo::Direction::east, geo::Direction::south}) {
+      auto nid = id.neighbour(dir);
+      if (!nid) continue;
+      auto it = tiles.find(*nid);
+      if (it == tiles.end()) continue;
+      const Terrain& b = it->second;
+      const auto& a_list = dir == geo::Direction::east ? a.mesh.east : a.mesh.south;
+      const auto& b_list = dir == geo::Direction::east ? b.mesh.west : b.mesh.north;
+      ++borders;
+      for (std::uint32_t i : a_list) {
+        bool found = false;
+        for (std::uint32_t j : b_list) {
+          if (std::abs(a.lon(i) - b.lon(j)) < 1e-9 && std::abs(a.lat(i) - b.lat(j)) < 1e-9) {
+            found = true;
+            EXPECT_NEAR(a.h(i), b.h(j), a.step() + b.step() + 1e-3) << id.to_string() << " vs " << nid->to_string();
+          }
+        }
+        EXPECT_TRUE(found) << id.to_string() << " edge vertex at " << a.lon(i) << "," << a.lat(i)
+                           << " missing in " << nid->to_string();
+      }
+    }
+  }
+  return borders;
+}
+
+TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
+  if (!std::filesystem::exists(kCli)) GTEST_SKIP() << "tinstream CLI not built";
+  TempDir dir("export");
+  const auto store = dir.path / "store.db";
+  testing::write_test_layer(store, "lux");
+  const auto out = dir.path / "tree";
+  Child c = [&] {
+    int fds[2];
+    EXPECT_EQ(::pipe(fds), 0);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::dup2(fds[1], 1);
+      ::close(fds[0]);
+      ::close(fds[1]);
+      ::execl(kCli.c_str(), kCli.c_str(), "export", "--store", store.c_str(), "--layer", "lux", "--dir",
+              out.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    return Child{pid, ::fdopen(fds[0], "r")};
+  }();
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, c.out)) {
+  }
+  std::fclose(c.out);
+  ASSERT_EQ(wait_exit(c.pid), 0);
+
+  const auto lj = nlohmann::json::parse(read_file(out / "layer.json"));
+  EXPECT_EQ(lj["format"], "quantized-mesh-1.0");
+  std::size_t listed = 0;
+  std::map<geo::TileId, Terrain> level12;
+  for (std::uint32_t z = 0; z < lj["available"].size(); ++z) {
+    for (const auto& r : lj["available"][z]) {
+      for (std::uint32_t x = r["startX"]; x <= r["endX"].get<std::uint32_t>(); ++x) {
+        for (std::uint32_t y = r["startY"]; y <= r["endY"].get<std::uint32_t>(); ++y) {
+          ++listed;
+          const auto path = out / std::to_string(z) / std::to_string(x) / (std::to_string(y) + ".terrain");
+          ASSERT_TRUE(std::filesystem::exists(path)) << path;
+          const auto id = *geo::TileId::from_tms(z, x, y);
+          Terrain t{id, testing::decode_quantized_mesh(testing::gunzip(read_file(path))),
+                    id.lonlat_bounds(geo::NormalisedMercator())};
+          EXPECT_TRUE(t.mesh.oct_normals.has_value());
+          if (z == 12) level12.emplace(id, std::move(t));
+        }
+      }
+    }
+  }
+  EXPECT_EQ(listed, testing::test_tile_ids().size() + 10);  // + ancestors at levels 0-9
+  EXPECT_EQ(level12.size(), 16u);
+  EXPECT_EQ(check_shared_edges(level12), 24);
+
+  // Byte-identical to what the server sends for the same request.
+  auto st = store::TileStore::open(store, store::TileStore::Mode::read_only);
+  ASSERT_TRUE(st.ok());
+  Context ctx;
+  ctx.config.store = store;
+  ctx.store = [&]() -> Result<store::TileStore*> { return &*st; };
+  Request req;
+  req.method = "GET";
+  const auto id = *geo::TileId::from_zxy(12, 2121, 1401);
+  req.target = "/tiles/lux/12/2121/" + std::to_string(id.tms_row()) + ".terrain";
+  req.accept_encoding = "gzip";
+  req.accept = "application/vnd.quantized-mesh;extensions=octvertexnormals";
+  const Response res = handle(req, ctx);
+  ASSERT_EQ(res.status, 200);
+  EXPECT_EQ(res.body, read_file(out / "12" / "2121" / (std::to_string(id.tms_row()) + ".terrain")));
+}
+
+TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
+  const std::filesystem::path data = TINSTREAM_SHARED_DATA;
+  if (!std::filesystem::exists(data / "luxembourg_elev.tif")) GTEST_SKIP() << "no shared data";
+  TempDir dir("real");
+  const auto config = dir.path / "server.json";
+  std::ofstream(config) << nlohmann::json{{"log_level", "warn"}, {"access_log", false},
+                                          {"data_root", data.string()},
+                                          {"admin_token_env", "TINSTREAM_TEST_ADMIN_TOKEN"}}.dump();
+  ::setenv("TINSTREAM_TEST_ADMIN_TOKEN", "real-token", 1);
+  Child c = spawn({"--config", config.string(), "--store", (dir.path / "store.db").string(), "--port",
+                   "0", "--address", "127.0.0.1", "--threads", "2"});
+  ::unsetenv("TINSTREAM_TEST_ADMIN_TOKEN");
+  char line[256] = {0};
+  ASSERT_NE(std::fgets(line, sizeof line, c.out), nullptr);
+  const std::string text = line;
+  const auto port = static_cast<std::uint16_t>(std::stoi(text.substr(text.rfind(':') + 1)));
+  const std::map<std::string, std::string> admin = {{"Authorization", "Bearer real-token"},
+                                                    {"Content-Type", "application/json"}};
+  auto r = testing::http_request(port, "POST", "/admin/ingest", admin,
+                                 R"({"layer": "lux", "sources": ["luxembourg_elev.tif"],
+                                     "options": {"max_points": 300}})");
+  ASSERT_EQ(r.status, 202) << r.body;
+  const std::string job = nlohmann::json::parse(r.body)["job"];
+  nlohmann::json status;
+  for (int i = 0; i < 3000; ++i) {
+    status = nlohmann::json::parse(testing::http_get(port, "/admin/jobs/" + job, admin).body);
+    if (status["state"] != "queued" && status["state"] != "running") break;
+    ::usleep(10000);
+  }
+  if (status["state"] == "failed" &&
+      status["errors"][0].get<std::string>().find("no ingest pipeline") != std::string::npos) {
+    ::kill(c.pid, SIGTERM);
+    wait_exit(c.pid);
+    std::fclose(c.out);
+    GTEST_SKIP() << "tinstream-server built without core/ingest";
+  }
+  ASSERT_EQ(status["state"], "succeeded") << status.dump();
+
+  auto lj_res = testing::http_get(port, "/tiles/lux/layer.json");
+  ASSERT_EQ(lj_res.status, 200);
+  const auto lj = nlohmann::json::parse(lj_res.body);
+  std::map<std::uint32_t, std::map<geo::TileId, Terrain>> by_level;
+  int fetched = 0;
+  for (std::uint32_t z = 0; z < lj["available"].size(); ++z) {
+    for (const auto& range : lj["available"][z]) {
+      for (std::uint32_t x = range["startX"]; x <= range["endX"].get<std::uint32_t>(); ++x) {
+        for (std::uint32_t y = range["startY"]; y <= range["endY"].get<std::uint32_t>(); ++y) {
+          auto t = testing::http_get(port, "/tiles/lux/" + std::to_string(z) + "/" + std::to_string(x) + "/" +
+                                               std::to_string(y) + ".terrain",
+                                     {{"Accept-Encoding", "gzip"}});
+          ASSERT_EQ(t.status, 200);
+          const auto id = *geo::TileId::from_tms(z, x, y);
+          auto mesh = testing::decode_quantized_mesh(testing::gunzip(t.body));
+          for (std::size_t k = 0; k < mesh.indices.size(); k += 3) {
+            const auto a = mesh.indices[k], b = mesh.indices[k + 1], cc = mesh.indices[k + 2];
+            ASSERT_LT(std::max({a, b, cc}), mesh.u.size());
+            const double cross = (static_cast<double>(mesh.u[b]) - mesh.u[a]) * (static_cast<double>(mesh.v[cc]) - mesh.v[a]) -
+                                 (static_cast<double>(mesh.v[b]) - mesh.v[a]) * (static_cast<double>(mesh.u[cc]) - mesh.u[a]);
+            EXPECT_GE(cross, 0) << id.to_string();  // CCW (quantisation may flatten slivers)
+          }
+          by_level[z].emplace(id, Terrain{id, std::move(mesh), id.lonlat_bounds(geo::NormalisedMercator())});
+          ++fetched;
+        }
+      }
+    }
+  }
+  EXPECT_GT(fetched, 10);
+  int borders = 0;
+  for (const auto& [z, tiles] : by_level) borders += check_shared_edges(tiles);
+  EXPECT_GT(borders, 5);
+  ::kill(c.pid, SIGTERM);
+  EXPECT_EQ(wait_exit(c.pid), 0);
+  std::fclose(c.out);
 }
 
 }  // namespace

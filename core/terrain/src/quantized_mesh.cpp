@@ -208,12 +208,57 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
     }
   }
 
+  const geo::NormalisedMercator merc(projection);
+  const geo::LonLatRect rect = tile.id.lonlat_bounds(merc);
+  double min_h = std::numeric_limits<double>::infinity();
+  double max_h = -min_h;
+  for (const auto& v : verts) {
+    min_h = std::min(min_h, v.z);
+    max_h = std::max(max_h, v.z);
+  }
+  if (!std::isfinite(min_h) || !std::isfinite(max_h)) {
+    return invalid_argument("tile " + tile.id.to_string() + ": non-finite height");
+  }
+  const double h_range = max_h - min_h;
+
+  // Quantise in the tile's numbering first (u/v linear in lon/lat).
+  std::vector<std::uint16_t> qu0(n), qv0(n), qh0(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const tile::Vertex& v = verts[k];
+    const std::uint8_t bits = side_bits[k];
+    const double lon = geo::NormalisedMercator::lon_from_x(v.x);
+    const double lat = merc.lat_from_y(v.y);
+    // Border vertices are exactly on the border; pin them so rounding cannot move them off.
+    double u = (lon - rect.west) / (rect.east - rect.west);
+    double vv = (lat - rect.south) / (rect.north - rect.south);
+    if (bits & 1) u = 0;
+    if (bits & 4) u = 1;
+    if (bits & 2) vv = 0;
+    if (bits & 8) vv = 1;
+    qu0[k] = quantise(u);
+    qv0[k] = quantise(vv);
+    qh0[k] = h_range > 0 ? quantise((v.z - min_h) / h_range) : 0;
+  }
+
+  // Triangles that rounding to the 15-bit grid turns clockwise are left out: they are slivers
+  // thinner than one quantum (coarse tiles over dense data, where several vertices share a grid
+  // cell), and drawn clockwise they would fold over their neighbours. Degenerate (zero-area)
+  // ones are kept; they draw nothing.
+  std::vector<tile::Triangle> triangles;
+  triangles.reserve(tile.triangles.size());
+  for (const auto& t : tile.triangles) {
+    const double cross =
+        (static_cast<double>(qu0[t[1]]) - qu0[t[0]]) * (static_cast<double>(qv0[t[2]]) - qv0[t[0]]) -
+        (static_cast<double>(qv0[t[1]]) - qv0[t[0]]) * (static_cast<double>(qu0[t[2]]) - qu0[t[0]]);
+    if (cross >= 0) triangles.push_back(t);
+  }
+
   // Renumber by first use in the triangle list (high-water mark needs it); unused vertices last.
   constexpr std::uint32_t kUnset = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> new_index(n, kUnset);
   std::vector<std::uint32_t> order;  // new → old
   order.reserve(n);
-  for (const auto& t : tile.triangles) {
+  for (const auto& t : triangles) {
     for (std::uint32_t i : t) {
       if (new_index[i] == kUnset) {
         new_index[i] = static_cast<std::uint32_t>(order.size());
@@ -228,36 +273,12 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
     }
   }
 
-  const geo::NormalisedMercator merc(projection);
-  const geo::LonLatRect rect = tile.id.lonlat_bounds(merc);
-  double min_h = std::numeric_limits<double>::infinity();
-  double max_h = -min_h;
-  for (const auto& v : verts) {
-    min_h = std::min(min_h, v.z);
-    max_h = std::max(max_h, v.z);
-  }
-  if (!std::isfinite(min_h) || !std::isfinite(max_h)) {
-    return invalid_argument("tile " + tile.id.to_string() + ": non-finite height");
-  }
-  const double h_range = max_h - min_h;
-
   std::vector<std::uint16_t> qu(n), qv(n), qh(n);
   std::vector<Vec3> ecef(n);
   for (std::size_t k = 0; k < n; ++k) {
-    const tile::Vertex& v = verts[order[k]];
-    const std::uint8_t bits = side_bits[order[k]];
-    const double lon = geo::NormalisedMercator::lon_from_x(v.x);
-    const double lat = merc.lat_from_y(v.y);
-    // Border vertices are exactly on the border; pin them so rounding cannot move them off.
-    double u = (lon - rect.west) / (rect.east - rect.west);
-    double vv = (lat - rect.south) / (rect.north - rect.south);
-    if (bits & 1) u = 0;
-    if (bits & 4) u = 1;
-    if (bits & 2) vv = 0;
-    if (bits & 8) vv = 1;
-    qu[k] = quantise(u);
-    qv[k] = quantise(vv);
-    qh[k] = h_range > 0 ? quantise((v.z - min_h) / h_range) : 0;
+    qu[k] = qu0[order[k]];
+    qv[k] = qv0[order[k]];
+    qh[k] = qh0[order[k]];
     // ECEF of the position Cesium will reconstruct (quantised lon/lat/height), so bounding
     // volumes and normals match what is drawn.
     const double dlon = rect.west + (rect.east - rect.west) * qu[k] / kQuantMax;
@@ -306,9 +327,9 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
     }
   };
   w.align(wide ? 4 : 2);
-  w.u32(static_cast<std::uint32_t>(tile.triangles.size()));
+  w.u32(static_cast<std::uint32_t>(triangles.size()));
   std::uint32_t highest = 0;
-  for (const auto& t : tile.triangles) {
+  for (const auto& t : triangles) {
     for (std::uint32_t old : t) {
       const std::uint32_t i = new_index[old];
       const std::uint32_t code = highest - i;  // i ≤ highest by construction of the numbering
@@ -337,7 +358,7 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
     // Area-weighted face normals in ECEF (relative to the centre for precision), summed per
     // vertex. CCW in lon/lat seen from above ⇒ the cross product points away from the Earth.
     std::vector<Vec3> normals(n);
-    for (const auto& t : tile.triangles) {
+    for (const auto& t : triangles) {
       const std::uint32_t i0 = new_index[t[0]], i1 = new_index[t[1]], i2 = new_index[t[2]];
       const Vec3 p0 = sub(ecef[i0], centre), p1 = sub(ecef[i1], centre), p2 = sub(ecef[i2], centre);
       const Vec3 f = cross(sub(p1, p0), sub(p2, p0));
