@@ -46,13 +46,27 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   json j = json::parse(text, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/true);
   if (j.is_discarded()) return invalid_argument("config: not valid JSON");
   if (!j.is_object()) return invalid_argument("config: expected a JSON object");
-  static const char* kKeys[] = {
-      "address",        "port",          "store",          "threads",
-      "admin_token",    "admin_token_env", "data_root",    "upload_dir",
-      "max_upload_bytes", "max_header_bytes", "max_body_bytes", "max_connections",
-      "read_timeout_ms", "write_timeout_ms", "cache_max_age_s", "cors_allow_origin",
-      "terrain_cache_bytes", "max_queued_jobs", "shutdown_grace_ms", "log_level",
-      "access_log"};
+  static const char* kKeys[] = {"address",
+                                "port",
+                                "store",
+                                "threads",
+                                "admin_token",
+                                "admin_token_env",
+                                "data_root",
+                                "upload_dir",
+                                "max_upload_bytes",
+                                "max_header_bytes",
+                                "max_body_bytes",
+                                "max_connections",
+                                "read_timeout_ms",
+                                "write_timeout_ms",
+                                "cache_max_age_s",
+                                "cors_allow_origin",
+                                "terrain_cache_bytes",
+                                "max_queued_jobs",
+                                "shutdown_grace_ms",
+                                "log_level",
+                                "access_log"};
   for (const auto& [key, value] : j.items()) {
     bool known = false;
     for (const char* k : kKeys) known = known || key == k;
@@ -81,10 +95,12 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "shutdown_grace_ms", c.shutdown_grace_ms))) return st.error();
   if (!(st = read_string(j, "log_level", c.log_level))) return st.error();
   if (j.contains("access_log")) {
-    if (!j["access_log"].is_boolean()) return invalid_argument("config key \"access_log\": expected true/false");
+    if (!j["access_log"].is_boolean())
+      return invalid_argument("config key \"access_log\": expected true/false");
     c.access_log = j["access_log"].get<bool>();
   }
-  if (c.max_header_bytes < 512) return invalid_argument("config key \"max_header_bytes\": at least 512");
+  if (c.max_header_bytes < 512)
+    return invalid_argument("config key \"max_header_bytes\": at least 512");
   if (c.max_connections == 0) return invalid_argument("config key \"max_connections\": at least 1");
   if (c.read_timeout_ms == 0 || c.write_timeout_ms == 0) {
     return invalid_argument("config: timeouts must be positive");
@@ -92,7 +108,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   static const char* kLevels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
   bool level_ok = false;
   for (const char* l : kLevels) level_ok = level_ok || c.log_level == l;
-  if (!level_ok) return invalid_argument("config key \"log_level\": unknown level \"" + c.log_level + "\"");
+  if (!level_ok)
+    return invalid_argument("config key \"log_level\": unknown level \"" + c.log_level + "\"");
   return c;
 }
 

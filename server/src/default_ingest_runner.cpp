@@ -19,8 +19,8 @@ namespace {
 
 Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   const nlohmann::json& o = job.options;
-  static const char* kKeys[] = {"projection", "max_points", "max_level", "min_level", "epsilon",
-                                "pyramid",    "memory_mb",  "threads",   "attribution", "crs",
+  static const char* kKeys[] = {"projection", "max_points", "max_level",   "min_level",   "epsilon",
+                                "pyramid",    "memory_mb",  "threads",     "attribution", "crs",
                                 "vertical",   "z_units",    "skip_invalid"};
   for (const auto& [key, value] : o.items()) {
     bool known = false;
@@ -83,7 +83,8 @@ IngestRunner default_ingest_runner() {
 IngestRunner default_ingest_runner() {
   return [](const IngestJobSpec& job, const ProgressSink&) -> Status {
     return Error(ErrorCode::unsupported,
-                 "layer " + job.layer + ": this build of tinstream-server has no ingest pipeline (core/ingest)");
+                 "layer " + job.layer +
+                     ": this build of tinstream-server has no ingest pipeline (core/ingest)");
   };
 }
 

@@ -77,7 +77,8 @@ bool accept_wants_extension(std::string_view accept, std::string_view ext) {
     for (std::size_t i = 1; i < parts.size(); ++i) {
       if (parts[i].substr(0, 11) != "extensions=") continue;
       std::string_view list = parts[i].substr(11);
-      if (!list.empty() && list.front() == '"') list = list.substr(1, list.size() >= 2 ? list.size() - 2 : 0);
+      if (!list.empty() && list.front() == '"')
+        list = list.substr(1, list.size() >= 2 ? list.size() - 2 : 0);
       for (std::string_view e : split(list, '-')) {
         if (e == ext) return true;
       }
@@ -98,13 +99,18 @@ bool etag_matches(std::string_view if_none_match, std::string_view etag) {
 
 int http_status(ErrorCode code) {
   switch (code) {
-    case ErrorCode::invalid_argument: return 400;
-    case ErrorCode::not_found: return 404;
-    case ErrorCode::unsupported: return 409;
+    case ErrorCode::invalid_argument:
+      return 400;
+    case ErrorCode::not_found:
+      return 404;
+    case ErrorCode::unsupported:
+      return 409;
     case ErrorCode::cancelled:
-    case ErrorCode::io_error: return 503;
+    case ErrorCode::io_error:
+      return 503;
     case ErrorCode::corrupt_data:
-    case ErrorCode::internal: return 500;
+    case ErrorCode::internal:
+      return 500;
   }
   return 500;
 }
@@ -116,10 +122,16 @@ json layer_to_json(const store::LayerInfo& l) {
       {"name", l.name},
       {"projection", geo::to_string(l.projection)},
       {"vertical_datum", l.vertical_datum},
-      {"bounds", {{"west", l.bounds.west}, {"south", l.bounds.south}, {"east", l.bounds.east}, {"north", l.bounds.north}}},
+      {"bounds",
+       {{"west", l.bounds.west},
+        {"south", l.bounds.south},
+        {"east", l.bounds.east},
+        {"north", l.bounds.north}}},
       {"mercator_bounds",
-       {{"min_x", l.mercator_bounds.min_x}, {"min_y", l.mercator_bounds.min_y},
-        {"max_x", l.mercator_bounds.max_x}, {"max_y", l.mercator_bounds.max_y}}},
+       {{"min_x", l.mercator_bounds.min_x},
+        {"min_y", l.mercator_bounds.min_y},
+        {"max_x", l.mercator_bounds.max_x},
+        {"max_y", l.mercator_bounds.max_y}}},
       {"min_level", l.min_level},
       {"max_level", l.max_level},
       {"max_points", l.max_points},
@@ -178,7 +190,8 @@ Response handle_native_tile(const Request& req, Context& ctx, const NativeTileRo
   auto t = (*st)->tile(r.layer, r.id);
   if (!t) return error_response(t.error());
   if (!t->has_value()) {
-    return json_error(404, "no tile " + r.id.quadkey() + " (" + r.id.to_string() + ") in layer \"" + r.layer + "\"");
+    return json_error(404, "no tile " + r.id.quadkey() + " (" + r.id.to_string() + ") in layer \"" +
+                               r.layer + "\"");
   }
   const store::StoredTile& tile = **t;
   Response res;
@@ -214,7 +227,8 @@ void send_maybe_gzip(const Request& req, Response& res, const std::string& gz) {
     res.body = gz;
     return;
   }
-  auto raw = terrain::gzip_decompress(std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()));
+  auto raw = terrain::gzip_decompress(
+      std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()));
   if (!raw) {
     res = json_error(500, raw.error().message);
     return;
@@ -238,7 +252,8 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     return res;
   }
   const std::string key = "layer.json|" + r.layer + "|" + std::to_string(info->version);
-  std::shared_ptr<const CachedBody> body = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  std::shared_ptr<const CachedBody> body =
+      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
   if (!body) {
     auto ids = (*st)->tile_ids(r.layer);
     if (!ids) return error_response(ids.error());
@@ -252,8 +267,10 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     in.max_level = info->max_level;
     in.tile_ids = std::move(*ids);
     const std::string text = terrain::layer_json(in);
-    auto bytes = terrain::gzip_compress(std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
-    body = std::make_shared<const CachedBody>(CachedBody{etag, std::string(bytes.begin(), bytes.end())});
+    auto bytes = terrain::gzip_compress(
+        std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+    body = std::make_shared<const CachedBody>(
+        CachedBody{etag, std::string(bytes.begin(), bytes.end())});
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   res.set("Content-Type", "application/json");
@@ -275,7 +292,8 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
   res.set("Vary", "Accept, Accept-Encoding");
 
   // Hot path: a cached encoding of this layer version needs no store access at all.
-  std::shared_ptr<const CachedBody> body = ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  std::shared_ptr<const CachedBody> body =
+      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
   if (!body) {
     auto stored = (*st)->tile(r.layer, r.id);
     if (!stored) return error_response(stored.error());
@@ -284,8 +302,9 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
       return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
                                  std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
     }
-    std::string base_tag = synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
-                                     : (**stored).etag;
+    std::string base_tag = synthetic
+                               ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
+                               : (**stored).etag;
     base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
     const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
     if (etag_matches(req.if_none_match, etag)) {
@@ -300,13 +319,15 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
       auto raw = tile::decompress((**stored).compressed);
       if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
       auto decoded = tile::decode(*raw);
-      if (!decoded) return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
+      if (!decoded)
+        return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
       tin = std::move(*decoded);
     }
     auto qm = terrain::encode_quantized_mesh(tin, info->projection, {normals});
     if (!qm) return error_response(qm.error());
     auto bytes = terrain::gzip_compress(*qm);
-    body = std::make_shared<const CachedBody>(CachedBody{etag, std::string(bytes.begin(), bytes.end())});
+    body = std::make_shared<const CachedBody>(
+        CachedBody{etag, std::string(bytes.begin(), bytes.end())});
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   res.set("ETag", body->etag);
@@ -343,7 +364,8 @@ Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
     auto layer = r.query.find("layer");
     if (layer == r.query.end() || !is_valid_layer_name(layer->second)) {
       remove_quietly(req.body_file);
-      return json_error(400, "upload: query parameter layer= must name a valid layer ([A-Za-z0-9_.-]{1,64})");
+      return json_error(
+          400, "upload: query parameter layer= must name a valid layer ([A-Za-z0-9_.-]{1,64})");
     }
     spec.layer = layer->second;
     std::string name = "upload";
@@ -361,7 +383,8 @@ Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
     std::filesystem::rename(req.body_file, final_path, ec);
     if (ec) {
       remove_quietly(req.body_file);
-      return json_error(500, "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
+      return json_error(500,
+                        "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
     }
     spec.sources.push_back(final_path);
     delete_after.push_back(final_path);
@@ -376,7 +399,8 @@ Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
   } else {
     json body = json::parse(req.body, nullptr, false);
     if (body.is_discarded() || !body.is_object()) {
-      return json_error(400, "ingest: body must be a JSON object {\"layer\": ..., \"sources\": [...]}");
+      return json_error(400,
+                        "ingest: body must be a JSON object {\"layer\": ..., \"sources\": [...]}");
     }
     if (!body.contains("layer") || !body["layer"].is_string() ||
         !is_valid_layer_name(body["layer"].get<std::string>())) {
@@ -384,19 +408,27 @@ Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
     }
     spec.layer = body["layer"].get<std::string>();
     if (!body.contains("sources") || !body["sources"].is_array() || body["sources"].empty()) {
-      return json_error(400, "ingest: \"sources\" must be a non-empty array of paths under the data root");
+      return json_error(
+          400, "ingest: \"sources\" must be a non-empty array of paths under the data root");
     }
     if (ctx.config.data_root.empty()) {
-      return json_error(403, "ingest: server-side paths are disabled (no data_root configured); upload the file instead");
+      return json_error(403,
+                        "ingest: server-side paths are disabled (no data_root configured); upload "
+                        "the file instead");
     }
     for (const auto& s : body["sources"]) {
       if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
       auto p = resolve_source(ctx.config.data_root, s.get<std::string>());
-      if (!p) return json_error(p.error().code == ErrorCode::not_found ? 404 : (p.error().code == ErrorCode::invalid_argument ? 400 : 403), p.error().message);
+      if (!p)
+        return json_error(p.error().code == ErrorCode::not_found
+                              ? 404
+                              : (p.error().code == ErrorCode::invalid_argument ? 400 : 403),
+                          p.error().message);
       spec.sources.push_back(*p);
     }
     if (body.contains("options")) {
-      if (!body["options"].is_object()) return json_error(400, "ingest: \"options\" must be an object");
+      if (!body["options"].is_object())
+        return json_error(400, "ingest: \"options\" must be an object");
       spec.options = body["options"];
     }
   }
@@ -405,7 +437,8 @@ Response handle_ingest(const Request& req, Context& ctx, const IngestRoute& r) {
     for (const auto& p : delete_after) remove_quietly(p);
     return json_error(503, id.error().message);
   }
-  Response res = json_response(202, json{{"job", *id}, {"status_url", "/admin/jobs/" + *id}}.dump());
+  Response res =
+      json_response(202, json{{"job", *id}, {"status_url", "/admin/jobs/" + *id}}.dump());
   res.set("Location", "/admin/jobs/" + *id);
   return res;
 }
@@ -474,7 +507,8 @@ Response dispatch(const Request& req, Context& ctx, const Route& route) {
   Response res;
   res.status = 204;
   res.set("Access-Control-Allow-Methods", "GET, HEAD, POST, DELETE, OPTIONS");
-  res.set("Access-Control-Allow-Headers", "Authorization, Content-Type, If-None-Match, Accept, Accept-Encoding");
+  res.set("Access-Control-Allow-Headers",
+          "Authorization, Content-Type, If-None-Match, Accept, Accept-Encoding");
   res.set("Access-Control-Max-Age", "86400");
   return res;
 }
@@ -516,7 +550,8 @@ std::optional<Response> check_admin(const Request& request, const Context& conte
   }
   std::string_view auth = trim(request.authorization);
   if (auth.size() < 7 || !iequals(auth.substr(0, 7), "Bearer ")) {
-    Response r = json_error(401, "admin API: bearer token required (Authorization: Bearer <token>)");
+    Response r =
+        json_error(401, "admin API: bearer token required (Authorization: Bearer <token>)");
     r.set("WWW-Authenticate", "Bearer realm=\"tinstream-admin\"");
     return r;
   }
@@ -576,7 +611,9 @@ Response handle(const Request& request, Context& context) {
 
 struct TerrainCache::Impl {
   using Entry = std::pair<std::string, std::shared_ptr<const CachedBody>>;
-  static std::uint64_t cost(const Entry& e) { return e.first.size() + e.second->bytes.size() + e.second->etag.size() + 96; }
+  static std::uint64_t cost(const Entry& e) {
+    return e.first.size() + e.second->bytes.size() + e.second->etag.size() + 96;
+  }
   std::uint64_t max_bytes;
   mutable std::mutex mutex;  // guards everything below
   std::list<Entry> lru;      // front = most recent
@@ -626,7 +663,9 @@ std::uint64_t TerrainCache::bytes() const {
 struct LayerCache::Impl {
   std::chrono::milliseconds ttl;
   std::mutex mutex;  // guards entries
-  std::unordered_map<std::string, std::pair<store::LayerInfo, std::chrono::steady_clock::time_point>> entries;
+  std::unordered_map<std::string,
+                     std::pair<store::LayerInfo, std::chrono::steady_clock::time_point>>
+      entries;
 };
 
 LayerCache::LayerCache(std::uint32_t ttl_ms) : impl_(std::make_unique<Impl>()) {

@@ -8,14 +8,19 @@ Result<std::filesystem::path> resolve_source(const std::filesystem::path& data_r
                                              std::string_view requested) {
   namespace fs = std::filesystem;
   if (requested.empty()) return invalid_argument("ingest source: empty path");
-  if (requested.find('\0') != std::string_view::npos) return invalid_argument("ingest source: NUL in path");
+  if (requested.find('\0') != std::string_view::npos)
+    return invalid_argument("ingest source: NUL in path");
   const fs::path req{std::string(requested)};
   for (const auto& part : req) {
-    if (part == "..") return invalid_argument("ingest source \"" + std::string(requested) + "\": '..' is not allowed");
+    if (part == "..")
+      return invalid_argument("ingest source \"" + std::string(requested) +
+                              "\": '..' is not allowed");
   }
   std::error_code ec;
   const fs::path root = fs::canonical(data_root, ec);
-  if (ec) return Error(ErrorCode::unsupported, "ingest: data root " + data_root.string() + " is not usable: " + ec.message());
+  if (ec)
+    return Error(ErrorCode::unsupported,
+                 "ingest: data root " + data_root.string() + " is not usable: " + ec.message());
   const fs::path candidate = req.is_absolute() ? req : root / req;
   const fs::path real = fs::canonical(candidate, ec);
   if (ec) return not_found("ingest source \"" + std::string(requested) + "\" does not exist");
@@ -30,7 +35,8 @@ Result<std::filesystem::path> resolve_source(const std::filesystem::path& data_r
   }
   const auto type = fs::status(real, ec).type();
   if (type != fs::file_type::regular && type != fs::file_type::directory) {
-    return invalid_argument("ingest source \"" + std::string(requested) + "\" is not a file or directory");
+    return invalid_argument("ingest source \"" + std::string(requested) +
+                            "\" is not a file or directory");
   }
   return real;
 }
@@ -42,7 +48,9 @@ Result<std::string> sanitize_filename(std::string_view name) {
   for (char c : name) {
     const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
                     c == '_' || c == '.' || c == '-';
-    if (!ok) return invalid_argument("must be 1-100 characters from [A-Za-z0-9_.-], not starting with '.'");
+    if (!ok)
+      return invalid_argument(
+          "must be 1-100 characters from [A-Za-z0-9_.-], not starting with '.'");
   }
   return std::string(name);
 }

@@ -18,11 +18,16 @@ std::int64_t now_unix() {
 
 std::string_view to_string(JobState s) {
   switch (s) {
-    case JobState::queued: return "queued";
-    case JobState::running: return "running";
-    case JobState::succeeded: return "succeeded";
-    case JobState::failed: return "failed";
-    case JobState::cancelled: return "cancelled";
+    case JobState::queued:
+      return "queued";
+    case JobState::running:
+      return "running";
+    case JobState::succeeded:
+      return "succeeded";
+    case JobState::failed:
+      return "failed";
+    case JobState::cancelled:
+      return "cancelled";
   }
   return "unknown";
 }
@@ -37,9 +42,9 @@ nlohmann::json JobStatus::to_json() const {
         {"done", progress.done},
         {"total", progress.total},
         {"unit", progress.unit},
-        {"fraction", progress.total > 0 ? static_cast<double>(progress.done) /
-                                              static_cast<double>(progress.total)
-                                        : 0.0}}},
+        {"fraction", progress.total > 0
+                         ? static_cast<double>(progress.done) / static_cast<double>(progress.total)
+                         : 0.0}}},
       {"reports", reports},
       {"sources", sources},
       {"created_unix", created_unix},
@@ -55,7 +60,8 @@ JobManager::JobManager(IngestRunner runner, std::uint32_t max_pending)
 
 JobManager::~JobManager() { shutdown(); }
 
-Result<std::string> JobManager::submit(IngestJobSpec spec, std::vector<std::filesystem::path> delete_after) {
+Result<std::string> JobManager::submit(IngestJobSpec spec,
+                                       std::vector<std::filesystem::path> delete_after) {
   std::lock_guard lock(mutex_);
   if (stopping_) return Error(ErrorCode::unsupported, "server is shutting down");
   std::uint32_t pending = 0;
@@ -112,11 +118,21 @@ JobCounts JobManager::counts() const {
   JobCounts c;
   for (const auto& [id, job] : jobs_) {
     switch (job->status.state) {
-      case JobState::queued: ++c.queued; break;
-      case JobState::running: ++c.running; break;
-      case JobState::succeeded: ++c.succeeded; break;
-      case JobState::failed: ++c.failed; break;
-      case JobState::cancelled: ++c.cancelled; break;
+      case JobState::queued:
+        ++c.queued;
+        break;
+      case JobState::running:
+        ++c.running;
+        break;
+      case JobState::succeeded:
+        ++c.succeeded;
+        break;
+      case JobState::failed:
+        ++c.failed;
+        break;
+      case JobState::cancelled:
+        ++c.cancelled;
+        break;
     }
   }
   return c;

@@ -16,9 +16,11 @@ int main(int argc, char** argv) {
   int threads = -1;
   app.add_option("--config,-c", config_path, "JSON configuration file (config/server.json)");
   app.add_option("--store", store, "SQLite tile store (overrides \"store\")");
-  app.add_option("--port,-p", port, "TCP port; 0 = any free port (overrides \"port\")")->check(CLI::Range(0, 65535));
+  app.add_option("--port,-p", port, "TCP port; 0 = any free port (overrides \"port\")")
+      ->check(CLI::Range(0, 65535));
   app.add_option("--address", address, "listen address (overrides \"address\")");
-  app.add_option("--threads", threads, "io threads; 0 = one per core (overrides \"threads\")")->check(CLI::Range(0, 1024));
+  app.add_option("--threads", threads, "io threads; 0 = one per core (overrides \"threads\")")
+      ->check(CLI::Range(0, 1024));
   CLI11_PARSE(app, argc, argv);
 
   ServerConfig config;

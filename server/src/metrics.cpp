@@ -41,7 +41,9 @@ std::string Metrics::render(const JobCounts& jobs) const {
                          kRoutes[r], status, v);
     }
   }
-  out += "# HELP tinstream_http_request_duration_seconds Time from request parsed to response handed to the socket.\n";
+  out +=
+      "# HELP tinstream_http_request_duration_seconds Time from request parsed to response handed "
+      "to the socket.\n";
   out += "# TYPE tinstream_http_request_duration_seconds histogram\n";
   std::uint64_t cumulative = 0;
   for (std::size_t b = 0; b < kBuckets.size(); ++b) {
@@ -50,18 +52,21 @@ std::string Metrics::render(const JobCounts& jobs) const {
                        kBuckets[b], cumulative);
   }
   cumulative += latency_buckets_[kBuckets.size()].load(std::memory_order_relaxed);
-  out += fmt::format("tinstream_http_request_duration_seconds_bucket{{le=\"+Inf\"}} {}\n", cumulative);
+  out +=
+      fmt::format("tinstream_http_request_duration_seconds_bucket{{le=\"+Inf\"}} {}\n", cumulative);
   out += fmt::format("tinstream_http_request_duration_seconds_sum {}\n",
                      static_cast<double>(latency_sum_us_.load(std::memory_order_relaxed)) / 1e6);
   out += fmt::format("tinstream_http_request_duration_seconds_count {}\n",
                      latency_count_.load(std::memory_order_relaxed));
   out += "# HELP tinstream_http_response_bytes_total Response body bytes sent.\n";
   out += "# TYPE tinstream_http_response_bytes_total counter\n";
-  out += fmt::format("tinstream_http_response_bytes_total {}\n", bytes_sent_.load(std::memory_order_relaxed));
+  out += fmt::format("tinstream_http_response_bytes_total {}\n",
+                     bytes_sent_.load(std::memory_order_relaxed));
   out += "# HELP tinstream_http_open_connections Connections currently open.\n";
   out += "# TYPE tinstream_http_open_connections gauge\n";
   out += fmt::format("tinstream_http_open_connections {}\n", open_connections());
-  out += "# HELP tinstream_http_rejected_connections_total Connections refused at max_connections.\n";
+  out +=
+      "# HELP tinstream_http_rejected_connections_total Connections refused at max_connections.\n";
   out += "# TYPE tinstream_http_rejected_connections_total counter\n";
   out += fmt::format("tinstream_http_rejected_connections_total {}\n",
                      rejected_connections_.load(std::memory_order_relaxed));

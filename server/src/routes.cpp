@@ -115,8 +115,9 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
   if (method == "OPTIONS") return Route{PreflightRoute{}};
 
   auto layer_error = [](const std::string& name, std::string route) {
-    return error(400, "invalid layer name \"" + name.substr(0, 80) +
-                          "\": use 1-64 characters from [A-Za-z0-9_.-], not starting with '.'",
+    return error(400,
+                 "invalid layer name \"" + name.substr(0, 80) +
+                     "\": use 1-64 characters from [A-Za-z0-9_.-], not starting with '.'",
                  std::move(route));
   };
 
@@ -153,7 +154,8 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
     }
     ys.remove_suffix(kExt.size());
     const auto z = parse_number(seg[2]), x = parse_number(seg[3]), y = parse_number(ys);
-    if (!z || !x || !y) return error(400, "terrain tile: z, x and y must be decimal numbers", "terrain");
+    if (!z || !x || !y)
+      return error(400, "terrain tile: z, x and y must be decimal numbers", "terrain");
     auto id = geo::TileId::from_tms(*z, *x, *y);
     if (!id) return error(400, id.error().message, "terrain");
     return Route{TerrainRoute{seg[1], *id}};
@@ -167,7 +169,8 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
         std::string_view kv = query.substr(0, amp);
         const auto eq = kv.find('=');
         auto k = percent_decode(kv.substr(0, eq), true);
-        auto v = percent_decode(eq == std::string_view::npos ? std::string_view{} : kv.substr(eq + 1), true);
+        auto v = percent_decode(
+            eq == std::string_view::npos ? std::string_view{} : kv.substr(eq + 1), true);
         if (!k || !v) return error(400, "malformed percent-encoding in query", "ingest");
         if (!k->empty()) r.query[*k] = *v;
         if (amp == std::string_view::npos) break;

@@ -40,7 +40,10 @@ struct Server::Impl {
   ~Impl();
   explicit Impl(const ServerConfig& c)
       : serial(next_serial.fetch_add(1)),
-        config(c), acceptor(net::make_strand(ioc)), signals(ioc, SIGINT, SIGTERM), grace(ioc) {}
+        config(c),
+        acceptor(net::make_strand(ioc)),
+        signals(ioc, SIGINT, SIGTERM),
+        grace(ioc) {}
 
   static inline std::atomic<std::uint64_t> next_serial{1};
   std::uint64_t serial;
@@ -96,7 +99,8 @@ Result<store::TileStore*> thread_store(std::uint64_t serial, const std::filesyst
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(tcp::socket&& socket, Server::Impl& server) : stream_(std::move(socket)), server_(server) {
+  Session(tcp::socket&& socket, Server::Impl& server)
+      : stream_(std::move(socket)), server_(server) {
     server_.metrics.connection_opened();
   }
   ~Session() {
@@ -114,7 +118,8 @@ class Session : public std::enable_shared_from_this<Session> {
       std::lock_guard lock(server_.sessions_mutex);
       server_.sessions[this] = weak_from_this();
     }
-    net::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::do_read, shared_from_this()));
+    net::dispatch(stream_.get_executor(),
+                  beast::bind_front_handler(&Session::do_read, shared_from_this()));
   }
 
   void reject() {
@@ -166,7 +171,8 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     if (ec == http::error::header_limit) {
       return send(json_error(431, "request header fields too large (max_header_bytes = " +
-                                      std::to_string(cfg().max_header_bytes) + ")"), true);
+                                      std::to_string(cfg().max_header_bytes) + ")"),
+                  true);
     }
     if (ec == http::error::body_limit) return send(json_error(413, "request body too large"), true);
     if (ec) return send(json_error(400, "malformed request: " + ec.message()), true);
@@ -195,7 +201,8 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       if (length && *length > cfg().max_upload_bytes) {
         return send(json_error(413, "upload larger than max_upload_bytes = " +
-                                        std::to_string(cfg().max_upload_bytes)), true);
+                                        std::to_string(cfg().max_upload_bytes)),
+                    true);
       }
       std::error_code fs_ec;
       std::filesystem::create_directories(cfg().upload_dir, fs_ec);
@@ -206,17 +213,22 @@ class Session : public std::enable_shared_from_this<Session> {
       file_parser_->get().body().open(upload_path_.c_str(), beast::file_mode::write_new, open_ec);
       if (open_ec) {
         upload_path_.clear();
-        return send(json_error(500, "upload: cannot create a file in upload_dir: " + open_ec.message()), true);
+        return send(
+            json_error(500, "upload: cannot create a file in upload_dir: " + open_ec.message()),
+            true);
       }
-      return continue_then([self = shared_from_this()] {
-        self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
-        http::async_read(self->stream_, self->buffer_, *self->file_parser_,
-                         beast::bind_front_handler(&Session::on_file_body, self));
-      }, expect_continue);
+      return continue_then(
+          [self = shared_from_this()] {
+            self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
+            http::async_read(self->stream_, self->buffer_, *self->file_parser_,
+                             beast::bind_front_handler(&Session::on_file_body, self));
+          },
+          expect_continue);
     }
     if (length && *length > cfg().max_body_bytes) {
       return send(json_error(413, "request body larger than max_body_bytes = " +
-                                      std::to_string(cfg().max_body_bytes)), true);
+                                      std::to_string(cfg().max_body_bytes)),
+                  true);
     }
     if (header_parser_->is_done()) {  // no body (GET and friends): answer right away
       header_parser_.reset();
@@ -224,11 +236,13 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     string_parser_.emplace(std::move(*header_parser_));
     string_parser_->body_limit(cfg().max_body_bytes);
-    continue_then([self = shared_from_this()] {
-      self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
-      http::async_read(self->stream_, self->buffer_, *self->string_parser_,
-                       beast::bind_front_handler(&Session::on_body, self));
-    }, expect_continue && !string_parser_->is_done());
+    continue_then(
+        [self = shared_from_this()] {
+          self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
+          http::async_read(self->stream_, self->buffer_, *self->string_parser_,
+                           beast::bind_front_handler(&Session::on_body, self));
+        },
+        expect_continue && !string_parser_->is_done());
   }
 
   template <typename Next>
@@ -246,7 +260,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_body(beast::error_code ec, std::size_t) {
     if (ec == http::error::body_limit) {
       return send(json_error(413, "request body larger than max_body_bytes = " +
-                                      std::to_string(cfg().max_body_bytes)), true);
+                                      std::to_string(cfg().max_body_bytes)),
+                  true);
     }
     if (ec) return close_now();
     req_.body = string_parser_->release().body();
@@ -257,7 +272,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_file_body(beast::error_code ec, std::size_t) {
     if (ec == http::error::body_limit) {
       return send(json_error(413, "upload larger than max_upload_bytes = " +
-                                      std::to_string(cfg().max_upload_bytes)), true);
+                                      std::to_string(cfg().max_upload_bytes)),
+                  true);
     }
     if (ec) return close_now();
     file_parser_->get().body().close();
@@ -294,12 +310,14 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     response_ = msg;
     stream_.expires_after(std::chrono::milliseconds(cfg().write_timeout_ms));
-    http::async_write(stream_, *msg, beast::bind_front_handler(&Session::on_write, shared_from_this()));
+    http::async_write(stream_, *msg,
+                      beast::bind_front_handler(&Session::on_write, shared_from_this()));
   }
 
   void on_write(beast::error_code ec, std::size_t) {
     const auto us = std::chrono::duration_cast<std::chrono::microseconds>(
-                        std::chrono::steady_clock::now() - start_).count();
+                        std::chrono::steady_clock::now() - start_)
+                        .count();
     server_.metrics.record(route_, status_, ec ? 0 : body_bytes_, static_cast<double>(us) / 1e6);
     if (cfg().access_log) {
       spdlog::info("{} {} {} {} {}us{}", req_.method, req_.target, status_, body_bytes_, us,
@@ -321,7 +339,8 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   void drain() {
-    stream_.expires_after(std::chrono::milliseconds(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000)));
+    stream_.expires_after(
+        std::chrono::milliseconds(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000)));
     stream_.async_read_some(net::buffer(drain_buffer_),
                             [self = shared_from_this()](beast::error_code ec, std::size_t n) {
                               self->drained_ += n;
@@ -399,8 +418,10 @@ void Server::Impl::do_accept() {
 
 void Server::Impl::stop() {
   if (stopping.exchange(true)) return;
-  spdlog::info("shutting down: finishing in-flight requests (grace {} ms)", config.shutdown_grace_ms);
-  stop_deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(config.shutdown_grace_ms);
+  spdlog::info("shutting down: finishing in-flight requests (grace {} ms)",
+               config.shutdown_grace_ms);
+  stop_deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(config.shutdown_grace_ms);
   net::post(acceptor.get_executor(), [this] {
     beast::error_code ec;
     acceptor.close(ec);
@@ -445,18 +466,22 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   // through the admin API.
   {
     auto rw = store::TileStore::open(config.store, store::TileStore::Mode::read_write);
-    if (!rw) return Error(rw.error().code, "store " + config.store.string() + ": " + rw.error().message);
+    if (!rw)
+      return Error(rw.error().code, "store " + config.store.string() + ": " + rw.error().message);
   }
   auto impl = std::make_unique<Impl>(config);
   Impl* raw = impl.get();
   // A finished job may have published or replaced a layer: forget cached layer rows.
-  IngestRunner wrapped = [runner = std::move(runner), raw](const IngestJobSpec& job, const ProgressSink& progress) {
-    Status s = runner ? runner(job, progress) : Status(Error(ErrorCode::unsupported, "no ingest runner"));
+  IngestRunner wrapped = [runner = std::move(runner), raw](const IngestJobSpec& job,
+                                                           const ProgressSink& progress) {
+    Status s =
+        runner ? runner(job, progress) : Status(Error(ErrorCode::unsupported, "no ingest runner"));
     raw->layers.clear();
     return s;
   };
   impl->jobs = std::make_unique<JobManager>(std::move(wrapped), config.max_queued_jobs);
-  if (config.terrain_cache_bytes > 0) impl->cache = std::make_unique<TerrainCache>(config.terrain_cache_bytes);
+  if (config.terrain_cache_bytes > 0)
+    impl->cache = std::make_unique<TerrainCache>(config.terrain_cache_bytes);
   impl->ctx.config = config;
   impl->ctx.admin_token = resolve_admin_token(config);
   impl->ctx.metrics = &impl->metrics;
@@ -474,7 +499,8 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   if (!ec) impl->acceptor.bind(endpoint, ec);
   if (!ec) impl->acceptor.listen(net::socket_base::max_listen_connections, ec);
   if (ec) {
-    return io_error("cannot listen on " + config.address + ":" + std::to_string(config.port) + ": " + ec.message());
+    return io_error("cannot listen on " + config.address + ":" + std::to_string(config.port) +
+                    ": " + ec.message());
   }
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
@@ -494,7 +520,8 @@ void Server::run(bool handle_signals) {
     });
   }
   if (!s.stopping) s.do_accept();
-  const unsigned n = s.config.threads > 0 ? s.config.threads : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned n =
+      s.config.threads > 0 ? s.config.threads : std::max(1u, std::thread::hardware_concurrency());
   spdlog::info("tinstream-server listening on {}:{} with {} threads, store {}", s.config.address,
                port(), n, s.config.store.string());
   std::vector<std::thread> threads;

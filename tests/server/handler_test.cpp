@@ -1,4 +1,6 @@
 // The pure request handler against a real SQLite store, without sockets.
+#include "tinstream/server/handler.hpp"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -7,7 +9,6 @@
 #include "grid_tile.hpp"
 #include "qm_decoder.hpp"
 #include "test_support.hpp"
-#include "tinstream/server/handler.hpp"
 #include "tinstream/server/ingest_paths.hpp"
 #include "tinstream/tile/codec.hpp"
 
@@ -233,8 +234,10 @@ TEST_F(HandlerTest, HealthAndMetrics) {
   metrics_.record("tile", 200, 123, 0.0004);
   const Response m = get("/metrics");
   EXPECT_EQ(m.status, 200);
-  EXPECT_NE(m.body.find("tinstream_http_requests_total{route=\"tile\",status=\"200\"} 1"), std::string::npos);
-  EXPECT_NE(m.body.find("tinstream_http_request_duration_seconds_bucket{le=\"0.0005\"} 1"), std::string::npos);
+  EXPECT_NE(m.body.find("tinstream_http_requests_total{route=\"tile\",status=\"200\"} 1"),
+            std::string::npos);
+  EXPECT_NE(m.body.find("tinstream_http_request_duration_seconds_bucket{le=\"0.0005\"} 1"),
+            std::string::npos);
   EXPECT_NE(m.body.find("tinstream_http_response_bytes_total 123"), std::string::npos);
   EXPECT_NE(m.body.find("tinstream_ingest_jobs{state=\"running\"} 0"), std::string::npos);
 }
@@ -290,9 +293,12 @@ TEST(IngestPaths, CanonicalisesAndStaysInsideTheRoot) {
   EXPECT_TRUE(resolve_source(root, "sub").ok());
 
   EXPECT_EQ(resolve_source(root, "../outside.tif").error().code, ErrorCode::invalid_argument);
-  EXPECT_EQ(resolve_source(root, "sub/../../outside.tif").error().code, ErrorCode::invalid_argument);
-  EXPECT_EQ(resolve_source(root, (dir.path / "outside.tif").string()).error().code, ErrorCode::unsupported);
-  EXPECT_EQ(resolve_source(root, (dir.path / "root-other" / "b.tif").string()).error().code, ErrorCode::unsupported);
+  EXPECT_EQ(resolve_source(root, "sub/../../outside.tif").error().code,
+            ErrorCode::invalid_argument);
+  EXPECT_EQ(resolve_source(root, (dir.path / "outside.tif").string()).error().code,
+            ErrorCode::unsupported);
+  EXPECT_EQ(resolve_source(root, (dir.path / "root-other" / "b.tif").string()).error().code,
+            ErrorCode::unsupported);
   EXPECT_EQ(resolve_source(root, "escape.tif").error().code, ErrorCode::unsupported);
   EXPECT_EQ(resolve_source(root, "updir/outside.tif").error().code, ErrorCode::unsupported);
   EXPECT_EQ(resolve_source(root, "/etc/passwd").error().code, ErrorCode::unsupported);

@@ -19,9 +19,9 @@ namespace tinstream::server {
 namespace {
 
 using nlohmann::json;
-using testing::HttpConnection;
 using testing::http_get;
 using testing::http_request;
+using testing::HttpConnection;
 using testing::TempDir;
 
 const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
@@ -42,7 +42,8 @@ IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
   return [state](const IngestJobSpec& job, const ProgressSink& progress) -> Status {
     {
       std::unique_lock lock(state->mutex);
-      for (const auto& s : job.sources) state->source_sizes.push_back(std::filesystem::file_size(s));
+      for (const auto& s : job.sources)
+        state->source_sizes.push_back(std::filesystem::file_size(s));
       ++state->runs;
       state->cv.wait(lock, [&] { return state->open; });
     }
@@ -59,8 +60,10 @@ IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
     if (!writer) return writer.error();
     for (const auto& id : ids) {
       if (id.z != 12) continue;
-      if (Status s = (*writer)->put(testing::make_grid_tile(id, 9, testing::synthetic_height)); !s) return s;
-      if (!progress({"triangulate", 2, 3, "steps"})) return Error(ErrorCode::cancelled, "cancelled");
+      if (Status s = (*writer)->put(testing::make_grid_tile(id, 9, testing::synthetic_height)); !s)
+        return s;
+      if (!progress({"triangulate", 2, 3, "steps"}))
+        return Error(ErrorCode::cancelled, "cancelled");
     }
     info.tile_count = 16;
     return (*writer)->publish(info);
@@ -82,7 +85,8 @@ class ServerTest : public ::testing::Test {
     std::ofstream(dir_.path / "data" / "sub" / "points.xyz") << "6.1 49.6 300\n6.2 49.7 310\n";
     std::ofstream(dir_.path / "secret.xyz") << "1 2 3\n";
     std::error_code ec;
-    std::filesystem::create_symlink(dir_.path / "secret.xyz", dir_.path / "data" / "escape.xyz", ec);
+    std::filesystem::create_symlink(dir_.path / "secret.xyz", dir_.path / "data" / "escape.xyz",
+                                    ec);
     ServerConfig c;
     c.address = "127.0.0.1";
     c.port = 0;
@@ -149,7 +153,8 @@ TEST_F(ServerTest, ServesReadEndpoints) {
   EXPECT_EQ(json::parse(layers.body)["layers"][0]["name"], "lux");
   EXPECT_EQ(json::parse(http_get(port_, "/layers/lux").body)["max_level"], 12);
 
-  auto tile = http_get(port_, "/tiles/lux/" + kTile.quadkey(), {{"Accept-Encoding", "deflate, gzip"}});
+  auto tile =
+      http_get(port_, "/tiles/lux/" + kTile.quadkey(), {{"Accept-Encoding", "deflate, gzip"}});
   ASSERT_EQ(tile.status, 200);
   EXPECT_EQ(tile.header("Content-Encoding"), "deflate");
   EXPECT_FALSE(tile.header("ETag").empty());
@@ -167,9 +172,10 @@ TEST_F(ServerTest, ServesReadEndpoints) {
   const auto lj_raw = testing::gunzip(lj.body);
   EXPECT_EQ(json::parse(std::string(lj_raw.begin(), lj_raw.end()))["format"], "quantized-mesh-1.0");
 
-  auto terrain = http_get(port_, "/tiles/lux/12/2121/" + std::to_string(kTile.tms_row()) + ".terrain",
-                          {{"Accept-Encoding", "gzip"},
-                           {"Accept", "application/vnd.quantized-mesh;extensions=octvertexnormals"}});
+  auto terrain =
+      http_get(port_, "/tiles/lux/12/2121/" + std::to_string(kTile.tms_row()) + ".terrain",
+               {{"Accept-Encoding", "gzip"},
+                {"Accept", "application/vnd.quantized-mesh;extensions=octvertexnormals"}});
   ASSERT_EQ(terrain.status, 200);
   EXPECT_EQ(terrain.header("Content-Encoding"), "gzip");
   auto mesh = testing::decode_quantized_mesh(testing::gunzip(terrain.body));
@@ -177,13 +183,16 @@ TEST_F(ServerTest, ServesReadEndpoints) {
   EXPECT_EQ(mesh.u.size(), 17u * 17u);
 
   EXPECT_EQ(http_get(port_, "/tiles/lux/0123x").status, 400);
-  EXPECT_EQ(http_get(port_, "/tiles/lux/" + geo::TileId::from_zxy(12, 1, 1)->quadkey()).status, 404);
+  EXPECT_EQ(http_get(port_, "/tiles/lux/" + geo::TileId::from_zxy(12, 1, 1)->quadkey()).status,
+            404);
   EXPECT_EQ(http_get(port_, "/nothing/here").status, 404);
 
   auto metrics = http_get(port_, "/metrics");
   ASSERT_EQ(metrics.status, 200);
-  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"200\"}"), std::string::npos);
-  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"304\"} 1"), std::string::npos);
+  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"200\"}"),
+            std::string::npos);
+  EXPECT_NE(metrics.body.find("tinstream_http_requests_total{route=\"tile\",status=\"304\"} 1"),
+            std::string::npos);
   // This connection at least (earlier ones may still be closing).
   const auto open_at = metrics.body.find("\ntinstream_http_open_connections ");
   ASSERT_NE(open_at, std::string::npos);
@@ -192,24 +201,29 @@ TEST_F(ServerTest, ServesReadEndpoints) {
 
 TEST_F(ServerTest, NeighbourTerrainTilesShareEdgesOverHttp) {
   auto fetch = [&](const geo::TileId& id) {
-    auto r = http_get(port_, "/tiles/lux/12/" + std::to_string(id.x) + "/" + std::to_string(id.tms_row()) + ".terrain",
-                      {{"Accept-Encoding", "gzip"}});
+    auto r = http_get(
+        port_,
+        "/tiles/lux/12/" + std::to_string(id.x) + "/" + std::to_string(id.tms_row()) + ".terrain",
+        {{"Accept-Encoding", "gzip"}});
     EXPECT_EQ(r.status, 200);
     return testing::decode_quantized_mesh(testing::gunzip(r.body));
   };
   const geo::TileId east = *kTile.neighbour(geo::Direction::east);
   const auto a = fetch(kTile), b = fetch(east);
-  const auto ra = kTile.lonlat_bounds(geo::NormalisedMercator()), rb = east.lonlat_bounds(geo::NormalisedMercator());
+  const auto ra = kTile.lonlat_bounds(geo::NormalisedMercator()),
+             rb = east.lonlat_bounds(geo::NormalisedMercator());
   ASSERT_EQ(a.east.size(), b.west.size());
   for (std::uint32_t i : a.east) {
     const double lat_a = ra.south + (ra.north - ra.south) * a.v[i] / 32767.0;
-    const double h_a = a.min_height + (static_cast<double>(a.max_height) - a.min_height) * a.h[i] / 32767.0;
+    const double h_a =
+        a.min_height + (static_cast<double>(a.max_height) - a.min_height) * a.h[i] / 32767.0;
     bool found = false;
     for (std::uint32_t j : b.west) {
       const double lat_b = rb.south + (rb.north - rb.south) * b.v[j] / 32767.0;
       if (std::abs(lat_a - lat_b) > 1e-9) continue;
       found = true;
-      const double h_b = b.min_height + (static_cast<double>(b.max_height) - b.min_height) * b.h[j] / 32767.0;
+      const double h_b =
+          b.min_height + (static_cast<double>(b.max_height) - b.min_height) * b.h[j] / 32767.0;
       EXPECT_NEAR(h_a, h_b, 0.02);
       EXPECT_EQ(a.u[i], 32767);
       EXPECT_EQ(b.u[j], 0);
@@ -220,10 +234,12 @@ TEST_F(ServerTest, NeighbourTerrainTilesShareEdgesOverHttp) {
 
 TEST_F(ServerTest, KeepAliveAndPipelining) {
   HttpConnection c(port_);
-  ASSERT_TRUE(c.send_raw("GET /layers/lux HTTP/1.1\r\nHost: x\r\n\r\n"
-                         "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
-                         "GET /tiles/lux/9x HTTP/1.1\r\nHost: x\r\n\r\n"
-                         "HEAD /tiles/lux/" + kTile.quadkey() + " HTTP/1.1\r\nHost: x\r\n\r\n"));
+  ASSERT_TRUE(
+      c.send_raw("GET /layers/lux HTTP/1.1\r\nHost: x\r\n\r\n"
+                 "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
+                 "GET /tiles/lux/9x HTTP/1.1\r\nHost: x\r\n\r\n"
+                 "HEAD /tiles/lux/" +
+                 kTile.quadkey() + " HTTP/1.1\r\nHost: x\r\n\r\n"));
   auto r1 = c.read_response();
   auto r2 = c.read_response();
   auto r3 = c.read_response();
@@ -254,8 +270,9 @@ TEST_F(ServerTest, OversizedHeadersBodiesAndGarbageAre4xxAndServingContinues) {
   }
   {
     HttpConnection c(port_);  // chunked body over the limit: detected while reading
-    std::string req = "POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
-                      "Content-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n";
+    std::string req =
+        "POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+        "Content-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n";
     for (int i = 0; i < 5; ++i) req += "400\r\n" + std::string(1024, ' ') + "\r\n";
     req += "0\r\n\r\n";
     c.send_raw(req);
@@ -274,42 +291,59 @@ TEST_F(ServerTest, OversizedHeadersBodiesAndGarbageAre4xxAndServingContinues) {
 }
 
 TEST_F(ServerTest, PathTraversalIsRejected) {
-  for (const std::string target :
-       {"/tiles/%2e%2e/0", "/tiles/..%2f..%2fetc/0", "/tiles/lux/%2e%2e", "/layers/%2e%2e%2fstore.db",
-        "/tiles/../../etc/passwd", "/tiles/lux/..%2F..%2Fetc%2Fpasswd", "/layers/..%5c..%5cwin"}) {
+  for (const std::string target : {"/tiles/%2e%2e/0", "/tiles/..%2f..%2fetc/0", "/tiles/lux/%2e%2e",
+                                   "/layers/%2e%2e%2fstore.db", "/tiles/../../etc/passwd",
+                                   "/tiles/lux/..%2F..%2Fetc%2Fpasswd", "/layers/..%5c..%5cwin"}) {
     auto r = http_get(port_, target);
     EXPECT_GE(r.status, 400) << target;
     EXPECT_LT(r.status, 500) << target;
   }
   auto post = [&](const std::string& source) {
     return http_request(port_, "POST", "/admin/ingest", kAdmin,
-                        json{{"layer", "t"}, {"sources", {source}}}.dump()).status;
+                        json{{"layer", "t"}, {"sources", {source}}}.dump())
+        .status;
   };
   EXPECT_EQ(post("../secret.xyz"), 400);
   EXPECT_EQ(post("sub/../../secret.xyz"), 400);
   EXPECT_EQ(post((dir_.path / "secret.xyz").string()), 403);
   EXPECT_EQ(post("/etc/passwd"), 403);
-  EXPECT_EQ(post("escape.xyz"), 403);  // symlink out of the data root
+  EXPECT_EQ(post("escape.xyz"), 403);         // symlink out of the data root
   EXPECT_EQ(post("%2e%2e/secret.xyz"), 404);  // no decoding of body paths: a literal name
-  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest?layer=..&filename=a.xyz",
-                         {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}}, "1 2 3\n").status, 400);
-  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest?layer=u&filename=..%2Fx",
-                         {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}}, "1 2 3\n").status, 400);
+  EXPECT_EQ(
+      http_request(port_, "POST", "/admin/ingest?layer=..&filename=a.xyz",
+                   {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}},
+                   "1 2 3\n")
+          .status,
+      400);
+  EXPECT_EQ(
+      http_request(port_, "POST", "/admin/ingest?layer=u&filename=..%2Fx",
+                   {{"Authorization", "Bearer tok"}, {"Content-Type", "application/octet-stream"}},
+                   "1 2 3\n")
+          .status,
+      400);
   EXPECT_EQ(runner_->runs, 0);
 }
 
 TEST_F(ServerTest, AdminAuthFailures) {
   const std::string body = json{{"layer", "t"}, {"sources", {"sub/points.xyz"}}}.dump();
-  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest", {{"Content-Type", "application/json"}}, body).status, 401);
-  EXPECT_EQ(http_request(port_, "POST", "/admin/ingest",
-                         {{"Content-Type", "application/json"}, {"Authorization", "Bearer nope"}}, body).status, 403);
+  EXPECT_EQ(
+      http_request(port_, "POST", "/admin/ingest", {{"Content-Type", "application/json"}}, body)
+          .status,
+      401);
+  EXPECT_EQ(
+      http_request(port_, "POST", "/admin/ingest",
+                   {{"Content-Type", "application/json"}, {"Authorization", "Bearer nope"}}, body)
+          .status,
+      403);
   EXPECT_EQ(http_get(port_, "/admin/jobs/1").status, 401);
   EXPECT_EQ(http_get(port_, "/admin/jobs/1", {{"Authorization", "Bearer tokk"}}).status, 403);
   EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/lux").status, 401);
-  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/lux", {{"Authorization", "Bearer x"}}).status, 403);
+  EXPECT_EQ(
+      http_request(port_, "DELETE", "/admin/layers/lux", {{"Authorization", "Bearer x"}}).status,
+      403);
   // Uploads are refused before the body is stored.
-  auto up = http_request(port_, "POST", "/admin/ingest?layer=u", {{"Content-Type", "application/octet-stream"}},
-                         std::string(5000, 'x'));
+  auto up = http_request(port_, "POST", "/admin/ingest?layer=u",
+                         {{"Content-Type", "application/octet-stream"}}, std::string(5000, 'x'));
   EXPECT_EQ(up.status, 401);
   EXPECT_TRUE(!std::filesystem::exists(dir_.path / "uploads") ||
               std::filesystem::is_empty(dir_.path / "uploads"));
@@ -332,8 +366,10 @@ TEST_F(ServerTest, IngestThroughTheAdminApiWhileServing) {
       ++fetched;
     }
   });
-  auto r = http_request(port_, "POST", "/admin/ingest", kAdmin,
-                        json{{"layer", "fresh"}, {"sources", {"sub/points.xyz"}}, {"options", {{"max_points", 100}}}}.dump());
+  auto r = http_request(
+      port_, "POST", "/admin/ingest", kAdmin,
+      json{{"layer", "fresh"}, {"sources", {"sub/points.xyz"}}, {"options", {{"max_points", 100}}}}
+          .dump());
   ASSERT_EQ(r.status, 202) << r.body;
   const std::string id = json::parse(r.body)["job"];
   EXPECT_EQ(r.header("Location"), "/admin/jobs/" + id);
@@ -345,7 +381,8 @@ TEST_F(ServerTest, IngestThroughTheAdminApiWhileServing) {
   }
   EXPECT_EQ(status["state"], "running");
   EXPECT_EQ(http_get(port_, "/layers/fresh").status, 404);  // not visible before publish
-  EXPECT_NE(http_get(port_, "/metrics").body.find("tinstream_ingest_jobs{state=\"running\"} 1"), std::string::npos);
+  EXPECT_NE(http_get(port_, "/metrics").body.find("tinstream_ingest_jobs{state=\"running\"} 1"),
+            std::string::npos);
   {
     std::lock_guard lock(runner_->mutex);
     runner_->open = true;
@@ -374,7 +411,8 @@ TEST_F(ServerTest, IngestThroughTheAdminApiWhileServing) {
 TEST_F(ServerTest, UploadIngestIsStreamedToDiskAndLimited) {
   const std::map<std::string, std::string> up = {{"Authorization", "Bearer tok"},
                                                  {"Content-Type", "application/octet-stream"}};
-  auto r = http_request(port_, "POST", "/admin/ingest?layer=uploaded&filename=pts.xyz", up, std::string(50000, 'x'));
+  auto r = http_request(port_, "POST", "/admin/ingest?layer=uploaded&filename=pts.xyz", up,
+                        std::string(50000, 'x'));
   ASSERT_EQ(r.status, 202) << r.body;
   const auto status = wait_for_job(json::parse(r.body)["job"]);
   EXPECT_EQ(status["state"], "succeeded") << status.dump();
@@ -387,16 +425,19 @@ TEST_F(ServerTest, UploadIngestIsStreamedToDiskAndLimited) {
   EXPECT_EQ(big.status, 413);
   // With Expect: 100-continue, as curl sends for large uploads.
   HttpConnection c(port_);
-  c.send_raw("POST /admin/ingest?layer=cont HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
-             "Content-Type: application/octet-stream\r\nContent-Length: 10\r\nExpect: 100-continue\r\n\r\n");
+  c.send_raw(
+      "POST /admin/ingest?layer=cont HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+      "Content-Type: application/octet-stream\r\nContent-Length: 10\r\nExpect: "
+      "100-continue\r\n\r\n");
   c.send_raw("0123456789");
   EXPECT_EQ(c.read_response().status, 202);
   EXPECT_EQ(http_get(port_, "/healthz").status, 200);
 }
 
 TEST_F(ServerTest, CorsPreflightOverTheWire) {
-  auto r = http_request(port_, "OPTIONS", "/tiles/lux/layer.json",
-                        {{"Origin", "https://viewer.example"}, {"Access-Control-Request-Method", "GET"}});
+  auto r = http_request(
+      port_, "OPTIONS", "/tiles/lux/layer.json",
+      {{"Origin", "https://viewer.example"}, {"Access-Control-Request-Method", "GET"}});
   EXPECT_EQ(r.status, 204);
   EXPECT_EQ(r.header("Access-Control-Allow-Origin"), "*");
   EXPECT_NE(r.header("Access-Control-Allow-Methods").find("GET"), std::string::npos);
@@ -408,9 +449,10 @@ TEST_F(ServerTest, GracefulShutdownFinishesInFlightRequests) {
   HttpConnection busy(port_);
   // Half a request in flight: headers and part of the body.
   const std::string part1 = "{\"layer\": \"late\", ", part2 = "\"sources\": [\"sub/points.xyz\"]}";
-  ASSERT_TRUE(busy.send_raw("POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
-                            "Content-Type: application/json\r\nContent-Length: " +
-                            std::to_string(part1.size() + part2.size()) + "\r\n\r\n" + part1));
+  ASSERT_TRUE(
+      busy.send_raw("POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+                    "Content-Type: application/json\r\nContent-Length: " +
+                    std::to_string(part1.size() + part2.size()) + "\r\n\r\n" + part1));
   // Make sure the server is reading that body before stopping (a request on another connection
   // is answered after the bytes above were received by the server's socket).
   ASSERT_EQ(http_get(port_, "/healthz").status, 200);

@@ -69,7 +69,10 @@ TEST(ServerProcess, ServesAndStopsOnSigterm) {
   EXPECT_EQ(testing::http_get(port, "/tiles/lux/" + tile.quadkey()).status, 200);
   // The stock executable has no ingest pipeline linked in unless the lead plugs it in; either
   // way the job is accepted or refused cleanly, never a crash. Admin is disabled without token.
-  EXPECT_EQ(testing::http_request(port, "POST", "/admin/ingest", {{"Authorization", "Bearer x"}}, "{}").status, 403);
+  EXPECT_EQ(
+      testing::http_request(port, "POST", "/admin/ingest", {{"Authorization", "Bearer x"}}, "{}")
+          .status,
+      403);
   testing::HttpConnection idle(port);
   ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
   ::kill(c.pid, SIGTERM);
@@ -109,10 +112,15 @@ struct Terrain {
   geo::TileId id;
   testing::DecodedMesh mesh;
   geo::LonLatRect rect;
-  double lon(std::uint32_t i) const { return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0; }
-  double lat(std::uint32_t i) const { return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0; }
+  double lon(std::uint32_t i) const {
+    return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0;
+  }
+  double lat(std::uint32_t i) const {
+    return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0;
+  }
   double h(std::uint32_t i) const {
-    return mesh.min_height + (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
+    return mesh.min_height +
+           (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
   }
   double step() const { return (static_cast<double>(mesh.max_height) - mesh.min_height) / 32767.0; }
 };
@@ -137,7 +145,8 @@ int check_shared_edges(const std::map<geo::TileId, Terrain>& tiles) {
         for (std::uint32_t j : b_list) {
           if (std::abs(a.lon(i) - b.lon(j)) < 1e-9 && std::abs(a.lat(i) - b.lat(j)) < 1e-9) {
             found = true;
-            EXPECT_NEAR(a.h(i), b.h(j), a.step() + b.step() + 1e-3) << id.to_string() << " vs " << nid->to_string();
+            EXPECT_NEAR(a.h(i), b.h(j), a.step() + b.step() + 1e-3)
+                << id.to_string() << " vs " << nid->to_string();
           }
         }
         EXPECT_TRUE(found) << id.to_string() << " edge vertex at " << a.lon(i) << "," << a.lat(i)
@@ -162,8 +171,8 @@ TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
       ::dup2(fds[1], 1);
       ::close(fds[0]);
       ::close(fds[1]);
-      ::execl(kCli.c_str(), kCli.c_str(), "export", "--store", store.c_str(), "--layer", "lux", "--dir",
-              out.c_str(), static_cast<char*>(nullptr));
+      ::execl(kCli.c_str(), kCli.c_str(), "export", "--store", store.c_str(), "--layer", "lux",
+              "--dir", out.c_str(), static_cast<char*>(nullptr));
       ::_exit(127);
     }
     ::close(fds[1]);
@@ -184,7 +193,8 @@ TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
       for (std::uint32_t x = r["startX"]; x <= r["endX"].get<std::uint32_t>(); ++x) {
         for (std::uint32_t y = r["startY"]; y <= r["endY"].get<std::uint32_t>(); ++y) {
           ++listed;
-          const auto path = out / std::to_string(z) / std::to_string(x) / (std::to_string(y) + ".terrain");
+          const auto path =
+              out / std::to_string(z) / std::to_string(x) / (std::to_string(y) + ".terrain");
           ASSERT_TRUE(std::filesystem::exists(path)) << path;
           const auto id = *geo::TileId::from_tms(z, x, y);
           Terrain t{id, testing::decode_quantized_mesh(testing::gunzip(read_file(path))),
@@ -221,12 +231,14 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
   if (!std::filesystem::exists(data / "luxembourg_elev.tif")) GTEST_SKIP() << "no shared data";
   TempDir dir("real");
   const auto config = dir.path / "server.json";
-  std::ofstream(config) << nlohmann::json{{"log_level", "warn"}, {"access_log", false},
+  std::ofstream(config) << nlohmann::json{{"log_level", "warn"},
+                                          {"access_log", false},
                                           {"data_root", data.string()},
-                                          {"admin_token_env", "TINSTREAM_TEST_ADMIN_TOKEN"}}.dump();
+                                          {"admin_token_env", "TINSTREAM_TEST_ADMIN_TOKEN"}}
+                               .dump();
   ::setenv("TINSTREAM_TEST_ADMIN_TOKEN", "real-token", 1);
-  Child c = spawn({"--config", config.string(), "--store", (dir.path / "store.db").string(), "--port",
-                   "0", "--address", "127.0.0.1", "--threads", "2"});
+  Child c = spawn({"--config", config.string(), "--store", (dir.path / "store.db").string(),
+                   "--port", "0", "--address", "127.0.0.1", "--threads", "2"});
   ::unsetenv("TINSTREAM_TEST_ADMIN_TOKEN");
   char line[256] = {0};
   ASSERT_NE(std::fgets(line, sizeof line, c.out), nullptr);
@@ -263,8 +275,9 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
     for (const auto& range : lj["available"][z]) {
       for (std::uint32_t x = range["startX"]; x <= range["endX"].get<std::uint32_t>(); ++x) {
         for (std::uint32_t y = range["startY"]; y <= range["endY"].get<std::uint32_t>(); ++y) {
-          auto t = testing::http_get(port, "/tiles/lux/" + std::to_string(z) + "/" + std::to_string(x) + "/" +
-                                               std::to_string(y) + ".terrain",
+          auto t = testing::http_get(port,
+                                     "/tiles/lux/" + std::to_string(z) + "/" + std::to_string(x) +
+                                         "/" + std::to_string(y) + ".terrain",
                                      {{"Accept-Encoding", "gzip"}});
           ASSERT_EQ(t.status, 200);
           const auto id = *geo::TileId::from_tms(z, x, y);
@@ -272,11 +285,14 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
           for (std::size_t k = 0; k < mesh.indices.size(); k += 3) {
             const auto a = mesh.indices[k], b = mesh.indices[k + 1], cc = mesh.indices[k + 2];
             ASSERT_LT(std::max({a, b, cc}), mesh.u.size());
-            const double cross = (static_cast<double>(mesh.u[b]) - mesh.u[a]) * (static_cast<double>(mesh.v[cc]) - mesh.v[a]) -
-                                 (static_cast<double>(mesh.v[b]) - mesh.v[a]) * (static_cast<double>(mesh.u[cc]) - mesh.u[a]);
+            const double cross = (static_cast<double>(mesh.u[b]) - mesh.u[a]) *
+                                     (static_cast<double>(mesh.v[cc]) - mesh.v[a]) -
+                                 (static_cast<double>(mesh.v[b]) - mesh.v[a]) *
+                                     (static_cast<double>(mesh.u[cc]) - mesh.u[a]);
             EXPECT_GE(cross, 0) << id.to_string();  // CCW (quantisation may flatten slivers)
           }
-          by_level[z].emplace(id, Terrain{id, std::move(mesh), id.lonlat_bounds(geo::NormalisedMercator())});
+          by_level[z].emplace(
+              id, Terrain{id, std::move(mesh), id.lonlat_bounds(geo::NormalisedMercator())});
           ++fetched;
         }
       }

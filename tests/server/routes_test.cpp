@@ -1,7 +1,8 @@
+#include "tinstream/server/routes.hpp"
+
 #include <gtest/gtest.h>
 
 #include "tinstream/server/config.hpp"
-#include "tinstream/server/routes.hpp"
 
 namespace tinstream::server {
 namespace {
@@ -42,7 +43,8 @@ TEST(Routes, TerrainTileConvertsTmsRows) {
   EXPECT_EQ(t->id.z, 12u);
   EXPECT_EQ(t->id.x, 2120u);
   EXPECT_EQ(t->id.y, 4095u - 2695u);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/4/0.terrain"))->status, 400);  // x out of range
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/4/0.terrain"))->status,
+            400);  // x out of range
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/-1.terrain"))->status, 400);
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/x.terrain"))->status, 400);
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/1.png"))->status, 404);
@@ -60,9 +62,11 @@ TEST(Routes, LayerJsonAndMetadata) {
 }
 
 TEST(Routes, TraversalInLayerNamesIsRejected) {
-  for (const std::string& target : std::vector<std::string>{"/tiles/../0", "/tiles/%2e%2e/0", "/tiles/%2E%2E/layer.json", "/layers/..", "/layers/.hidden",
-        "/layers/a%2Fb", "/layers/a%5Cb", "/tiles/..%2F..%2Fetc/0", "/admin/layers/%2e%2e",
-        "/layers/a%00b", "/layers/%zz", "/layers/" + std::string(65, 'a') + ""}) {
+  for (const std::string& target :
+       std::vector<std::string>{"/tiles/../0", "/tiles/%2e%2e/0", "/tiles/%2E%2E/layer.json",
+                                "/layers/..", "/layers/.hidden", "/layers/a%2Fb", "/layers/a%5Cb",
+                                "/tiles/..%2F..%2Fetc/0", "/admin/layers/%2e%2e", "/layers/a%00b",
+                                "/layers/%zz", "/layers/" + std::string(65, 'a') + ""}) {
     const auto r = parse_route(target.substr(0, 7) == "/admin/" ? "DELETE" : "GET", target);
     const auto e = error_of(r);
     ASSERT_TRUE(e.has_value()) << target;

@@ -74,7 +74,8 @@ void write_test_layer(const std::filesystem::path& path, const std::string& name
 
 std::string HttpResponse::header(const std::string& name) const {
   std::string lower = name;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   auto it = headers.find(lower);
   return it == headers.end() ? std::string() : it->second;
 }
@@ -137,7 +138,8 @@ HttpResponse HttpConnection::read_response(bool head_request) {
     const auto colon = line.find(':');
     if (colon != std::string::npos) {
       std::string k = line.substr(0, colon);
-      std::transform(k.begin(), k.end(), k.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      std::transform(k.begin(), k.end(), k.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
       std::string v = line.substr(colon + 1);
       while (!v.empty() && v.front() == ' ') v.erase(0, 1);
       r.headers[k] = v;
@@ -146,7 +148,8 @@ HttpResponse HttpConnection::read_response(bool head_request) {
   }
   if (status == 100) return read_response(head_request);
   std::size_t length = 0;
-  if (auto it = r.headers.find("content-length"); it != r.headers.end()) length = std::stoul(it->second);
+  if (auto it = r.headers.find("content-length"); it != r.headers.end())
+    length = std::stoul(it->second);
   if (head_request || status == 304 || status == 204) length = 0;
   while (buffer_.size() < length) {
     if (!fill()) return r;
@@ -169,14 +172,16 @@ HttpResponse HttpConnection::request(const std::string& method, const std::strin
                                      const std::string& body) {
   std::string req = method + " " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n";
   for (const auto& [k, v] : headers) req += k + ": " + v + "\r\n";
-  if (!body.empty() || method == "POST") req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+  if (!body.empty() || method == "POST")
+    req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
   req += "\r\n" + body;
   if (!send_raw(req)) return {};
   return read_response(method == "HEAD");
 }
 
 HttpResponse http_request(std::uint16_t port, const std::string& method, const std::string& target,
-                          const std::map<std::string, std::string>& headers, const std::string& body) {
+                          const std::map<std::string, std::string>& headers,
+                          const std::string& body) {
   HttpConnection c(port);
   return c.request(method, target, headers, body);
 }

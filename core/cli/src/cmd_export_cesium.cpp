@@ -10,7 +10,6 @@
 // Only spherical-Mercator layers can be exported (ellipsoidal tiles do not match EPSG:3857).
 // Runs on the main thread; memory is one tile at a time.
 #include <CLI/CLI.hpp>
-
 #include <fstream>
 #include <iostream>
 
@@ -44,7 +43,8 @@ Status write_file(const std::filesystem::path& path, std::span<const std::uint8_
   const std::filesystem::path tmp = path.string() + ".part";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
     if (!out) return io_error("cannot write " + tmp.string());
   }
   std::filesystem::rename(tmp, path, ec);
@@ -55,8 +55,9 @@ Status write_file(const std::filesystem::path& path, std::span<const std::uint8_
 }  // namespace
 
 void add_cesium_dir_options(CLI::App& export_command, CesiumDirExport& /*request*/) {
-  export_command.add_flag("--no-normals", extra().no_normals,
-                          "--dir: leave out the octvertexnormals extension (smaller tiles, no lighting)");
+  export_command.add_flag(
+      "--no-normals", extra().no_normals,
+      "--dir: leave out the octvertexnormals extension (smaller tiles, no lighting)");
 }
 
 int run_export_cesium_dir(const CesiumDirExport& request) {
@@ -91,7 +92,8 @@ int run_export_cesium_dir(const CesiumDirExport& request) {
     auto tin = st->read_tile(request.layer, id);
     if (!tin) return fail(tin.error().message);
     if (!tin->has_value()) return fail("tile " + id.to_string() + " listed but absent");
-    if (Status s = emit(**tin); !s) return fail("tile " + id.to_string() + ": " + s.error().message);
+    if (Status s = emit(**tin); !s)
+      return fail("tile " + id.to_string() + ": " + s.error().message);
   }
 
   terrain::LayerJsonInput in;
@@ -105,13 +107,14 @@ int run_export_cesium_dir(const CesiumDirExport& request) {
   in.tile_ids = std::move(*ids);
   in.oct_vertex_normals = normals;
   const std::string doc = terrain::layer_json(in);
-  if (Status s = write_file(request.dir / "layer.json",
-                            std::span(reinterpret_cast<const std::uint8_t*>(doc.data()), doc.size()));
+  if (Status s =
+          write_file(request.dir / "layer.json",
+                     std::span(reinterpret_cast<const std::uint8_t*>(doc.data()), doc.size()));
       !s) {
     return fail(s.error().message);
   }
-  std::cout << "exported " << written << " terrain tiles (" << bytes << " bytes gzip) and layer.json to "
-            << request.dir.string() << "\n";
+  std::cout << "exported " << written << " terrain tiles (" << bytes
+            << " bytes gzip) and layer.json to " << request.dir.string() << "\n";
   return 0;
 }
 

@@ -11,8 +11,9 @@ std::vector<TileRange> merge_ranges(std::vector<geo::TileId> tiles) {
   if (tiles.empty()) return done;
   // Sort by TMS row, then column; drop duplicates.
   for (auto& t : tiles) t.y = t.tms_row();
-  std::sort(tiles.begin(), tiles.end(),
-            [](const geo::TileId& a, const geo::TileId& b) { return std::tie(a.y, a.x) < std::tie(b.y, b.x); });
+  std::sort(tiles.begin(), tiles.end(), [](const geo::TileId& a, const geo::TileId& b) {
+    return std::tie(a.y, a.x) < std::tie(b.y, b.x);
+  });
   tiles.erase(std::unique(tiles.begin(), tiles.end()), tiles.end());
 
   // Runs per row, then extend rectangles of the previous row whose x-span matches exactly.
@@ -69,7 +70,8 @@ std::string layer_json(const LayerJsonInput& in) {
   for (const auto& id : in.tile_ids) {
     if (id.z <= in.max_level && id.z >= in.min_level) by_level[id.z].push_back(id);
   }
-  for (const auto& id : synthetic_ancestors(in.tile_ids, in.min_level)) by_level[id.z].push_back(id);
+  for (const auto& id : synthetic_ancestors(in.tile_ids, in.min_level))
+    by_level[id.z].push_back(id);
   json available = json::array();
   for (std::uint32_t z = 0; z <= in.max_level; ++z) {
     json level = json::array();

@@ -109,7 +109,8 @@ Sphere bounding_sphere(std::span<const Vec3> pts) {
 
 }  // namespace
 
-std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points, Vec3 direction_point) {
+std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points,
+                                            Vec3 direction_point) {
   const double a = geo::kWgs84A;
   const double b = geo::kWgs84A * (1.0 - geo::kWgs84F);
   auto to_scaled = [&](Vec3 p) { return Vec3{p.x / a, p.y / a, p.z / b}; };
@@ -248,7 +249,8 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
   triangles.reserve(tile.triangles.size());
   for (const auto& t : tile.triangles) {
     const double cross =
-        (static_cast<double>(qu0[t[1]]) - qu0[t[0]]) * (static_cast<double>(qv0[t[2]]) - qv0[t[0]]) -
+        (static_cast<double>(qu0[t[1]]) - qu0[t[0]]) *
+            (static_cast<double>(qv0[t[2]]) - qv0[t[0]]) -
         (static_cast<double>(qv0[t[1]]) - qv0[t[0]]) * (static_cast<double>(qu0[t[2]]) - qu0[t[0]]);
     if (cross >= 0) triangles.push_back(t);
   }

@@ -50,7 +50,8 @@ inline tile::TinTile make_grid_tile(const geo::TileId& id, int n, const HeightFn
   for (const auto* list : {&t.north, &t.east, &t.south, &t.west, &t.interior}) {
     for (const auto& v : *list) t.min_z = std::min(t.min_z, v.z), t.max_z = std::max(t.max_z, v.z);
   }
-  for (const auto& v : t.corners) t.min_z = std::min(t.min_z, v.z), t.max_z = std::max(t.max_z, v.z);
+  for (const auto& v : t.corners)
+    t.min_z = std::min(t.min_z, v.z), t.max_z = std::max(t.max_z, v.z);
   return t;
 }
 

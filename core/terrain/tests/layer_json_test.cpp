@@ -1,10 +1,10 @@
+#include "tinstream/terrain/layer_json.hpp"
+
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
 #include <random>
 #include <set>
-
-#include "tinstream/terrain/layer_json.hpp"
 
 namespace tinstream::terrain {
 namespace {
@@ -77,8 +77,9 @@ TEST(LayerJson, DocumentHasTheCesiumKeys) {
 }
 
 TEST(LayerJson, SyntheticAncestorsLeadToTheStoredTiles) {
-  const auto ids = std::vector<geo::TileId>{*geo::TileId::from_zxy(3, 4, 2), *geo::TileId::from_zxy(3, 5, 2),
-                                            *geo::TileId::from_zxy(4, 8, 4)};
+  const auto ids =
+      std::vector<geo::TileId>{*geo::TileId::from_zxy(3, 4, 2), *geo::TileId::from_zxy(3, 5, 2),
+                               *geo::TileId::from_zxy(4, 8, 4)};
   const auto a = synthetic_ancestors(ids, 3);
   ASSERT_EQ(a.size(), 3u);
   EXPECT_EQ(a[0], *geo::TileId::from_zxy(0, 0, 0));

@@ -35,7 +35,8 @@ class ByteReader {
   std::uint64_t uint(int bytes) {
     need(static_cast<std::size_t>(bytes));
     std::uint64_t v = 0;
-    for (int i = 0; i < bytes; ++i) v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
+    for (int i = 0; i < bytes; ++i)
+      v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
     pos_ += static_cast<std::size_t>(bytes);
     return v;
   }
@@ -72,7 +73,9 @@ inline DecodedMesh decode_quantized_mesh(const std::vector<std::uint8_t>& bytes)
   if (r.pos() != 88) throw std::runtime_error("header is not 88 bytes");
 
   const auto n = static_cast<std::uint32_t>(r.uint(4));
-  auto unzigzag = [](std::uint32_t z) { return static_cast<int>(z >> 1) ^ -static_cast<int>(z & 1); };
+  auto unzigzag = [](std::uint32_t z) {
+    return static_cast<int>(z >> 1) ^ -static_cast<int>(z & 1);
+  };
   for (auto* arr : {&m.u, &m.v, &m.h}) {
     int value = 0;
     for (std::uint32_t i = 0; i < n; ++i) {
@@ -83,7 +86,8 @@ inline DecodedMesh decode_quantized_mesh(const std::vector<std::uint8_t>& bytes)
   }
   m.wide_indices = n > 65536;
   const int isz = m.wide_indices ? 4 : 2;
-  if (r.pos() % static_cast<std::size_t>(isz) != 0) r.skip(static_cast<std::size_t>(isz) - r.pos() % static_cast<std::size_t>(isz));
+  if (r.pos() % static_cast<std::size_t>(isz) != 0)
+    r.skip(static_cast<std::size_t>(isz) - r.pos() % static_cast<std::size_t>(isz));
   const auto tri_count = static_cast<std::uint32_t>(r.uint(4));
   std::uint32_t highest = 0;
   for (std::uint64_t k = 0; k < std::uint64_t{tri_count} * 3; ++k) {
@@ -94,7 +98,8 @@ inline DecodedMesh decode_quantized_mesh(const std::vector<std::uint8_t>& bytes)
   }
   for (auto* list : {&m.west, &m.south, &m.east, &m.north}) {
     const auto count = static_cast<std::uint32_t>(r.uint(4));
-    for (std::uint32_t k = 0; k < count; ++k) list->push_back(static_cast<std::uint32_t>(r.uint(isz)));
+    for (std::uint32_t k = 0; k < count; ++k)
+      list->push_back(static_cast<std::uint32_t>(r.uint(isz)));
   }
   while (!r.done()) {
     const auto id = static_cast<std::uint8_t>(r.uint(1));

@@ -1,3 +1,5 @@
+#include "tinstream/terrain/quantized_mesh.hpp"
+
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -8,7 +10,6 @@
 #include "grid_tile.hpp"
 #include "qm_decoder.hpp"
 #include "tinstream/terrain/gzip.hpp"
-#include "tinstream/terrain/quantized_mesh.hpp"
 
 namespace tinstream::terrain {
 namespace {
@@ -30,12 +31,19 @@ std::array<double, 3> ecef_of(double lon, double lat, double h) {
 struct Decoded {
   DecodedMesh mesh;
   geo::LonLatRect rect;
-  double lon(std::uint32_t i) const { return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0; }
-  double lat(std::uint32_t i) const { return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0; }
-  double height(std::uint32_t i) const {
-    return mesh.min_height + (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
+  double lon(std::uint32_t i) const {
+    return rect.west + (rect.east - rect.west) * mesh.u[i] / 32767.0;
   }
-  double height_step() const { return (static_cast<double>(mesh.max_height) - mesh.min_height) / 32767.0; }
+  double lat(std::uint32_t i) const {
+    return rect.south + (rect.north - rect.south) * mesh.v[i] / 32767.0;
+  }
+  double height(std::uint32_t i) const {
+    return mesh.min_height +
+           (static_cast<double>(mesh.max_height) - mesh.min_height) * mesh.h[i] / 32767.0;
+  }
+  double height_step() const {
+    return (static_cast<double>(mesh.max_height) - mesh.min_height) / 32767.0;
+  }
 };
 
 const geo::TileId kTile = *geo::TileId::from_zxy(12, 2120, 1400);  // near Luxembourg
@@ -57,8 +65,10 @@ TEST(QuantizedMesh, HeaderAndVerticesDecodeToTheTileSurface) {
   // height within a height step.
   const geo::NormalisedMercator merc;
   std::vector<tile::Vertex> src = {t.corners.begin(), t.corners.end()};
-  for (const auto* l : {&t.north, &t.east, &t.south, &t.west, &t.interior}) src.insert(src.end(), l->begin(), l->end());
-  const double du = (d.rect.east - d.rect.west) / 32767.0, dv = (d.rect.north - d.rect.south) / 32767.0;
+  for (const auto* l : {&t.north, &t.east, &t.south, &t.west, &t.interior})
+    src.insert(src.end(), l->begin(), l->end());
+  const double du = (d.rect.east - d.rect.west) / 32767.0,
+               dv = (d.rect.north - d.rect.south) / 32767.0;
   std::set<std::size_t> matched;
   for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
     bool found = false;
@@ -107,8 +117,10 @@ TEST(QuantizedMesh, TrianglesInRangeAndCounterClockwise) {
     ASSERT_LT(a, d.mesh.u.size());
     ASSERT_LT(b, d.mesh.u.size());
     ASSERT_LT(c, d.mesh.u.size());
-    const double cross = (static_cast<double>(d.mesh.u[b]) - d.mesh.u[a]) * (static_cast<double>(d.mesh.v[c]) - d.mesh.v[a]) -
-                         (static_cast<double>(d.mesh.v[b]) - d.mesh.v[a]) * (static_cast<double>(d.mesh.u[c]) - d.mesh.u[a]);
+    const double cross = (static_cast<double>(d.mesh.u[b]) - d.mesh.u[a]) *
+                             (static_cast<double>(d.mesh.v[c]) - d.mesh.v[a]) -
+                         (static_cast<double>(d.mesh.v[b]) - d.mesh.v[a]) *
+                             (static_cast<double>(d.mesh.u[c]) - d.mesh.u[a]);
     EXPECT_GT(cross, 0) << "triangle " << k / 3;
   }
 }
@@ -124,10 +136,14 @@ TEST(QuantizedMesh, EdgeListsHoldExactlyTheBorderVertices) {
     }
     EXPECT_EQ(list.size(), 17u) << name;
   };
-  check(d.mesh.west, [&](std::uint32_t i) { return d.mesh.u[i] == 0; }, "west");
-  check(d.mesh.east, [&](std::uint32_t i) { return d.mesh.u[i] == 32767; }, "east");
-  check(d.mesh.south, [&](std::uint32_t i) { return d.mesh.v[i] == 0; }, "south");
-  check(d.mesh.north, [&](std::uint32_t i) { return d.mesh.v[i] == 32767; }, "north");
+  check(
+      d.mesh.west, [&](std::uint32_t i) { return d.mesh.u[i] == 0; }, "west");
+  check(
+      d.mesh.east, [&](std::uint32_t i) { return d.mesh.u[i] == 32767; }, "east");
+  check(
+      d.mesh.south, [&](std::uint32_t i) { return d.mesh.v[i] == 0; }, "south");
+  check(
+      d.mesh.north, [&](std::uint32_t i) { return d.mesh.v[i] == 32767; }, "north");
 }
 
 // Border vertices of neighbours coincide in lon, lat and (within both height steps) height.
@@ -171,7 +187,8 @@ TEST(QuantizedMesh, BoundingSphereAndHorizonPointAreConservative) {
   const Decoded d = encode_decode(t);
   const double a = 6378137.0, b = a * (1 - 1 / 298.257223563);
   std::vector<std::array<double, 3>> pts;
-  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) pts.push_back(ecef_of(d.lon(i), d.lat(i), d.height(i)));
+  for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i)
+    pts.push_back(ecef_of(d.lon(i), d.lat(i), d.height(i)));
   for (const auto& p : pts) {
     const double dist = std::hypot(p[0] - d.mesh.sphere_centre[0], p[1] - d.mesh.sphere_centre[1],
                                    p[2] - d.mesh.sphere_centre[2]);

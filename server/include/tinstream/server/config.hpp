@@ -15,26 +15,26 @@ namespace tinstream::server {
 
 struct ServerConfig {
   std::string address = "0.0.0.0";
-  std::uint16_t port = 8080;                 // 0: any free port (tests)
+  std::uint16_t port = 8080;  // 0: any free port (tests)
   std::filesystem::path store = "tinstream.db";
-  unsigned threads = 0;                      // io threads; 0: one per core
-  std::string admin_token;                   // literal bearer token (prefer admin_token_env)
+  unsigned threads = 0;     // io threads; 0: one per core
+  std::string admin_token;  // literal bearer token (prefer admin_token_env)
   std::string admin_token_env = "TINSTREAM_ADMIN_TOKEN";  // env var holding the token
-  std::filesystem::path data_root;           // server-side ingest sources must be under it; empty: off
-  std::filesystem::path upload_dir;          // uploaded sources are streamed here; empty: off
+  std::filesystem::path data_root;   // server-side ingest sources must be under it; empty: off
+  std::filesystem::path upload_dir;  // uploaded sources are streamed here; empty: off
   std::uint64_t max_upload_bytes = 1ull << 30;
   std::uint32_t max_header_bytes = 8192;
-  std::uint64_t max_body_bytes = 1u << 20;   // non-upload request bodies
+  std::uint64_t max_body_bytes = 1u << 20;  // non-upload request bodies
   std::uint32_t max_connections = 1024;
-  std::uint32_t read_timeout_ms = 30000;     // per read, including keep-alive idle time
-  std::uint32_t write_timeout_ms = 30000;    // per response write
-  std::uint32_t cache_max_age_s = 86400;     // Cache-Control max-age for tiles
-  std::string cors_allow_origin = "*";       // empty: no CORS headers
+  std::uint32_t read_timeout_ms = 30000;          // per read, including keep-alive idle time
+  std::uint32_t write_timeout_ms = 30000;         // per response write
+  std::uint32_t cache_max_age_s = 86400;          // Cache-Control max-age for tiles
+  std::string cors_allow_origin = "*";            // empty: no CORS headers
   std::uint64_t terrain_cache_bytes = 64u << 20;  // LRU of encoded .terrain tiles; 0: off
-  std::uint32_t max_queued_jobs = 8;         // ingest jobs waiting or running
-  std::uint32_t shutdown_grace_ms = 10000;   // in-flight responses get this long on SIGTERM
-  std::string log_level = "info";            // trace, debug, info, warn, error, critical, off
-  bool access_log = true;                    // one line per request at info level
+  std::uint32_t max_queued_jobs = 8;              // ingest jobs waiting or running
+  std::uint32_t shutdown_grace_ms = 10000;        // in-flight responses get this long on SIGTERM
+  std::string log_level = "info";                 // trace, debug, info, warn, error, critical, off
+  bool access_log = true;                         // one line per request at info level
 };
 
 // Parses configuration JSON over the defaults. Errors name the key.

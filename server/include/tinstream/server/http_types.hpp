@@ -18,8 +18,8 @@ struct Request {
   std::string if_none_match;
   std::string authorization;
   std::string content_type;
-  std::string body;                   // small bodies (JSON)
-  std::filesystem::path body_file;    // an upload streamed to disk; empty otherwise
+  std::string body;                 // small bodies (JSON)
+  std::filesystem::path body_file;  // an upload streamed to disk; empty otherwise
   std::uint64_t body_file_size = 0;
 };
 
@@ -30,7 +30,7 @@ struct Response {
   std::string route = "other";  // metrics label of the matched route
 
   const std::string* header(std::string_view name) const;  // case-insensitive; nullptr if absent
-  void set(std::string name, std::string value);          // replaces an existing header
+  void set(std::string name, std::string value);           // replaces an existing header
 };
 
 // `{"error": message, "status": status}` with Content-Type application/json.

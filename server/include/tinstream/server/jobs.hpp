@@ -33,10 +33,10 @@ namespace tinstream::server {
 
 struct IngestJobSpec {
   std::string job_id;
-  std::string layer;                            // valid layer name
-  std::vector<std::filesystem::path> sources;   // canonical, existing, under data_root or uploads
+  std::string layer;                           // valid layer name
+  std::vector<std::filesystem::path> sources;  // canonical, existing, under data_root or uploads
   nlohmann::json options = nlohmann::json::object();  // passed through from the request
-  std::filesystem::path store_path;             // the server's store (open it read-write)
+  std::filesystem::path store_path;                   // the server's store (open it read-write)
 };
 
 using IngestRunner = std::function<Status(const IngestJobSpec&, const ProgressSink&)>;
@@ -48,9 +48,9 @@ struct JobStatus {
   std::string id;
   std::string layer;
   JobState state = JobState::queued;
-  Progress progress;            // latest report
-  std::uint64_t reports = 0;    // progress reports received
-  std::string error;            // when failed/cancelled
+  Progress progress;          // latest report
+  std::uint64_t reports = 0;  // progress reports received
+  std::string error;          // when failed/cancelled
   std::int64_t created_unix = 0, started_unix = 0, finished_unix = 0;
   std::vector<std::string> sources;
 
@@ -66,7 +66,8 @@ class JobManager {
 
   // Queues a job (its id is assigned here). Files in `delete_after` are removed when the job ends.
   // Error (unsupported → 503) when max_pending jobs are queued or running.
-  Result<std::string> submit(IngestJobSpec spec, std::vector<std::filesystem::path> delete_after = {});
+  Result<std::string> submit(IngestJobSpec spec,
+                             std::vector<std::filesystem::path> delete_after = {});
   std::optional<JobStatus> get(const std::string& id) const;
   std::vector<JobStatus> list() const;
   JobCounts counts() const;

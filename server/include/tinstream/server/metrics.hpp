@@ -18,19 +18,20 @@ class Metrics {
  public:
   // Route labels known to the server; anything else is counted as "other".
   static constexpr std::array<std::string_view, 13> kRoutes = {
-      "healthz", "metrics", "layers", "layer", "layer_json", "terrain", "tile",
-      "ingest",  "jobs",    "job",    "delete_layer", "preflight", "other"};
+      "healthz", "metrics", "layers", "layer",        "layer_json", "terrain", "tile",
+      "ingest",  "jobs",    "job",    "delete_layer", "preflight",  "other"};
   static constexpr std::array<int, 16> kStatuses = {200, 202, 204, 304, 400, 401, 403, 404,
                                                     405, 409, 413, 415, 431, 500, 503, 0};
   // Latency histogram upper bounds, seconds.
-  static constexpr std::array<double, 12> kBuckets = {0.0001, 0.00025, 0.0005, 0.001, 0.0025,
-                                                      0.005,  0.01,    0.025,  0.05,  0.1,
-                                                      0.5,    2.5};
+  static constexpr std::array<double, 12> kBuckets = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005,
+                                                      0.01,   0.025,   0.05,   0.1,   0.5,    2.5};
 
   void record(std::string_view route, int status, std::uint64_t bytes_sent, double seconds);
   void connection_opened() { open_connections_.fetch_add(1, std::memory_order_relaxed); }
   void connection_closed() { open_connections_.fetch_sub(1, std::memory_order_relaxed); }
-  std::int64_t open_connections() const { return open_connections_.load(std::memory_order_relaxed); }
+  std::int64_t open_connections() const {
+    return open_connections_.load(std::memory_order_relaxed);
+  }
   void connection_rejected() { rejected_connections_.fetch_add(1, std::memory_order_relaxed); }
 
   std::string render(const JobCounts& jobs) const;

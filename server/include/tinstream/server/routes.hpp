@@ -29,14 +29,30 @@ namespace tinstream::server {
 struct HealthRoute {};
 struct MetricsRoute {};
 struct LayersRoute {};
-struct LayerRoute { std::string layer; };
-struct LayerJsonRoute { std::string layer; };
-struct TerrainRoute { std::string layer; geo::TileId id; };
-struct NativeTileRoute { std::string layer; geo::TileId id; };
-struct IngestRoute { std::map<std::string, std::string> query; };
+struct LayerRoute {
+  std::string layer;
+};
+struct LayerJsonRoute {
+  std::string layer;
+};
+struct TerrainRoute {
+  std::string layer;
+  geo::TileId id;
+};
+struct NativeTileRoute {
+  std::string layer;
+  geo::TileId id;
+};
+struct IngestRoute {
+  std::map<std::string, std::string> query;
+};
 struct JobsRoute {};
-struct JobRoute { std::string id; };
-struct DeleteLayerRoute { std::string layer; };
+struct JobRoute {
+  std::string id;
+};
+struct DeleteLayerRoute {
+  std::string layer;
+};
 struct PreflightRoute {};
 
 using Route = std::variant<HealthRoute, MetricsRoute, LayersRoute, LayerRoute, LayerJsonRoute,
@@ -44,9 +60,9 @@ using Route = std::variant<HealthRoute, MetricsRoute, LayersRoute, LayerRoute, L
                            DeleteLayerRoute, PreflightRoute>;
 
 struct RouteError {
-  int status = 400;     // 400 malformed, 404 no such path, 405 wrong method
+  int status = 400;  // 400 malformed, 404 no such path, 405 wrong method
   std::string message;
-  std::string allow;    // for 405: the methods the path accepts
+  std::string allow;  // for 405: the methods the path accepts
   std::string route = "other";
 };
 

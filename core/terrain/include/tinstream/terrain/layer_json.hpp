@@ -33,8 +33,8 @@ struct LayerJsonInput {
   std::string attribution;
   std::string version = "1.0.0";  // tiles URLs get ?v=<version> so caches see new layer versions
   geo::LonLatRect bounds{};
-  std::uint32_t min_level = 0;    // coarsest stored level
-  std::uint32_t max_level = 0;    // finest stored level
+  std::uint32_t min_level = 0;        // coarsest stored level
+  std::uint32_t max_level = 0;        // finest stored level
   std::vector<geo::TileId> tile_ids;  // every stored tile
   bool oct_vertex_normals = true;     // advertise the extension
 };

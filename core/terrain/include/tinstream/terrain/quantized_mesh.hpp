@@ -63,7 +63,8 @@ tile::TinTile flat_tile(const geo::TileId& id);
 struct Vec3 {
   double x = 0, y = 0, z = 0;
 };
-std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points, Vec3 direction_point);
+std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points,
+                                            Vec3 direction_point);
 
 // Cesium's oct encoding of a unit vector into two bytes (AttributeCompression.octEncode, 0..255).
 std::array<std::uint8_t, 2> oct_encode(Vec3 unit_normal);
