@@ -55,12 +55,15 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse, std::span<cons
                                      bool fines_are_finest) {
   SurfaceDifference d;
   std::vector<FlatTriangle> ct;
-  detail::append_triangles(coarse, false, ct);
+  // NODATA triangles (incident to a NODATA corner, z = 0 by convention) are not surface on either
+  // side: the error is measured where both surfaces have data (see error.hpp).
+  (void)fines_are_finest;
+  detail::append_triangles(coarse, true, ct);
   TriangleGrid grid(std::move(ct), coarse.id.bounds());
   std::vector<FlatTriangle> ft;
   for (const tile::TinTile* fine : fines) {
     ft.clear();
-    detail::append_triangles(*fine, fines_are_finest, ft);
+    detail::append_triangles(*fine, true, ft);
     for (const FlatTriangle& f0 : ft) {
       const P2 o = f0.p[0];
       const FlatTriangle f = translated(f0, o);
@@ -140,7 +143,7 @@ Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector
   if (finest.empty()) return invalid_argument("measured_max_error: no finest tiles under " + coarse.id.to_string());
   const geo::MercatorRect r = coarse.id.bounds();
   std::vector<FlatTriangle> ct, ft;
-  detail::append_triangles(coarse, false, ct);
+  detail::append_triangles(coarse, true, ct);
   for (const auto& f : finest) {
     const geo::MercatorRect fr = f.id.bounds();
     if (f.id.z < coarse.id.z || fr.min_x < r.min_x || fr.max_x > r.max_x || fr.min_y < r.min_y || fr.max_y > r.max_y) {

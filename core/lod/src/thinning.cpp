@@ -412,7 +412,16 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
   const geo::MercatorRect r = in.rect ? *in.rect : in.id.bounds();
-  const std::size_t budget = side_budget(options);
+  // Per-side budgets: the automatic one is spread over the perimeter by length (equal for the
+  // square quadtree tiles; a wider-than-high rectangle gives its long sides more).
+  const std::size_t base_budget = side_budget(options);
+  auto budget_for = [&](bool along_x) -> std::size_t {
+    if (options.border_points_per_side != 0) return base_budget;
+    const double len = along_x ? r.width() : r.height();
+    const double mean = 0.5 * (r.width() + r.height());
+    if (!(mean > 0)) return base_budget;
+    return static_cast<std::size_t>(std::floor(static_cast<double>(base_budget) * len / mean + 0.5));
+  };
 
   // ---- 1. the border, side by side, from the border points alone ------------------------------
   std::vector<Vertex> dropped;
@@ -422,7 +431,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     side.push_back(in.corners[static_cast<std::size_t>(c0)]);
     side.insert(side.end(), list.begin(), list.end());
     side.push_back(in.corners[static_cast<std::size_t>(c1)]);
-    std::vector<Vertex> kept = thin_border_side(side, along_x, budget, options.epsilon, &dropped);
+    std::vector<Vertex> kept = thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped);
     return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
   };
   st.input_points = 4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() + in.interior.size();

@@ -9,12 +9,14 @@
 // is exact up to rounding, and the RMS is the exact area integral (a linear function's square
 // integrates in closed form over each polygon's fan).
 //
-// NODATA: at the finest level, triangles incident to a NODATA corner (z = 0 by convention, no
-// data there) are not surface: the "data area" is the union of the other finest triangles. So
-// surface_difference skips such fine triangles only when the fines *are* finest tiles; above the
-// finest level a child's NODATA triangles may lie over finest data and are measured like any
-// other (conservative: the bound chain stays honest over the whole data area). Coarse triangles
-// are always measured. Areas without fine tiles (missing children) are not measured.
+// NODATA: triangles incident to a NODATA corner (z = 0 by convention, no data there) are not
+// surface, at any level and on both sides: the error is measured where both surfaces have data.
+// (Measuring the coarse tile's NODATA triangles — slopes down to z = 0 at the data's edge — made
+// the bound grow by the terrain's full height at every level and meant nothing to a client.) The
+// bound is therefore an honest bound over the area both tiles cover with data; a coarse tile may
+// cover a little less data area than its children near the data's outer edge.
+// Areas without fine tiles (missing children) are not measured. `fines_are_finest` is kept for
+// source compatibility and no longer changes anything.
 //
 // Threads: pure functions on values.
 #pragma once

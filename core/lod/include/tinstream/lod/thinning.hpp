@@ -40,7 +40,9 @@ struct LodOptions {
   std::size_t max_points = 16384;  // per tile, corners and edge points included
   double epsilon = 0.0;            // metres: keep thinning below budget while error < epsilon
   // Budget of one side's edge points (corners excluded). 0 = automatic: min(⌈√max_points⌉,
-  // (max_points − 4) / 8), so the border never takes more than half of the budget.
+  // (max_points − 4) / 8) for a square (so the border never takes more than half of the budget),
+  // spread over the perimeter by side length for a non-square rectangle (ThinInput::rect). Same
+  // tile size ⇒ same budgets, so neighbours stay watertight.
   std::size_t border_points_per_side = 0;
   // The level of the finest tiles (pass 3), when known: build_parent then treats children of that
   // level as the finest surface, whose NODATA-corner triangles are not data (error.hpp). Unknown
