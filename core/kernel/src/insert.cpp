@@ -2,10 +2,7 @@
 // an explicit stack, dimension raising for collinear starts, and bulk insertion in BRIO/Hilbert
 // order.
 #include <algorithm>
-#include <bit>
 #include <cmath>
-#include <cstring>
-#include <limits>
 
 #include "spatial_sort.hpp"
 #include "tinstream/kernel/triangulation.hpp"
