@@ -5,8 +5,9 @@
 #   DURATION=30 bench/server/run.sh
 #   BUILD=build SKIP_BUILD=1 bench/server/run.sh
 #
-# Store: `tinstream ingest` of ../shared/data/luxembourg_elev.tif when the ingest pipeline and the
-# file are there, else a synthetic layer (tinstream-bench-store). Static copy: `tinstream export
+# Store: STORE_IN=FILE LAYER=NAME, else `tinstream ingest` of ../shared/data/N00E010.hgt (SRTM,
+# 1.4 M points, ~90 s on 2 cores) when the ingest pipeline and the file are there, else a synthetic
+# layer (tinstream-bench-store). Static copy: `tinstream export
 # --dir` (fallback: the tiles fetched from tinstream-server, byte-identical). Both servers get the
 # same URL list (every tile), the same headers (gzip + octvertexnormals, as CesiumJS sends) and
 # send the same bytes; tinstream-server answers from its LRU (warmed up first), nginx from the page
@@ -42,13 +43,17 @@ if [[ -z ${SKIP_BUILD:-} ]]; then
 fi
 BIN=$BUILD/bin
 
-# 1. A store.
+# 1. A store: STORE_IN=FILE LAYER=NAME reuses one; else `tinstream ingest` of a real SRTM tile;
+#    else a synthetic layer.
 STORE=$WORK/bench.db
-LAYER=bench
-DEM=$ROOT/../shared/data/luxembourg_elev.tif
-if [[ -x $BIN/tinstream && -f $DEM ]] &&
-   "$BIN/tinstream" ingest --store "$STORE" --layer "$LAYER" --max-points 16384 --quiet "$DEM" >"$WORK/ingest.log" 2>&1; then
-  SOURCE="luxembourg_elev.tif via tinstream ingest"
+LAYER=${LAYER:-bench}
+DEM=${DEM:-$ROOT/../shared/data/N00E010.hgt}
+if [[ -n ${STORE_IN:-} ]]; then
+  cp "$STORE_IN" "$STORE"
+  SOURCE="$(basename "$STORE_IN") (layer $LAYER, given)"
+elif [[ -x $BIN/tinstream && -f $DEM ]] &&
+   "$BIN/tinstream" ingest --store "$STORE" --layer "$LAYER" --max-points 8192 --quiet "$DEM" >"$WORK/ingest.log" 2>&1; then
+  SOURCE="$(basename "$DEM") via tinstream ingest --max-points 8192"
 else
   rm -f "$STORE"*
   "$BIN/tinstream-bench-store" "$STORE" "$LAYER" >/dev/null
@@ -114,6 +119,11 @@ NGINX
 "$NGINX" -p "$WORK/nginx" -c "$WORK/nginx/nginx.conf" &
 NGINX_PID=$!
 sleep 0.5
+
+# Warm tinstream-server's terrain LRU: every tile once (one keep-alive connection).
+sed "s|^|url = \"$BASE/tiles/$LAYER|; s|\$|\"\noutput = \"/dev/null\"|" "$WORK/paths.txt" >"$WORK/warm.curl"
+curl -s -H 'Accept-Encoding: gzip' -H 'Accept: application/vnd.quantized-mesh;extensions=octvertexnormals' \
+  -K "$WORK/warm.curl"
 
 # Same bytes from both?
 P1=$(sed -n '1p' "$WORK/paths.txt"); PN=$(tail -n1 "$WORK/paths.txt")

@@ -221,12 +221,14 @@ Response handle_native_tile(const Request& req, Context& ctx, const NativeTileRo
   return res;
 }
 
-void send_maybe_gzip(const Request& req, Response& res, const std::string& gz) {
+// Sends cached gzip bytes as they are (no copy) when the client takes gzip, else inflated.
+void send_maybe_gzip(const Request& req, Response& res, const std::shared_ptr<const CachedBody>& body) {
   if (accept_quality(req.accept_encoding, "gzip") > 0) {
     res.set("Content-Encoding", "gzip");
-    res.body = gz;
+    res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
     return;
   }
+  const std::string& gz = body->bytes;
   auto raw = terrain::gzip_decompress(
       std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()));
   if (!raw) {
@@ -274,7 +276,7 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   res.set("Content-Type", "application/json");
-  send_maybe_gzip(req, res, body->bytes);
+  send_maybe_gzip(req, res, body);
   return res;
 }
 
@@ -337,7 +339,7 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
   }
   res.set("Content-Type", normals ? "application/vnd.quantized-mesh;extensions=octvertexnormals"
                                   : "application/vnd.quantized-mesh");
-  send_maybe_gzip(req, res, body->bytes);
+  send_maybe_gzip(req, res, body);
   return res;
 }
 

@@ -293,21 +293,31 @@ class Session : public std::enable_shared_from_this<Session> {
     close_after_ = close_after || server_.stopping;
     route_ = res.route;
     status_ = res.status;
+    const bool head = req_.method == "HEAD";
+    const std::size_t full = res.payload().size();
+    body_bytes_ = head ? 0 : full;
+    if (res.shared_body && !head) {
+      // Cached bytes: point the serializer at them; shared_body_ keeps them alive until written.
+      auto msg = std::make_shared<http::response<http::buffer_body>>();
+      shared_body_ = std::move(res.shared_body);
+      msg->body().data = const_cast<char*>(shared_body_->data());
+      msg->body().size = shared_body_->size();
+      msg->body().more = false;
+      return write(std::move(msg), res, full);
+    }
     auto msg = std::make_shared<http::response<http::string_body>>();
+    if (!head) msg->body() = std::move(res.body);
+    write(std::move(msg), res, full);
+  }
+
+  template <typename Message>
+  void write(std::shared_ptr<Message> msg, const Response& res, std::size_t content_length) {
     msg->version(version_);
     msg->result(static_cast<unsigned>(res.status));
     msg->set(http::field::server, "tinstream");
-    for (auto& [k, v] : res.headers) msg->set(k, v);
-    const bool head = req_.method == "HEAD";
-    body_bytes_ = head ? 0 : res.body.size();
-    const std::size_t full = res.body.size();
-    msg->body() = head ? std::string() : std::move(res.body);
+    for (const auto& [k, v] : res.headers) msg->set(k, v);
     msg->keep_alive(!close_after_);
-    if (res.status == 304 || res.status == 204) {
-      // No body and no Content-Length for these.
-    } else {
-      msg->content_length(full);
-    }
+    if (res.status != 304 && res.status != 204) msg->content_length(content_length);
     response_ = msg;
     stream_.expires_after(std::chrono::milliseconds(cfg().write_timeout_ms));
     http::async_write(stream_, *msg,
@@ -324,6 +334,7 @@ class Session : public std::enable_shared_from_this<Session> {
                    ec ? " (write failed: " + ec.message() + ")" : std::string());
     }
     response_.reset();
+    shared_body_.reset();
     if (ec) return close_now();
     if (close_after_ || server_.stopping) return lingering_close();
     do_read();
@@ -362,6 +373,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::optional<http::request_parser<http::string_body>> string_parser_;
   std::optional<http::request_parser<http::file_body>> file_parser_;
   std::shared_ptr<void> response_;
+  std::shared_ptr<const std::string> shared_body_;  // bytes a buffer_body response points into
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
   Request req_;
   std::chrono::steady_clock::time_point start_;

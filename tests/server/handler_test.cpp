@@ -137,7 +137,7 @@ TEST_F(HandlerTest, LayerJsonListsAvailability) {
   const Response r = get("/tiles/lux/layer.json", "gzip");
   ASSERT_EQ(r.status, 200) << r.body;
   EXPECT_EQ(*r.header("Content-Encoding"), "gzip");
-  const auto raw = testing::gunzip(r.body);
+  const auto raw = testing::gunzip(std::string(r.payload()));
   const json j = json::parse(std::string(raw.begin(), raw.end()));
   EXPECT_EQ(j["format"], "quantized-mesh-1.0");
   EXPECT_EQ(j["scheme"], "tms");
@@ -160,7 +160,7 @@ TEST_F(HandlerTest, TerrainTileDecodesAndNormalsFollowAccept) {
   ASSERT_EQ(plain.status, 200) << plain.body;
   EXPECT_EQ(*plain.header("Content-Encoding"), "gzip");
   EXPECT_EQ(*plain.header("Content-Type"), "application/vnd.quantized-mesh");
-  const auto mesh = testing::decode_quantized_mesh(testing::gunzip(plain.body));
+  const auto mesh = testing::decode_quantized_mesh(testing::gunzip(std::string(plain.payload())));
   EXPECT_EQ(mesh.u.size(), 17u * 17u);
   EXPECT_FALSE(mesh.oct_normals.has_value());
 
@@ -168,19 +168,19 @@ TEST_F(HandlerTest, TerrainTileDecodesAndNormalsFollowAccept) {
                            "application/vnd.quantized-mesh;extensions=octvertexnormals-watermask,"
                            "application/octet-stream;q=0.9,*/*;q=0.01");
   ASSERT_EQ(lit.status, 200);
-  const auto mesh_n = testing::decode_quantized_mesh(testing::gunzip(lit.body));
+  const auto mesh_n = testing::decode_quantized_mesh(testing::gunzip(std::string(lit.payload())));
   EXPECT_TRUE(mesh_n.oct_normals.has_value());
   EXPECT_NE(*lit.header("ETag"), *plain.header("ETag"));
   EXPECT_EQ(get(target, "gzip", *plain.header("ETag")).status, 304);
   // Cached: the same bytes again.
-  EXPECT_EQ(get(target, "gzip").body, plain.body);
+  EXPECT_EQ(get(target, "gzip").payload(), plain.payload());
   EXPECT_GT(cache_.bytes(), 0u);
 }
 
 TEST_F(HandlerTest, TerrainAboveTheCoarsestLevelIsFlatAndBelowAbsentIs404) {
   const Response root = get("/tiles/lux/0/0/0.terrain", "gzip");
   ASSERT_EQ(root.status, 200) << root.body;
-  const auto mesh = testing::decode_quantized_mesh(testing::gunzip(root.body));
+  const auto mesh = testing::decode_quantized_mesh(testing::gunzip(std::string(root.payload())));
   EXPECT_EQ(mesh.u.size(), 4u);
   EXPECT_EQ(get("/tiles/lux/12/0/0.terrain", "gzip").status, 404);
 }

@@ -223,7 +223,7 @@ TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
   req.accept = "application/vnd.quantized-mesh;extensions=octvertexnormals";
   const Response res = handle(req, ctx);
   ASSERT_EQ(res.status, 200);
-  EXPECT_EQ(res.body, read_file(out / "12" / "2121" / (std::to_string(id.tms_row()) + ".terrain")));
+  EXPECT_EQ(res.payload(), read_file(out / "12" / "2121" / (std::to_string(id.tms_row()) + ".terrain")));
 }
 
 TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {

@@ -4,7 +4,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -27,6 +29,9 @@ struct Response {
   int status = 200;
   std::vector<std::pair<std::string, std::string>> headers;
   std::string body;             // bytes
+  // When set, sent instead of `body`: shared, immutable bytes (cached tiles), sent without a copy.
+  std::shared_ptr<const std::string> shared_body;
+  std::string_view payload() const { return shared_body ? std::string_view(*shared_body) : body; }
   std::string route = "other";  // metrics label of the matched route
 
   const std::string* header(std::string_view name) const;  // case-insensitive; nullptr if absent
