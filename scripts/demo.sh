@@ -1,5 +1,57 @@
 #!/usr/bin/env bash
-# The main job on the built-in sample: until the pipeline lands, show what the build contains.
+# The main job on the built-in sample (what `make demo` runs after installing and building):
+#   1. generate a synthetic LiDAR point cloud (fractal mountains, LAS, EPSG:32632),
+#   2. ingest it into an SQLite tile store (TIN tiles + LOD pyramid) and verify it,
+#   3. serve it with tinstream-server and show what a client gets (layers, a native tile,
+#      Cesium layer.json and a quantized-mesh tile, an OBJ export),
+#   4. keep serving until Ctrl-C when run from a terminal (stop at once otherwise).
 set -euo pipefail
 build=${1:-build}
-"$build/bin/tinstream" modules
+bin="$build/bin"
+out="$build/demo"
+port=${TINSTREAM_DEMO_PORT:-8080}
+mkdir -p "$out"
+
+step() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
+
+step "1. Sample data: synthetic LiDAR over fractal mountains"
+"$bin/tinstream" sample --out "$out/sample.las" --points 300000 --density 0.05
+
+step "2. Ingest into $out/demo.sqlite (finest TIN tiles + level-of-detail pyramid)"
+rm -f "$out/demo.sqlite" "$out/demo.sqlite-wal" "$out/demo.sqlite-shm"
+"$bin/tinstream" ingest --store "$out/demo.sqlite" --layer sample --epsilon 0.5 "$out/sample.las"
+"$bin/tinstream" verify --store "$out/demo.sqlite" --layer sample -q | head -12
+
+if [[ ! -x "$bin/tinstream-server" ]]; then
+  echo "tinstream-server was not built; stopping after the ingest."
+  exit 0
+fi
+
+step "3. Serve it: tinstream-server on 127.0.0.1:$port"
+"$bin/tinstream-server" --config config/server.json --store "$out/demo.sqlite" --address 127.0.0.1 \
+  --port "$port" > "$out/server.out" 2> "$out/server.log" &
+server=$!
+trap 'kill $server 2>/dev/null || true; wait $server 2>/dev/null || true' EXIT
+for _ in $(seq 100); do
+  grep -q "listening" "$out/server.out" 2>/dev/null && break
+  sleep 0.1
+done
+base="http://127.0.0.1:$port"
+echo "GET $base/healthz"; curl -fsS "$base/healthz"; echo
+echo "GET $base/layers/sample"; curl -fsS "$base/layers/sample" | head -c 800; echo
+quadkey=$(sqlite3 "$out/demo.sqlite" "SELECT quadkey FROM published_tiles WHERE layer = 'sample' ORDER BY z DESC LIMIT 1" 2>/dev/null || true)
+if [[ -n $quadkey ]]; then
+  echo "GET $base/tiles/sample/$quadkey (native TIN tile, deflate)"
+  curl -fsS --compressed -o "$out/tile.bin" -D - "$base/tiles/sample/$quadkey" | grep -iE '^(HTTP|etag|content-)'
+  echo "export as OBJ (lon lat height):"
+  "$bin/tinstream" export --store "$out/demo.sqlite" --layer sample --tile "$quadkey" --format obj \
+    --out "$out/tile.obj"
+  head -3 "$out/tile.obj"; echo "… $(grep -c '^f' "$out/tile.obj") triangles in $out/tile.obj"
+fi
+echo "GET $base/tiles/sample/layer.json (Cesium terrain)"
+curl -fsS --compressed "$base/tiles/sample/layer.json" | head -c 400; echo
+
+if [[ -t 0 ]]; then
+  step "Serving $base until Ctrl-C (Cesium terrain URL: $base/tiles/sample/)"
+  wait $server
+fi

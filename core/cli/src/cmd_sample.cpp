@@ -1,0 +1,170 @@
+// `tinstream sample`: writes a synthetic LiDAR-like point cloud (fractal mountain terrain) as a
+// LAS 1.2 file in UTM zone 32N (EPSG:32632, metres) — the built-in sample of `make demo` and the
+// input generator of the ingest benchmark. Streams: memory does not grow with --points.
+#include <CLI/CLI.hpp>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <vector>
+
+#include "command.hpp"
+
+namespace tinstream::cli {
+namespace {
+
+struct SampleArgs {
+  std::string out = "sample.las";
+  double points = 1e6;
+  double density = 4.0;  // points per square metre, like airborne LiDAR
+  std::uint64_t seed = 1;
+  double easting = 617000, northing = 5093000;  // near the Matterhorn (45.97 N, 7.66 E)
+};
+
+// Smooth value noise from a hashed lattice, summed over octaves (fBm): mountains of ~2 km relief
+// with detail down to a few metres.
+double lattice(std::int64_t i, std::int64_t j, std::uint64_t seed) {
+  std::uint64_t h = static_cast<std::uint64_t>(i) * 0x9E3779B97F4A7C15ull ^
+                    static_cast<std::uint64_t>(j) * 0xC2B2AE3D27D4EB4Full ^ seed;
+  h ^= h >> 31;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 29;
+  return static_cast<double>(h >> 11) * 0x1p-53;  // [0, 1)
+}
+
+double smooth_noise(double x, double y, std::uint64_t seed) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const auto i = static_cast<std::int64_t>(fx), j = static_cast<std::int64_t>(fy);
+  const double u = x - fx, v = y - fy;
+  const double su = u * u * (3 - 2 * u), sv = v * v * (3 - 2 * v);
+  const double a = lattice(i, j, seed), b = lattice(i + 1, j, seed);
+  const double c = lattice(i, j + 1, seed), d = lattice(i + 1, j + 1, seed);
+  return (a + (b - a) * su) * (1 - sv) + (c + (d - c) * su) * sv;
+}
+
+double terrain(double e, double n, std::uint64_t seed) {
+  double h = 0, amplitude = 1400, wavelength = 3000;
+  for (int octave = 0; octave < 10; ++octave) {
+    h += amplitude * smooth_noise(e / wavelength, n / wavelength, seed + static_cast<std::uint64_t>(octave));
+    amplitude *= 0.48;
+    wavelength *= 0.5;
+  }
+  return 1600 + h;
+}
+
+template <typename T>
+void put(std::vector<char>& buf, std::size_t offset, T value) {
+  std::memcpy(buf.data() + offset, &value, sizeof value);
+}
+
+int run(const SampleArgs& a) {
+  if (!(a.points >= 1 && a.points <= 4e9) || !(a.density > 0)) {
+    std::cerr << "tinstream sample: --points must be in [1, 4e9] and --density > 0\n";
+    return 2;
+  }
+  const auto count = static_cast<std::uint64_t>(a.points);
+  const double side = std::sqrt(static_cast<double>(count) / a.density);
+  const double strip = 100.0;  // flight strips along x, as a scanner writes them
+  const auto strips = static_cast<std::uint64_t>(std::max(1.0, std::ceil(side / strip)));
+
+  // Header (227 bytes) + one GeoKeyDirectory VLR (54 + 8 + 3·8 bytes).
+  constexpr std::size_t kHeader = 227, kVlr = 54 + 32;
+  std::vector<char> header(kHeader + kVlr, 0);
+  std::memcpy(header.data(), "LASF", 4);
+  header[24] = 1;
+  header[25] = 2;
+  std::memcpy(header.data() + 26, "tinstream sample", 16);
+  std::memcpy(header.data() + 58, "tinstream", 9);
+  put<std::uint16_t>(header, 94, kHeader);
+  put<std::uint32_t>(header, 96, kHeader + kVlr);
+  put<std::uint32_t>(header, 100, 1);
+  header[104] = 0;  // point format 0
+  put<std::uint16_t>(header, 105, 20);
+  put<std::uint32_t>(header, 107, static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
+  put<std::uint32_t>(header, 111, static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
+  const double scale = 0.001;
+  for (int i = 0; i < 3; ++i) put<double>(header, 131 + 8 * static_cast<std::size_t>(i), scale);
+  put<double>(header, 155, a.easting);
+  put<double>(header, 163, a.northing);
+  put<double>(header, 171, 0.0);
+  // VLR: LASF_Projection / 34735 GeoKeyDirectory: projected, EPSG:32632, metres.
+  std::size_t v = kHeader;
+  std::memcpy(header.data() + v + 2, "LASF_Projection", 15);
+  put<std::uint16_t>(header, v + 18, 34735);
+  put<std::uint16_t>(header, v + 20, 32);
+  std::memcpy(header.data() + v + 22, "GeoKeyDirectoryTag", 18);
+  const std::uint16_t keys[16] = {1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32632, 3076, 0, 1, 9001};
+  std::memcpy(header.data() + v + 54, keys, sizeof keys);
+
+  std::ofstream out(a.out, std::ios::binary);
+  if (!out) {
+    std::cerr << "tinstream sample: cannot create " << a.out << "\n";
+    return 1;
+  }
+  out.write(header.data(), static_cast<std::streamsize>(header.size()));
+  std::mt19937_64 rng(a.seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300, min_z = 1e300, max_z = -1e300;
+  std::vector<char> records;
+  records.reserve(20 * 65536);
+  std::uint64_t written = 0;
+  for (std::uint64_t s = 0; s < strips && written < count; ++s) {
+    const std::uint64_t in_strip = (count - written) / (strips - s);
+    for (std::uint64_t k = 0; k < in_strip; ++k) {
+      const double e = side * unit(rng), n = std::min(side, (static_cast<double>(s) + unit(rng)) * strip);
+      const double h = terrain(e, n, a.seed);
+      const auto X = static_cast<std::int32_t>(std::lround(e / scale));
+      const auto Y = static_cast<std::int32_t>(std::lround(n / scale));
+      const auto Z = static_cast<std::int32_t>(std::lround(h / scale));
+      char rec[20] = {};
+      std::memcpy(rec, &X, 4);
+      std::memcpy(rec + 4, &Y, 4);
+      std::memcpy(rec + 8, &Z, 4);
+      rec[14] = 0x09;  // return 1 of 1
+      rec[15] = 2;     // ground
+      records.insert(records.end(), rec, rec + 20);
+      const double ex = a.easting + X * scale, ny = a.northing + Y * scale, hz = Z * scale;
+      min_x = std::min(min_x, ex), max_x = std::max(max_x, ex);
+      min_y = std::min(min_y, ny), max_y = std::max(max_y, ny);
+      min_z = std::min(min_z, hz), max_z = std::max(max_z, hz);
+      if (records.size() >= 20 * 65536) {
+        out.write(records.data(), static_cast<std::streamsize>(records.size()));
+        records.clear();
+      }
+    }
+    written += in_strip;
+  }
+  out.write(records.data(), static_cast<std::streamsize>(records.size()));
+  // Bounds: MaxX, MinX, MaxY, MinY, MaxZ, MinZ.
+  const double bounds[6] = {max_x, min_x, max_y, min_y, max_z, min_z};
+  out.seekp(179);
+  out.write(reinterpret_cast<const char*>(bounds), sizeof bounds);
+  if (!out) {
+    std::cerr << "tinstream sample: write to " << a.out << " failed\n";
+    return 1;
+  }
+  std::cout << "wrote " << written << " points (" << std::lround(side) << " m x " << std::lround(side)
+            << " m, EPSG:32632, heights " << std::lround(min_z) << "-" << std::lround(max_z)
+            << " m) to " << a.out << "\n";
+  return 0;
+}
+
+const CommandRegistration kRegistration{
+    "sample",
+    "Write a synthetic LiDAR-like LAS point cloud (fractal mountains, EPSG:32632) for demos and "
+    "benchmarks",
+    [](CLI::App& sub) -> CommandRun {
+      auto a = std::make_shared<SampleArgs>();
+      sub.add_option("--out", a->out, "Output LAS file")->capture_default_str();
+      sub.add_option("--points", a->points, "Number of points (e.g. 1e7)")->capture_default_str();
+      sub.add_option("--density", a->density, "Points per square metre")->capture_default_str();
+      sub.add_option("--seed", a->seed, "Random seed (same seed, same file)")->capture_default_str();
+      return [a] { return run(*a); };
+    }};
+
+}  // namespace
+}  // namespace tinstream::cli
