@@ -115,9 +115,21 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     hole.join_a = spokes_constrained[0];
     hole.join_b = spokes_constrained[1];
   }
-  if (finite_in_star == num_finite_triangles()) {
-    hole.degenerate = true;
-    return true;
+  if (ghost_pos >= 0 && finite_in_star == num_finite_triangles()) {
+    // Every triangle touches v, so the other vertices are all in its link. If that chain is
+    // collinear nothing two-dimensional remains (v was the only point off the line).
+    bool collinear = true;
+    const XY& first = mesh_.xy(hole.ring[(static_cast<std::size_t>(ghost_pos) + 1) % k]);
+    const XY& last = mesh_.xy(hole.ring[(static_cast<std::size_t>(ghost_pos) + k - 1) % k]);
+    for (std::size_t r = 0; r < k && collinear; ++r) {
+      if (hole.ring[r] != kInfiniteVertex && orient2d(first, last, mesh_.xy(hole.ring[r])) != 0.0) {
+        collinear = false;
+      }
+    }
+    if (collinear) {
+      hole.degenerate = true;
+      return true;
+    }
   }
   auto code = [](std::size_t i) { return -static_cast<int>(i) - 1; };
   if (ghost_pos >= 0) {

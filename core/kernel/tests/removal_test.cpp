@@ -156,6 +156,37 @@ TEST(Removal, RemovingAVertexThatLeavesCollinearPointsDropsAllTriangles) {
   expect_valid(t);
 }
 
+// Regression: a vertex touching every triangle is not necessarily the last point off a line.
+TEST(Removal, OnlyInteriorVertexOfAConvexPolygonLeavesItsTriangulation) {
+  Triangulation t;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{2, 2, 0}, Point3{0, 2, 0}})
+    t.insert(p);
+  const auto c = t.insert({1.0, 0.9, 5});
+  ASSERT_EQ(t.num_finite_triangles(), 4u);
+  const auto preview = t.removal_preview(c.vertex);
+  ASSERT_TRUE(preview.ok());
+  EXPECT_EQ(preview->size(), 2u);
+  ASSERT_TRUE(t.remove_vertex(c.vertex).ok());
+  EXPECT_EQ(t.num_finite_triangles(), 2u);
+  EXPECT_EQ(t.dimension(), 2);
+  expect_valid(t);
+  // and the same for a hull vertex: an end of the diagonal of a convex quadrilateral touches
+  // both triangles, and removing it leaves one triangle
+  Triangulation h;
+  for (const Point3& p : {Point3{0, 0, 0}, Point3{2, 0, 0}, Point3{2.5, 1.5, 0}, Point3{0, 1, 0}}) {
+    h.insert(p);
+  }
+  ASSERT_EQ(h.num_finite_triangles(), 2u);
+  VertexId diagonal_end = kNone;
+  for (VertexId v = 1; v < h.vertex_id_bound(); ++v) {
+    if (h.incident_triangles(v).size() == 2) diagonal_end = v;
+  }
+  ASSERT_NE(diagonal_end, kNone);
+  ASSERT_TRUE(h.remove_vertex(diagonal_end).ok());
+  EXPECT_EQ(h.num_finite_triangles(), 1u);
+  expect_valid(h);
+}
+
 TEST(Removal, RemovedVertexIdIsNotReused) {
   Triangulation t;
   t.insert_bulk(test::uniform_points(50, 3));
