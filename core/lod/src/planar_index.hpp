@@ -69,6 +69,20 @@ inline void append_triangles(const tile::TinTile& tile, bool skip_nodata, std::v
 class TriangleGrid {
  public:
   TriangleGrid(std::vector<FlatTriangle> tris, const geo::MercatorRect& r) : tris_(std::move(tris)), r_(r) {
+    // The grid spans the small triangles only: at coarse levels the data may cover a tiny part of
+    // the tile, and the few huge triangles fanning out to the tile corners would otherwise make
+    // the grid one cell wide (quadratic queries). Big triangles are clamped into every cell.
+    {
+      const double limit = r.width() * r.height() / 256.0;
+      geo::MercatorRect ext{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+      for (const auto& t : tris_) {
+        if ((t.max_x - t.min_x) * (t.max_y - t.min_y) > limit) continue;
+        ext.min_x = std::min(ext.min_x, t.min_x), ext.min_y = std::min(ext.min_y, t.min_y);
+        ext.max_x = std::max(ext.max_x, t.max_x), ext.max_y = std::max(ext.max_y, t.max_y);
+      }
+      if (ext.min_x < ext.max_x && ext.min_y < ext.max_y) r_ = ext;
+    }
     const double n = static_cast<double>(tris_.size());
     g_ = static_cast<std::uint32_t>(std::clamp(std::ceil(std::sqrt(n / 2.0)), 1.0, 1024.0));
     sx_ = g_ / std::max(r_.width(), std::numeric_limits<double>::min());

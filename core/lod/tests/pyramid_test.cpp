@@ -1,3 +1,4 @@
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -248,6 +249,63 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   EXPECT_EQ(summary->level_tiles[0], 1u);
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 30, 5);
+}
+
+// Real heights: a 257 × 257 crop of the Big Tujunga SRTM DEM laid on a 4 × 4 block of level-12
+// tiles (64 cells each, so shared borders hold the same cells), reduced, then two levels up.
+TEST(Pyramid, RealDemCropReducedAndThinnedThroughTheStore) {
+  const fs::path dem = fs::path(TINSTREAM_SHARED_DATA) / "bigtujunga_srtm30m_utm11.tif";
+  if (!fs::exists(dem)) GTEST_SKIP() << dem << " not found";
+  GDALAllRegister();
+  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(dem.c_str(), GA_ReadOnly));
+  ASSERT_NE(ds, nullptr);
+  constexpr int kCells = 256, kOffX = 420, kOffY = 180;
+  std::vector<float> crop((kCells + 1) * (kCells + 1));
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kCells + 1, kCells + 1, crop.data(), kCells + 1,
+                                            kCells + 1, GDT_Float32, 0, 0),
+            CE_None);
+  GDALClose(ds);
+  const std::uint32_t L = 12, x0 = 2000, y0 = 1500;
+  const geo::MercatorRect block{geo::tile_x_edge(L, x0), geo::tile_y_edge(L, y0 + 4), geo::tile_x_edge(L, x0 + 4),
+                                geo::tile_y_edge(L, y0)};
+  const double cell = block.width() / kCells;
+  auto height = [&](double x, double y) {
+    const auto c = static_cast<std::size_t>(std::lround((x - block.min_x) / cell));
+    const auto r = static_cast<std::size_t>(std::lround((block.max_y - y) / cell));
+    return static_cast<double>(crop[r * (kCells + 1) + c]);
+  };
+  TempStore ts("dem");
+  auto w = ts.writer("dem");
+  ASSERT_TRUE(w);
+  std::vector<TinTile> original;
+  for (std::uint32_t y = y0; y < y0 + 4; ++y) {
+    for (std::uint32_t x = x0; x < x0 + 4; ++x) {
+      original.push_back(grid_tile({L, x, y}, kCells / 4, height));
+      ASSERT_TRUE(w->put(original.back()).ok());
+    }
+  }
+  PyramidOptions o;
+  o.lod.max_points = 1500;
+  o.lod.epsilon = 1.0;
+  o.reduce_finest = true;
+  auto summary = build_pyramid(*w, L, L - 2, o, 2);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->level_tiles[L], 16u);
+  EXPECT_EQ(summary->level_tiles[L - 1], 4u);
+  EXPECT_EQ(summary->level_tiles[L - 2], 1u);
+  const auto reduced = level_tiles(*w, L);
+  ASSERT_TRUE(check_level_watertight(reduced).ok());
+  for (const auto& t : reduced) {
+    EXPECT_LE(t.vertex_count(), 1500u);
+    EXPECT_GT(t.geometric_error, 0.0);
+    EXPECT_TRUE(tile::check_structure(t).ok());
+  }
+  check_pyramid(*w, L, L - 2, o.lod.max_points, *summary, 40, 3);
+  // The top tile's bound also covers the unreduced grid (what the reduced tiles approximate).
+  const auto top = level_tiles(*w, L - 2);
+  ASSERT_EQ(top.size(), 1u);
+  EXPECT_GE(top[0].geometric_error, testing::sampled_max_difference(top[0], original, 60));
+  EXPECT_LT(top[0].geometric_error, 200.0);
 }
 
 }  // namespace
