@@ -17,6 +17,7 @@ std::string seg_name(VertexId a, VertexId b) {
 }  // namespace
 
 Status Triangulation::insert_constraint(VertexId a, VertexId b) {
+  ++revision_;
   if (cut_) return unsupported(seg_name(a, b) + ": the mesh was cut, it no longer accepts edits");
   if (!is_vertex(a) || !is_vertex(b))
     return invalid_argument(seg_name(a, b) + ": not a live vertex");

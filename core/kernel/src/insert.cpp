@@ -154,6 +154,7 @@ bool Triangulation::pending_contains(const XY& p, VertexId* found) const {
 }
 
 InsertResult Triangulation::insert(const Point3& p) {
+  ++revision_;
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || cut_) return {InsertOutcome::rejected, kNone};
   if (domain_ && !domain_->contains(p.x, p.y)) return {InsertOutcome::outside_domain, kNone};
   const XY xy{p.x, p.y};

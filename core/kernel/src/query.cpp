@@ -319,6 +319,7 @@ Status Triangulation::check_valid(CheckLevel level) const {
 
 std::size_t Triangulation::remove_triangles_if(
     const std::function<bool(const VertexTriple&)>& drop) {
+  ++revision_;
   std::size_t dropped = 0;
   std::vector<TriangleId> doomed;
   for (TriangleId t = 0; t < mesh_.triangle_slots(); ++t) {

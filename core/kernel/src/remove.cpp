@@ -312,6 +312,8 @@ Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) con
   Hole& hole = hole_;
   Result<bool> planned = plan_removal(v, hole);
   if (!planned.ok()) return planned.error();
+  planned_vertex_ = v;  // remove_vertex(v) right after this preview reuses the plan
+  planned_revision_ = revision_;
   std::vector<VertexTriple> out;
   if (hole.degenerate) return out;
   for (const auto& t : hole.tris) {
@@ -339,11 +341,17 @@ Status Triangulation::remove_vertex(VertexId v) {
     std::erase(pending_, v);
     mesh_.set_vertex_triangle(v, kNone);
     --live_vertices_;
+    ++revision_;
     return {};
   }
   Hole& hole = hole_;
-  Result<bool> planned = plan_removal(v, hole);
-  if (!planned.ok()) return planned.error();
+  const bool planned_already = planned_vertex_ == v && planned_revision_ == revision_;
+  planned_vertex_ = kNone;
+  if (!planned_already) {
+    Result<bool> planned = plan_removal(v, hole);
+    if (!planned.ok()) return planned.error();
+  }
+  ++revision_;
   if (hole.degenerate) {
     demote_to_collinear(v);
     --live_vertices_;

@@ -77,6 +77,33 @@ TEST(Removal, PreviewEqualsTheTrianglesThatRemovalCreates) {
   }
 }
 
+TEST(Removal, EditsBetweenPreviewAndRemovalAreHonoured) {
+  // remove_vertex reuses the plan of an immediately preceding removal_preview; any edit or other
+  // preview in between must invalidate it.
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(300, 15));
+  std::mt19937 rng(16);
+  for (int round = 0; round < 60; ++round) {
+    const auto v = static_cast<VertexId>(1 + rng() % (t.vertex_id_bound() - 1));
+    const auto w = static_cast<VertexId>(1 + rng() % (t.vertex_id_bound() - 1));
+    if (!t.is_vertex(v) || !t.is_vertex(w) || v == w) continue;
+    ASSERT_TRUE(t.removal_preview(v).ok());
+    switch (round % 3) {
+      case 0:
+        t.insert({t.xy(v).x + 1e-3, t.xy(v).y + 1e-3, 0});
+        break;  // lands in v's star
+      case 1:
+        ASSERT_TRUE(t.removal_preview(w).ok());
+        break;
+      default:
+        ASSERT_TRUE(t.remove_vertex(w).ok());
+        break;
+    }
+    ASSERT_TRUE(t.remove_vertex(v).ok());
+    ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+  }
+}
+
 struct Generator {
   const char* name;
   std::vector<Point3> (*make)();

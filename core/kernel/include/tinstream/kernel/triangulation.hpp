@@ -96,7 +96,9 @@ class Triangulation {
   // re-joined into one constrained edge. Otherwise the Status says why (invalid_argument).
   Status remove_vertex(VertexId v);
   // The finite triangles (counter-clockwise vertex triples) that would replace v's star if v
-  // were removed, without changing anything. Same refusals as remove_vertex.
+  // were removed, without changing anything. Same refusals as remove_vertex. Calling
+  // remove_vertex(v) right after (no edit in between) reuses this work. remove_vertex writes
+  // the new triangles into slots of the star's old triangles.
   Result<std::vector<VertexTriple>> removal_preview(VertexId v) const;
 
   // Deletes finite triangles for which `drop` is true, and all ghost triangles; the remaining
@@ -202,6 +204,11 @@ class Triangulation {
   std::vector<std::array<VertexId, 2>> segments_;
   std::vector<std::pair<TriangleId, int>> stack_;  // flip stack, kept to avoid reallocations
   mutable Hole hole_;
+  // Every edit bumps revision_; a removal_preview(v) leaves its plan in hole_ so that
+  // remove_vertex(v) with no edit in between does not compute it again.
+  std::uint64_t revision_ = 0;
+  mutable VertexId planned_vertex_ = kNone;
+  mutable std::uint64_t planned_revision_ = 0;
   mutable TriangleId hint_ = kNone;
   // Walks in a Delaunay triangulation cannot cycle; once constraints exist they can, and the
   // walk picks its first edge at random (remembering stochastic walk).
