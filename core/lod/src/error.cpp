@@ -159,7 +159,8 @@ Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector
     for (int k = 0; k < 3; ++k) {
       double w;
       const std::int64_t c = cg.locate(t.p[k].x, t.p[k].y, &w);
-      if (c < 0) return Error(ErrorCode::internal, "measured_max_error: " + coarse.id.to_string() + " does not cover a finest vertex");
+      // Not under a coarse data triangle (only NODATA-corner triangles there): not measured.
+      if (c < 0 || w < -1e-9) continue;
       worst = std::max(worst, std::abs(plane_at(cg.triangles()[static_cast<std::size_t>(c)], t.p[k].x, t.p[k].y) - t.z[k]));
     }
   }

@@ -88,8 +88,8 @@ inline double sampled_max_difference(const tile::TinTile& coarse, const std::vec
       if (x < fr.min_x || x > fr.max_x || y < fr.min_y || y > fr.max_y) continue;
       const auto zf = brute_height(f, x, y, true);
       if (!zf) continue;
-      const auto zc = brute_height(coarse, x, y, false);
-      EXPECT_TRUE(zc.has_value());
+      // NODATA-corner triangles are not surface on either side (error.hpp).
+      const auto zc = brute_height(coarse, x, y, true);
       if (zc) worst = std::max(worst, std::abs(*zc - *zf));
     }
   };
