@@ -310,6 +310,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
 
 Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) const {
   Hole& hole = hole_;
+  planned_vertex_ = kNone;  // hole_ is overwritten below, even when planning fails
   Result<bool> planned = plan_removal(v, hole);
   if (!planned.ok()) return planned.error();
   planned_vertex_ = v;  // remove_vertex(v) right after this preview reuses the plan

@@ -82,16 +82,23 @@ TEST(Removal, EditsBetweenPreviewAndRemovalAreHonoured) {
   // preview in between must invalidate it.
   Triangulation t;
   t.insert_bulk(test::uniform_points(300, 15));
+  const auto ca = t.insert({0.05, 0.05, 0}).vertex, cb = t.insert({0.95, 0.1, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(ca, cb).ok());
   std::mt19937 rng(16);
   for (int round = 0; round < 60; ++round) {
     const auto v = static_cast<VertexId>(1 + rng() % (t.vertex_id_bound() - 1));
     const auto w = static_cast<VertexId>(1 + rng() % (t.vertex_id_bound() - 1));
-    if (!t.is_vertex(v) || !t.is_vertex(w) || v == w) continue;
-    ASSERT_TRUE(t.removal_preview(v).ok());
-    switch (round % 3) {
-      case 0:
+    if (!t.is_vertex(v) || !t.is_vertex(w) || v == w || v == ca || v == cb || w == ca || w == cb) {
+      continue;
+    }
+    if (!t.removal_preview(v).ok()) continue;
+    switch (round % 4) {
+      case 3:  // a refused preview
+        ASSERT_FALSE(t.removal_preview(ca).ok());
+        break;
+      case 0:  // an insertion in v's star
         t.insert({t.xy(v).x + 1e-3, t.xy(v).y + 1e-3, 0});
-        break;  // lands in v's star
+        break;
       case 1:
         ASSERT_TRUE(t.removal_preview(w).ok());
         break;
