@@ -15,9 +15,11 @@
 //   geometric_error = max over the overlay |parent − children| + max children geometric_error
 //                     + error_rounding_allowance(parent)
 // (triangle inequality, since each child's error bounds its distance to the finest surface);
-// monotone non-decreasing towards the root by construction. The overlay term is measured over the
-// children's area; NODATA-corner triangles of children at options.finest_level are skipped (not
-// data), those of coarser children are measured (error.hpp). rms_error likewise by Minkowski:
+// monotone non-decreasing towards the root by construction. The overlay term is measured where
+// the parent and a child both have data: triangles incident to a NODATA corner are skipped on
+// both sides (error.hpp), so the chain is an honest bound over the area where every level of the
+// subtree has data, and near the data's outer edge it may not cover all finest data (see the
+// note in error.hpp). rms_error likewise by Minkowski:
 // RMS(parent − children) over the children's data area + area-weighted RMS of the children.
 //
 // Threads: pure function on values.
