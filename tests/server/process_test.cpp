@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <utility>
 
 #include "grid_tile.hpp"
 #include "qm_decoder.hpp"
@@ -20,9 +21,23 @@ using testing::TempDir;
 
 const std::string kBinary = std::string(TINSTREAM_BINARY_DIR) + "/bin/tinstream-server";
 
+// A child process with its stdout; killed and reaped by the destructor if the test did not wait
+// for it (a failed assertion never leaves a server running).
 struct Child {
   pid_t pid = -1;
   FILE* out = nullptr;
+  Child() = default;
+  Child(pid_t p, FILE* f) : pid(p), out(f) {}
+  Child(Child&& o) noexcept : pid(std::exchange(o.pid, -1)), out(std::exchange(o.out, nullptr)) {}
+  Child& operator=(Child&&) = delete;
+  ~Child() {
+    if (pid > 0) {
+      ::kill(pid, SIGKILL);
+      int status = 0;
+      ::waitpid(pid, &status, 0);
+    }
+    if (out) std::fclose(out);
+  }
 };
 
 Child spawn(const std::vector<std::string>& args) {
@@ -41,12 +56,13 @@ Child spawn(const std::vector<std::string>& args) {
     ::_exit(127);
   }
   ::close(fds[1]);
-  return {pid, ::fdopen(fds[0], "r")};
+  return Child{pid, ::fdopen(fds[0], "r")};
 }
 
-int wait_exit(pid_t pid) {
+int wait_exit(Child& child) {
   int status = 0;
-  ::waitpid(pid, &status, 0);
+  ::waitpid(child.pid, &status, 0);
+  child.pid = -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
@@ -76,9 +92,8 @@ TEST(ServerProcess, ServesAndStopsOnSigterm) {
   testing::HttpConnection idle(port);
   ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
   ::kill(c.pid, SIGTERM);
-  EXPECT_EQ(wait_exit(c.pid), 0);
+  EXPECT_EQ(wait_exit(c), 0);
   EXPECT_TRUE(idle.closed_by_peer());
-  std::fclose(c.out);
 }
 
 TEST(ServerProcess, HelpAndBadConfig) {
@@ -86,8 +101,7 @@ TEST(ServerProcess, HelpAndBadConfig) {
   std::string text;
   char buf[512];
   while (std::fgets(buf, sizeof buf, help.out)) text += buf;
-  std::fclose(help.out);
-  EXPECT_EQ(wait_exit(help.pid), 0);
+  EXPECT_EQ(wait_exit(help), 0);
   for (const char* opt : {"--store", "--port", "--config", "--address", "--threads"}) {
     EXPECT_NE(text.find(opt), std::string::npos) << opt;
   }
@@ -96,8 +110,7 @@ TEST(ServerProcess, HelpAndBadConfig) {
   Child bad = spawn({"--config", (dir.path / "bad.json").string()});
   while (std::fgets(buf, sizeof buf, bad.out)) {
   }
-  std::fclose(bad.out);
-  EXPECT_NE(wait_exit(bad.pid), 0);
+  EXPECT_NE(wait_exit(bad), 0);
 }
 
 const std::string kCli = std::string(TINSTREAM_BINARY_DIR) + "/bin/tinstream";
@@ -181,8 +194,7 @@ TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
   char buf[512];
   while (std::fgets(buf, sizeof buf, c.out)) {
   }
-  std::fclose(c.out);
-  ASSERT_EQ(wait_exit(c.pid), 0);
+  ASSERT_EQ(wait_exit(c), 0);
 
   const auto lj = nlohmann::json::parse(read_file(out / "layer.json"));
   EXPECT_EQ(lj["format"], "quantized-mesh-1.0");
@@ -223,7 +235,8 @@ TEST(CesiumExport, DirTreeDecodesAndMatchesTheServer) {
   req.accept = "application/vnd.quantized-mesh;extensions=octvertexnormals";
   const Response res = handle(req, ctx);
   ASSERT_EQ(res.status, 200);
-  EXPECT_EQ(res.payload(), read_file(out / "12" / "2121" / (std::to_string(id.tms_row()) + ".terrain")));
+  EXPECT_EQ(res.payload(),
+            read_file(out / "12" / "2121" / (std::to_string(id.tms_row()) + ".terrain")));
 }
 
 TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
@@ -253,15 +266,16 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
   const std::string job = nlohmann::json::parse(r.body)["job"];
   nlohmann::json status;
   for (int i = 0; i < 3000; ++i) {
-    status = nlohmann::json::parse(testing::http_get(port, "/admin/jobs/" + job, admin).body);
+    const auto jr = testing::http_get(port, "/admin/jobs/" + job, admin);
+    ASSERT_EQ(jr.status, 200) << "tinstream-server stopped answering during the ingest (crashed?)";
+    status = nlohmann::json::parse(jr.body);
     if (status["state"] != "queued" && status["state"] != "running") break;
     ::usleep(10000);
   }
   if (status["state"] == "failed" &&
       status["errors"][0].get<std::string>().find("no ingest pipeline") != std::string::npos) {
     ::kill(c.pid, SIGTERM);
-    wait_exit(c.pid);
-    std::fclose(c.out);
+    wait_exit(c);
     GTEST_SKIP() << "tinstream-server built without core/ingest";
   }
   ASSERT_EQ(status["state"], "succeeded") << status.dump();
@@ -303,8 +317,7 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
   for (const auto& [z, tiles] : by_level) borders += check_shared_edges(tiles);
   EXPECT_GT(borders, 5);
   ::kill(c.pid, SIGTERM);
-  EXPECT_EQ(wait_exit(c.pid), 0);
-  std::fclose(c.out);
+  EXPECT_EQ(wait_exit(c), 0);
 }
 
 }  // namespace
