@@ -196,6 +196,28 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   EXPECT_GT(with_data, 100);
 }
 
+TEST_F(Cli, TriangulateLasGivesAnOffMeshOfTheDistinctPoints) {
+  require_data("autzen_trim.las");
+  const fs::path off = dir_ / "autzen.off";
+  const Outcome r = run({kTinstream.string(), "triangulate", "--in", (kData / "autzen_trim.las").string(),
+                         "--out", off.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  // SOURCES.md: 110,000 points, 7 pairs share the same XY.
+  const auto stats = nlohmann::json::parse(r.err.substr(r.err.find('{')));
+  EXPECT_EQ(stats["points"], 109993);
+  EXPECT_EQ(stats["duplicates"], 7);
+  std::ifstream in(off);
+  std::string magic;
+  std::size_t nv = 0, nf = 0, ne = 0;
+  in >> magic >> nv >> nf >> ne;
+  EXPECT_EQ(magic, "OFF");
+  EXPECT_EQ(nv, 109993u);
+  EXPECT_EQ(nf, stats["triangles"].get<std::size_t>());
+  // Euler: a triangulation of n points with h on the hull has 2n − 2 − h triangles.
+  EXPECT_LT(nf, 2 * nv);
+  EXPECT_GT(nf, 2 * nv - 2 - 2000);
+}
+
 TEST_F(Cli, GeoTiffWithNodataIngestsAndVerifies) {
   require_data("luxembourg_elev.tif");
   const Outcome r = ingest("lux", {"--json", "-q", "--max-points", "1000", (kData / "luxembourg_elev.tif").string()});

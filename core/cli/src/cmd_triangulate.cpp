@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "command.hpp"
+#include "tinstream/sources/point_source.hpp"
 #include "tinstream/base/result.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 
@@ -88,9 +89,24 @@ Result<std::vector<std::array<double, 6>>> read_rows(const std::string& path, st
 // The one place that turns an input path into points.
 Result<std::vector<Point3>> load_points(const std::string& path) {
   if (ends_with(path, ".las") || ends_with(path, ".laz")) {
-    return unsupported(path +
-                       ": LAS input needs the sources module (not wired into this command yet); "
-                       "convert to .xyz text for now");
+    // LAS through the sources module: every class, coordinates as stored (scale/offset applied).
+    sources::SourceOptions options;
+    options.format = sources::SourceFormat::las;
+    std::vector<std::uint8_t> all(256);
+    for (int c = 0; c < 256; ++c) all[static_cast<std::size_t>(c)] = static_cast<std::uint8_t>(c);
+    options.class_filter.classes = all;
+    auto source = sources::open_source(path, options);
+    if (!source) return source.error();
+    std::vector<sources::SourcePoint> batch;
+    std::vector<Point3> pts;
+    for (;;) {
+      batch.clear();
+      auto n = (*source)->read(batch, 1 << 16);
+      if (!n) return n.error();
+      if (*n == 0) break;
+      for (const auto& p : batch) pts.push_back({p.x, p.y, p.z, 0.0});
+    }
+    return pts;
   }
   auto rows = read_rows(path, 3, "x y z");
   if (!rows.ok()) return rows.error();
@@ -167,8 +183,8 @@ const CommandRegistration kRegistration{
       auto opts = std::make_shared<Options>();
       sub.add_option("--in", opts->in,
                      "Input points: .xyz text, one point per line as 'x y z' (blanks or commas; "
-                     "extra columns ignored; blank and '#' lines skipped). .las/.laz need the "
-                     "sources module and are refused for now.")
+                     "extra columns ignored; blank and '#' lines skipped) or a LAS file (all classes, "
+                     "coordinates as stored, no reprojection; .laz is refused: no decoder).")
           ->required();
       sub.add_option(
              "--out", opts->out,
