@@ -22,7 +22,7 @@ struct SampleArgs {
   double points = 1e6;
   double density = 4.0;  // points per square metre, like airborne LiDAR
   std::uint64_t seed = 1;
-  double easting = 617000, northing = 5093000;  // near the Matterhorn (45.97 N, 7.66 E)
+  double easting = 395000, northing = 5093000;  // near the Matterhorn (45.98 N, 7.65 E)
 };
 
 // Smooth value noise from a hashed lattice, summed over octaves (fBm): mountains of ~2 km relief
