@@ -7,9 +7,9 @@
 #include <unistd.h>
 
 #include <array>
-#include <cstring>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -33,7 +33,8 @@ struct Outcome {
 
 // Runs argv (no shell), capturing stdout and stderr.
 Outcome run(const std::vector<std::string>& args) {
-  const fs::path out_file = fs::temp_directory_path() / ("tinstream-cli-out-" + std::to_string(::getpid()));
+  const fs::path out_file =
+      fs::temp_directory_path() / ("tinstream-cli-out-" + std::to_string(::getpid()));
   const fs::path err_file = out_file.string() + ".err";
   const pid_t pid = ::fork();
   if (pid == 0) {
@@ -64,7 +65,8 @@ std::string sql_value(const fs::path& db_path, const std::string& sql) {
   std::string value;
   if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
     sqlite3_stmt* st = nullptr;
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK && sqlite3_step(st) == SQLITE_ROW) {
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
       value = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
     }
     sqlite3_finalize(st);
@@ -77,19 +79,22 @@ class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() /
-           ("tinstream-cli-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
-            "-" + std::to_string(::getpid()));
+           ("tinstream-cli-" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "-" +
+            std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     store_ = dir_ / "tiles.sqlite";
   }
   void TearDown() override { fs::remove_all(dir_); }
   void require_data(const std::string& name) {
-    if (!fs::exists(kData / name)) GTEST_SKIP() << "real dataset " << (kData / name) << " not present";
+    if (!fs::exists(kData / name))
+      GTEST_SKIP() << "real dataset " << (kData / name) << " not present";
   }
   Outcome ingest(const std::string& layer, const std::vector<std::string>& extra) {
-    std::vector<std::string> args = {kTinstream.string(), "ingest", "--store", store_.string(),
-                                     "--layer", layer, "--threads", "2", "--tmp", (dir_ / "tmp").string()};
+    std::vector<std::string> args = {
+        kTinstream.string(), "ingest", "--store", store_.string(),        "--layer", layer,
+        "--threads",         "2",      "--tmp",   (dir_ / "tmp").string()};
     args.insert(args.end(), extra.begin(), extra.end());
     return run(args);
   }
@@ -107,7 +112,8 @@ void write_xyz(const fs::path& path, std::size_t n, std::uint64_t seed) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (std::size_t i = 0; i < n; ++i) {
     const double lon = 6.6 + 0.05 * u(rng), lat = 46.5 + 0.05 * u(rng);
-    out << lon << " " << lat << " " << 500 + 120 * std::sin(lon * 200) * std::cos(lat * 170) << "\n";
+    out << lon << " " << lat << " " << 500 + 120 * std::sin(lon * 200) * std::cos(lat * 170)
+        << "\n";
   }
 }
 
@@ -118,7 +124,8 @@ TEST_F(Cli, EveryCommandHasHelp) {
     EXPECT_NE(r.out.find("--"), std::string::npos) << cmd;
   }
   const Outcome ingest_help = run({kTinstream.string(), "ingest", "--help"});
-  EXPECT_NE(ingest_help.out.find("class 2"), std::string::npos) << "the class filter rule is in --help";
+  EXPECT_NE(ingest_help.out.find("class 2"), std::string::npos)
+      << "the class filter rule is in --help";
 }
 
 TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
@@ -136,7 +143,8 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   EXPECT_EQ(v.status, 0) << v.out << v.err;
   EXPECT_EQ(nlohmann::json::parse(v.out)["ok"], true);
 
-  const Outcome info = run({kTinstream.string(), "info", "--store", store_.string(), "--layer", "autzen"});
+  const Outcome info =
+      run({kTinstream.string(), "info", "--store", store_.string(), "--layer", "autzen"});
   ASSERT_EQ(info.status, 0) << info.err;
   const auto layer = nlohmann::json::parse(info.out);
   // Autzen Stadium, Eugene, Oregon (SOURCES.md: lon -123.0734..-123.0690, lat 44.0499..44.0516).
@@ -144,13 +152,14 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   EXPECT_NE(text.find("-123.07"), std::string::npos) << text;
 
   // A finest tile as OBJ: lon/lat/height vertices near Eugene, heights in metres (ft → m).
-  auto store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  auto store =
+      tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
   ASSERT_TRUE(store.ok());
   const auto finest = store->tile_ids("autzen", summary["finest_level"].get<std::uint32_t>());
   ASSERT_TRUE(finest.ok());
   ASSERT_FALSE(finest->empty());
-  const Outcome obj = run({kTinstream.string(), "export", "--store", store_.string(), "--layer", "autzen",
-                       "--tile", finest->front().quadkey(), "--format", "obj"});
+  const Outcome obj = run({kTinstream.string(), "export", "--store", store_.string(), "--layer",
+                           "autzen", "--tile", finest->front().quadkey(), "--format", "obj"});
   ASSERT_EQ(obj.status, 0) << obj.err;
   std::istringstream lines(obj.out);
   std::string kind;
@@ -178,8 +187,8 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
 
   // The JSON form flags NODATA corners; every vertex with data is ground: 406.26–434.06 ft
   // = 123.8–132.3 m (heights taken as ellipsoidal: the file states no vertical datum).
-  const Outcome js = run({kTinstream.string(), "export", "--store", store_.string(), "--layer", "autzen",
-                          "--tile", finest->front().quadkey(), "--format", "json"});
+  const Outcome js = run({kTinstream.string(), "export", "--store", store_.string(), "--layer",
+                          "autzen", "--tile", finest->front().quadkey(), "--format", "json"});
   ASSERT_EQ(js.status, 0) << js.err;
   const auto mesh = nlohmann::json::parse(js.out);
   ASSERT_EQ(mesh["vertices"].size(), static_cast<std::size_t>(vertices));
@@ -199,8 +208,8 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
 TEST_F(Cli, TriangulateLasGivesAnOffMeshOfTheDistinctPoints) {
   require_data("autzen_trim.las");
   const fs::path off = dir_ / "autzen.off";
-  const Outcome r = run({kTinstream.string(), "triangulate", "--in", (kData / "autzen_trim.las").string(),
-                         "--out", off.string()});
+  const Outcome r = run({kTinstream.string(), "triangulate", "--in",
+                         (kData / "autzen_trim.las").string(), "--out", off.string()});
   ASSERT_EQ(r.status, 0) << r.err;
   // SOURCES.md: 110,000 points, 7 pairs share the same XY.
   const auto stats = nlohmann::json::parse(r.err.substr(r.err.find('{')));
@@ -220,7 +229,8 @@ TEST_F(Cli, TriangulateLasGivesAnOffMeshOfTheDistinctPoints) {
 
 TEST_F(Cli, GeoTiffWithNodataIngestsAndVerifies) {
   require_data("luxembourg_elev.tif");
-  const Outcome r = ingest("lux", {"--json", "-q", "--max-points", "1000", (kData / "luxembourg_elev.tif").string()});
+  const Outcome r = ingest(
+      "lux", {"--json", "-q", "--max-points", "1000", (kData / "luxembourg_elev.tif").string()});
   ASSERT_EQ(r.status, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   // SOURCES.md: 95 × 90 cells, 3,942 NoData → 4,608 points.
@@ -237,8 +247,8 @@ TEST_F(Cli, MixedInputsInOneIngest) {
     std::ofstream out(xyz);
     out << "6.0 49.8 300\n6.1 49.85 320\n6.2 49.9 310\n";
   }
-  const Outcome r = ingest("mixed", {"--json", "-q", "--crs", "EPSG:4326", (kData / "luxembourg_elev.tif").string(),
-                                 xyz.string()});
+  const Outcome r = ingest("mixed", {"--json", "-q", "--crs", "EPSG:4326",
+                                     (kData / "luxembourg_elev.tif").string(), xyz.string()});
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["points"], 4611);
   EXPECT_EQ(verify("mixed").status, 0);
@@ -306,7 +316,8 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   const fs::path small = dir_ / "small.xyz";
   write_xyz(small, 2000, 2);
   ASSERT_EQ(ingest("k", {"-q", "--crs", "EPSG:4326", small.string()}).status, 0);
-  auto store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  auto store =
+      tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
   ASSERT_TRUE(store.ok());
   const auto before = store->layer("k");
   ASSERT_TRUE(before.ok());
@@ -336,9 +347,12 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   while (std::chrono::steady_clock::now() < deadline) {
     int wstatus = 0;
     if (::waitpid(pid, &wstatus, WNOHANG) == pid) break;  // finished before we could kill it
-    const std::string tiles = sql_value(store_, "SELECT count(*) FROM tiles WHERE version NOT IN (SELECT version FROM layers)");
-    const std::string building = sql_value(store_, "SELECT count(*) FROM layer_versions WHERE status = 'building'");
-    if (building_seen == std::chrono::steady_clock::time_point::max() && !building.empty() && std::stoll(building) > 0) {
+    const std::string tiles = sql_value(
+        store_, "SELECT count(*) FROM tiles WHERE version NOT IN (SELECT version FROM layers)");
+    const std::string building =
+        sql_value(store_, "SELECT count(*) FROM layer_versions WHERE status = 'building'");
+    if (building_seen == std::chrono::steady_clock::time_point::max() && !building.empty() &&
+        std::stoll(building) > 0) {
       building_seen = std::chrono::steady_clock::now();
     }
     if ((!tiles.empty() && std::stoll(tiles) > 0) ||
@@ -354,7 +368,8 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
 
   // The previous version is intact, byte for byte, and the file is consistent.
   EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
-  auto after_store = tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
+  auto after_store =
+      tinstream::store::TileStore::open(store_, tinstream::store::TileStore::Mode::read_only);
   ASSERT_TRUE(after_store.ok());
   const auto after = after_store->layer("k");
   ASSERT_TRUE(after.ok());
@@ -367,7 +382,8 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   EXPECT_EQ(verify("k").status, 0);
 
   // Re-running the ingest succeeds and replaces the layer.
-  const Outcome rerun = ingest("k", {"-q", "--crs", "EPSG:4326", "--max-points", "2000", small.string()});
+  const Outcome rerun =
+      ingest("k", {"-q", "--crs", "EPSG:4326", "--max-points", "2000", small.string()});
   EXPECT_EQ(rerun.status, 0) << rerun.err;
   EXPECT_EQ(verify("k").status, 0);
 }

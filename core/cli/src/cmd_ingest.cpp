@@ -1,6 +1,5 @@
 // `tinstream ingest`: sources → constrained TIN tile pyramid in an SQLite store.
 #include <CLI/CLI.hpp>
-
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -13,7 +12,8 @@ namespace tinstream::cli {
 namespace {
 
 struct IngestArgs {
-  std::string store, layer, crs, z_units, vertical = "ellipsoidal", classes, projection = "spherical";
+  std::string store, layer, crs, z_units, vertical = "ellipsoidal", classes,
+                                          projection = "spherical";
   std::string delimiter, columns, attribution, tmp;
   std::vector<std::string> inputs;
   std::uint32_t max_points = 16384, max_level = 24, min_level = 0;
@@ -73,7 +73,8 @@ Result<ingest::IngestOptions> to_options(const IngestArgs& a) {
     }
     if (a.skip_invalid) in.source.invalid = sources::InvalidPolicy::skip;
     if (!a.delimiter.empty()) {
-      in.source.text.delimiter = a.delimiter == "\\t" || a.delimiter == "tab" ? '\t' : a.delimiter[0];
+      in.source.text.delimiter =
+          a.delimiter == "\\t" || a.delimiter == "tab" ? '\t' : a.delimiter[0];
     }
     if (!a.columns.empty()) {
       std::stringstream ss(a.columns);
@@ -127,7 +128,8 @@ nlohmann::json summary_json(const ingest::IngestSummary& s) {
           {"levels", levels},
           {"halo_overhead", s.halo_overhead},
           {"seconds", s.seconds},
-          {"points_per_second", s.seconds > 0 ? static_cast<double>(s.points_accepted) / s.seconds : 0.0},
+          {"points_per_second",
+           s.seconds > 0 ? static_cast<double>(s.points_accepted) / s.seconds : 0.0},
           {"peak_rss_mb", static_cast<double>(s.peak_rss_bytes) / (1024.0 * 1024.0)},
           {"inputs", inputs}};
 }
@@ -174,44 +176,54 @@ const CommandRegistration kRegistration{
     [](CLI::App& sub) -> CommandRun {
       auto a = std::make_shared<IngestArgs>();
       sub.add_option("--store", a->store, "SQLite tile store (created when absent)")->required();
-      sub.add_option("--layer", a->layer, "Layer name ([A-Za-z0-9_.-], replaced atomically if it exists)")
+      sub.add_option("--layer", a->layer,
+                     "Layer name ([A-Za-z0-9_.-], replaced atomically if it exists)")
           ->required();
-      sub.add_option("inputs", a->inputs,
-                     "Input files: LAS 1.0-1.4 (.las), XYZ/CSV text (.xyz .csv .txt .pts), or any "
-                     "raster GDAL reads (GeoTIFF, .hgt, ESRI ASCII .asc, VRT…); formats may be mixed")
+      sub.add_option(
+             "inputs", a->inputs,
+             "Input files: LAS 1.0-1.4 (.las), XYZ/CSV text (.xyz .csv .txt .pts), or any "
+             "raster GDAL reads (GeoTIFF, .hgt, ESRI ASCII .asc, VRT…); formats may be mixed")
           ->required()
           ->check(CLI::ExistingFile);
-      sub.add_option("--crs", a->crs,
-                     "Source CRS for every input (EPSG:n, WKT or PROJ string); default: the file's own");
-      sub.add_option("--z-units", a->z_units,
-                     "Unit of the input heights: metre, foot, us-foot (default: from the CRS; a CRS "
-                     "without a vertical part → the horizontal unit)");
-      sub.add_option("--vertical", a->vertical,
-                     "Vertical datum of the input heights: ellipsoidal (taken as is), egm96, egm2008, "
-                     "crs (the source CRS's vertical part) or a PROJ geoid grid file")
+      sub.add_option(
+          "--crs", a->crs,
+          "Source CRS for every input (EPSG:n, WKT or PROJ string); default: the file's own");
+      sub.add_option(
+          "--z-units", a->z_units,
+          "Unit of the input heights: metre, foot, us-foot (default: from the CRS; a CRS "
+          "without a vertical part → the horizontal unit)");
+      sub.add_option(
+             "--vertical", a->vertical,
+             "Vertical datum of the input heights: ellipsoidal (taken as is), egm96, egm2008, "
+             "crs (the source CRS's vertical part) or a PROJ geoid grid file")
           ->capture_default_str();
       sub.add_option("--classes", a->classes,
                      std::string("Comma-separated ASPRS classes to keep. ") +
                          std::string(sources::kClassFilterRule));
-      sub.add_option("--projection", a->projection,
-                     "Layer projection: spherical (Web Mercator tiles) or ellipsoidal (WGS84 Mercator)")
+      sub.add_option(
+             "--projection", a->projection,
+             "Layer projection: spherical (Web Mercator tiles) or ellipsoidal (WGS84 Mercator)")
           ->capture_default_str();
       sub.add_option("--max-points", a->max_points, "Maximum points per tile (3-65535)")
           ->capture_default_str();
       sub.add_option("--max-level", a->max_level, "Finest level cap (0-30)")->capture_default_str();
       sub.add_option("--min-level", a->min_level, "Coarsest pyramid level")->capture_default_str();
-      sub.add_option("--epsilon", a->epsilon,
-                     "Metres: keep thinning while the vertical error stays below this (LOD levels and "
-                     "reduced TINs of rasters)")
+      sub.add_option(
+             "--epsilon", a->epsilon,
+             "Metres: keep thinning while the vertical error stays below this (LOD levels and "
+             "reduced TINs of rasters)")
           ->capture_default_str();
       sub.add_flag("--no-pyramid", a->no_pyramid, "Store only the finest level");
       sub.add_option("--memory", a->memory_mb, "Sort memory budget in MB")->capture_default_str();
       sub.add_option("--tmp", a->tmp, "Directory for temporary files (default: system temp)");
-      sub.add_option("--threads", a->threads, "Worker threads (0 = all cores)")->capture_default_str();
-      sub.add_option("--delimiter", a->delimiter, "Text inputs: field delimiter (default: whitespace; 'tab' for tabs)");
+      sub.add_option("--threads", a->threads, "Worker threads (0 = all cores)")
+          ->capture_default_str();
+      sub.add_option("--delimiter", a->delimiter,
+                     "Text inputs: field delimiter (default: whitespace; 'tab' for tabs)");
       sub.add_option("--columns", a->columns, "Text inputs: 0-based x,y,z columns (default 0,1,2)");
       sub.add_option("--attribution", a->attribution, "Attribution text stored with the layer");
-      sub.add_flag("--skip-invalid", a->skip_invalid, "Count and skip invalid records (NaN, bad lines) instead of failing");
+      sub.add_flag("--skip-invalid", a->skip_invalid,
+                   "Count and skip invalid records (NaN, bad lines) instead of failing");
       sub.add_flag("--json", a->json, "Print the summary as JSON");
       sub.add_flag("-q,--quiet", a->quiet, "No progress display");
       return [a] { return run(*a); };

@@ -2,7 +2,6 @@
 // LAS 1.2 file in UTM zone 32N (EPSG:32632, metres) — the built-in sample of `make demo` and the
 // input generator of the ingest benchmark. Streams: memory does not grow with --points.
 #include <CLI/CLI.hpp>
-
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -49,7 +48,8 @@ double smooth_noise(double x, double y, std::uint64_t seed) {
 double terrain(double e, double n, std::uint64_t seed) {
   double h = 0, amplitude = 1400, wavelength = 3000;
   for (int octave = 0; octave < 10; ++octave) {
-    h += amplitude * smooth_noise(e / wavelength, n / wavelength, seed + static_cast<std::uint64_t>(octave));
+    h += amplitude *
+         smooth_noise(e / wavelength, n / wavelength, seed + static_cast<std::uint64_t>(octave));
     amplitude *= 0.48;
     wavelength *= 0.5;
   }
@@ -84,8 +84,10 @@ int run(const SampleArgs& a) {
   put<std::uint32_t>(header, 100, 1);
   header[104] = 0;  // point format 0
   put<std::uint16_t>(header, 105, 20);
-  put<std::uint32_t>(header, 107, static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
-  put<std::uint32_t>(header, 111, static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
+  put<std::uint32_t>(header, 107,
+                     static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
+  put<std::uint32_t>(header, 111,
+                     static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 0xFFFFFFFFu)));
   const double scale = 0.001;
   for (int i = 0; i < 3; ++i) put<double>(header, 131 + 8 * static_cast<std::size_t>(i), scale);
   put<double>(header, 155, a.easting);
@@ -108,14 +110,16 @@ int run(const SampleArgs& a) {
   out.write(header.data(), static_cast<std::streamsize>(header.size()));
   std::mt19937_64 rng(a.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300, min_z = 1e300, max_z = -1e300;
+  double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300, min_z = 1e300,
+         max_z = -1e300;
   std::vector<char> records;
   records.reserve(20 * 65536);
   std::uint64_t written = 0;
   for (std::uint64_t s = 0; s < strips && written < count; ++s) {
     const std::uint64_t in_strip = (count - written) / (strips - s);
     for (std::uint64_t k = 0; k < in_strip; ++k) {
-      const double e = side * unit(rng), n = std::min(side, (static_cast<double>(s) + unit(rng)) * strip);
+      const double e = side * unit(rng),
+                   n = std::min(side, (static_cast<double>(s) + unit(rng)) * strip);
       const double h = terrain(e, n, a.seed);
       const auto X = static_cast<std::int32_t>(std::lround(e / scale));
       const auto Y = static_cast<std::int32_t>(std::lround(n / scale));
@@ -147,9 +151,9 @@ int run(const SampleArgs& a) {
     std::cerr << "tinstream sample: write to " << a.out << " failed\n";
     return 1;
   }
-  std::cout << "wrote " << written << " points (" << std::lround(side) << " m x " << std::lround(side)
-            << " m, EPSG:32632, heights " << std::lround(min_z) << "-" << std::lround(max_z)
-            << " m) to " << a.out << "\n";
+  std::cout << "wrote " << written << " points (" << std::lround(side) << " m x "
+            << std::lround(side) << " m, EPSG:32632, heights " << std::lround(min_z) << "-"
+            << std::lround(max_z) << " m) to " << a.out << "\n";
   return 0;
 }
 
@@ -162,7 +166,8 @@ const CommandRegistration kRegistration{
       sub.add_option("--out", a->out, "Output LAS file")->capture_default_str();
       sub.add_option("--points", a->points, "Number of points (e.g. 1e7)")->capture_default_str();
       sub.add_option("--density", a->density, "Points per square metre")->capture_default_str();
-      sub.add_option("--seed", a->seed, "Random seed (same seed, same file)")->capture_default_str();
+      sub.add_option("--seed", a->seed, "Random seed (same seed, same file)")
+          ->capture_default_str();
       return [a] { return run(*a); };
     }};
 

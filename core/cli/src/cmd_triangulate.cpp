@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "command.hpp"
-#include "tinstream/sources/point_source.hpp"
 #include "tinstream/base/result.hpp"
 #include "tinstream/kernel/triangulation.hpp"
+#include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::cli {
 namespace {
@@ -181,10 +181,11 @@ const CommandRegistration kRegistration{
     "triangulate", "Delaunay-triangulate points (and constraint segments) into an OFF mesh",
     [](CLI::App& sub) -> CommandRun {
       auto opts = std::make_shared<Options>();
-      sub.add_option("--in", opts->in,
-                     "Input points: .xyz text, one point per line as 'x y z' (blanks or commas; "
-                     "extra columns ignored; blank and '#' lines skipped) or a LAS file (all classes, "
-                     "coordinates as stored, no reprojection; .laz is refused: no decoder).")
+      sub.add_option(
+             "--in", opts->in,
+             "Input points: .xyz text, one point per line as 'x y z' (blanks or commas; "
+             "extra columns ignored; blank and '#' lines skipped) or a LAS file (all classes, "
+             "coordinates as stored, no reprojection; .laz is refused: no decoder).")
           ->required();
       sub.add_option(
              "--out", opts->out,

@@ -1,6 +1,5 @@
 // `tinstream verify`: checks every tile of a layer; non-zero exit on any failure.
 #include <CLI/CLI.hpp>
-
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -47,7 +46,9 @@ const CommandRegistration kRegistration{
     "Check every tile of a layer: structure, Delaunay, watertight borders, pyramid, point count",
     [](CLI::App& sub) -> CommandRun {
       auto a = std::make_shared<VerifyArgs>();
-      sub.add_option("--store", a->store, "SQLite tile store")->required()->check(CLI::ExistingFile);
+      sub.add_option("--store", a->store, "SQLite tile store")
+          ->required()
+          ->check(CLI::ExistingFile);
       sub.add_option("--layer", a->layer, "Layer name")->required();
       sub.add_flag("--no-delaunay", a->no_delaunay, "Skip the empty-circle check (faster)");
       sub.add_flag("-q,--quiet", a->quiet, "No progress display");

@@ -1,9 +1,9 @@
 // `tinstream modules`: what this build contains (formats, libraries), as JSON.
-#include <CLI/CLI.hpp>
 #include <gdal_version.h>
 #include <proj.h>
 #include <sqlite3.h>
 
+#include <CLI/CLI.hpp>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -25,9 +25,9 @@ int run_modules() {
   return 0;
 }
 
-const CommandRegistration kRegistration{
-    "modules", "Print the libraries and commands in this build as JSON",
-    [](CLI::App&) -> CommandRun { return run_modules; }};
+const CommandRegistration kRegistration{"modules",
+                                        "Print the libraries and commands in this build as JSON",
+                                        [](CLI::App&) -> CommandRun { return run_modules; }};
 
 }  // namespace
 }  // namespace tinstream::cli

@@ -1,6 +1,5 @@
 // tinstream — the command-line front end over the core libraries. Thin: parsing and dispatch.
 #include <CLI/CLI.hpp>
-
 #include <algorithm>
 #include <iostream>
 #include <map>

@@ -24,7 +24,8 @@ std::string human(double v) {
 std::string duration(double s) {
   char buf[32];
   if (s >= 3600) {
-    std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(s / 3600), static_cast<int>(s / 60) % 60);
+    std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(s / 3600),
+                  static_cast<int>(s / 60) % 60);
   } else if (s >= 60) {
     std::snprintf(buf, sizeof buf, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
   } else {
@@ -69,7 +70,8 @@ bool ProgressPrinter::report(const Progress& p) {
   std::string line = p.phase + ": " + human(static_cast<double>(p.done));
   if (p.total != 0) {
     char pct[16];
-    std::snprintf(pct, sizeof pct, " (%.1f%%)", 100.0 * static_cast<double>(p.done) / static_cast<double>(p.total));
+    std::snprintf(pct, sizeof pct, " (%.1f%%)",
+                  100.0 * static_cast<double>(p.done) / static_cast<double>(p.total));
     line += "/" + human(static_cast<double>(p.total)) + " " + p.unit + pct;
   } else {
     line += " " + p.unit;

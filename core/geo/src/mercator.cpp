@@ -1,7 +1,6 @@
 #include "tinstream/geo/mercator.hpp"
 
 #include <GeographicLib/Math.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -13,7 +12,6 @@ namespace tinstream::geo {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
 
 double wgs84_eccentricity() { return std::sqrt(kWgs84F * (2.0 - kWgs84F)); }
 
@@ -81,7 +79,5 @@ Result<MercatorXY> NormalisedMercator::forward_checked(LonLat p) const {
 LonLat NormalisedMercator::inverse(MercatorXY m) const {
   return {lon_from_x(m.x), lat_from_y(m.y)};
 }
-
-
 
 }  // namespace tinstream::geo

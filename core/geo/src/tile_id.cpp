@@ -156,8 +156,7 @@ TileId TileId::containing(MercatorXY p, std::uint32_t z) {
   const double py = std::isnan(p.y) ? 0.0 : std::clamp(p.y, -1.0, 1.0);
   const std::uint32_t column = locate(px, n, [z](std::uint32_t i) { return tile_x_edge(z, i); });
   // Rows grow southward: use the negated coordinate so edges increase with the index.
-  const std::uint32_t row =
-      locate(-py, n, [z](std::uint32_t i) { return -tile_y_edge(z, i); });
+  const std::uint32_t row = locate(-py, n, [z](std::uint32_t i) { return -tile_y_edge(z, i); });
   return {z, column, row};
 }
 

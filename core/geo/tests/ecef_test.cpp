@@ -1,8 +1,8 @@
+#include "tinstream/geo/ecef.hpp"
+
 #include <gtest/gtest.h>
 
 #include <random>
-
-#include "tinstream/geo/ecef.hpp"
 
 namespace tinstream::geo {
 namespace {

@@ -1,3 +1,5 @@
+#include "tinstream/geo/mercator.hpp"
+
 #include <gtest/gtest.h>
 #include <proj.h>
 
@@ -7,7 +9,6 @@
 #include <random>
 
 #include "tinstream/geo/ecef.hpp"
-#include "tinstream/geo/mercator.hpp"
 
 namespace tinstream::geo {
 namespace {
@@ -84,8 +85,7 @@ TEST(Mercator, SphericalInverseIsGudermannian) {
 TEST(Mercator, EllipsoidalInverseMatchesSnyderIteration) {
   const NormalisedMercator m(Projection::ellipsoidal);
   for (double y = -1.0; y <= 1.0; y += 1.0 / 1024) {
-    EXPECT_NEAR(m.lat_from_y(y), static_cast<double>(snyder_lat(y, m.eccentricity())), 1e-11)
-        << y;
+    EXPECT_NEAR(m.lat_from_y(y), static_cast<double>(snyder_lat(y, m.eccentricity())), 1e-11) << y;
   }
 }
 

@@ -1,9 +1,9 @@
+#include "tinstream/geo/tile_id.hpp"
+
 #include <gtest/gtest.h>
 
 #include <random>
 #include <set>
-
-#include "tinstream/geo/tile_id.hpp"
 
 namespace tinstream::geo {
 namespace {
@@ -142,7 +142,7 @@ TEST(TileId, MortonOrderIsQuadkeyPreOrder) {
     const TileId& b = tiles[i + 1];
     EXPECT_EQ(morton_less(a, b), a.quadkey() < b.quadkey()) << a.quadkey() << " " << b.quadkey();
   }
-  EXPECT_TRUE(morton_less(tile(1, 0, 0), tile(2, 0, 0)));   // "0" before "00"
+  EXPECT_TRUE(morton_less(tile(1, 0, 0), tile(2, 0, 0)));  // "0" before "00"
   EXPECT_FALSE(morton_less(tile(2, 0, 0), tile(1, 0, 0)));
   EXPECT_FALSE(morton_less(tile(2, 1, 0), tile(2, 1, 0)));
   EXPECT_TRUE(morton_less(tile(1, 0, 0), tile(2, 1, 1)));  // parent "0" before child "03"

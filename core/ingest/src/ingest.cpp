@@ -31,7 +31,9 @@ class ScratchDir {
     d.path_ = base / ("tinstream-ingest-" + layer + "-" + std::to_string(::getpid()) + "-" +
                       std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
     fs::create_directories(d.path_, ec);
-    if (ec) return io_error("cannot create temporary directory " + d.path_.string() + ": " + ec.message());
+    if (ec)
+      return io_error("cannot create temporary directory " + d.path_.string() + ": " +
+                      ec.message());
     return d;
   }
   ScratchDir(ScratchDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
@@ -64,12 +66,9 @@ nlohmann::json options_json(const IngestOptions& o) {
     if (in.source.class_filter.classes) j["classes"] = *in.source.class_filter.classes;
     inputs.push_back(std::move(j));
   }
-  return {{"inputs", inputs},
-          {"projection", std::string(geo::to_string(o.projection))},
-          {"max_points", o.max_points},
-          {"max_level", o.max_level},
-          {"min_level", o.min_level},
-          {"epsilon", o.epsilon},
+  return {{"inputs", inputs},           {"projection", std::string(geo::to_string(o.projection))},
+          {"max_points", o.max_points}, {"max_level", o.max_level},
+          {"min_level", o.min_level},   {"epsilon", o.epsilon},
           {"pyramid", o.pyramid}};
 }
 
@@ -121,16 +120,17 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   }
   summary.points_rejected = summary.records_read - summary.points_accepted;
   if (pass1->header.point_count == 0) {
-    return invalid_argument("the inputs hold no usable points (" +
-                            std::to_string(summary.records_read) +
-                            " records read, all rejected by the class filter, NODATA or as invalid)");
+    return invalid_argument(
+        "the inputs hold no usable points (" + std::to_string(summary.records_read) +
+        " records read, all rejected by the class filter, NODATA or as invalid)");
   }
 
   // ── Pass 2: Morton sort + finest level ──
   auto run_reader = transform::RunFileReader::open(pass1->run_file);
   if (!run_reader) return run_reader.error();
   std::vector<transform::RunPoint> run_batch;
-  subdivide::PointFeed feed = [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
+  subdivide::PointFeed feed =
+      [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
     run_batch.clear();
     auto n = run_reader->read(run_batch, 1 << 16);
     if (!n) return n.error();
@@ -167,8 +167,8 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   info.min_z = h.min_z;
   info.max_z = h.max_z;
   info.max_level = sorted->finest_level;
-  info.min_level = options.pyramid ? std::min(options.min_level, sorted->finest_level)
-                                   : sorted->finest_level;
+  info.min_level =
+      options.pyramid ? std::min(options.min_level, sorted->finest_level) : sorted->finest_level;
   info.max_points = options.max_points;
   info.point_count = sorted->points;
   info.source_points = summary.points_accepted;
@@ -187,8 +187,8 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
       },
       {}, progress);
   if (!pass3) return pass3.error();
-  summary.halo_overhead =
-      static_cast<double>(pass3->gathered_points) / static_cast<double>(std::max<std::uint64_t>(sorted->points, 1));
+  summary.halo_overhead = static_cast<double>(pass3->gathered_points) /
+                          static_cast<double>(std::max<std::uint64_t>(sorted->points, 1));
   {
     std::error_code ec;
     fs::remove(sorted->path, ec);
@@ -200,10 +200,9 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   info.level_max_error.assign(sorted->finest_level + 1, 0.0);
 #ifdef TINSTREAM_HAVE_LOD
   // Gridded inputs become "reduced TINs" at the finest level when an epsilon is given.
-  const bool gridded = std::any_of(summary.inputs.begin(), summary.inputs.end(),
-                                   [](const transform::InputSummary& in) {
-                                     return in.format.rfind("GDAL", 0) == 0;
-                                   });
+  const bool gridded = std::any_of(
+      summary.inputs.begin(), summary.inputs.end(),
+      [](const transform::InputSummary& in) { return in.format.rfind("GDAL", 0) == 0; });
   const bool reduce = gridded && options.epsilon > 0.0;
   if ((options.pyramid && info.min_level < sorted->finest_level) || reduce) {
     lod::PyramidOptions popt;
@@ -212,8 +211,8 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
     popt.lod.finest_level = sorted->finest_level;
     popt.reduce_finest = reduce;
     const std::uint32_t coarsest = options.pyramid ? info.min_level : sorted->finest_level;
-    auto pyramid = lod::build_pyramid(**writer, sorted->finest_level, coarsest, popt, threads,
-                                      progress);
+    auto pyramid =
+        lod::build_pyramid(**writer, sorted->finest_level, coarsest, popt, threads, progress);
     if (!pyramid) return pyramid.error();
     for (std::uint32_t z = coarsest; z <= sorted->finest_level; ++z) {
       const double err = z < pyramid->level_max_error.size() ? pyramid->level_max_error[z] : 0.0;
@@ -243,8 +242,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   auto published = store->layer(options.layer);
   if (!published) return published.error();
   summary.layer_info = *published;
-  summary.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.peak_rss_bytes = peak_rss_bytes();
   return summary;
 }

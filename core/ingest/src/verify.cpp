@@ -92,11 +92,13 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
     ++report.tiles;
     ++per_level[id.z];
     report.triangles += t->triangles.size();
-    if (t->id != id) problems.add(name + ": stored under the wrong key (holds " + t->id.to_string() + ")");
+    if (t->id != id)
+      problems.add(name + ": stored under the wrong key (holds " + t->id.to_string() + ")");
     if (Status s = tile::check_structure(*t); !s) problems.add(name + ": " + s.error().message);
     if (options.delaunay) {
       if (const auto bad = count_non_delaunay(*t); bad > 0) {
-        problems.add(name + ": " + std::to_string(bad) + " interior edges violate the empty-circle property");
+        problems.add(name + ": " + std::to_string(bad) +
+                     " interior edges violate the empty-circle property");
       }
     }
     // Watertight against the east and south neighbours (each pair once).
@@ -106,7 +108,8 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
       const tile::TinTile* n = load(*nid);
       if (!n) continue;
       ++report.shared_borders;
-      const auto opposite = dir == geo::Direction::east ? geo::Direction::west : geo::Direction::north;
+      const auto opposite =
+          dir == geo::Direction::east ? geo::Direction::west : geo::Direction::north;
       if (!same_vertices(t->border(dir), n->border(opposite))) {
         problems.add(name + ": " + (dir == geo::Direction::east ? "east" : "south") +
                      " border differs from neighbour " + nid->quadkey() + " (not watertight)");
@@ -131,7 +134,8 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
         if (const tile::TinTile* child = load(c)) {
           if (child->geometric_error > t->geometric_error) {
             problems.add(name + ": geometric error " + std::to_string(t->geometric_error) +
-                         " is below child " + c.quadkey() + "'s " + std::to_string(child->geometric_error));
+                         " is below child " + c.quadkey() + "'s " +
+                         std::to_string(child->geometric_error));
           }
         }
       }

@@ -1,3 +1,5 @@
+#include "tinstream/ingest/ingest.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -5,7 +7,6 @@
 #include <fstream>
 #include <random>
 
-#include "tinstream/ingest/ingest.hpp"
 #include "tinstream/ingest/verify.hpp"
 
 namespace tinstream::ingest {
@@ -17,7 +18,8 @@ class IngestTest : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() /
-           ("tinstream-ingest-test-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("tinstream-ingest-test-" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -32,7 +34,8 @@ class IngestTest : public ::testing::Test {
     std::uniform_real_distribution<double> u(0.0, 1.0);
     for (std::size_t i = 0; i < n; ++i) {
       const double lon = 8.5 + 0.02 * u(rng), lat = 47.3 + 0.02 * u(rng);
-      out << lon << " " << lat << " " << 400 + 80 * std::sin(lon * 300) * std::cos(lat * 250) << "\n";
+      out << lon << " " << lat << " " << 400 + 80 * std::sin(lon * 300) * std::cos(lat * 250)
+          << "\n";
     }
     return p;
   }
@@ -84,7 +87,8 @@ TEST_F(IngestTest, XyzIngestPublishesAVerifiedLayer) {
 TEST_F(IngestTest, BadInputLeavesThePublishedLayerUntouched) {
   const auto good = write_xyz("good.xyz", 5000, 2);
   ASSERT_TRUE(run_ingest(options({good}, "terrain")).ok());
-  auto before_store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  auto before_store =
+      store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
   const auto before = before_store->layer("terrain");
   ASSERT_TRUE(before.ok());
 
@@ -97,7 +101,8 @@ TEST_F(IngestTest, BadInputLeavesThePublishedLayerUntouched) {
   ASSERT_FALSE(failed.ok());
   EXPECT_NE(failed.error().message.find("bad.xyz"), std::string::npos) << failed.error().message;
 
-  auto after_store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
+  auto after_store =
+      store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_only);
   const auto after = after_store->layer("terrain");
   ASSERT_TRUE(after.ok());
   EXPECT_EQ(after->version, before->version);

@@ -91,9 +91,8 @@ class RunWriter {
     return {};
   }
   Status flush() {
-    if (!buffer_.empty() &&
-        std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(), file_.get()) !=
-            buffer_.size()) {
+    if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(),
+                                        file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
     }
     buffer_.clear();
@@ -239,7 +238,8 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
   if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
 
   // Half the budget sorts, the other half buffers the merge.
-  const std::size_t budget_records = std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
+  const std::size_t budget_records =
+      std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
   const std::size_t sort_capacity = budget_records / 2;
   const std::size_t fan_in = 64;
   const std::size_t merge_buffer = std::max<std::size_t>(budget_records / 2 / (fan_in + 1), 256);
@@ -320,7 +320,8 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
       auto path = temp_path();
       auto w = RunWriter::create(path, merge_buffer);
       if (!w) return w.error();
-      if (Status s = merge_runs(group, merge_buffer, *w, nullptr, result.duplicates_merged, tick); !s)
+      if (Status s = merge_runs(group, merge_buffer, *w, nullptr, result.duplicates_merged, tick);
+          !s)
         return s.error();
       if (Status s = w->close(); !s) return s.error();
       for (const auto& g : group) std::filesystem::remove(g, ec);

@@ -1,10 +1,10 @@
+#include "tinstream/subdivide/sorted_run.hpp"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <map>
 #include <random>
-
-#include "tinstream/subdivide/sorted_run.hpp"
 
 namespace tinstream::subdivide {
 namespace {
@@ -15,15 +15,17 @@ class TempDir {
  public:
   TempDir() {
     path_ = fs::temp_directory_path() /
-            ("tinstream-subdivide-test-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-             "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+            ("tinstream-subdivide-test-" +
+             std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(path_);
     fs::create_directories(path_);
   }
   ~TempDir() { fs::remove_all(path_); }
   const fs::path& path() const { return path_; }
   std::size_t entries() const {
-    return static_cast<std::size_t>(std::distance(fs::directory_iterator(path_), fs::directory_iterator()));
+    return static_cast<std::size_t>(
+        std::distance(fs::directory_iterator(path_), fs::directory_iterator()));
   }
 
  private:

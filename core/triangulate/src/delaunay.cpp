@@ -11,7 +11,6 @@ using kernel::XY;
 
 bool lex_greater(const XY& p, const XY& q) { return p.x > q.x || (p.x == q.x && p.y > q.y); }
 
-
 // A compact copy of the kernel's finite triangles with neighbour links (n[i] across the edge
 // opposite v[i]; kNoTri on the hull), on which cocircular ties are flipped to the canonical
 // diagonal by Lawson flips under the perturbed predicate. Only ties can flip (the kernel's result
@@ -34,7 +33,8 @@ void canonicalize(const std::vector<XY>& p, FlipMesh& m) {
   stack.reserve(m.v.size() * 3);
   for (std::uint32_t t = 0; t < m.v.size(); ++t) {
     for (int i = 0; i < 3; ++i) {
-      if (m.n[t][static_cast<std::size_t>(i)] != kNoTri && m.n[t][static_cast<std::size_t>(i)] > t) stack.emplace_back(t, i);
+      if (m.n[t][static_cast<std::size_t>(i)] != kNoTri && m.n[t][static_cast<std::size_t>(i)] > t)
+        stack.emplace_back(t, i);
     }
   }
   while (!stack.empty()) {

@@ -235,8 +235,7 @@ std::pair<std::uint64_t, std::uint64_t> PointCells::cell_range(std::uint32_t cx,
 
 Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
                                         subdivide::SortedRunReader& reader,
-                                        const FinestTileOptions& options,
-                                        FinestTileStats* stats) {
+                                        const FinestTileOptions& options, FinestTileStats* stats) {
   if (id.z != cells.level()) {
     return invalid_argument("tile " + id.to_string() + " is not at the finest level " +
                             std::to_string(cells.level()));
@@ -329,8 +328,10 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       }
       // Outside is to the right of a→b (triangles are counter-clockwise).
       auto beyond = [&](const geo::MercatorRect& rect) {
-        const XY corners[4] = {{rect.min_x, rect.min_y}, {rect.max_x, rect.min_y},
-                               {rect.min_x, rect.max_y}, {rect.max_x, rect.max_y}};
+        const XY corners[4] = {{rect.min_x, rect.min_y},
+                               {rect.max_x, rect.min_y},
+                               {rect.min_x, rect.max_y},
+                               {rect.max_x, rect.max_y}};
         return std::any_of(std::begin(corners), std::end(corners),
                            [&](const XY& c) { return kernel::orient2d(a, b, c) <= 0.0; });
       };
@@ -340,15 +341,14 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       for (double d = 2 * cell_width;; d *= 2) {
         const geo::MercatorRect near{std::min(a.x, b.x) - d, std::min(a.y, b.y) - d,
                                      std::max(a.x, b.x) + d, std::max(a.y, b.y) + d};
-        scan_cells(near, beyond,
-                   [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
-                     if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
-                           return kernel::orient2d(a, b, p) < 0.0;
-                         })) {
-                       want(cx, cy);
-                       found = true;
-                     }
-                   });
+        scan_cells(
+            near, beyond, [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+              if (std::any_of(points.begin(), points.end(),
+                              [&](const XY& p) { return kernel::orient2d(a, b, p) < 0.0; })) {
+                want(cx, cy);
+                found = true;
+              }
+            });
         if (found || (near.min_x <= B.min_x && near.min_y <= B.min_y && near.max_x >= B.max_x &&
                       near.max_y >= B.max_y)) {
           break;
@@ -378,8 +378,9 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       scan_cells(
           box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
           [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
-            if (std::any_of(points.begin(), points.end(),
-                            [&](const XY& p) { return detail::perturbed_incircle(a, b, c, p) > 0; })) {
+            if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
+                  return detail::perturbed_incircle(a, b, c, p) > 0;
+                })) {
               want(cx, cy);
             }
           });
@@ -427,7 +428,8 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   // ── Cut at the tile border ──
   tile::TinTile out;
   out.id = id;
-  const XY corner_xy[4] = {{R.min_x, R.max_y}, {R.max_x, R.max_y}, {R.min_x, R.min_y}, {R.max_x, R.min_y}};
+  const XY corner_xy[4] = {
+      {R.min_x, R.max_y}, {R.max_x, R.max_y}, {R.min_x, R.min_y}, {R.max_x, R.min_y}};
   bool corner_found[4] = {false, false, false, false};
   std::vector<tile::Vertex> north, east, south, west;
   const std::ptrdiff_t own = cells.tile_index(id);
@@ -501,7 +503,9 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   auto by_y_desc = [](const tile::Vertex& a, const tile::Vertex& b) {
     return a.y > b.y || (a.y == b.y && a.z < b.z);
   };
-  auto same_xy = [](const tile::Vertex& a, const tile::Vertex& b) { return a.x == b.x && a.y == b.y; };
+  auto same_xy = [](const tile::Vertex& a, const tile::Vertex& b) {
+    return a.x == b.x && a.y == b.y;
+  };
   for (auto* side : {&north, &south}) {
     std::sort(side->begin(), side->end(), by_x);
     side->erase(std::unique(side->begin(), side->end(), same_xy), side->end());
@@ -513,7 +517,8 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   for (int k = 0; k < 4; ++k) {
     if (corner_found[k]) continue;
     const auto z = corner_elevation(corner_xy[k], pts, tris);
-    out.corners[static_cast<std::size_t>(k)] = {corner_xy[k].x, corner_xy[k].y, z.value_or(0.0), 0.0};
+    out.corners[static_cast<std::size_t>(k)] = {corner_xy[k].x, corner_xy[k].y, z.value_or(0.0),
+                                                0.0};
     out.corner_nodata[static_cast<std::size_t>(k)] = !z.has_value();
   }
   out.north = std::move(north);
@@ -541,7 +546,8 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
   if (!cells_or) return cells_or.error();
   const std::shared_ptr<const PointCells> cells = *cells_or;
   const std::size_t total = cells->tiles().size();
-  threads = std::max(1u, std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(total, 1))));
+  threads = std::max(
+      1u, std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(total, 1))));
 
   struct Done {
     Result<tile::TinTile> tile;

@@ -1,7 +1,8 @@
-#include <gtest/gtest.h>
+#include "tinstream/triangulate/finest_tiles.hpp"
 
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <map>
@@ -9,7 +10,6 @@
 #include <set>
 
 #include "tinstream/kernel/predicates.hpp"
-#include "tinstream/triangulate/finest_tiles.hpp"
 
 namespace tinstream::triangulate {
 namespace {
@@ -111,7 +111,8 @@ void expect_watertight(const Fixture& f) {
 // Every triangle of every tile is CCW and has no tile vertex strictly inside its circumcircle.
 void expect_delaunay_tiles(const Fixture& f) {
   for (const auto& t : f.tiles) {
-    ASSERT_TRUE(tile::check_structure(t).ok()) << t.id.quadkey() << ": " << tile::check_structure(t).error().message;
+    ASSERT_TRUE(tile::check_structure(t).ok())
+        << t.id.quadkey() << ": " << tile::check_structure(t).error().message;
     const auto v = t.vertices();
     for (const auto& tri : t.triangles) {
       const kernel::XY a{v[tri[0]].x, v[tri[0]].y}, b{v[tri[1]].x, v[tri[1]].y},
@@ -193,7 +194,6 @@ TEST(FinestTiles, RandomPointsGiveWatertightGloballyDelaunayTiles) {
   expect_delaunay_tiles(f);
   expect_no_point_lost(f, pts);
   expect_edge_points_match_global(f, pts);
-
 }
 
 TEST(FinestTiles, HaloIsABandNotWholeNeighbours) {

@@ -32,14 +32,14 @@ struct IngestOptions {
   std::string layer;
   std::vector<transform::InputSpec> inputs;
   geo::Projection projection = geo::Projection::spherical;
-  std::uint32_t max_points = 16384;     // per tile, ≤ 65535
-  std::uint32_t max_level = 24;         // cap for the finest level
-  std::uint32_t min_level = 0;          // coarsest level of the pyramid
-  double epsilon = 0.0;                 // metres: thin further while the error stays below
-  bool pyramid = true;                  // build the LOD levels (pass 4)
+  std::uint32_t max_points = 16384;  // per tile, ≤ 65535
+  std::uint32_t max_level = 24;      // cap for the finest level
+  std::uint32_t min_level = 0;       // coarsest level of the pyramid
+  double epsilon = 0.0;              // metres: thin further while the error stays below
+  bool pyramid = true;               // build the LOD levels (pass 4)
   std::size_t memory_bytes = 256u << 20;
-  std::filesystem::path tmp_dir;        // default: the system temporary directory
-  unsigned threads = 0;                 // 0 = all cores
+  std::filesystem::path tmp_dir;  // default: the system temporary directory
+  unsigned threads = 0;           // 0 = all cores
   std::string attribution;
 };
 
@@ -51,16 +51,16 @@ struct LevelSummary {
 
 struct IngestSummary {
   std::string layer;
-  std::uint64_t records_read = 0;       // over all inputs
-  std::uint64_t points_accepted = 0;    // after class filter / NODATA / invalid
-  std::uint64_t points_rejected = 0;    // records_read − points_accepted
+  std::uint64_t records_read = 0;     // over all inputs
+  std::uint64_t points_accepted = 0;  // after class filter / NODATA / invalid
+  std::uint64_t points_rejected = 0;  // records_read − points_accepted
   std::uint64_t duplicates_merged = 0;
-  std::uint64_t points = 0;             // distinct points at the finest level
+  std::uint64_t points = 0;  // distinct points at the finest level
   std::uint32_t finest_level = 0;
   std::uint32_t min_level = 0;
-  std::uint64_t tiles = 0;              // all levels
+  std::uint64_t tiles = 0;  // all levels
   std::vector<LevelSummary> levels;
-  double halo_overhead = 0;             // points triangulated / points (pass 3)
+  double halo_overhead = 0;  // points triangulated / points (pass 3)
   double seconds = 0;
   std::uint64_t peak_rss_bytes = 0;
   std::vector<transform::InputSummary> inputs;

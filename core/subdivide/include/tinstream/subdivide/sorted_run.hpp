@@ -37,10 +37,10 @@ namespace tinstream::subdivide {
 
 // One record of the sorted run (and of the temporary runs), 40 bytes, host (little-endian) order.
 struct SortedPoint {
-  std::uint64_t key = 0;     // Morton code of the level-30 cell
-  double x = 0, y = 0;       // normalised Mercator
-  double z = 0;              // metres, ellipsoidal
-  float weight = 0;          // importance for thinning (the input's weight)
+  std::uint64_t key = 0;  // Morton code of the level-30 cell
+  double x = 0, y = 0;    // normalised Mercator
+  double z = 0;           // metres, ellipsoidal
+  float weight = 0;       // importance for thinning (the input's weight)
   std::uint32_t reserved = 0;
 };
 static_assert(sizeof(SortedPoint) == 40);
@@ -57,21 +57,21 @@ struct TileRange {
 };
 
 struct SubdivideOptions {
-  std::uint32_t max_points = 16384;        // per finest tile (≤ 65535)
-  std::uint32_t max_level = 24;            // cap for L
-  std::uint32_t min_level = 0;             // floor for L
-  std::size_t memory_bytes = 256u << 20;   // sort + merge buffers
+  std::uint32_t max_points = 16384;       // per finest tile (≤ 65535)
+  std::uint32_t max_level = 24;           // cap for L
+  std::uint32_t min_level = 0;            // floor for L
+  std::size_t memory_bytes = 256u << 20;  // sort + merge buffers
   std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
-  std::filesystem::path output;            // the sorted run; default: a file in tmp_dir
+  std::filesystem::path output;  // the sorted run; default: a file in tmp_dir
 };
 
 struct SortedRun {
   std::filesystem::path path;
-  std::uint64_t points = 0;               // records in the run (distinct points)
-  std::uint64_t input_points = 0;         // points given
-  std::uint64_t duplicates_merged = 0;    // input_points − points
-  std::uint32_t finest_level = 0;         // L
-  std::vector<TileRange> tiles;           // non-empty tiles of level L, Morton order
+  std::uint64_t points = 0;                    // records in the run (distinct points)
+  std::uint64_t input_points = 0;              // points given
+  std::uint64_t duplicates_merged = 0;         // input_points − points
+  std::uint32_t finest_level = 0;              // L
+  std::vector<TileRange> tiles;                // non-empty tiles of level L, Morton order
   std::vector<std::uint64_t> max_tile_points;  // index z: most points in one tile of level z
 };
 

@@ -79,7 +79,7 @@ double canonical_circumradius2(kernel::XY a, kernel::XY b, kernel::XY c);
 struct FinestTileOptions {
   double max_circumradius_tiles = 0.5;
   std::size_t max_gathered_points = 4u << 20;  // refuse a tile whose halo needs more
-  int max_rounds = 64;                          // halo growth rounds before giving up
+  int max_rounds = 64;                         // halo growth rounds before giving up
 };
 
 struct FinestTileStats {
