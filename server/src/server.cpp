@@ -135,7 +135,9 @@ class Session : public std::enable_shared_from_this<Session> {
   // Called (posted to the strand) when the server stops: idle connections close now, busy ones
   // after their response.
   void shutdown() {
-    if (reading_header_) close_now();
+    if (reading_header_ && idle()) close_now();
+    // Otherwise a request is in flight (bytes received or being handled): it is answered with
+    // `Connection: close`, bounded by the read/write timeouts and shutdown_grace_ms.
   }
   // Only when no thread runs the io_context (Server::Impl's destructor).
   void force_close() { close_now(); }
@@ -146,8 +148,14 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   const ServerConfig& cfg() const { return server_.config; }
 
+  // No bytes of a next request received, neither buffered nor waiting in the socket.
+  bool idle() {
+    beast::error_code ec;
+    return buffer_.size() == 0 && stream_.socket().available(ec) == 0;
+  }
+
   void do_read() {
-    if (server_.stopping) return close_now();
+    if (server_.stopping && idle()) return close_now();
     header_parser_.emplace();
     header_parser_->header_limit(cfg().max_header_bytes);
     // Body limits depend on the route (uploads vs. the rest): checked once the header is known.
