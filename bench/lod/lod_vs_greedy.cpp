@@ -4,7 +4,8 @@
 //
 //   lod_vs_greedy dump    <dem.tif> <grid.f32>              writes the heights, prints "W H"
 //   lod_vs_greedy compare <dem.tif> <dir> <N,N,...>          reads <dir>/delatin_<N>.txt and
-//                                                            <dir>/delatin_times.txt, prints a table
+//                                                            <dir>/delatin_times.txt, prints a
+//                                                            table
 //
 // The grid is used in its own (metric) coordinates: pixel centres, no reprojection. Both meshes
 // are evaluated by the same code here (linear interpolation in the containing triangle at every
@@ -13,10 +14,10 @@
 
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -33,7 +34,10 @@ struct Grid {
   std::vector<float> z;
   double x(int col) const { return gt[0] + (col + 0.5) * gt[1]; }
   double y(int row) const { return gt[3] + (row + 0.5) * gt[5]; }
-  float at(int col, int row) const { return z[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(col)]; }
+  float at(int col, int row) const {
+    return z[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) +
+             static_cast<std::size_t>(col)];
+  }
 };
 
 bool read_grid(const char* path, Grid& g) {
@@ -54,7 +58,8 @@ bool read_grid(const char* path, Grid& g) {
   GDALClose(ds);
   if (e != CE_None) return false;
   std::size_t bad = 0;
-  for (float v : g.z) bad += (!std::isfinite(v) || (has_nodata && v == static_cast<float>(nodata))) ? 1 : 0;
+  for (float v : g.z)
+    bad += (!std::isfinite(v) || (has_nodata && v == static_cast<float>(nodata))) ? 1 : 0;
   if (bad) {
     std::fprintf(stderr, "%s has %zu NODATA cells; this benchmark needs a full grid\n", path, bad);
     return false;
@@ -80,24 +85,30 @@ Errors evaluate(const Grid& g, const PixelMesh& m) {
   double sum = 0, worst = 0, border_worst = 0;
   std::size_t n = 0;
   for (const auto& t : m.tris) {
-    const double ax = m.col[t[0]], ay = m.row[t[0]], bx = m.col[t[1]], by = m.row[t[1]], cx = m.col[t[2]], cy = m.row[t[2]];
-    const double za = g.at(m.col[t[0]], m.row[t[0]]), zb = g.at(m.col[t[1]], m.row[t[1]]), zc = g.at(m.col[t[2]], m.row[t[2]]);
+    const double ax = m.col[t[0]], ay = m.row[t[0]], bx = m.col[t[1]], by = m.row[t[1]],
+                 cx = m.col[t[2]], cy = m.row[t[2]];
+    const double za = g.at(m.col[t[0]], m.row[t[0]]), zb = g.at(m.col[t[1]], m.row[t[1]]),
+                 zc = g.at(m.col[t[2]], m.row[t[2]]);
     const double det = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
     if (det == 0) continue;
-    const int x0 = static_cast<int>(std::min({ax, bx, cx})), x1 = static_cast<int>(std::max({ax, bx, cx}));
-    const int y0 = static_cast<int>(std::min({ay, by, cy})), y1 = static_cast<int>(std::max({ay, by, cy}));
+    const int x0 = static_cast<int>(std::min({ax, bx, cx})),
+              x1 = static_cast<int>(std::max({ax, bx, cx}));
+    const int y0 = static_cast<int>(std::min({ay, by, cy})),
+              y1 = static_cast<int>(std::max({ay, by, cy}));
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
         const double wa = ((bx - x) * (cy - y) - (by - y) * (cx - x)) / det;
         const double wb = ((cx - x) * (ay - y) - (cy - y) * (ax - x)) / det;
         const double wc = 1.0 - wa - wb;
         if (wa < -1e-12 || wb < -1e-12 || wc < -1e-12) continue;
-        const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(g.w) + static_cast<std::size_t>(x);
+        const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(g.w) +
+                              static_cast<std::size_t>(x);
         if (seen[k]) continue;
         seen[k] = 1;
         const double d = std::abs(wa * za + wb * zb + wc * zc - g.z[k]);
         worst = std::max(worst, d);
-        if (x == 0 || y == 0 || x == g.w - 1 || y == g.h - 1) border_worst = std::max(border_worst, d);
+        if (x == 0 || y == 0 || x == g.w - 1 || y == g.h - 1)
+          border_worst = std::max(border_worst, d);
         sum += d * d;
         ++n;
       }
@@ -108,7 +119,8 @@ Errors evaluate(const Grid& g, const PixelMesh& m) {
   e.rms = n ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
   e.cells = n;
   e.border_max = border_worst;
-  if (n != g.z.size()) std::fprintf(stderr, "warning: mesh covers %zu of %zu cells\n", n, g.z.size());
+  if (n != g.z.size())
+    std::fprintf(stderr, "warning: mesh covers %zu of %zu cells\n", n, g.z.size());
   return e;
 }
 
@@ -161,7 +173,8 @@ std::vector<std::size_t> parse_counts(const std::string& s) {
 
 int main(int argc, char** argv) {
   if (argc < 4) {
-    std::fprintf(stderr, "usage: %s dump <dem> <grid.f32> | compare <dem> <dir> <N,N,...>\n", argv[0]);
+    std::fprintf(stderr, "usage: %s dump <dem> <grid.f32> | compare <dem> <dir> <N,N,...>\n",
+                 argv[0]);
     return 2;
   }
   const std::string mode = argv[1];
@@ -169,7 +182,8 @@ int main(int argc, char** argv) {
   if (!read_grid(argv[2], g)) return 1;
   if (mode == "dump") {
     std::ofstream out(argv[3], std::ios::binary);
-    out.write(reinterpret_cast<const char*>(g.z.data()), static_cast<std::streamsize>(g.z.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(g.z.data()),
+              static_cast<std::streamsize>(g.z.size() * sizeof(float)));
     std::printf("%d %d\n", g.w, g.h);
     return out ? 0 : 1;
   }
@@ -183,7 +197,9 @@ int main(int argc, char** argv) {
     while (f >> n >> ms) delatin_ms[n] = ms;
   }
   const tinstream::lod::ThinInput input = grid_input(g);
-  std::printf("| vertices | Delatin max (m) | ours max (m) | max ratio | Delatin RMS (m) | ours RMS (m) | RMS ratio | Delatin time (s) | ours time (s) | ours CPU (s) | time ratio |\n");
+  std::printf(
+      "| vertices | Delatin max (m) | ours max (m) | max ratio | Delatin RMS (m) | ours RMS (m) | "
+      "RMS ratio | Delatin time (s) | ours time (s) | ours CPU (s) | time ratio |\n");
   std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::size_t n : parse_counts(argv[4])) {
     PixelMesh dm;
@@ -194,12 +210,15 @@ int main(int argc, char** argv) {
     tinstream::lod::LodOptions o;
     o.max_points = dm.col.size();  // equal vertex count
     o.epsilon = 0;
-    // LOD_BORDER_PER_SIDE overrides the per-side border budget (default: LodOptions' automatic one).
-    if (const char* b = std::getenv("LOD_BORDER_PER_SIDE")) o.border_points_per_side = std::stoul(b);
+    // LOD_BORDER_PER_SIDE overrides the per-side border budget (default: LodOptions' automatic
+    // one).
+    if (const char* b = std::getenv("LOD_BORDER_PER_SIDE"))
+      o.border_points_per_side = std::stoul(b);
     const auto t0 = std::chrono::steady_clock::now();
     const std::clock_t c0 = std::clock();
     auto ours = tinstream::lod::thin_tile(input, o);
-    const double ours_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double ours_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double ours_cpu = static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
     if (!ours.ok()) {
       std::fprintf(stderr, "thin_tile: %s\n", ours.error().message.c_str());
@@ -208,10 +227,12 @@ int main(int argc, char** argv) {
     const PixelMesh om = to_pixels(g, *ours);
     const Errors de = evaluate(g, dm), oe = evaluate(g, om);
     const double dt = delatin_ms.count(n) ? delatin_ms[n] / 1000.0 : NAN;
-    std::printf("| %zu / %zu | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.1f |\n",
-                dm.col.size(), ours->vertex_count(), de.max, oe.max, oe.max / de.max, de.rms, oe.rms, oe.rms / de.rms,
-                dt, ours_s, ours_cpu, ours_s / dt);
-    std::fprintf(stderr, "%zu vertices: border max Delatin %.3f m, ours %.3f m\n", n, de.border_max, oe.border_max);
+    std::printf(
+        "| %zu / %zu | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.1f |\n",
+        dm.col.size(), ours->vertex_count(), de.max, oe.max, oe.max / de.max, de.rms, oe.rms,
+        oe.rms / de.rms, dt, ours_s, ours_cpu, ours_s / dt);
+    std::fprintf(stderr, "%zu vertices: border max Delatin %.3f m, ours %.3f m\n", n, de.border_max,
+                 oe.border_max);
     std::fflush(stdout);
   }
   return 0;

@@ -19,8 +19,10 @@ using detail::TriangleGrid;
 double SurfaceDifference::rms() const { return area > 0 ? std::sqrt(sum_sq_area / area) : 0.0; }
 
 double error_rounding_allowance(const tile::TinTile& coarse) {
-  const double range = std::isfinite(coarse.max_z - coarse.min_z) ? coarse.max_z - coarse.min_z : 0.0;
-  return 1e-6 + 1e-9 * std::abs(range) + 1e-12 * std::max(std::abs(coarse.max_z), std::abs(coarse.min_z));
+  const double range =
+      std::isfinite(coarse.max_z - coarse.min_z) ? coarse.max_z - coarse.min_z : 0.0;
+  return 1e-6 + 1e-9 * std::abs(range) +
+         1e-12 * std::max(std::abs(coarse.max_z), std::abs(coarse.min_z));
 }
 
 namespace {
@@ -51,7 +53,8 @@ int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& 
 
 }  // namespace
 
-SurfaceDifference surface_difference(const tile::TinTile& coarse, std::span<const tile::TinTile* const> fines,
+SurfaceDifference surface_difference(const tile::TinTile& coarse,
+                                     std::span<const tile::TinTile* const> fines,
                                      bool fines_are_finest) {
   SurfaceDifference d;
   std::vector<FlatTriangle> ct;
@@ -86,9 +89,12 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse, std::span<cons
         }
         ++d.polygons;
         for (int k = 1; k + 1 < n; ++k) {
-          const P2 p0 = b[0], p1 = b[static_cast<std::size_t>(k)], p2 = b[static_cast<std::size_t>(k + 1)];
-          const double area = 0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
-          const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)], v2 = v[static_cast<std::size_t>(k + 1)];
+          const P2 p0 = b[0], p1 = b[static_cast<std::size_t>(k)],
+                   p2 = b[static_cast<std::size_t>(k + 1)];
+          const double area =
+              0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
+          const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)],
+                       v2 = v[static_cast<std::size_t>(k + 1)];
           d.area += area;
           d.sum_sq_area += area / 6.0 * (v0 * v0 + v1 * v1 + v2 * v2 + v0 * v1 + v1 * v2 + v2 * v0);
         }
@@ -102,8 +108,8 @@ Status check_level_watertight(const std::vector<tile::TinTile>& tiles) {
   std::map<geo::TileId, std::size_t> by_id;
   for (std::size_t i = 0; i < tiles.size(); ++i) {
     if (!tiles.empty() && tiles[i].id.z != tiles[0].id.z) {
-      return invalid_argument("watertight: tiles of different levels given (" + tiles[0].id.to_string() +
-                              ", " + tiles[i].id.to_string() + ")");
+      return invalid_argument("watertight: tiles of different levels given (" +
+                              tiles[0].id.to_string() + ", " + tiles[i].id.to_string() + ")");
     }
     by_id.emplace(tiles[i].id, i);
   }
@@ -127,27 +133,35 @@ Status check_level_watertight(const std::vector<tile::TinTile>& tiles) {
     // coordinates differ by design.
     if (auto e = t.id.neighbour(geo::Direction::east); e && e->x == t.id.x + 1) {
       if (auto it = by_id.find(*e); it != by_id.end()) {
-        if (Status s = compare(t, geo::Direction::east, tiles[it->second], geo::Direction::west); !s) return s;
+        if (Status s = compare(t, geo::Direction::east, tiles[it->second], geo::Direction::west);
+            !s)
+          return s;
       }
     }
     if (auto s_id = t.id.neighbour(geo::Direction::south)) {
       if (auto it = by_id.find(*s_id); it != by_id.end()) {
-        if (Status s = compare(t, geo::Direction::south, tiles[it->second], geo::Direction::north); !s) return s;
+        if (Status s = compare(t, geo::Direction::south, tiles[it->second], geo::Direction::north);
+            !s)
+          return s;
       }
     }
   }
   return {};
 }
 
-Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector<tile::TinTile>& finest) {
-  if (finest.empty()) return invalid_argument("measured_max_error: no finest tiles under " + coarse.id.to_string());
+Result<double> measured_max_error(const tile::TinTile& coarse,
+                                  const std::vector<tile::TinTile>& finest) {
+  if (finest.empty())
+    return invalid_argument("measured_max_error: no finest tiles under " + coarse.id.to_string());
   const geo::MercatorRect r = coarse.id.bounds();
   std::vector<FlatTriangle> ct, ft;
   detail::append_triangles(coarse, true, ct);
   for (const auto& f : finest) {
     const geo::MercatorRect fr = f.id.bounds();
-    if (f.id.z < coarse.id.z || fr.min_x < r.min_x || fr.max_x > r.max_x || fr.min_y < r.min_y || fr.max_y > r.max_y) {
-      return invalid_argument("measured_max_error: " + f.id.to_string() + " is not under " + coarse.id.to_string());
+    if (f.id.z < coarse.id.z || fr.min_x < r.min_x || fr.max_x > r.max_x || fr.min_y < r.min_y ||
+        fr.max_y > r.max_y) {
+      return invalid_argument("measured_max_error: " + f.id.to_string() + " is not under " +
+                              coarse.id.to_string());
     }
     detail::append_triangles(f, true, ft);
   }
@@ -161,7 +175,9 @@ Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector
       const std::int64_t c = cg.locate(t.p[k].x, t.p[k].y, &w);
       // Not under a coarse data triangle (only NODATA-corner triangles there): not measured.
       if (c < 0 || w < -1e-9) continue;
-      worst = std::max(worst, std::abs(plane_at(cg.triangles()[static_cast<std::size_t>(c)], t.p[k].x, t.p[k].y) - t.z[k]));
+      worst = std::max(worst, std::abs(plane_at(cg.triangles()[static_cast<std::size_t>(c)],
+                                                t.p[k].x, t.p[k].y) -
+                                       t.z[k]));
     }
   }
   // Coarse vertices against the finest surface, where there is one.
@@ -170,7 +186,9 @@ Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector
       double w;
       const std::int64_t f = fg.locate(t.p[k].x, t.p[k].y, &w);
       if (f < 0 || w < -1e-9) continue;
-      worst = std::max(worst, std::abs(plane_at(fg.triangles()[static_cast<std::size_t>(f)], t.p[k].x, t.p[k].y) - t.z[k]));
+      worst = std::max(worst, std::abs(plane_at(fg.triangles()[static_cast<std::size_t>(f)],
+                                                t.p[k].x, t.p[k].y) -
+                                       t.z[k]));
     }
   }
   return worst;
@@ -178,8 +196,9 @@ Result<double> measured_max_error(const tile::TinTile& coarse, const std::vector
 
 Status check_budget(const tile::TinTile& tile, std::size_t max_points) {
   if (tile.vertex_count() > max_points) {
-    return corrupt_data("budget: " + tile.id.to_string() + " holds " + std::to_string(tile.vertex_count()) +
-                        " vertices, more than " + std::to_string(max_points));
+    return corrupt_data("budget: " + tile.id.to_string() + " holds " +
+                        std::to_string(tile.vertex_count()) + " vertices, more than " +
+                        std::to_string(max_points));
   }
   return {};
 }

@@ -34,7 +34,9 @@ std::optional<Vertex> shared_corner(const std::array<std::optional<TinTile>, 4>&
   return std::nullopt;
 }
 
-void append(std::vector<Vertex>& out, const std::vector<Vertex>& in) { out.insert(out.end(), in.begin(), in.end()); }
+void append(std::vector<Vertex>& out, const std::vector<Vertex>& in) {
+  out.insert(out.end(), in.begin(), in.end());
+}
 
 }  // namespace
 
@@ -49,8 +51,8 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
     if (!ch[i]) continue;
     any = true;
     if (ch[i]->id != kids[i]) {
-      return invalid_argument("lod: child " + std::to_string(i) + " of " + parent.to_string() + " is " +
-                              ch[i]->id.to_string() + ", expected " + kids[i].to_string());
+      return invalid_argument("lod: child " + std::to_string(i) + " of " + parent.to_string() +
+                              " is " + ch[i]->id.to_string() + ", expected " + kids[i].to_string());
     }
   }
   if (!any) return invalid_argument("lod: parent " + parent.to_string() + " has no children");
@@ -73,10 +75,14 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
     const auto& t = ch[static_cast<std::size_t>(c)];
     if (!t) return nullptr;
     switch (d) {
-      case geo::Direction::north: return &t->north;
-      case geo::Direction::east: return &t->east;
-      case geo::Direction::south: return &t->south;
-      case geo::Direction::west: return &t->west;
+      case geo::Direction::north:
+        return &t->north;
+      case geo::Direction::east:
+        return &t->east;
+      case geo::Direction::south:
+        return &t->south;
+      case geo::Direction::west:
+        return &t->west;
     }
     return nullptr;
   };

@@ -27,7 +27,8 @@ struct FlatTriangle {
 // Linear interpolation at q in triangle t with barycentric weights clamped to the triangle (q is
 // inside up to rounding); coordinates relative to p[0] for accuracy. *min_weight (optional)
 // receives the smallest unclamped weight (≥ 0 inside).
-inline double plane_at(const FlatTriangle& t, double qx0, double qy0, double* min_weight = nullptr) {
+inline double plane_at(const FlatTriangle& t, double qx0, double qy0,
+                       double* min_weight = nullptr) {
   const double bx = t.p[1].x - t.p[0].x, by = t.p[1].y - t.p[0].y;
   const double cx = t.p[2].x - t.p[0].x, cy = t.p[2].y - t.p[0].y;
   const double qx = qx0 - t.p[0].x, qy = qy0 - t.p[0].y;
@@ -46,7 +47,8 @@ inline double plane_at(const FlatTriangle& t, double qx0, double qy0, double* mi
 }
 
 // Triangles of a tile, skipping those incident to a NODATA corner when skip_nodata.
-inline void append_triangles(const tile::TinTile& tile, bool skip_nodata, std::vector<FlatTriangle>& out) {
+inline void append_triangles(const tile::TinTile& tile, bool skip_nodata,
+                             std::vector<FlatTriangle>& out) {
   const std::vector<tile::Vertex> v = tile.vertices();
   for (const auto& tr : tile.triangles) {
     bool nodata = false;
@@ -68,14 +70,16 @@ inline void append_triangles(const tile::TinTile& tile, bool skip_nodata, std::v
 
 class TriangleGrid {
  public:
-  TriangleGrid(std::vector<FlatTriangle> tris, const geo::MercatorRect& r) : tris_(std::move(tris)), r_(r) {
+  TriangleGrid(std::vector<FlatTriangle> tris, const geo::MercatorRect& r)
+      : tris_(std::move(tris)), r_(r) {
     // The grid spans the small triangles only: at coarse levels the data may cover a tiny part of
     // the tile, and the few huge triangles fanning out to the tile corners would otherwise make
     // the grid one cell wide (quadratic queries). Big triangles are clamped into every cell.
     {
       const double limit = r.width() * r.height() / 256.0;
-      geo::MercatorRect ext{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-                            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+      geo::MercatorRect ext{
+          std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+          -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
       for (const auto& t : tris_) {
         if ((t.max_x - t.min_x) * (t.max_y - t.min_y) > limit) continue;
         ext.min_x = std::min(ext.min_x, t.min_x), ext.min_y = std::min(ext.min_y, t.min_y);
@@ -153,8 +157,8 @@ class TriangleGrid {
   }
 
  private:
-  void cells(double min_x, double min_y, double max_x, double max_y, std::uint32_t& x0, std::uint32_t& y0,
-             std::uint32_t& x1, std::uint32_t& y1) const {
+  void cells(double min_x, double min_y, double max_x, double max_y, std::uint32_t& x0,
+             std::uint32_t& y0, std::uint32_t& x1, std::uint32_t& y1) const {
     auto cell = [&](double v, double origin, double scale) {
       const double c = std::floor((v - origin) * scale);
       return static_cast<std::uint32_t>(std::clamp(c, 0.0, static_cast<double>(g_ - 1)));

@@ -109,8 +109,9 @@ class Throttle {
 
 }  // namespace
 
-Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level, std::uint32_t min_level,
-                                     const PyramidOptions& options, unsigned threads, const ProgressSink& progress) {
+Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
+                                     std::uint32_t min_level, const PyramidOptions& options,
+                                     unsigned threads, const ProgressSink& progress) {
   if (finest_level > static_cast<std::uint32_t>(geo::kMaxLevel) || min_level > finest_level) {
     return invalid_argument("lod: levels must satisfy min_level ≤ finest_level ≤ 30, got " +
                             std::to_string(min_level) + " and " + std::to_string(finest_level));
@@ -136,7 +137,8 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   Throttle throttle;
   auto report = [&](bool force) -> Status {
     if (!progress || (!force && !throttle.due())) return {};
-    if (!progress(Progress{"lod", done, total, "tiles"})) return Error(ErrorCode::cancelled, "lod: cancelled");
+    if (!progress(Progress{"lod", done, total, "tiles"}))
+      return Error(ErrorCode::cancelled, "lod: cancelled");
     return {};
   };
 
@@ -144,7 +146,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   // on the calling thread, with at most max_in_flight items between load and store.
   auto run_level = [&](const std::vector<geo::TileId>& items,
                        const std::function<Result<TilePool::Job>(const geo::TileId&)>& load,
-                       const std::function<Status(TinTile&&)>& store) -> Status {
+                       const std::function<Status(TinTile &&)>& store) -> Status {
     std::size_t next = 0, in_flight = 0;
     std::optional<Error> failure;
     while ((next < items.size() && !failure) || in_flight > 0) {
@@ -213,7 +215,8 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     std::set<geo::TileId> parent_set;
     for (const auto& c : child_ids) parent_set.insert(c.parent());
     std::vector<geo::TileId> parents(parent_set.begin(), parent_set.end());
-    std::sort(parents.begin(), parents.end(), [](const auto& a, const auto& b) { return a.morton() < b.morton(); });
+    std::sort(parents.begin(), parents.end(),
+              [](const auto& a, const auto& b) { return a.morton() < b.morton(); });
     total += parents.size();
     if (Status s = report(true); !s.ok()) return s.error();
     const LodOptions lod = opts.lod;
@@ -232,7 +235,8 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
               (*kids)[i] = std::move(**t);
             }
           }
-          return TilePool::Job([kids, pid, lod]() { return build_parent(pid, std::move(*kids), lod); });
+          return TilePool::Job(
+              [kids, pid, lod]() { return build_parent(pid, std::move(*kids), lod); });
         },
         [&](TinTile&& t) -> Status {
           if (Status st = writer.put(t); !st.ok()) return st;

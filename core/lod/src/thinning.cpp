@@ -34,7 +34,8 @@ using tile::Vertex;
 
 std::size_t side_budget(const LodOptions& options) {
   if (options.border_points_per_side != 0) return options.border_points_per_side;
-  const auto root = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(options.max_points))));
+  const auto root =
+      static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(options.max_points))));
   const std::size_t cap = options.max_points > 4 ? (options.max_points - 4) / 8 : 0;
   return std::min(root, cap);
 }
@@ -42,8 +43,8 @@ std::size_t side_budget(const LodOptions& options) {
 namespace {
 
 struct QueueEntry {
-  double error;      // effective (error + weight)
-  double key_a;      // tie-break: position
+  double error;  // effective (error + weight)
+  double key_a;  // tie-break: position
   double key_b;
   std::uint32_t id;  // index / vertex id
   std::uint32_t version;
@@ -96,7 +97,9 @@ class IndexedHeap {
 
  private:
   static constexpr std::uint32_t kAbsent = 0xFFFFFFFFu;
-  bool less(std::uint32_t a, std::uint32_t b) const { return key_[a] < key_[b] || (key_[a] == key_[b] && a < b); }
+  bool less(std::uint32_t a, std::uint32_t b) const {
+    return key_[a] < key_[b] || (key_[a] == key_[b] && a < b);
+  }
   void place(std::uint32_t i, std::uint32_t id) {
     heap_[i] = id;
     pos_[id] = i;
@@ -191,7 +194,8 @@ class InteriorThinner {
 
   // Index into `tris` of the replacement triangle containing (x, y) (largest smallest barycentric
   // weight), and the interpolated z.
-  double surface_at(const std::vector<VertexTriple>& tris, double x, double y, std::size_t* which) const {
+  double surface_at(const std::vector<VertexTriple>& tris, double x, double y,
+                    std::size_t* which) const {
     double best_w = -std::numeric_limits<double>::infinity(), best_z = 0;
     std::size_t best = 0;
     for (std::size_t k = 0; k < tris.size(); ++k) {
@@ -213,7 +217,8 @@ class InteriorThinner {
   std::optional<double> evaluate_last(VertexId v) const {
     Triangulation rest(*tri_.domain());
     std::vector<kernel::Point3> ring;
-    for (VertexId w : tri_.adjacent_vertices(v)) ring.push_back({tri_.xy(w).x, tri_.xy(w).y, tri_.z(w), 0});
+    for (VertexId w : tri_.adjacent_vertices(v))
+      ring.push_back({tri_.xy(w).x, tri_.xy(w).y, tri_.z(w), 0});
     rest.insert_bulk(ring);
     if (rest.dimension() != 2) return std::nullopt;
     auto at = [&](double x, double y) { return rest.interpolate(x, y); };
@@ -303,10 +308,11 @@ class InteriorThinner {
         }
       }
       if (new_ids_[k] == kNone) {
-        return Error(ErrorCode::internal, "lod: replacement triangle of vertex " + std::to_string(v) +
-                                              " not found after removal");
+        return Error(ErrorCode::internal, "lod: replacement triangle of vertex " +
+                                              std::to_string(v) + " not found after removal");
       }
-      if (new_ids_[k] >= head_.size()) head_.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
+      if (new_ids_[k] >= head_.size())
+        head_.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
     }
     for (std::uint32_t i : gathered_) {
       std::size_t k;
@@ -370,7 +376,8 @@ std::vector<Vertex> thin_border_side(std::span<const Vertex> side, bool along_x,
   MinQueue queue;
   auto push = [&](std::size_t i) {
     ++version[i];
-    queue.push({error_of(i), static_cast<double>(i), 0.0, static_cast<std::uint32_t>(i), version[i]});
+    queue.push(
+        {error_of(i), static_cast<double>(i), 0.0, static_cast<std::uint32_t>(i), version[i]});
   };
   for (std::size_t i = 1; i + 1 < n; ++i) push(i);
   std::size_t count = n - 2;
@@ -420,7 +427,8 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     const double len = along_x ? r.width() : r.height();
     const double mean = 0.5 * (r.width() + r.height());
     if (!(mean > 0)) return base_budget;
-    return static_cast<std::size_t>(std::floor(static_cast<double>(base_budget) * len / mean + 0.5));
+    return static_cast<std::size_t>(
+        std::floor(static_cast<double>(base_budget) * len / mean + 0.5));
   };
 
   // ---- 1. the border, side by side, from the border points alone ------------------------------
@@ -431,10 +439,12 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     side.push_back(in.corners[static_cast<std::size_t>(c0)]);
     side.insert(side.end(), list.begin(), list.end());
     side.push_back(in.corners[static_cast<std::size_t>(c1)]);
-    std::vector<Vertex> kept = thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped);
+    std::vector<Vertex> kept =
+        thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped);
     return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
   };
-  st.input_points = 4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() + in.interior.size();
+  st.input_points =
+      4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() + in.interior.size();
   const std::array<std::vector<Vertex>, 4> sides = {
       thin_side(in.north, 0, 1, true), thin_side(in.east, 1, 3, false),
       thin_side(in.south, 2, 3, true), thin_side(in.west, 0, 2, false)};
@@ -443,7 +453,8 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   // ---- 2. triangulate corners + border + interior, border constrained -------------------------
   Triangulation tri(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
   std::vector<kernel::Point3> pts;
-  pts.reserve(4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size() + in.interior.size());
+  pts.reserve(4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size() +
+              in.interior.size());
   auto add = [&](const Vertex& v) { pts.push_back({v.x, v.y, v.z, v.weight}); };
   for (const auto& c : in.corners) add(c);
   for (const auto& s : sides) {
@@ -454,21 +465,27 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   const std::vector<kernel::InsertResult> ins = tri.insert_bulk(pts);
   for (std::size_t i = 0; i < n_fixed; ++i) {
     if (ins[i].outcome != kernel::InsertOutcome::inserted) {
-      return invalid_argument("lod: " + tile_name(in.id) + ": corner or edge point #" + std::to_string(i) +
-                              " is a duplicate or lies outside the tile");
+      return invalid_argument("lod: " + tile_name(in.id) + ": corner or edge point #" +
+                              std::to_string(i) + " is a duplicate or lies outside the tile");
     }
   }
   std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);
   for (std::size_t i = n_fixed; i < pts.size(); ++i) {
     switch (ins[i].outcome) {
-      case kernel::InsertOutcome::inserted: candidate[ins[i].vertex] = 1; break;
-      case kernel::InsertOutcome::duplicate: ++st.duplicates; break;
+      case kernel::InsertOutcome::inserted:
+        candidate[ins[i].vertex] = 1;
+        break;
+      case kernel::InsertOutcome::duplicate:
+        ++st.duplicates;
+        break;
       default:
         return invalid_argument("lod: " + tile_name(in.id) + ": interior point #" +
-                                std::to_string(i - n_fixed) + " lies outside the tile or is not finite");
+                                std::to_string(i - n_fixed) +
+                                " lies outside the tile or is not finite");
     }
   }
-  if (tri.dimension() != 2) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": degenerate triangulation");
+  if (tri.dimension() != 2)
+    return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": degenerate triangulation");
   // Border chains in edge order: corner ids 0..3 are ins[0..3].
   std::array<std::vector<VertexId>, 4> chain;
   {
@@ -480,12 +497,15 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
       chain[s].push_back(ins[static_cast<std::size_t>(ends[s][1])].vertex);
       for (std::size_t j = 0; j + 1 < chain[s].size(); ++j) {
         Status c = tri.insert_constraint(chain[s][j], chain[s][j + 1]);
-        if (!c.ok()) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": border constraint: " + c.error().message);
+        if (!c.ok())
+          return Error(ErrorCode::internal,
+                       "lod: " + tile_name(in.id) + ": border constraint: " + c.error().message);
       }
     }
   }
   if (tri.num_vertices() != pts.size() - st.duplicates) {
-    return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": a border constraint added vertices");
+    return Error(ErrorCode::internal,
+                 "lod: " + tile_name(in.id) + ": a border constraint added vertices");
   }
 
   // ---- 3. thin the interior ------------------------------------------------------------------
@@ -496,7 +516,9 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     for (const auto& o : dropped) thinner.add_orphan(o);
     thinner.seed_queue();
     auto removed = thinner.run(options.max_points, options.epsilon, &st.last_error);
-    if (!removed.ok()) return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": " + removed.error().message);
+    if (!removed.ok())
+      return Error(ErrorCode::internal,
+                   "lod: " + tile_name(in.id) + ": " + removed.error().message);
     st.interior_removed = *removed;
     removed_last = thinner.removed_last();
   }
@@ -507,7 +529,8 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     border_ins = border_only->insert_bulk(std::span<const kernel::Point3>(pts.data(), n_fixed));
     for (std::size_t i = 0; i < n_fixed; ++i) {
       if (border_ins[i].outcome != kernel::InsertOutcome::inserted) {
-        return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": border re-triangulation failed");
+        return Error(ErrorCode::internal,
+                     "lod: " + tile_name(in.id) + ": border re-triangulation failed");
       }
     }
   }
@@ -524,21 +547,24 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   for (std::size_t i = 4; i < n_fixed; ++i) index[ins[i].vertex] = next_index++;
   for (std::size_t i = n_fixed; i < pts.size(); ++i) {
     const VertexId v = ins[i].vertex;
-    if (ins[i].outcome != kernel::InsertOutcome::inserted || !tri.is_vertex(v) || v == removed_last) continue;
+    if (ins[i].outcome != kernel::InsertOutcome::inserted || !tri.is_vertex(v) || v == removed_last)
+      continue;
     index[v] = next_index++;
     out.interior.push_back(in.interior[i - n_fixed]);
   }
   if (border_only) {
     // Only the fixed points are left; their tile numbering is their insertion order.
     index.assign(border_only->vertex_id_bound(), kNone);
-    for (std::size_t i = 0; i < n_fixed; ++i) index[border_ins[i].vertex] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = 0; i < n_fixed; ++i)
+      index[border_ins[i].vertex] = static_cast<std::uint32_t>(i);
   }
   const Triangulation& final_tri = border_only ? *border_only : tri;
   out.triangles.reserve(final_tri.num_finite_triangles());
   for (const auto& t : final_tri.finite_triangles()) {
     tile::Triangle m{index[t[0]], index[t[1]], index[t[2]]};
     if (m[0] == kNone || m[1] == kNone || m[2] == kNone) {
-      return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": triangle over an unknown vertex");
+      return Error(ErrorCode::internal,
+                   "lod: " + tile_name(in.id) + ": triangle over an unknown vertex");
     }
     out.triangles.push_back(m);
   }
@@ -556,7 +582,8 @@ Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinSt
   auto reduced = thin_tile(in, options, stats);
   if (!reduced.ok()) return reduced.error();
   const tile::TinTile* original = &tile;
-  const SurfaceDifference d = surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1), true);
+  const SurfaceDifference d =
+      surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1), true);
   reduced->geometric_error = d.max_abs + tile.geometric_error + error_rounding_allowance(*reduced);
   reduced->rms_error = d.rms() + tile.rms_error;
   reduced->source_points = tile.source_points;
@@ -564,7 +591,8 @@ Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinSt
   return {};
 }
 
-Status reduce_finest_tile(tile::TinTile& tile, double epsilon, std::size_t max_points, ThinStats* stats) {
+Status reduce_finest_tile(tile::TinTile& tile, double epsilon, std::size_t max_points,
+                          ThinStats* stats) {
   LodOptions o;
   o.epsilon = epsilon;
   o.max_points = max_points;

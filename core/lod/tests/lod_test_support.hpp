@@ -53,7 +53,8 @@ inline tile::TinTile grid_tile(const geo::TileId& id, int n, const Surface& f,
 
 // Barycentric interpolation by brute force over the tile's triangles (written independently of
 // the library). Triangles at NODATA corners are skipped when skip_nodata. nullopt: not covered.
-inline std::optional<double> brute_height(const tile::TinTile& t, double x, double y, bool skip_nodata) {
+inline std::optional<double> brute_height(const tile::TinTile& t, double x, double y,
+                                          bool skip_nodata) {
   const auto v = t.vertices();
   std::optional<double> best;
   double best_w = -1e-9;
@@ -79,7 +80,8 @@ inline std::optional<double> brute_height(const tile::TinTile& t, double x, doub
 
 // Max |coarse − fine| over a dense lattice (samples per side) inside `coarse` plus all fine
 // vertices, where the fine surface has data.
-inline double sampled_max_difference(const tile::TinTile& coarse, const std::vector<tile::TinTile>& fines, int samples) {
+inline double sampled_max_difference(const tile::TinTile& coarse,
+                                     const std::vector<tile::TinTile>& fines, int samples) {
   const geo::MercatorRect r = coarse.id.bounds();
   double worst = 0;
   auto probe = [&](double x, double y) {

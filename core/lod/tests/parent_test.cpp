@@ -1,3 +1,5 @@
+#include "tinstream/lod/parent.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -5,7 +7,6 @@
 
 #include "lod_test_support.hpp"
 #include "tinstream/lod/error.hpp"
-#include "tinstream/lod/parent.hpp"
 
 namespace tinstream::lod {
 namespace {
@@ -14,11 +15,13 @@ using testing::grid_tile;
 using tile::TinTile;
 
 double hills(double x, double y) {
-  return 500.0 + 80.0 * std::sin(x * 900.0) * std::cos(y * 700.0) + 15.0 * std::sin(x * 5000.0 + y * 3000.0);
+  return 500.0 + 80.0 * std::sin(x * 900.0) * std::cos(y * 700.0) +
+         15.0 * std::sin(x * 5000.0 + y * 3000.0);
 }
 
 // Children of the 2×2 parents whose NW parent is (z, x0, y0), each a reduced grid tile.
-std::map<geo::TileId, TinTile> children_block(std::uint32_t z, std::uint32_t x0, std::uint32_t y0, double epsilon) {
+std::map<geo::TileId, TinTile> children_block(std::uint32_t z, std::uint32_t x0, std::uint32_t y0,
+                                              double epsilon) {
   std::map<geo::TileId, TinTile> out;
   for (std::uint32_t y = 2 * y0; y < 2 * y0 + 4; ++y) {
     for (std::uint32_t x = 2 * x0; x < 2 * x0 + 4; ++x) {
@@ -33,7 +36,8 @@ std::map<geo::TileId, TinTile> children_block(std::uint32_t z, std::uint32_t x0,
   return out;
 }
 
-std::array<std::optional<TinTile>, 4> kids_of(const geo::TileId& p, const std::map<geo::TileId, TinTile>& all) {
+std::array<std::optional<TinTile>, 4> kids_of(const geo::TileId& p,
+                                              const std::map<geo::TileId, TinTile>& all) {
   std::array<std::optional<TinTile>, 4> k;
   const auto ids = p.children();
   for (std::size_t i = 0; i < 4; ++i) {
@@ -85,7 +89,8 @@ TEST(Parent, StoredErrorBoundsTheFinestSurfaceAndIsMonotone) {
   EXPECT_GE(p->geometric_error, child_max);
   EXPECT_GT(p->rms_error, 0.0);
   EXPECT_LE(p->rms_error, p->geometric_error);
-  // Against the children's surface, densely and independently: |parent − children| ≤ bound − children's.
+  // Against the children's surface, densely and independently: |parent − children| ≤ bound −
+  // children's.
   const double vs_children = testing::sampled_max_difference(*p, under, 150);
   EXPECT_GE(p->geometric_error - child_max, vs_children);
   auto measured = measured_max_error(*p, under);
@@ -149,7 +154,7 @@ TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
                     tile::Vertex{r.min_x, r.min_y, 0, 0}, tile::Vertex{r.max_x, r.min_y, 10, 0}};
   coarse.triangles = {{2, 3, 1}, {2, 1, 0}};  // diagonal SW–NE
   TinTile fine = coarse;
-  fine.triangles = {{0, 2, 3}, {0, 3, 1}};    // diagonal NW–SE
+  fine.triangles = {{0, 2, 3}, {0, 3, 1}};  // diagonal NW–SE
   const TinTile* f = &fine;
   const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1), true);
   // At the centre: coarse 0 (on its SW–NE diagonal), fine 10 (on its NW–SE ridge).

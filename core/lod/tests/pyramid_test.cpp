@@ -1,3 +1,5 @@
+#include "tinstream/lod/pyramid.hpp"
+
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
@@ -8,7 +10,6 @@
 
 #include "lod_test_support.hpp"
 #include "tinstream/lod/error.hpp"
-#include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/tile_store.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
 
@@ -23,7 +24,8 @@ struct TempStore {
   fs::path dir;
   std::optional<store::TileStore> store;
   explicit TempStore(const std::string& name) {
-    dir = fs::temp_directory_path() / ("tinstream-lod-test-" + name + "-" + std::to_string(::getpid()));
+    dir = fs::temp_directory_path() /
+          ("tinstream-lod-test-" + name + "-" + std::to_string(::getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
     auto s = store::TileStore::open(dir / "tiles.sqlite", store::TileStore::Mode::read_write);
@@ -64,9 +66,9 @@ bool under(const geo::TileId& fine, const geo::TileId& coarse) {
 
 // Every level: structure, budget, watertight, monotone error, stored error ≥ the finest surface
 // sampled independently. Returns the levels' max errors.
-void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t min_level, std::size_t max_points,
-                   const PyramidSummary& summary, int samples, std::size_t vertex_stride,
-                   std::size_t min_clean_checked) {
+void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t min_level,
+                   std::size_t max_points, const PyramidSummary& summary, int samples,
+                   std::size_t vertex_stride, std::size_t min_clean_checked) {
   const std::vector<TinTile> fin = level_tiles(w, finest);
   ASSERT_FALSE(fin.empty());
   std::map<geo::TileId, double> error_of;
@@ -76,7 +78,9 @@ void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t mi
   // its children.
   std::map<geo::TileId, bool> clean;
   std::map<geo::TileId, const TinTile*> previous;
-  auto no_nodata = [](const TinTile& t) { return !t.corner_nodata[0] && !t.corner_nodata[1] && !t.corner_nodata[2] && !t.corner_nodata[3]; };
+  auto no_nodata = [](const TinTile& t) {
+    return !t.corner_nodata[0] && !t.corner_nodata[1] && !t.corner_nodata[2] && !t.corner_nodata[3];
+  };
   for (const auto& t : fin) {
     error_of[t.id] = t.geometric_error;
     clean[t.id] = no_nodata(t);
@@ -103,7 +107,8 @@ void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t mi
       std::vector<TinTile> kids;
       for (const auto& c : t.id.children()) {
         if (auto it = error_of.find(c); it != error_of.end()) {
-          EXPECT_GE(t.geometric_error, it->second) << t.id.to_string() << " vs child " << c.to_string();
+          EXPECT_GE(t.geometric_error, it->second)
+              << t.id.to_string() << " vs child " << c.to_string();
           child_max = std::max(child_max, it->second);
           is_clean = is_clean && clean[c];
           kids.push_back(*children_of_level.at(c));
@@ -111,7 +116,8 @@ void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t mi
       }
       clean[t.id] = is_clean;
       // One level: |parent − children| where both have data ≤ bound − the children's bound.
-      EXPECT_GE(t.geometric_error - child_max, testing::sampled_max_difference(t, kids, samples)) << t.id.to_string();
+      EXPECT_GE(t.geometric_error - child_max, testing::sampled_max_difference(t, kids, samples))
+          << t.id.to_string();
       std::vector<TinTile> fines;
       for (const auto& f : fin) {
         if (under(f.id, t.id)) fines.push_back(f);
@@ -135,7 +141,8 @@ void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t mi
         }
       };
       for (int j = 0; j <= samples; ++j) {
-        for (int i = 0; i <= samples; ++i) probe(r.min_x + r.width() * i / samples, r.min_y + r.height() * j / samples);
+        for (int i = 0; i <= samples; ++i)
+          probe(r.min_x + r.width() * i / samples, r.min_y + r.height() * j / samples);
       }
       for (const auto& f : fines) {
         const auto v = f.vertices();
@@ -154,7 +161,9 @@ void check_pyramid(store::LayerWriter& w, std::uint32_t finest, std::uint32_t mi
   EXPECT_GE(clean_checked, min_clean_checked);
 }
 
-double world_hills(double x, double y) { return 100.0 + 50.0 * std::sin(3.0 * x) * std::cos(2.0 * y) + 20.0 * std::sin(17.0 * x * y); }
+double world_hills(double x, double y) {
+  return 100.0 + 50.0 * std::sin(3.0 * x) * std::cos(2.0 * y) + 20.0 * std::sin(17.0 * x * y);
+}
 
 TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
   TempStore ts("grid");
@@ -164,10 +173,13 @@ TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
   const geo::TileId peak_tile{L, 5, 2};
   const geo::MercatorRect pr = peak_tile.bounds();
   const double px = pr.min_x + pr.width() * 3 / 8, py = pr.max_y - pr.height() * 5 / 8;
-  auto f = [&](double x, double y) { return world_hills(x, y) + (x == px && y == py ? 0.25 : 0.0); };
+  auto f = [&](double x, double y) {
+    return world_hills(x, y) + (x == px && y == py ? 0.25 : 0.0);
+  };
   auto weight = [&](double x, double y) { return x == px && y == py ? 1e6 : 0.0; };
   for (std::uint32_t y = 0; y < 8; ++y) {
-    for (std::uint32_t x = 0; x < 8; ++x) ASSERT_TRUE(w->put(grid_tile({L, x, y}, 8, f, weight)).ok());
+    for (std::uint32_t x = 0; x < 8; ++x)
+      ASSERT_TRUE(w->put(grid_tile({L, x, y}, 8, f, weight)).ok());
   }
   PyramidOptions o;
   o.lod.max_points = 24;
@@ -189,7 +201,8 @@ TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
     auto t = w->get(holder);
     ASSERT_TRUE(t.ok() && t->has_value());
     bool found = false;
-    for (const auto& p : (*t)->interior) found = found || (p.x == px && p.y == py && p.weight == 1e6);
+    for (const auto& p : (*t)->interior)
+      found = found || (p.x == px && p.y == py && p.weight == 1e6);
     EXPECT_TRUE(found) << "level " << z;
   }
   EXPECT_GT(summary->level_max_error[0], summary->level_max_error[2]);
@@ -233,7 +246,8 @@ TEST(Pyramid, ProgressSinkCancels) {
   auto w = ts.writer("c");
   ASSERT_TRUE(w);
   for (std::uint32_t y = 0; y < 4; ++y) {
-    for (std::uint32_t x = 0; x < 4; ++x) ASSERT_TRUE(w->put(grid_tile({2, x, y}, 4, world_hills)).ok());
+    for (std::uint32_t x = 0; x < 4; ++x)
+      ASSERT_TRUE(w->put(grid_tile({2, x, y}, 4, world_hills)).ok());
   }
   auto r = build_pyramid(*w, 2, 0, PyramidOptions{}, 2, [](const Progress&) { return false; });
   ASSERT_FALSE(r.ok());
@@ -249,7 +263,9 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
   std::vector<subdivide::InputPoint> pts;
   for (int i = 0; i < 12000; ++i) {
     const double x = x0 + span * u(rng), y = y0 + span * u(rng);
-    pts.push_back({x, y, 100.0 + 50.0 * std::sin(x * 3e3) + 30.0 * std::cos(y * 2e3) + 5.0 * std::sin(x * 4e4)});
+    pts.push_back(
+        {x, y,
+         100.0 + 50.0 * std::sin(x * 3e3) + 30.0 * std::cos(y * 2e3) + 5.0 * std::sin(x * 4e4)});
   }
   subdivide::SubdivideOptions so;
   so.tmp_dir = ts.dir;
@@ -290,13 +306,13 @@ TEST(Pyramid, RealDemCropReducedAndThinnedThroughTheStore) {
   ASSERT_NE(ds, nullptr);
   constexpr int kCells = 256, kOffX = 420, kOffY = 180;
   std::vector<float> crop((kCells + 1) * (kCells + 1));
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kCells + 1, kCells + 1, crop.data(), kCells + 1,
-                                            kCells + 1, GDT_Float32, 0, 0),
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kCells + 1, kCells + 1,
+                                           crop.data(), kCells + 1, kCells + 1, GDT_Float32, 0, 0),
             CE_None);
   GDALClose(ds);
   const std::uint32_t L = 12, x0 = 2000, y0 = 1500;
-  const geo::MercatorRect block{geo::tile_x_edge(L, x0), geo::tile_y_edge(L, y0 + 4), geo::tile_x_edge(L, x0 + 4),
-                                geo::tile_y_edge(L, y0)};
+  const geo::MercatorRect block{geo::tile_x_edge(L, x0), geo::tile_y_edge(L, y0 + 4),
+                                geo::tile_x_edge(L, x0 + 4), geo::tile_y_edge(L, y0)};
   const double cell = block.width() / kCells;
   auto height = [&](double x, double y) {
     const auto c = static_cast<std::size_t>(std::lround((x - block.min_x) / cell));

@@ -1,3 +1,5 @@
+#include "tinstream/lod/thinning.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -5,7 +7,6 @@
 
 #include "lod_test_support.hpp"
 #include "tinstream/lod/error.hpp"
-#include "tinstream/lod/thinning.hpp"
 
 namespace tinstream::lod {
 namespace {
@@ -40,7 +41,8 @@ TEST(BorderSide, EpsilonStopsAtTheFirstLargeError) {
   std::vector<Vertex> side;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> noise(-0.01, 0.01);
-  for (int i = 0; i <= 200; ++i) side.push_back({i / 200.0, 0.0, (i == 100 ? 10.0 : 0.0) + noise(rng), 0});
+  for (int i = 0; i <= 200; ++i)
+    side.push_back({i / 200.0, 0.0, (i == 100 ? 10.0 : 0.0) + noise(rng), 0});
   std::vector<Vertex> removed;
   const auto kept = thin_border_side(side, true, 1000, 0.5, &removed);
   // Noise < 0.5 everywhere; the spike and the feet on either side of it stay (a chord from
@@ -138,7 +140,9 @@ TEST(Thinning, FlatAreaGoesEarlyWithEpsilon) {
 TEST(Thinning, WeightedPointSurvivesTheBudget) {
   const geo::MercatorRect r = kTile.bounds();
   const double px = r.min_x + r.width() * 20 / 32, py = r.max_y - r.height() * 11 / 32;
-  auto f = [&](double x, double y) { return 10.0 * std::sin(x * 5e4) + (x == px && y == py ? 0.3 : 0.0); };
+  auto f = [&](double x, double y) {
+    return 10.0 * std::sin(x * 5e4) + (x == px && y == py ? 0.3 : 0.0);
+  };
   auto w = [&](double x, double y) { return x == px && y == py ? 1e6 : 0.0; };
   tile::TinTile t = grid_tile(kTile, 32, f, w);
   LodOptions o;
@@ -158,7 +162,8 @@ TEST(Thinning, OrphansFeedTheError) {
   in.id = kTile;
   const geo::MercatorRect r = kTile.bounds();
   auto v = [](double x, double y, double z) { return Vertex{x, y, z, 0}; };
-  in.corners = {v(r.min_x, r.max_y, 0), v(r.max_x, r.max_y, 0), v(r.min_x, r.min_y, 0), v(r.max_x, r.min_y, 0)};
+  in.corners = {v(r.min_x, r.max_y, 0), v(r.max_x, r.max_y, 0), v(r.min_x, r.min_y, 0),
+                v(r.max_x, r.min_y, 0)};
   const double cx = 0.5 * (r.min_x + r.max_x), cy = 0.5 * (r.min_y + r.max_y);
   in.interior = {v(cx, cy, 0.5)};
   LodOptions o;

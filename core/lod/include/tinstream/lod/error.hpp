@@ -39,7 +39,8 @@ struct SurfaceDifference {
 
 // Requires: every fine tile lies inside `coarse`'s rectangle.
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
-                                     std::span<const tile::TinTile* const> fines, bool fines_are_finest);
+                                     std::span<const tile::TinTile* const> fines,
+                                     bool fines_are_finest);
 
 // Rounding allowance added to every stored bound (metres): the overlay is evaluated in floating
 // point, so the exact maximum may exceed the computed one by a few ulps of the heights involved.

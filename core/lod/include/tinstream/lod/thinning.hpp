@@ -79,11 +79,11 @@ struct ThinInput {
 };
 
 struct ThinStats {
-  std::size_t input_points = 0;     // corners + border + interior given
+  std::size_t input_points = 0;  // corners + border + interior given
   std::size_t border_removed = 0;
   std::size_t interior_removed = 0;
-  std::size_t duplicates = 0;       // interior points dropped as exact (x, y) duplicates
-  double last_error = 0;            // effective error of the last removal (0 when none)
+  std::size_t duplicates = 0;  // interior points dropped as exact (x, y) duplicates
+  double last_error = 0;       // effective error of the last removal (0 when none)
 };
 
 // Triangulates the input with the border constrained and thins it (border first, then
