@@ -239,6 +239,53 @@ TEST(QuantizedMesh, ThirtyTwoBitIndicesAbove65536Vertices) {
   EXPECT_EQ(d.mesh.west.size(), 258u);
 }
 
+// Regression (real-data test, level-2 tile over Luxembourg): a sliver that is counter-clockwise in
+// exact lon/lat can turn clockwise on the 15-bit grid; it must be left out, not written CW.
+TEST(QuantizedMesh, SliversThatQuantisationTurnsClockwiseAreLeftOut) {
+  const geo::TileId id = *geo::TileId::from_zxy(2, 2, 1);
+  const geo::NormalisedMercator merc;
+  const geo::LonLatRect r = id.lonlat_bounds(merc);
+  auto q = [](double t) { return std::round(t * 32767.0); };
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> jitter(-1.5, 1.5);
+  const double cu = 16000.3, cv = 16000.7;  // somewhere inside, in quanta
+  for (int attempt = 0; attempt < 200000; ++attempt) {
+    double uv[3][2];
+    for (auto& p : uv) p[0] = cu + jitter(rng), p[1] = cv + jitter(rng);
+    auto orient = [](const double a[2], const double b[2], const double c[2]) {
+      return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    };
+    double rounded[3][2];
+    for (int k = 0; k < 3; ++k)
+      rounded[k][0] = q(uv[k][0] / 32767.0), rounded[k][1] = q(uv[k][1] / 32767.0);
+    if (!(orient(uv[0], uv[1], uv[2]) > 0.05 && orient(rounded[0], rounded[1], rounded[2]) < 0))
+      continue;
+    // Found one: build a tile of the two corner triangles plus the sliver.
+    tile::TinTile t = flat_tile(id);
+    for (auto& p : uv) {
+      const double lon = r.west + (r.east - r.west) * p[0] / 32767.0;
+      const double lat = r.south + (r.north - r.south) * p[1] / 32767.0;
+      const geo::MercatorXY m = merc.forward({lon, lat});
+      t.interior.push_back({m.x, m.y, 10.0, 1.0});
+    }
+    t.triangles.push_back({4, 5, 6});
+    auto bytes = encode_quantized_mesh(t, geo::Projection::spherical);
+    ASSERT_TRUE(bytes.ok());
+    const auto m = decode_quantized_mesh(*bytes);
+    EXPECT_EQ(m.indices.size(), 6u) << "the clockwise sliver was written";
+    for (std::size_t k = 0; k < m.indices.size(); k += 3) {
+      const auto a = m.indices[k], b = m.indices[k + 1], c = m.indices[k + 2];
+      const double cross =
+          (static_cast<double>(m.u[b]) - m.u[a]) * (static_cast<double>(m.v[c]) - m.v[a]) -
+          (static_cast<double>(m.v[b]) - m.v[a]) * (static_cast<double>(m.u[c]) - m.u[a]);
+      EXPECT_GE(cross, 0);
+    }
+    EXPECT_EQ(m.u.size(), 7u);  // the sliver's vertices stay (unused)
+    return;
+  }
+  FAIL() << "no sliver found to test with";
+}
+
 TEST(QuantizedMesh, EllipsoidalLayersAreRefused) {
   const auto t = make_grid_tile(kTile, 5, synthetic_height);
   auto r = encode_quantized_mesh(t, geo::Projection::ellipsoidal);
