@@ -222,7 +222,8 @@ Response handle_native_tile(const Request& req, Context& ctx, const NativeTileRo
 }
 
 // Sends cached gzip bytes as they are (no copy) when the client takes gzip, else inflated.
-void send_maybe_gzip(const Request& req, Response& res, const std::shared_ptr<const CachedBody>& body) {
+void send_maybe_gzip(const Request& req, Response& res,
+                     const std::shared_ptr<const CachedBody>& body) {
   if (accept_quality(req.accept_encoding, "gzip") > 0) {
     res.set("Content-Encoding", "gzip");
     res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);

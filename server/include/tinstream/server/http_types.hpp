@@ -28,7 +28,7 @@ struct Request {
 struct Response {
   int status = 200;
   std::vector<std::pair<std::string, std::string>> headers;
-  std::string body;             // bytes
+  std::string body;  // bytes
   // When set, sent instead of `body`: shared, immutable bytes (cached tiles), sent without a copy.
   std::shared_ptr<const std::string> shared_body;
   std::string_view payload() const { return shared_body ? std::string_view(*shared_body) : body; }
