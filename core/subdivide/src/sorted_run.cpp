@@ -219,9 +219,13 @@ Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t 
 
 }  // namespace
 
+std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y) {
+  return spread_bits(x) | (spread_bits(y) << 1);
+}
+
 std::uint64_t cell_key(double x, double y) {
   const geo::TileId cell = geo::TileId::containing({x, y}, kKeyLevel);
-  return spread_bits(cell.x) | (spread_bits(cell.y) << 1);
+  return morton_interleave(cell.x, cell.y);
 }
 
 geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {

@@ -23,16 +23,6 @@ using subdivide::SortedPoint;
 constexpr std::uint32_t kKeyLevel = 30;
 constexpr std::uint32_t kDefaultSubShift = 4;
 
-std::uint64_t spread_bits(std::uint32_t v) {
-  std::uint64_t x = v;
-  x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
-  x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
-  x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
-  x = (x | (x << 2)) & 0x3333333333333333ull;
-  x = (x | (x << 1)) & 0x5555555555555555ull;
-  return x;
-}
-
 std::uint64_t pack(std::uint32_t x, std::uint32_t y) {
   return (static_cast<std::uint64_t>(x) << 32) | y;
 }
@@ -223,8 +213,7 @@ std::pair<std::uint64_t, std::uint64_t> PointCells::cell_range(std::uint32_t cx,
   const std::ptrdiff_t t = tile_index({level_, cx >> sub_shift_, cy >> sub_shift_});
   if (t < 0) return {0, 0};
   const std::uint32_t mask = (1u << sub_shift_) - 1;
-  const auto local =
-      static_cast<std::uint32_t>(spread_bits(cx & mask) | (spread_bits(cy & mask) << 1));
+  const auto local = static_cast<std::uint32_t>(subdivide::morton_interleave(cx & mask, cy & mask));
   const std::uint32_t per_tile = 1u << (2 * sub_shift_);
   const std::uint32_t* offsets = &cell_offsets_[static_cast<std::size_t>(t) * (per_tile + 1)];
   const auto& range = tiles_[static_cast<std::size_t>(t)];

@@ -45,6 +45,9 @@ struct SortedPoint {
 };
 static_assert(sizeof(SortedPoint) == 40);
 
+// Morton code of column x and row y within one level: x bits at even positions, y bits at odd
+// ones (as quadkey digits 2·ybit + xbit).
+std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y);
 // The level-30 cell key of a point (x, y clamped to the map).
 std::uint64_t cell_key(double x, double y);
 // The tile at `level` containing the level-30 cell `key`.
