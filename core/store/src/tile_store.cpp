@@ -197,6 +197,21 @@ constexpr const char* kInfoColumns =
     "v.point_count, v.source_points, v.min_z, v.max_z, v.level_max_error, v.options, "
     "v.attribution, v.created_unix";
 
+// Columns data, etag, min_z, max_z, geometric_error, vertex_count, triangle_count of `tiles`,
+// in this order, read into a StoredTile.
+StoredTile read_stored_tile(const Query& q, const geo::TileId& id) {
+  StoredTile t;
+  t.id = id;
+  t.compressed = q.blob(0);
+  t.etag = q.text(1);
+  t.min_z = q.f64(2);
+  t.max_z = q.f64(3);
+  t.geometric_error = q.f64(4);
+  t.vertex_count = q.u32(5);
+  t.triangle_count = q.u32(6);
+  return t;
+}
+
 Result<LayerInfo> read_info(const Query& q, const std::filesystem::path& path) {
   LayerInfo i;
   i.version = q.i64(0);
@@ -329,16 +344,7 @@ struct TileStore::Impl {
     const int rc = q->step();
     if (rc == SQLITE_DONE) return std::optional<StoredTile>();
     if (rc != SQLITE_ROW) return sql_error("reading " + what);
-    StoredTile t;
-    t.id = id;
-    t.compressed = q->blob(0);
-    t.etag = q->text(1);
-    t.min_z = q->f64(2);
-    t.max_z = q->f64(3);
-    t.geometric_error = q->f64(4);
-    t.vertex_count = q->u32(5);
-    t.triangle_count = q->u32(6);
-    return std::optional<StoredTile>(std::move(t));
+    return std::optional<StoredTile>(read_stored_tile(*q, id));
   }
 
   Result<std::optional<tile::TinTile>> decoded_tile(std::int64_t version, const geo::TileId& id,
@@ -549,16 +555,7 @@ Result<std::optional<StoredTile>> TileStore::tile(std::string_view layer, const 
   q->bind(1, layer).bind(2, id.z).bind(3, id.x).bind(4, id.y);
   const int rc = q->step();
   if (rc == SQLITE_ROW) {
-    StoredTile t;
-    t.id = id;
-    t.compressed = q->blob(0);
-    t.etag = q->text(1);
-    t.min_z = q->f64(2);
-    t.max_z = q->f64(3);
-    t.geometric_error = q->f64(4);
-    t.vertex_count = q->u32(5);
-    t.triangle_count = q->u32(6);
-    return std::optional<StoredTile>(std::move(t));
+    return std::optional<StoredTile>(read_stored_tile(*q, id));
   }
   if (rc != SQLITE_DONE) {
     return impl_->sql_error("reading layer '" + std::string(layer) + "' tile " + id.to_string());
