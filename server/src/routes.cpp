@@ -178,7 +178,7 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
       }
       return Route{std::move(r)};
     }
-    if (seg[1] == "jobs" && n <= 3) {
+    if (n >= 2 && n <= 3 && seg[1] == "jobs") {
       if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", n == 2 ? "jobs" : "job");
       if (n == 2) return Route{JobsRoute{}};
       if (!parse_number(seg[2])) return error(400, "job ids are decimal numbers", "job");

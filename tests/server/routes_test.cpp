@@ -171,3 +171,21 @@ TEST(Config, TokenFromEnvironment) {
 
 }  // namespace
 }  // namespace tinstream::server
+
+namespace tinstream::server {
+namespace {
+
+// Found by server/fuzz/route_fuzzer: "/admin" alone read a second path segment that does not
+// exist (heap overflow). Every short admin path must be a plain 404.
+TEST(Routes, BareAdminPathIsNotFoundInsteadOfReadingPastTheSegments) {
+  for (const char* method : {"GET", "POST", "DELETE"}) {
+    for (const char* target : {"/admin", "/admin?lay=are&&iy;are&le!2", "/admin/"}) {
+      const auto e = error_of(parse_route(method, target));
+      ASSERT_TRUE(e.has_value()) << method << " " << target;
+      EXPECT_EQ(e->status, 404) << method << " " << target;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tinstream::server
