@@ -75,6 +75,15 @@ std::string sql_value(const fs::path& db_path, const std::string& sql) {
   return value;
 }
 
+// Skips the calling test when a real dataset is absent (a user's clone has no ../shared).
+// A macro: GTEST_SKIP only returns from the function it is written in.
+#define REQUIRE_DATA(name)                                                   \
+  do {                                                                       \
+    if (!fs::exists(kData / (name))) {                                       \
+      GTEST_SKIP() << "real dataset " << (kData / (name)) << " not present"; \
+    }                                                                        \
+  } while (false)
+
 class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -87,10 +96,6 @@ class Cli : public ::testing::Test {
     store_ = dir_ / "tiles.sqlite";
   }
   void TearDown() override { fs::remove_all(dir_); }
-  void require_data(const std::string& name) {
-    if (!fs::exists(kData / name))
-      GTEST_SKIP() << "real dataset " << (kData / name) << " not present";
-  }
   Outcome ingest(const std::string& layer, const std::vector<std::string>& extra) {
     std::vector<std::string> args = {
         kTinstream.string(), "ingest", "--store", store_.string(),        "--layer", layer,
@@ -129,7 +134,7 @@ TEST_F(Cli, EveryCommandHasHelp) {
 }
 
 TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
-  require_data("autzen_trim.las");
+  REQUIRE_DATA("autzen_trim.las");
   const Outcome r = ingest("autzen", {"--json", "-q", (kData / "autzen_trim.las").string()});
   ASSERT_EQ(r.status, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
@@ -206,7 +211,7 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
 }
 
 TEST_F(Cli, TriangulateLasGivesAnOffMeshOfTheDistinctPoints) {
-  require_data("autzen_trim.las");
+  REQUIRE_DATA("autzen_trim.las");
   const fs::path off = dir_ / "autzen.off";
   const Outcome r = run({kTinstream.string(), "triangulate", "--in",
                          (kData / "autzen_trim.las").string(), "--out", off.string()});
@@ -228,7 +233,7 @@ TEST_F(Cli, TriangulateLasGivesAnOffMeshOfTheDistinctPoints) {
 }
 
 TEST_F(Cli, GeoTiffWithNodataIngestsAndVerifies) {
-  require_data("luxembourg_elev.tif");
+  REQUIRE_DATA("luxembourg_elev.tif");
   const Outcome r = ingest(
       "lux", {"--json", "-q", "--max-points", "1000", (kData / "luxembourg_elev.tif").string()});
   ASSERT_EQ(r.status, 0) << r.err;
@@ -241,7 +246,7 @@ TEST_F(Cli, GeoTiffWithNodataIngestsAndVerifies) {
 }
 
 TEST_F(Cli, MixedInputsInOneIngest) {
-  require_data("luxembourg_elev.tif");
+  REQUIRE_DATA("luxembourg_elev.tif");
   const fs::path xyz = dir_ / "extra.xyz";
   {
     std::ofstream out(xyz);
