@@ -208,7 +208,6 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
     lod::PyramidOptions popt;
     popt.lod.max_points = options.max_points;
     popt.lod.epsilon = options.epsilon;
-    popt.lod.finest_level = sorted->finest_level;
     popt.reduce_finest = reduce;
     const std::uint32_t coarsest = options.pyramid ? info.min_level : sorted->finest_level;
     auto pyramid =

@@ -54,13 +54,11 @@ int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& 
 }  // namespace
 
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
-                                     std::span<const tile::TinTile* const> fines,
-                                     bool fines_are_finest) {
+                                     std::span<const tile::TinTile* const> fines) {
   SurfaceDifference d;
   std::vector<FlatTriangle> ct;
   // NODATA triangles (incident to a NODATA corner, z = 0 by convention) are not surface on either
   // side: the error is measured where both surfaces have data (see error.hpp).
-  (void)fines_are_finest;
   detail::append_triangles(coarse, true, ct);
   TriangleGrid grid(std::move(ct), coarse.id.bounds());
   std::vector<FlatTriangle> ft;

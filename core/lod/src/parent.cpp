@@ -124,8 +124,7 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
   for (const auto& c : ch) {
     if (!c) continue;
     const TinTile* p = &*c;
-    const SurfaceDifference d = surface_difference(out, std::span<const TinTile* const>(&p, 1),
-                                                   c->id.z == options.finest_level);
+    const SurfaceDifference d = surface_difference(out, std::span<const TinTile* const>(&p, 1));
     total.max_abs = std::max(total.max_abs, d.max_abs);
     total.sum_sq_area += d.sum_sq_area;
     total.area += d.area;

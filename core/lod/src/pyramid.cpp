@@ -120,7 +120,6 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   threads = std::max(threads, 1u);
   const std::size_t max_in_flight = options.max_in_flight ? options.max_in_flight : 2 * threads + 2;
   PyramidOptions opts = options;
-  opts.lod.finest_level = finest_level;
   PyramidSummary summary;
   summary.level_max_error.assign(finest_level + 1, 0.0);
   summary.level_tiles.assign(finest_level + 1, 0);

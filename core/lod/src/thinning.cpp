@@ -583,7 +583,7 @@ Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinSt
   if (!reduced.ok()) return reduced.error();
   const tile::TinTile* original = &tile;
   const SurfaceDifference d =
-      surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1), true);
+      surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1));
   reduced->geometric_error = d.max_abs + tile.geometric_error + error_rounding_allowance(*reduced);
   reduced->rms_error = d.rms() + tile.rms_error;
   reduced->source_points = tile.source_points;

@@ -156,7 +156,7 @@ TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
   TinTile fine = coarse;
   fine.triangles = {{0, 2, 3}, {0, 3, 1}};  // diagonal NW–SE
   const TinTile* f = &fine;
-  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1), true);
+  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
   // At the centre: coarse 0 (on its SW–NE diagonal), fine 10 (on its NW–SE ridge).
   EXPECT_NEAR(d.max_abs, 10.0, 1e-9);
   EXPECT_GT(d.rms(), 0.0);

@@ -13,10 +13,9 @@
 // surface, at any level and on both sides: the error is measured where both surfaces have data.
 // (Measuring the coarse tile's NODATA triangles — slopes down to z = 0 at the data's edge — made
 // the bound grow by the terrain's full height at every level and meant nothing to a client.) The
-// bound is therefore an honest bound over the area both tiles cover with data; a coarse tile may
-// cover a little less data area than its children near the data's outer edge.
-// Areas without fine tiles (missing children) are not measured. `fines_are_finest` is kept for
-// source compatibility and no longer changes anything.
+// bound is exact (up to rounding) where every level of the subtree has data; in the thin band at
+// the data's outer edge where a child has NODATA triangles over finest data, it may underestimate.
+// Areas without fine tiles (missing children) are not measured.
 //
 // Threads: pure functions on values.
 #pragma once
@@ -39,8 +38,7 @@ struct SurfaceDifference {
 
 // Requires: every fine tile lies inside `coarse`'s rectangle.
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
-                                     std::span<const tile::TinTile* const> fines,
-                                     bool fines_are_finest);
+                                     std::span<const tile::TinTile* const> fines);
 
 // Rounding allowance added to every stored bound (metres): the overlay is evaluated in floating
 // point, so the exact maximum may exceed the computed one by a few ulps of the heights involved.

@@ -1,8 +1,8 @@
 // tinstream/lod/pyramid.hpp — pass 4 driver: levels L-1 … min_level from the finest level L.
 //
 // For z = L-1 down to min_level, every parent of an existing level z+1 tile is built from its
-// four children (build_parent) and written to the same unpublished layer version (build_pyramid
-// sets options.lod.finest_level = finest_level). The summary's per-level max errors are what
+// four children (build_parent) and written to the same unpublished layer version. The summary's
+// per-level max errors are what
 // store::LayerInfo::level_max_error wants.
 //
 // Threads: the LayerWriter is used only on the calling thread (reads of children, writes of

@@ -44,10 +44,6 @@ struct LodOptions {
   // spread over the perimeter by side length for a non-square rectangle (ThinInput::rect). Same
   // tile size ⇒ same budgets, so neighbours stay watertight.
   std::size_t border_points_per_side = 0;
-  // The level of the finest tiles (pass 3), when known (build_pyramid sets it). Passed on to
-  // surface_difference as `fines_are_finest`, which the current NODATA rule (error.hpp: NODATA
-  // triangles are skipped on both sides at every level) no longer needs.
-  std::uint32_t finest_level = 0xFFFFFFFFu;
 };
 
 // The per-side budget that `options` implies (see LodOptions::border_points_per_side).
