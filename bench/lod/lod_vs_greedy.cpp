@@ -214,6 +214,8 @@ int main(int argc, char** argv) {
     // one).
     if (const char* b = std::getenv("LOD_BORDER_PER_SIDE"))
       o.border_points_per_side = std::stoul(b);
+    // LOD_GREEDY_FACTOR overrides LodOptions::greedy_factor (0 = drop heuristic from all points).
+    if (const char* k = std::getenv("LOD_GREEDY_FACTOR")) o.greedy_factor = std::stod(k);
     const auto t0 = std::chrono::steady_clock::now();
     const std::clock_t c0 = std::clock();
     auto ours = tinstream::lod::thin_tile(input, o);

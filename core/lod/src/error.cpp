@@ -8,6 +8,7 @@
 #include <string>
 
 #include "planar_index.hpp"
+#include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::lod {
 
@@ -51,6 +52,37 @@ int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& 
   return m;
 }
 
+// Whether the fine triangle lies inside (or on the boundary of) the coarse triangle: exact
+// orientation tests of its three vertices against the coarse triangle's three edges.
+bool contains(const FlatTriangle& c, const FlatTriangle& f) {
+  for (int e = 0; e < 3; ++e) {
+    const kernel::XY a{c.p[e].x, c.p[e].y}, b{c.p[(e + 1) % 3].x, c.p[(e + 1) % 3].y};
+    for (const P2& q : f.p) {
+      if (kernel::orient2d(a, b, {q.x, q.y}) < 0) return false;
+    }
+  }
+  return true;
+}
+
+// Adds one overlay cell (polygon q[0..n), coordinates relative to the fine triangle's first
+// vertex) with the difference values v[k] at its vertices.
+void accumulate(SurfaceDifference& d, const std::array<P2, 12>& q, const std::array<double, 12>& v,
+                int n) {
+  for (int k = 0; k < n; ++k)
+    d.max_abs = std::max(d.max_abs, std::abs(v[static_cast<std::size_t>(k)]));
+  ++d.polygons;
+  for (int k = 1; k + 1 < n; ++k) {
+    const P2 p0 = q[0], p1 = q[static_cast<std::size_t>(k)],
+             p2 = q[static_cast<std::size_t>(k + 1)];
+    const double area =
+        0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
+    const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)],
+                 v2 = v[static_cast<std::size_t>(k + 1)];
+    d.area += area;
+    d.sum_sq_area += area / 6.0 * (v0 * v0 + v1 * v1 + v2 * v2 + v0 * v1 + v1 * v2 + v2 * v0);
+  }
+}
+
 }  // namespace
 
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
@@ -62,41 +94,61 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
   detail::append_triangles(coarse, true, ct);
   TriangleGrid grid(std::move(ct), coarse.id.bounds());
   std::vector<FlatTriangle> ft;
+  std::vector<std::uint32_t> candidates;
+  std::int64_t hint = -1;  // the coarse triangle that held the previous fine triangle
   for (const tile::TinTile* fine : fines) {
     ft.clear();
     detail::append_triangles(*fine, true, ft);
     for (const FlatTriangle& f0 : ft) {
       const P2 o = f0.p[0];
       const FlatTriangle f = translated(f0, o);
-      grid.for_each_overlapping(f0.min_x, f0.min_y, f0.max_x, f0.max_y, [&](std::uint32_t ci) {
-        const FlatTriangle c = translated(grid.triangles()[ci], o);
-        std::array<P2, 12> a{}, b{};
-        a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
-        int n = 3;
-        n = clip(a, n, c.p[0], c.p[1], b);
-        if (n == 0) return;
-        n = clip(b, n, c.p[1], c.p[2], a);
-        if (n == 0) return;
-        n = clip(a, n, c.p[2], c.p[0], b);
-        if (n == 0) return;
-        std::array<double, 12> v{};
-        for (int k = 0; k < n; ++k) {
-          const P2 q = b[static_cast<std::size_t>(k)];
-          v[static_cast<std::size_t>(k)] = plane_at(c, q.x, q.y) - plane_at(f, q.x, q.y);
-          d.max_abs = std::max(d.max_abs, std::abs(v[static_cast<std::size_t>(k)]));
+      // Fast path: most fine triangles lie inside one coarse triangle (the overlay cell is the
+      // fine triangle itself; the other candidates meet it at most on their boundary, adding
+      // no area and the same values there). Decided with exact orientation tests.
+      std::int64_t inside = -1;
+      if (hint >= 0 && contains(grid.triangles()[static_cast<std::size_t>(hint)], f0)) {
+        inside = hint;
+      } else {
+        candidates.clear();
+        grid.for_each_overlapping(f0.min_x, f0.min_y, f0.max_x, f0.max_y,
+                                  [&](std::uint32_t ci) { candidates.push_back(ci); });
+        for (std::uint32_t ci : candidates) {
+          if (contains(grid.triangles()[ci], f0)) {
+            inside = ci;
+            break;
+          }
         }
-        ++d.polygons;
-        for (int k = 1; k + 1 < n; ++k) {
-          const P2 p0 = b[0], p1 = b[static_cast<std::size_t>(k)],
-                   p2 = b[static_cast<std::size_t>(k + 1)];
-          const double area =
-              0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
-          const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)],
-                       v2 = v[static_cast<std::size_t>(k + 1)];
-          d.area += area;
-          d.sum_sq_area += area / 6.0 * (v0 * v0 + v1 * v1 + v2 * v2 + v0 * v1 + v1 * v2 + v2 * v0);
+        if (inside < 0) {
+          for (std::uint32_t ci : candidates) {
+            const FlatTriangle c = translated(grid.triangles()[ci], o);
+            std::array<P2, 12> a{}, b{};
+            a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
+            int n = 3;
+            n = clip(a, n, c.p[0], c.p[1], b);
+            if (n == 0) continue;
+            n = clip(b, n, c.p[1], c.p[2], a);
+            if (n == 0) continue;
+            n = clip(a, n, c.p[2], c.p[0], b);
+            if (n == 0) continue;
+            std::array<double, 12> v{};
+            for (int k = 0; k < n; ++k) {
+              const P2 q = b[static_cast<std::size_t>(k)];
+              v[static_cast<std::size_t>(k)] = plane_at(c, q.x, q.y) - plane_at(f, q.x, q.y);
+            }
+            accumulate(d, b, v, n);
+          }
+          continue;
         }
-      });
+      }
+      hint = inside;
+      const FlatTriangle c = translated(grid.triangles()[static_cast<std::size_t>(inside)], o);
+      std::array<P2, 12> q{};
+      std::array<double, 12> v{};
+      for (std::size_t k = 0; k < 3; ++k) {
+        q[k] = f.p[k];
+        v[k] = plane_at(c, q[k].x, q[k].y) - f.z[k];
+      }
+      accumulate(d, q, v, 3);
     }
   }
   return d;

@@ -21,6 +21,8 @@
 
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
+#include "greedy.hpp"
+#include "indexed_heap.hpp"
 
 namespace tinstream::lod {
 
@@ -31,6 +33,15 @@ using kernel::VertexId;
 using kernel::VertexTriple;
 using kernel::XY;
 using tile::Vertex;
+using detail::FiledPoints;
+using detail::IndexedHeap;
+
+std::size_t greedy_target(const LodOptions& options) {
+  if (!(options.greedy_factor > 0)) return 0;
+  const double t = std::ceil(options.greedy_factor * static_cast<double>(options.max_points));
+  if (!(t < 1e15)) return 0;
+  return std::max(options.max_points, static_cast<std::size_t>(t));
+}
 
 std::size_t side_budget(const LodOptions& options) {
   if (options.border_points_per_side != 0) return options.border_points_per_side;
@@ -57,81 +68,6 @@ struct QueueEntry {
 };
 using MinQueue = std::priority_queue<QueueEntry, std::vector<QueueEntry>, std::greater<>>;
 
-// Binary min-heap of ids ordered by (key, id), with positions so that a key changes in place: the
-// heap never holds more than one entry per id (no stale entries to skip).
-class IndexedHeap {
- public:
-  explicit IndexedHeap(std::size_t ids) : pos_(ids, kAbsent), key_(ids, 0.0) {}
-  bool empty() const { return heap_.empty(); }
-  std::uint32_t top() const { return heap_.front(); }
-  double key(std::uint32_t id) const { return key_[id]; }
-  void set(std::uint32_t id, double key) {
-    if (pos_[id] == kAbsent) {
-      key_[id] = key;
-      pos_[id] = static_cast<std::uint32_t>(heap_.size());
-      heap_.push_back(id);
-      up(pos_[id]);
-      return;
-    }
-    const double old = key_[id];
-    key_[id] = key;
-    if (key < old) {
-      up(pos_[id]);
-    } else {
-      down(pos_[id]);
-    }
-  }
-  void erase(std::uint32_t id) {
-    const std::uint32_t i = pos_[id];
-    if (i == kAbsent) return;
-    const std::uint32_t last = heap_.back();
-    heap_.pop_back();
-    pos_[id] = kAbsent;
-    if (i == heap_.size()) return;
-    heap_[i] = last;
-    pos_[last] = i;
-    up(i);
-    down(pos_[last]);
-  }
-  void pop() { erase(heap_.front()); }
-
- private:
-  static constexpr std::uint32_t kAbsent = 0xFFFFFFFFu;
-  bool less(std::uint32_t a, std::uint32_t b) const {
-    return key_[a] < key_[b] || (key_[a] == key_[b] && a < b);
-  }
-  void place(std::uint32_t i, std::uint32_t id) {
-    heap_[i] = id;
-    pos_[id] = i;
-  }
-  void up(std::uint32_t i) {
-    const std::uint32_t id = heap_[i];
-    while (i > 0) {
-      const std::uint32_t parent = (i - 1) / 2;
-      if (!less(id, heap_[parent])) break;
-      place(i, heap_[parent]);
-      i = parent;
-    }
-    place(i, id);
-  }
-  void down(std::uint32_t i) {
-    const std::uint32_t id = heap_[i];
-    const auto n = static_cast<std::uint32_t>(heap_.size());
-    for (;;) {
-      std::uint32_t c = 2 * i + 1;
-      if (c >= n) break;
-      if (c + 1 < n && less(heap_[c + 1], heap_[c])) ++c;
-      if (!less(heap_[c], id)) break;
-      place(i, heap_[c]);
-      i = c;
-    }
-    place(i, id);
-  }
-  std::vector<std::uint32_t> heap_;
-  std::vector<std::uint32_t> pos_;  // by id
-  std::vector<double> key_;         // by id
-};
-
 // Linear interpolation in the closed triangle (a, b, c) at p with barycentric weights clamped to
 // the triangle (p is inside up to rounding); coordinates relative to a for accuracy.
 double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double zb, double zc,
@@ -150,15 +86,18 @@ double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double z
 
 class InteriorThinner {
  public:
-  InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate)
-      : tri_(tri), candidate_(std::move(candidate)), heap_(candidate_.size()) {
-    head_.assign(tri_.mesh().triangle_slots(), kNone);
+  // `orphans`: points already filed by triangle (the greedy stage's), more may be added.
+  InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate, FiledPoints orphans)
+      : tri_(tri), candidate_(std::move(candidate)), heap_(candidate_.size()),
+        orph_(std::move(orphans)) {
+    if (orph_.head.size() < tri_.mesh().triangle_slots())
+      orph_.head.resize(tri_.mesh().triangle_slots(), kNone);
   }
 
   void add_orphan(const Vertex& p) {
     const TriangleId t = tri_.locate_triangle(p.x, p.y);
     if (t == kNone) return;  // outside the rectangle: not part of this tile's surface
-    push_orphan(p.x, p.y, p.z, t);
+    orph_.push(p.x, p.y, p.z, t);
   }
 
   void seed_queue() {
@@ -184,14 +123,6 @@ class InteriorThinner {
   }
 
  private:
-  void push_orphan(double x, double y, double z, TriangleId t) {
-    if (t >= head_.size()) head_.resize(static_cast<std::size_t>(t) + 1, kNone);
-    const auto i = static_cast<std::uint32_t>(ox_.size());
-    ox_.push_back(x), oy_.push_back(y), oz_.push_back(z);
-    next_.push_back(head_[t]);
-    head_[t] = i;
-  }
-
   // Index into `tris` of the replacement triangle containing (x, y) (largest smallest barycentric
   // weight), and the interpolated z.
   double surface_at(const std::vector<VertexTriple>& tris, double x, double y,
@@ -227,9 +158,9 @@ class InteriorThinner {
     if (!zv) return std::nullopt;
     double err = std::abs(tri_.z(v) - *zv);
     for (TriangleId t : tri_.incident_triangles(v, true)) {
-      if (t >= head_.size()) continue;
-      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
-        if (const auto z = at(ox_[i], oy_[i])) err = std::max(err, std::abs(oz_[i] - *z));
+      if (t >= orph_.head.size()) continue;
+      for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
+        if (const auto z = at(orph_.x[i], orph_.y[i])) err = std::max(err, std::abs(orph_.z[i] - *z));
       }
     }
     return err + tri_.weight(v);
@@ -253,9 +184,9 @@ class InteriorThinner {
     const XY& p = tri_.xy(v);
     double err = std::abs(tri_.z(v) - surface_at(tris, p.x, p.y, nullptr));
     for (TriangleId t : tri_.incident_triangles(v, true)) {
-      if (t >= head_.size()) continue;
-      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
-        err = std::max(err, std::abs(oz_[i] - surface_at(tris, ox_[i], oy_[i], nullptr)));
+      if (t >= orph_.head.size()) continue;
+      for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
+        err = std::max(err, std::abs(orph_.z[i] - surface_at(tris, orph_.x[i], orph_.y[i], nullptr)));
       }
     }
     return err + tri_.weight(v);
@@ -284,8 +215,8 @@ class InteriorThinner {
     const std::vector<VertexId> ring = tri_.adjacent_vertices(v);
     gathered_.clear();
     for (TriangleId t : star) {
-      if (t >= head_.size()) continue;
-      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) gathered_.push_back(i);
+      if (t >= orph_.head.size()) continue;
+      for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) gathered_.push_back(i);
     }
     const XY pv = tri_.xy(v);
     const double zv = tri_.z(v);
@@ -293,7 +224,7 @@ class InteriorThinner {
     if (!s.ok()) return s;
     candidate_[v] = 0;
     for (TriangleId t : star) {
-      if (t < head_.size()) head_[t] = kNone;
+      if (t < orph_.head.size()) orph_.head[t] = kNone;
     }
     // The ids of the replacement triangles (the star's slots, reused).
     new_ids_.assign(tris.size(), kNone);
@@ -311,20 +242,20 @@ class InteriorThinner {
         return Error(ErrorCode::internal, "lod: replacement triangle of vertex " +
                                               std::to_string(v) + " not found after removal");
       }
-      if (new_ids_[k] >= head_.size())
-        head_.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
+      if (new_ids_[k] >= orph_.head.size())
+        orph_.head.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
     }
     for (std::uint32_t i : gathered_) {
       std::size_t k;
-      surface_at(tris, ox_[i], oy_[i], &k);
+      surface_at(tris, orph_.x[i], orph_.y[i], &k);
       const TriangleId t = new_ids_[k];
-      next_[i] = head_[t];
-      head_[t] = i;
+      orph_.next[i] = orph_.head[t];
+      orph_.head[t] = i;
     }
     {
       std::size_t k;
       surface_at(tris, pv.x, pv.y, &k);
-      push_orphan(pv.x, pv.y, zv, new_ids_[k]);
+      orph_.push(pv.x, pv.y, zv, new_ids_[k]);
     }
     // Eager update of the former neighbours. (Lazily re-evaluating them only when they reach the
     // top of the heap is ~1.5× faster but worse: on bigtujunga at 50k vertices the max error
@@ -338,9 +269,7 @@ class InteriorThinner {
   Triangulation& tri_;
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
   IndexedHeap heap_;                     // candidates by (effective error, vertex id)
-  std::vector<std::uint32_t> head_;      // by triangle slot
-  std::vector<double> ox_, oy_, oz_;
-  std::vector<std::uint32_t> next_;
+  FiledPoints orph_;                     // the orphans, by triangle slot
   std::vector<std::uint32_t> gathered_;
   std::vector<TriangleId> new_ids_;
   VertexId removed_last_ = kNone;
@@ -415,6 +344,8 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
                             std::to_string(options.max_points));
   }
   if (!(options.epsilon >= 0)) return invalid_argument("lod: epsilon must be ≥ 0");
+  if (!(options.greedy_factor >= 0))
+    return invalid_argument("lod: greedy_factor must be ≥ 0");
   ThinStats local;
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
@@ -450,7 +381,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
       thin_side(in.south, 2, 3, true), thin_side(in.west, 0, 2, false)};
   st.border_removed = dropped.size();
 
-  // ---- 2. triangulate corners + border + interior, border constrained -------------------------
+  // ---- 2. triangulate corners + border (+ every interior point unless greedy), constrained ----
   Triangulation tri(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
   std::vector<kernel::Point3> pts;
   pts.reserve(4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size() +
@@ -461,7 +392,11 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     for (const auto& v : s) add(v);
   }
   const std::size_t n_fixed = pts.size();
-  for (const auto& v : in.interior) add(v);
+  const std::size_t target = greedy_target(options);
+  const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
+  if (!greedy) {
+    for (const auto& v : in.interior) add(v);
+  }
   const std::vector<kernel::InsertResult> ins = tri.insert_bulk(pts);
   for (std::size_t i = 0; i < n_fixed; ++i) {
     if (ins[i].outcome != kernel::InsertOutcome::inserted) {
@@ -469,11 +404,12 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
                               std::to_string(i) + " is a duplicate or lies outside the tile");
     }
   }
-  std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);
+  // By interior point: its vertex, or kNone (a duplicate, or not selected by the greedy stage).
+  std::vector<VertexId> interior_vertex(in.interior.size(), kNone);
   for (std::size_t i = n_fixed; i < pts.size(); ++i) {
     switch (ins[i].outcome) {
       case kernel::InsertOutcome::inserted:
-        candidate[ins[i].vertex] = 1;
+        interior_vertex[i - n_fixed] = ins[i].vertex;
         break;
       case kernel::InsertOutcome::duplicate:
         ++st.duplicates;
@@ -508,18 +444,36 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
                  "lod: " + tile_name(in.id) + ": a border constraint added vertices");
   }
 
-  // ---- 3. thin the interior ------------------------------------------------------------------
+  // ---- 3. thin the interior: greedy insertion up to the target (large inputs), then drop -----
+  FiledPoints filed;
+  if (greedy) {
+    std::vector<Vertex> extra = in.orphans;
+    extra.insert(extra.end(), dropped.begin(), dropped.end());
+    auto g = detail::greedy_insert(tri, in.interior, extra, target, options.epsilon);
+    if (!g.ok()) {
+      return Error(g.error().code, "lod: " + tile_name(in.id) + ": " + g.error().message);
+    }
+    interior_vertex = std::move(g->vertex);
+    st.duplicates = g->duplicates;
+    st.greedy_inserted = g->inserted;
+    filed = std::move(g->orphans);
+  }
+  std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);
+  for (VertexId v : interior_vertex) {
+    if (v != kNone) candidate[v] = 1;
+  }
   VertexId removed_last = kNone;
   {
-    InteriorThinner thinner(tri, candidate);
-    for (const auto& o : in.orphans) thinner.add_orphan(o);
-    for (const auto& o : dropped) thinner.add_orphan(o);
+    InteriorThinner thinner(tri, std::move(candidate), std::move(filed));
+    if (!greedy) {
+      for (const auto& o : in.orphans) thinner.add_orphan(o);
+      for (const auto& o : dropped) thinner.add_orphan(o);
+    }
     thinner.seed_queue();
     auto removed = thinner.run(options.max_points, options.epsilon, &st.last_error);
     if (!removed.ok())
       return Error(ErrorCode::internal,
                    "lod: " + tile_name(in.id) + ": " + removed.error().message);
-    st.interior_removed = *removed;
     removed_last = thinner.removed_last();
   }
   std::optional<Triangulation> border_only;  // when the last interior vertex went (evaluate_last)
@@ -545,13 +499,13 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   for (std::size_t c = 0; c < 4; ++c) index[ins[c].vertex] = static_cast<std::uint32_t>(c);
   std::uint32_t next_index = 4;
   for (std::size_t i = 4; i < n_fixed; ++i) index[ins[i].vertex] = next_index++;
-  for (std::size_t i = n_fixed; i < pts.size(); ++i) {
-    const VertexId v = ins[i].vertex;
-    if (ins[i].outcome != kernel::InsertOutcome::inserted || !tri.is_vertex(v) || v == removed_last)
-      continue;
+  for (std::size_t j = 0; j < in.interior.size(); ++j) {
+    const VertexId v = interior_vertex[j];
+    if (v == kNone || !tri.is_vertex(v) || v == removed_last) continue;
     index[v] = next_index++;
-    out.interior.push_back(in.interior[i - n_fixed]);
+    out.interior.push_back(in.interior[j]);
   }
+  st.interior_removed = in.interior.size() - st.duplicates - out.interior.size();
   if (border_only) {
     // Only the fixed points are left; their tile numbering is their insertion order.
     index.assign(border_only->vertex_id_bound(), kNone);

@@ -44,7 +44,15 @@ struct LodOptions {
   // spread over the perimeter by side length for a non-square rectangle (ThinInput::rect). Same
   // tile size ⇒ same budgets, so neighbours stay watertight.
   std::size_t border_points_per_side = 0;
+  // Greedy preselection (large inputs): when corners + border + interior exceed
+  // ⌈greedy_factor × max_points⌉ points, the interior is first *built up* by greedy insertion
+  // to that many points, and only those are thinned by the drop heuristic; every other point
+  // stays in the error estimate as an orphan. 0 = drop from all points (slow on big grids).
+  double greedy_factor = 2.0;
 };
+
+// The point count the greedy stage builds up to (0 = no greedy stage), see greedy_factor.
+std::size_t greedy_target(const LodOptions& options);
 
 // The per-side budget that `options` implies (see LodOptions::border_points_per_side).
 std::size_t side_budget(const LodOptions& options);
@@ -79,6 +87,7 @@ struct ThinStats {
   std::size_t border_removed = 0;
   std::size_t interior_removed = 0;
   std::size_t duplicates = 0;  // interior points dropped as exact (x, y) duplicates
+  std::size_t greedy_inserted = 0;  // interior points selected by the greedy stage (0: none)
   double last_error = 0;       // effective error of the last removal (0 when none)
 };
 

@@ -1,0 +1,67 @@
+// Greedy insertion (Garland–Heckbert style), the first stage of the interior thinning when a tile
+// has many more candidates than its budget (thinning.hpp, LodOptions::greedy_factor).
+//
+// Starting from the triangulation of the fixed points (corners and the thinned border, border
+// constrained), it repeatedly inserts the candidate of largest effective error (vertical
+// distance to the current surface + weight). Every point not in the triangulation is filed
+// under the live triangle that contains it (intrusive lists, the same layout the drop stage
+// uses for its orphans):
+//
+//   head[t] ──▶ point i ──next[i]──▶ point j ──▶ … ──▶ kNone
+//
+// Each triangle slot knows its best candidate; the slots are in a max-heap on that error.
+// Inserting p changes only triangles that end up incident to p (Lawson flips all pivot on p, and
+// the kernel rewrites split and flipped triangles in their own slots), so the points to re-file
+// are exactly those listed under the slots of p's new star, and they land in that star.
+//
+// Threads: pure function on values.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod::detail {
+
+// Points of the surface filed under the live triangle slot that contains them.
+struct FiledPoints {
+  std::vector<std::uint32_t> head;  // by triangle slot; kernel::kNone = empty
+  std::vector<std::uint32_t> next;  // by point
+  std::vector<double> x, y, z;      // by point
+
+  std::size_t size() const { return x.size(); }
+  void push(double px, double py, double pz, kernel::TriangleId t) {
+    if (t >= head.size()) head.resize(static_cast<std::size_t>(t) + 1, kernel::kNone);
+    const auto i = static_cast<std::uint32_t>(x.size());
+    x.push_back(px), y.push_back(py), z.push_back(pz);
+    next.push_back(head[t]);
+    head[t] = i;
+  }
+};
+
+struct GreedyResult {
+  // By candidate index: the inserted vertex, or kernel::kNone (not selected, or a duplicate).
+  std::vector<kernel::VertexId> vertex;
+  std::size_t inserted = 0;
+  std::size_t duplicates = 0;  // candidates at exactly the (x, y) of a vertex already there
+  // Every candidate not inserted (duplicates excepted) and every extra point inside the
+  // triangulation, filed by triangle (their original z).
+  FiledPoints orphans;
+};
+
+// Inserts candidates into `tri` (already holding the fixed points) until it has `max_vertices`
+// vertices, or until the largest effective error is 0 or below `epsilon`. `extra` points are
+// filed and carried along but never inserted (dropped border points, a parent's internal cross).
+// Errors: a candidate outside the triangulation or not finite (invalid_argument), a kernel
+// failure (internal).
+// Requires: tri.dimension() == 2, uncut.
+Result<GreedyResult> greedy_insert(kernel::Triangulation& tri,
+                                   std::span<const tile::Vertex> candidates,
+                                   std::span<const tile::Vertex> extra, std::size_t max_vertices,
+                                   double epsilon);
+
+}  // namespace tinstream::lod::detail
