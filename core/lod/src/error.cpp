@@ -55,6 +55,9 @@ int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& 
 // Whether the fine triangle lies inside (or on the boundary of) the coarse triangle: exact
 // orientation tests of its three vertices against the coarse triangle's three edges.
 bool contains(const FlatTriangle& c, const FlatTriangle& f) {
+  if (f.min_x < c.min_x || f.max_x > c.max_x || f.min_y < c.min_y || f.max_y > c.max_y) {
+    return false;
+  }
   for (int e = 0; e < 3; ++e) {
     const kernel::XY a{c.p[e].x, c.p[e].y}, b{c.p[(e + 1) % 3].x, c.p[(e + 1) % 3].y};
     for (const P2& q : f.p) {

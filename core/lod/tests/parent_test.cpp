@@ -167,5 +167,73 @@ TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
   EXPECT_LT(*m, 1e-9);
 }
 
+TEST(SurfaceDifference, MaximumAndAreaMatchABruteForceOverlay) {
+  // A 16×16 lattice of a rough surface against a thinned version of itself: fine triangles
+  // inside one coarse triangle (the fast path) and fine triangles cut by coarse edges (the
+  // clipping path) both occur. Brute force, independent of the library: the difference of two
+  // piecewise-linear surfaces peaks at a vertex of either mesh or where a coarse edge crosses a
+  // fine edge; evaluate both surfaces there by brute-force barycentrics.
+  const geo::TileId id{9, 270, 180};
+  const TinTile fine = grid_tile(id, 16, hills);
+  TinTile coarse = fine;
+  LodOptions o;
+  o.max_points = 40;
+  o.border_points_per_side = 4;
+  o.epsilon = 1e9;
+  ASSERT_TRUE(reduce_finest_tile(coarse, o).ok());
+  ASSERT_LT(coarse.vertex_count(), fine.vertex_count());
+
+  double brute = 0;
+  auto probe = [&](double x, double y) {
+    const auto zc = testing::brute_height(coarse, x, y, true);
+    const auto zf = testing::brute_height(fine, x, y, true);
+    if (zc && zf) brute = std::max(brute, std::abs(*zc - *zf));
+  };
+  for (const auto& p : fine.vertices()) probe(p.x, p.y);
+  for (const auto& p : coarse.vertices()) probe(p.x, p.y);
+  auto edges = [](const TinTile& t) {
+    std::vector<std::pair<tile::Vertex, tile::Vertex>> e;
+    const auto v = t.vertices();
+    for (const auto& tr : t.triangles) {
+      for (int k = 0; k < 3; ++k) e.emplace_back(v[tr[k]], v[tr[(k + 1) % 3]]);
+    }
+    return e;
+  };
+  std::size_t crossings = 0;
+  for (const auto& [a, b] : edges(coarse)) {
+    for (const auto& [c, e] : edges(fine)) {
+      const double den = (b.x - a.x) * (e.y - c.y) - (b.y - a.y) * (e.x - c.x);
+      if (den == 0) continue;
+      const double s = ((c.x - a.x) * (e.y - c.y) - (c.y - a.y) * (e.x - c.x)) / den;
+      const double u = ((c.x - a.x) * (b.y - a.y) - (c.y - a.y) * (b.x - a.x)) / den;
+      if (s <= 0 || s >= 1 || u <= 0 || u >= 1) continue;
+      ++crossings;
+      probe(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y));
+    }
+  }
+  ASSERT_GT(crossings, 0u);
+
+  const TinTile* f = &fine;
+  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
+  EXPECT_GT(brute, 1.0);  // the thinning really changed the surface
+  EXPECT_NEAR(d.max_abs, brute, 1e-9 * (1 + brute));
+  const geo::MercatorRect r = id.bounds();
+  EXPECT_NEAR(d.area, r.width() * r.height(), 1e-9 * r.width() * r.height());
+  // The RMS lies between 0 and the maximum, and near a dense sample's RMS.
+  double sum_sq = 0;
+  int n = 0;
+  for (int j = 0; j < 200; ++j) {
+    for (int i = 0; i < 200; ++i) {
+      const double x = r.min_x + r.width() * (i + 0.5) / 200,
+                   y = r.min_y + r.height() * (j + 0.5) / 200;
+      const double diff =
+          *testing::brute_height(coarse, x, y, true) - *testing::brute_height(fine, x, y, true);
+      sum_sq += diff * diff;
+      ++n;
+    }
+  }
+  EXPECT_NEAR(d.rms(), std::sqrt(sum_sq / n), 0.02 * std::sqrt(sum_sq / n));
+}
+
 }  // namespace
 }  // namespace tinstream::lod
