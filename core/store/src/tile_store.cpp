@@ -755,7 +755,9 @@ Status LayerWriter::put(const tile::TinTile& t) {
   }
   PendingTile p;
   p.id = t.id;
-  p.compressed = tile::compress(tile::encode(t));
+  // zlib level 1: on LiDAR tiles (mostly f64 coordinates) it is 2.6× faster than level 6 for
+  // 1.3 % more bytes (measured on a 1e6-point sample's 190 tiles: ratio 0.559 vs 0.552).
+  p.compressed = tile::compress(tile::encode(t), 1);
   p.etag = make_etag(p.compressed);
   p.min_z = t.min_z;
   p.max_z = t.max_z;
