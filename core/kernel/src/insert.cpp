@@ -2,6 +2,7 @@
 // an explicit stack, dimension raising for collinear starts, and bulk insertion in BRIO/Hilbert
 // order.
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "spatial_sort.hpp"
@@ -232,28 +233,34 @@ std::vector<InsertResult> Triangulation::insert_bulk(std::span<const Point3> poi
   const std::vector<std::uint32_t> order = detail::brio_hilbert_order(points, valid);
   mesh_.reserve_vertices(mesh_.vertex_slots() + order.size());
   mesh_.reserve_triangles(mesh_.triangle_slots() + 2 * order.size() + 8);
-  std::vector<std::uint32_t> origin;  // vertex id -> input index it came from
-  origin.reserve(mesh_.vertex_slots() + order.size());
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    if (k + 8 < order.size()) {  // the input is read in a scattered order: hide the misses
-      __builtin_prefetch(&points[order[k + 8]]);
-      __builtin_prefetch(&out[order[k + 8]], 1);
-    }
-    const std::uint32_t i = order[k];
-    out[i] = insert(points[i]);
-    if (out[i].outcome == InsertOutcome::inserted) {
-      if (origin.size() <= out[i].vertex) origin.resize(out[i].vertex + 1, kNone);
-      origin[out[i].vertex] = i;
+  const std::size_t first_new = mesh_.vertex_slots();
+  // The input is read in a scattered order. Each chunk of it is gathered first in a tight loop
+  // of independent loads (their cache and TLB misses overlap) and its results are scattered back
+  // after it was inserted, so no insertion waits for a miss on the input or on `out`.
+  constexpr std::size_t kChunk = 512;
+  std::array<Point3, kChunk> gathered;
+  std::array<InsertResult, kChunk> results;
+  std::vector<std::uint32_t> origin(order.size(), kNone);  // new vertex - first_new -> input
+  for (std::size_t k0 = 0; k0 < order.size(); k0 += kChunk) {
+    const std::size_t m = std::min(kChunk, order.size() - k0);
+    for (std::size_t k = 0; k < m; ++k) gathered[k] = points[order[k0 + k]];
+    for (std::size_t k = 0; k < m; ++k) results[k] = insert(gathered[k]);
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::uint32_t i = order[k0 + k];
+      out[i] = results[k];
+      if (results[k].outcome == InsertOutcome::inserted) origin[results[k].vertex - first_new] = i;
     }
   }
   // Among exact duplicates the first in input order wins, whatever the insertion order was.
   for (std::uint32_t i : valid) {
     if (out[i].outcome != InsertOutcome::duplicate) continue;
     const VertexId v = out[i].vertex;
-    if (v >= origin.size() || origin[v] == kNone || origin[v] < i) continue;
-    out[origin[v]].outcome = InsertOutcome::duplicate;
+    if (v < first_new) continue;  // a duplicate of a vertex inserted before this call
+    std::uint32_t& first = origin[v - first_new];
+    if (first < i) continue;
+    out[first].outcome = InsertOutcome::duplicate;
     out[i].outcome = InsertOutcome::inserted;
-    origin[v] = i;
+    first = i;
     mesh_.set_z(v, points[i].z);
     mesh_.set_weight(v, points[i].weight);
   }

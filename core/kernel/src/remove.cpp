@@ -90,8 +90,11 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     const Triangle& T = mesh_.tri(t);
     hole.ring.push_back(T.v[next3(j)]);
     hole.star.push_back(t);
+    // The outer triangles are written only by remove_vertex and the ring coordinates are read
+    // by the ear clipping below: start all their (independent) cache misses now.
     hole.outer.push_back(T.n[j]);
-    hole.outer_index.push_back(mesh_.mirror(t, j));
+    if (T.n[j] != kNone) mesh_.prefetch_triangle(T.n[j]);
+    mesh_.prefetch_vertex(T.v[next3(j)]);
     if (has_constraints_ && mesh_.constrained(t, prev3(j))) {
       if (n_constrained < 2) spokes_constrained[n_constrained] = T.v[next3(j)];
       ++n_constrained;
@@ -357,6 +360,13 @@ Status Triangulation::remove_vertex(VertexId v) {
     demote_to_collinear(v);
     --live_vertices_;
     return {};
+  }
+  // Where each outer triangle refers back to the star, read before anything is rewritten (an
+  // outer triangle may border two ring edges, and the star's slots are reused below).
+  hole.outer_index.resize(hole.outer.size());
+  for (std::size_t r = 0; r < hole.outer.size(); ++r) {
+    const TriangleId out = hole.outer[r];
+    hole.outer_index[r] = out == kNone ? 0 : mesh_.index_of_neighbour(out, hole.star[r]);
   }
   // Re-use the star's triangle slots for the new triangles and free the two left over.
   const std::size_t nnew = hole.tris.size();

@@ -180,7 +180,7 @@ class Triangulation {
     std::vector<VertexId> ring;           // link vertices, counter-clockwise around v
     std::vector<TriangleId> star;         // star[i] = (v, ring[i], ring[i + 1])
     std::vector<TriangleId> outer;        // neighbour across ring edge i
-    std::vector<int> outer_index;         // its edge index
+    std::vector<int> outer_index;         // its edge index (filled by remove_vertex)
     std::vector<VertexTriple> tris;       // new triangles
     std::vector<std::array<int, 3>> adj;  // >= 0: local tri * 3 + edge; < 0: -(ring edge + 1)
     std::vector<std::uint8_t> fixed;      // per new triangle: bit i = edge i constrained

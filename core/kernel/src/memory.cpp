@@ -1,0 +1,27 @@
+// Memory hints for the mesh arrays (see detail::HugePageAllocator in mesh.hpp).
+#include <cstdint>
+
+#include "tinstream/kernel/mesh.hpp"
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
+namespace tinstream::kernel::detail {
+
+void advise_huge_pages(void* p, std::size_t bytes) {
+#if defined(MADV_HUGEPAGE)
+  constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t first = (begin + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t last = (begin + bytes) & ~(kHuge - 1);
+  // Only whole huge pages inside the block: the hint never reaches a neighbouring allocation.
+  // A refusal (THP disabled) changes nothing but speed, so the result is ignored.
+  if (last > first) (void)madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
+}  // namespace tinstream::kernel::detail
