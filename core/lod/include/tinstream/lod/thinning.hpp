@@ -48,7 +48,7 @@ struct LodOptions {
   // ⌈greedy_factor × max_points⌉ points, the interior is first *built up* by greedy insertion
   // to that many points, and only those are thinned by the drop heuristic; every other point
   // stays in the error estimate as an orphan. 0 = drop from all points (slow on big grids).
-  double greedy_factor = 2.0;
+  double greedy_factor = 1.25;
 };
 
 // The point count the greedy stage builds up to (0 = no greedy stage), see greedy_factor.
