@@ -23,6 +23,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <unordered_map>
 
 #include "indexed_heap.hpp"
 #include "tinstream/kernel/predicates.hpp"
@@ -66,6 +67,10 @@ struct Plane {
   }
 };
 
+// Stars with more triangles than this locate re-filed points by angle (binary search) instead
+// of trying the triangles in turn (the first insertions into the border-only mesh make stars of
+// hundreds of thin triangles).
+constexpr std::size_t kSmallStar = 12;
 constexpr std::size_t kNoLimit = std::numeric_limits<std::size_t>::max();
 
 enum State : std::uint8_t {
@@ -85,9 +90,7 @@ struct PointSet {
 class GreedyInserter {
  public:
   GreedyInserter(Triangulation& tri, PointSet& points)
-      : kernel_(tri), pts_(points.pts), state_(points.state), heap_(0) {
-    next_.assign(pts_.size(), kNone);
-  }
+      : kernel_(tri), pts_(points.pts), state_(points.state), heap_(0) {}
 
   // Copies the kernel's triangulation (the fixed points), files every point under its triangle
   // and ranks the triangles.
@@ -103,6 +106,7 @@ class GreedyInserter {
         const VertexId v = T.v[static_cast<std::size_t>(k)];
         if (local_vertex[v] == kNone) {
           local_vertex[v] = static_cast<std::uint32_t>(xy_.size());
+          kernel_vertex_.push_back(v);
           xy_.push_back(kernel_.xy(v));
           z_.push_back(kernel_.z(v));
         }
@@ -119,9 +123,11 @@ class GreedyInserter {
         m.n[k] = wall ? kNone : local_tri[u];
       }
     });
-    head_.assign(tris_.size(), kNone);
+    begin_.assign(tris_.size(), 0);
+    count_.assign(tris_.size(), 0);
     best_.assign(tris_.size(), kNone);
     heap_.grow(tris_.size());
+    std::vector<std::uint32_t> where(pts_.size(), kNone);
     for (std::size_t i = 0; i < pts_.size(); ++i) {
       if (state_[i] != kCandidate && state_[i] != kExtra) continue;
       const tile::Vertex& p = pts_[i];
@@ -136,10 +142,25 @@ class GreedyInserter {
         state_[i] = kGone;  // an extra point outside: not part of this surface
         continue;
       }
-      link(static_cast<std::uint32_t>(i), local_tri[t]);
+      where[i] = local_tri[t];
+      ++count_[where[i]];
     }
+    // Buckets in triangle order (counting sort).
+    std::uint32_t at = 0;
+    for (std::uint32_t t = 0; t < tris_.size(); ++t) begin_[t] = at, at += count_[t];
+    pool_.reserve(2 * static_cast<std::size_t>(at) + 8192);
+    spare_.reserve(at + 4096);
+    pool_.resize(at);
+    std::fill(count_.begin(), count_.end(), 0);
+    for (std::size_t i = 0; i < pts_.size(); ++i) {
+      if (where[i] == kNone) continue;
+      const tile::Vertex& p = pts_[i];
+      pool_[begin_[where[i]] + count_[where[i]]++] = {p.x, p.y, p.z, p.weight,
+                                                      static_cast<std::uint32_t>(i), state_[i]};
+    }
+    live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-      if (head_[t] != kNone) rank(t);
+      if (count_[t] != 0) rank(t);
     }
     return {};
   }
@@ -157,35 +178,69 @@ class GreedyInserter {
       const std::uint32_t t = heap_.top();
       const double e = -heap_.key(t);
       if (!(e > 0) || e < epsilon || !(e > floor)) break;
-      const std::uint32_t i = best_[t];
-      switch (insert(i, t)) {
+      const std::uint32_t pos = best_[t];
+      const std::uint32_t i = pool_[pos].id;
+      const Outcome outcome = insert(pos, t);
+      switch (outcome) {
         case Outcome::inserted:
-          state_[i] = kInserted;
           chosen.push_back(i);
           ++vertices;
           break;
         case Outcome::duplicate:
-          state_[i] = kGone;
           ++*duplicates;
-          rank(t);
           break;
         case Outcome::on_wall:
-          state_[i] = kExtra;
-          rank(t);
           break;
+      }
+      if (outcome != Outcome::inserted) {
+        state_[i] = pool_[pos].kind = outcome == Outcome::duplicate ? kGone : kExtra;
+        rank(t);
       }
     }
     return chosen;
   }
 
+  // After the points inserted here went into the kernel too (point_vertex: their kernel ids, by
+  // point): whether the kernel's mesh is the own one, triangle for triangle (cocircular ties
+  // may be split differently). When it is, hand_over() may follow.
+  bool matches_kernel(const std::vector<VertexId>& point_vertex) {
+    auto key = [](std::array<VertexId, 3> v) {
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    struct Hash {
+      std::size_t operator()(const std::array<VertexId, 3>& v) const {
+        return (std::size_t{v[0]} * 0x9E3779B97F4A7C15ull) ^ (std::size_t{v[1]} * 0xC2B2AE3D27D4EB4Full) ^
+               (std::size_t{v[2]} * 0x165667B19E3779F9ull);
+      }
+    };
+    std::unordered_map<std::array<VertexId, 3>, TriangleId, Hash> slot_of;
+    slot_of.reserve(tris_.size());
+    kernel_.for_each_finite_triangle(
+        [&](TriangleId t, const kernel::Triangle& T) { slot_of.emplace(key(T.v), t); });
+    if (slot_of.size() != tris_.size()) return false;
+    const std::size_t copied = kernel_vertex_.size();
+    auto kernel_id = [&](std::uint32_t v) {
+      return v < copied ? kernel_vertex_[v] : point_vertex[vertex_point_[v - copied]];
+    };
+    kernel_slot_.resize(tris_.size());
+    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+      const auto& v = tris_[t].v;
+      const auto it = slot_of.find(key({kernel_id(v[0]), kernel_id(v[1]), kernel_id(v[2])}));
+      if (it == slot_of.end()) return false;
+      kernel_slot_[t] = it->second;
+    }
+    return true;
+  }
+
   // The points still filed, by kernel triangle slot. Requires: nothing inserted since start(),
-  // so that the own mesh is the kernel's.
+  // or matches_kernel() was true.
   void hand_over(FiledPoints& out) const {
     out.head.assign(kernel_.mesh().triangle_slots(), kNone);
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-      for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
-        if (state_[i] == kCandidate || state_[i] == kExtra)
-          out.push(pts_[i].x, pts_[i].y, pts_[i].z, kernel_slot_[t]);
+      for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
+        const Filed& f = pool_[k];
+        if (f.kind == kCandidate || f.kind == kExtra) out.push(f.x, f.y, f.z, kernel_slot_[t]);
       }
     }
   }
@@ -193,37 +248,40 @@ class GreedyInserter {
  private:
   enum class Outcome { inserted, duplicate, on_wall };
 
-  void link(std::uint32_t i, std::uint32_t t) {
-    next_[i] = head_[t];
-    head_[t] = i;
-  }
+  // A point filed under a triangle: a copy of its data, so that scanning a bucket reads memory
+  // in order.
+  struct Filed {
+    double x, y, z, weight;
+    std::uint32_t id;   // index into pts_
+    std::uint8_t kind;  // State
+  };
 
   Plane plane(std::uint32_t t) const {
     const auto& v = tris_[t].v;
     return Plane(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
   }
 
-  double effective_error(std::uint32_t i, double surface) const {
-    return std::abs(pts_[i].z - surface) + pts_[i].weight;
+  static double effective_error(const Filed& f, double surface) {
+    return std::abs(f.z - surface) + f.weight;
   }
 
-  // Recomputes t's best candidate from its list (unlinking points that left) and its heap key.
+  // Recomputes t's best candidate from its bucket (compacting away points that left) and its
+  // heap key.
   void rank(std::uint32_t t) {
     const Plane pl = plane(t);
     double best_e = -1, w;
-    std::uint32_t best = kNone;
-    for (std::uint32_t* at = &head_[t]; *at != kNone;) {
-      const std::uint32_t i = *at;
-      if (state_[i] == kGone || state_[i] == kInserted) {
-        *at = next_[i];
-        continue;
+    std::uint32_t best = kNone, kept = begin_[t];
+    for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
+      const Filed f = pool_[k];
+      if (f.kind == kGone || f.kind == kInserted) continue;
+      if (f.kind == kCandidate) {
+        const double e = effective_error(f, pl.at(f.x, f.y, &w));
+        if (e > best_e) best_e = e, best = kept;
       }
-      if (state_[i] == kCandidate) {
-        const double e = effective_error(i, pl.at(pts_[i].x, pts_[i].y, &w));
-        if (e > best_e) best_e = e, best = i;
-      }
-      at = &next_[i];
+      pool_[kept++] = f;
     }
+    live_ -= begin_[t] + count_[t] - kept;
+    count_[t] = kept - begin_[t];
     set_best(t, best, best_e);
   }
 
@@ -238,7 +296,8 @@ class GreedyInserter {
 
   std::uint32_t new_tri() {
     tris_.push_back({});
-    head_.push_back(kNone);
+    begin_.push_back(0);
+    count_.push_back(0);
     best_.push_back(kNone);
     heap_.grow(tris_.size());
     return static_cast<std::uint32_t>(tris_.size() - 1);
@@ -256,15 +315,18 @@ class GreedyInserter {
   // Joins t to the star being built: its points are gathered for re-filing.
   void take(std::uint32_t t) {
     star_.push_back(t);
-    for (std::uint32_t i = head_[t]; i != kNone; i = next_[i]) {
-      if (state_[i] == kCandidate || state_[i] == kExtra) gathered_.push_back(i);
+    for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
+      if (pool_[k].kind == kCandidate || pool_[k].kind == kExtra) gathered_.push_back(pool_[k]);
     }
-    head_[t] = kNone;
+    live_ -= count_[t];
+    count_[t] = 0;
   }
 
-  // Inserts candidate i, filed under t (t contains it up to rounding: a short walk corrects it).
-  Outcome insert(std::uint32_t i, std::uint32_t t) {
-    const XY p{pts_[i].x, pts_[i].y};
+  // Inserts the candidate at pool_[pos], filed under t (t contains it up to rounding: a short
+  // walk corrects it).
+  Outcome insert(std::uint32_t pos, std::uint32_t t) {
+    const XY p{pool_[pos].x, pool_[pos].y};
+    const double pz = pool_[pos].z;
     const std::uint32_t filed_under = t;
     double o[3];
     for (int steps = 0;; ++steps) {
@@ -282,22 +344,27 @@ class GreedyInserter {
     }
     const int zeros = (o[0] == 0) + (o[1] == 0) + (o[2] == 0);
     if (zeros >= 2) return Outcome::duplicate;
+    if (zeros == 1 && tris_[t].n[static_cast<std::size_t>(
+                          o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2))] == kNone) {
+      return Outcome::on_wall;
+    }
+    state_[pool_[pos].id] = pool_[pos].kind = kInserted;
     const auto pv = static_cast<std::uint32_t>(xy_.size());
     star_.clear();
     gathered_.clear();
     if (zeros == 1) {
       const int k = o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2);
-      if (tris_[t].n[static_cast<std::size_t>(k)] == kNone) return Outcome::on_wall;
-      xy_.push_back(p), z_.push_back(pts_[i].z);
+      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(pool_[pos].id);
       split_edge(t, k, pv);
     } else {
-      xy_.push_back(p), z_.push_back(pts_[i].z);
+      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(pool_[pos].id);
       split_triangle(t, pv);
     }
     legalize(pv);
     refile();
-    // Filed under a neighbour by rounding: that triangle's ranking still names i.
+    // Filed under a neighbour by rounding: that triangle's ranking still names the point.
     if (std::find(star_.begin(), star_.end(), filed_under) == star_.end()) rank(filed_under);
+    if (pool_.size() > 2 * live_ + 4096) compact();
     return Outcome::inserted;
   }
 
@@ -367,43 +434,130 @@ class GreedyInserter {
     }
   }
 
-  // Files the gathered points into the star (largest smallest barycentric weight) and re-ranks.
+  // Files the gathered points into the star (largest smallest barycentric weight), each star
+  // triangle's bucket appended at the pool's end, and re-ranks the star.
   void refile() {
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
-    star_best_.assign(star_.size(), kNone);
-    star_error_.assign(star_.size(), -1.0);
-    for (std::uint32_t i : gathered_) {
+    const std::size_t n = star_.size();
+    star_count_.assign(n, 0);
+    slot_.resize(gathered_.size());
+    surface_.resize(gathered_.size());
+    const bool by_angle = n > kSmallStar;
+    if (by_angle) sort_star_by_angle();
+    for (std::size_t g = 0; g < gathered_.size(); ++g) {
       double best_w = -std::numeric_limits<double>::infinity(), z = 0, w;
-      std::size_t k = 0;
-      for (std::size_t s = 0; s < planes_.size(); ++s) {
-        const double zs = planes_[s].at(pts_[i].x, pts_[i].y, &w);
-        if (w > best_w) best_w = w, z = zs, k = s;
-        if (w >= 0) break;
+      std::uint32_t k = 0;
+      if (by_angle) {
+        // The sector of the pseudo-angle, then its neighbours if rounding put q outside it.
+        const XY& c = xy_.back();
+        const double a = pseudo_angle(gathered_[g].x - c.x, gathered_[g].y - c.y);
+        const auto it = std::upper_bound(sector_start_.begin(), sector_start_.end(), a);
+        const std::size_t at = it == sector_start_.begin()
+                                   ? n - 1
+                                   : static_cast<std::size_t>(it - sector_start_.begin()) - 1;
+        for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
+          const std::uint32_t s = sector_[(at + d) % n];
+          const double zs = planes_[s].at(gathered_[g].x, gathered_[g].y, &w);
+          if (w > best_w) best_w = w, z = zs, k = s;
+          if (w >= 0) break;
+        }
       }
-      link(i, star_[k]);
-      if (state_[i] != kCandidate) continue;
-      const double e = effective_error(i, z);
-      if (e > star_error_[k]) star_error_[k] = e, star_best_[k] = i;
+      if (!(best_w >= 0)) {
+        for (std::size_t s = 0; s < n; ++s) {
+          const double zs = planes_[s].at(gathered_[g].x, gathered_[g].y, &w);
+          if (w > best_w) best_w = w, z = zs, k = static_cast<std::uint32_t>(s);
+          if (w >= 0) break;
+        }
+      }
+      slot_[g] = k;
+      surface_[g] = z;
+      ++star_count_[k];
     }
-    for (std::size_t k = 0; k < star_.size(); ++k) set_best(star_[k], star_best_[k], star_error_[k]);
+    auto at = static_cast<std::uint32_t>(pool_.size());
+    pool_.resize(pool_.size() + gathered_.size());
+    star_best_.assign(n, kNone);
+    star_error_.assign(n, -1.0);
+    for (std::size_t k = 0; k < n; ++k) {
+      begin_[star_[k]] = at;
+      count_[star_[k]] = 0;
+      at += star_count_[k];
+    }
+    for (std::size_t g = 0; g < gathered_.size(); ++g) {
+      const std::size_t k = slot_[g];
+      const std::uint32_t t = star_[k];
+      const std::uint32_t pos = begin_[t] + count_[t]++;
+      pool_[pos] = gathered_[g];
+      if (gathered_[g].kind != kCandidate) continue;
+      const double e = effective_error(gathered_[g], surface_[g]);
+      if (e > star_error_[k]) star_error_[k] = e, star_best_[k] = pos;
+    }
+    live_ += gathered_.size();
+    for (std::size_t k = 0; k < n; ++k) set_best(star_[k], star_best_[k], star_error_[k]);
+  }
+
+  // A number in [0, 4) increasing with the angle of (dx, dy) from the +x axis (no atan2).
+  static double pseudo_angle(double dx, double dy) {
+    const double r = dy / (std::abs(dx) + std::abs(dy));
+    if (dx < 0) return 2.0 - r;
+    return dy < 0 ? 4.0 + r : r;
+  }
+
+  // sector_: star indices ordered by the pseudo-angle of their first ring vertex around the new
+  // vertex (the last one); sector_start_: those angles. Star triangle (v0, v1, p) spans the
+  // angles from v0's to v1's, counter-clockwise.
+  void sort_star_by_angle() {
+    const XY& c = xy_.back();
+    const std::size_t n = star_.size();
+    angle_.resize(n);
+    sector_.resize(n);
+    for (std::size_t s = 0; s < n; ++s) {
+      const XY& v0 = xy_[tris_[star_[s]].v[0]];
+      angle_[s] = pseudo_angle(v0.x - c.x, v0.y - c.y);
+      sector_[s] = static_cast<std::uint32_t>(s);
+    }
+    std::sort(sector_.begin(), sector_.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return angle_[a] < angle_[b]; });
+    sector_start_.resize(n);
+    for (std::size_t s = 0; s < n; ++s) sector_start_[s] = angle_[sector_[s]];
+  }
+
+  // Drops the pool's abandoned buckets (a refile appends, it never reuses).
+  // (Into the spare buffer, swapped: both keep their capacity, no page faults.)
+  void compact() {
+    spare_.clear();
+    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+      const auto nb = static_cast<std::uint32_t>(spare_.size());
+      spare_.insert(spare_.end(), pool_.begin() + begin_[t], pool_.begin() + begin_[t] + count_[t]);
+      if (best_[t] != kNone) best_[t] = nb + (best_[t] - begin_[t]);
+      begin_[t] = nb;
+    }
+    pool_.swap(spare_);
   }
 
   Triangulation& kernel_;
   const std::vector<tile::Vertex>& pts_;
   std::vector<std::uint8_t>& state_;
-  std::vector<std::uint32_t> next_;  // by point
   std::vector<TriangleId> kernel_slot_;  // by own triangle, as copied in start()
+  std::vector<VertexId> kernel_vertex_;   // by own vertex copied from the kernel
+  std::vector<std::uint32_t> vertex_point_;  // by own vertex inserted here (after the copied)
   // The own mesh.
   std::vector<XY> xy_;
   std::vector<double> z_;
   std::vector<Tri> tris_;
-  std::vector<std::uint32_t> head_;  // by triangle
-  std::vector<std::uint32_t> best_;  // by triangle: its candidate of largest error
+  // Buckets: triangle t's points are pool_[begin_[t], begin_[t] + count_[t]).
+  std::vector<Filed> pool_, spare_;
+  std::vector<std::uint32_t> begin_, count_;  // by triangle
+  std::size_t live_ = 0;                      // points in buckets
+  std::vector<std::uint32_t> best_;  // by triangle: pool index of its candidate of largest error
   IndexedHeap heap_;                 // triangles by −(largest effective error), then id
   // Scratch of one insertion.
-  std::vector<std::uint32_t> star_, gathered_, stack_, star_best_;
-  std::vector<double> star_error_;
+  std::vector<std::uint32_t> star_, stack_, star_best_, star_count_;
+  std::vector<Filed> gathered_;
+  std::vector<std::uint32_t> slot_;
+  std::vector<double> star_error_, surface_;
+  std::vector<std::uint32_t> sector_;
+  std::vector<double> angle_, sector_start_;
   std::vector<Plane> planes_;
 };
 
@@ -453,10 +607,11 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
     return {};
   };
   // Round 0 selects in the own mesh; the kernel's triangulation of the chosen points may
-  // resolve cocircular ties (common on grids) with other diagonals than the own mesh did, so
-  // each later round copies the kernel's mesh back, re-files and re-ranks every point and
+  // resolve cocircular ties (common on grids) with other diagonals than the own mesh did. When
+  // it does, the next round copies the kernel's mesh back, re-files and re-ranks every point and
   // inserts, in the own mesh and then in the kernel in the same order, the candidates whose
-  // error exceeds what round 0 stopped at. It ends when a round has nothing to insert.
+  // error exceeds what round 0 stopped at. It ends when the meshes match or a round has nothing
+  // to insert.
   double floor = 0;
   constexpr int kMaxRounds = 8;
   for (int round = 0;; ++round) {
@@ -479,6 +634,10 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
       break;
     }
     if (Status s = commit(chosen, round == 0); !s.ok()) return s.error();
+    if (g.matches_kernel(out.vertex)) {
+      g.hand_over(out.orphans);
+      break;
+    }
   }
   return out;
 }
