@@ -46,6 +46,9 @@ int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, int ob,
 namespace {
 
 constexpr int kUnset = -0x7FFFFFFF;  // an edge whose other side is created later
+// Interior vertices of at most this degree are re-triangulated with the ear queue (quadratic in
+// the degree); larger stars go to the plain ear clipping plus flips.
+constexpr std::size_t kEarQueueMax = 24;
 
 // Open chain hole.chain[0..m-1] (closed by an edge chain[m-1] -> chain[0] on v's side) made
 // convex as seen from v by clipping ears; hole.owner[k] is the owner code of the edge
@@ -71,6 +74,89 @@ void Triangulation::Hole::convexify(const Mesh& mesh) {
   }
 }
 
+void Triangulation::Hole::start_ring() {
+  const std::size_t k = ring.size();
+  nxt.resize(k);
+  prv.resize(k);
+  owner.resize(k);
+  for (std::size_t i = 0; i < k; ++i) {
+    nxt[i] = static_cast<int>((i + 1) % k);
+    prv[i] = static_cast<int>((i + k - 1) % k);
+    owner[i] = -static_cast<int>(i) - 1;  // ring edge i
+  }
+}
+
+void Triangulation::Hole::clip_ear(int c) {
+  const auto uc = static_cast<std::size_t>(c);
+  const auto p = static_cast<std::size_t>(prv[uc]), n = static_cast<std::size_t>(nxt[uc]);
+  // Edges opposite p = (c, n): ring owner of c; opposite c = (n, p): new; opposite n = (p, c).
+  const int L = add(ring[p], ring[uc], ring[n], owner[uc], kUnset, owner[p]);
+  owner[p] = L * 3 + 1;
+  nxt[p] = static_cast<int>(n);
+  prv[n] = static_cast<int>(p);
+}
+
+void Triangulation::Hole::close_ring(int c) {
+  const auto uc = static_cast<std::size_t>(c);
+  const auto p = static_cast<std::size_t>(prv[uc]), n = static_cast<std::size_t>(nxt[uc]);
+  add(ring[p], ring[uc], ring[n], owner[uc], owner[n], owner[p]);
+}
+
+// Devillers' ear queue ("On deletion in Delaunay triangulations", 2002): of all ears of the link
+// polygon, the one whose circumcircle has the largest power with respect to v is a Delaunay
+// triangle of the hole, so clipping ears in that order needs no flips afterwards. The powers are
+// compared in plain floating point (power = -incircle(ear, v) / orient(ear), compared by cross
+// multiplication); every chosen ear is then checked with the exact predicates like any ear, and
+// the Lawson pass of plan_removal still verifies every new diagonal exactly, so a wrong choice
+// near a tie costs a flip, never correctness. Returns false (hole to be rebuilt by the plain ear
+// clipping) when the chosen ear is not a valid ear, which happens only near degeneracies.
+bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
+  const std::size_t k = ring.size();
+  ear_key.resize(k);
+  auto at = [&](int i) -> const XY& { return mesh.xy(ring[static_cast<std::size_t>(i)]); };
+  auto evaluate = [&](int c) {
+    const auto uc = static_cast<std::size_t>(c);
+    const XY &a = at(prv[uc]), &b = at(c), &d = at(nxt[uc]);
+    const double ax = a.x - pv.x, ay = a.y - pv.y, bx = b.x - pv.x, by = b.y - pv.y;
+    const double dx = d.x - pv.x, dy = d.y - pv.y;
+    const double orient = (ax - dx) * (by - dy) - (ay - dy) * (bx - dx);
+    const double inc = (ax * ax + ay * ay) * (bx * dy - dx * by) +
+                       (bx * bx + by * by) * (dx * ay - ax * dy) +
+                       (dx * dx + dy * dy) * (ax * by - bx * ay);
+    ear_key[uc] = {inc, orient};
+  };
+  for (std::size_t i = 0; i < k; ++i) evaluate(static_cast<int>(i));
+  std::size_t left = k;
+  int start = 0;
+  while (left > 3) {
+    int best = -1;
+    int i = start;
+    for (std::size_t m = 0; m < left; ++m, i = nxt[static_cast<std::size_t>(i)]) {
+      const auto& key = ear_key[static_cast<std::size_t>(i)];
+      if (!(key[1] > 0.0)) continue;  // reflex or flat corner (approximately): not an ear
+      if (best < 0) {
+        best = i;
+        continue;
+      }
+      const auto& kb = ear_key[static_cast<std::size_t>(best)];
+      if (key[0] * kb[1] < kb[0] * key[1]) best = i;  // smaller incircle / orient
+    }
+    if (best < 0) return false;
+    const auto ub = static_cast<std::size_t>(best);
+    const int p = prv[ub], n = nxt[ub];
+    if (orient2d(at(p), at(best), at(n)) <= 0.0 || orient2d(at(p), at(n), pv) <= 0.0) {
+      return false;
+    }
+    clip_ear(best);
+    --left;
+    start = p;
+    evaluate(p);
+    evaluate(n);
+  }
+  close_ring(start);
+  return true;
+}
+
 Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   auto name = [v] { return "vertex " + std::to_string(v); };
   if (cut_) return unsupported(name() + ": the mesh was cut, it no longer accepts edits");
@@ -82,14 +168,31 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   std::size_t n_constrained = 0;
   std::size_t finite_in_star = 0;
   int ghost_pos = -1;
+  // Collect the star, walking around v in both directions at once: each step is a dependent
+  // load, usually a cache miss when removals come in random order; two independent chains let
+  // the misses of one overlap with the other's.
+  auto& star = hole.star;
+  auto& back = hole.star_back;  // clockwise from t0's predecessor
+  back.clear();
   const TriangleId t0 = mesh_.vertex_triangle(v);
-  TriangleId t = t0;
-  std::size_t pos = 0;
-  do {
+  TriangleId fwd = t0;
+  TriangleId bwd = mesh_.tri(t0).n[prev3(mesh_.index_of(t0, v))];
+  for (;;) {
+    star.push_back(fwd);
+    if (fwd == bwd) break;
+    back.push_back(bwd);
+    const TriangleId fnext = mesh_.tri(fwd).n[next3(mesh_.index_of(fwd, v))];
+    const TriangleId bnext = mesh_.tri(bwd).n[prev3(mesh_.index_of(bwd, v))];
+    if (fnext == bwd) break;
+    fwd = fnext;
+    bwd = bnext;
+  }
+  star.insert(star.end(), back.rbegin(), back.rend());
+  for (std::size_t pos = 0; pos < star.size(); ++pos) {
+    const TriangleId t = star[pos];
     const int j = mesh_.index_of(t, v);
     const Triangle& T = mesh_.tri(t);
     hole.ring.push_back(T.v[next3(j)]);
-    hole.star.push_back(t);
     // The outer triangles are written only by remove_vertex and the ring coordinates are read
     // by the ear clipping below: start all their (independent) cache misses now.
     hole.outer.push_back(T.n[j]);
@@ -104,9 +207,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     } else if (T.v[prev3(j)] != kInfiniteVertex) {
       ++finite_in_star;
     }
-    t = T.n[next3(j)];
-    ++pos;
-  } while (t != t0);
+  }
   const std::size_t k = hole.ring.size();
   if (n_constrained > 0) {
     if (n_constrained != 2 || orient2d(mesh_.xy(spokes_constrained[0]), mesh_.xy(v),
@@ -202,52 +303,43 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // convex corner at c and v strictly left of p->n lies inside the two star triangles at c,
     // so it contains no other vertex and the rest stays star-shaped around v.
     const XY pv = mesh_.xy(v);
-    auto& nxt = hole.nxt;
-    auto& prv = hole.prv;
-    auto& owner = hole.owner;
-    nxt.resize(k);
-    prv.resize(k);
-    owner.resize(k);
-    for (std::size_t i = 0; i < k; ++i) {
-      nxt[i] = static_cast<int>((i + 1) % k);
-      prv[i] = static_cast<int>((i + k - 1) % k);
-      owner[i] = code(i);
-    }
-    std::size_t left = k;
-    int c = 0;
-    int misses = 0;
-    bool relaxed = false;
-    while (left > 3) {
-      const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
-      const XY &a = mesh_.xy(hole.ring[static_cast<std::size_t>(p)]),
-               &b = mesh_.xy(hole.ring[static_cast<std::size_t>(c)]),
-               &d = mesh_.xy(hole.ring[static_cast<std::size_t>(n)]);
-      const double side = orient2d(a, d, pv);
-      if (orient2d(a, b, d) > 0.0 && (side > 0.0 || (relaxed && side == 0.0))) {
-        const int L =
-            hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
-                     hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)],
-                     kUnset, owner[static_cast<std::size_t>(p)]);
-        owner[static_cast<std::size_t>(p)] = L * 3 + 1;
-        nxt[static_cast<std::size_t>(p)] = n;
-        prv[static_cast<std::size_t>(n)] = p;
-        --left;
-        c = p;
-        misses = 0;
-        relaxed = false;
-        continue;
+    hole.start_ring();
+    if (k <= kEarQueueMax && hole.clip_delaunay_ears(mesh_, pv)) {
+      // done: every ear was checked exactly; the flips below only verify
+    } else {
+      hole.tris.clear();
+      hole.adj.clear();
+      hole.fixed.clear();
+      hole.start_ring();
+      auto& nxt = hole.nxt;
+      auto& prv = hole.prv;
+      std::size_t left = k;
+      int c = 0;
+      int misses = 0;
+      bool relaxed = false;
+      while (left > 3) {
+        const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
+        const XY &a = mesh_.xy(hole.ring[static_cast<std::size_t>(p)]),
+                 &b = mesh_.xy(hole.ring[static_cast<std::size_t>(c)]),
+                 &d = mesh_.xy(hole.ring[static_cast<std::size_t>(n)]);
+        const double side = orient2d(a, d, pv);
+        if (orient2d(a, b, d) > 0.0 && (side > 0.0 || (relaxed && side == 0.0))) {
+          hole.clip_ear(c);
+          --left;
+          c = p;
+          misses = 0;
+          relaxed = false;
+          continue;
+        }
+        c = n;
+        if (++misses > static_cast<int>(left)) {
+          if (relaxed) return Error(ErrorCode::internal, name() + ": no ear in its star polygon");
+          relaxed = true;  // only when v lies on every candidate diagonal (k = 4, a "square")
+          misses = 0;
+        }
       }
-      c = n;
-      if (++misses > static_cast<int>(left)) {
-        if (relaxed) return Error(ErrorCode::internal, name() + ": no ear in its star polygon");
-        relaxed = true;  // only when v lies on every candidate diagonal (k = 4, a "square")
-        misses = 0;
-      }
+      hole.close_ring(c);
     }
-    const int p = prv[static_cast<std::size_t>(c)], n = nxt[static_cast<std::size_t>(c)];
-    hole.add(hole.ring[static_cast<std::size_t>(p)], hole.ring[static_cast<std::size_t>(c)],
-             hole.ring[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(c)],
-             owner[static_cast<std::size_t>(n)], owner[static_cast<std::size_t>(p)]);
   }
 
   // Lawson flips inside the hole (finite local triangles, unfixed local edges only).

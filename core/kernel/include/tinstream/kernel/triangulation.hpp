@@ -179,12 +179,14 @@ class Triangulation {
   struct Hole {
     std::vector<VertexId> ring;           // link vertices, counter-clockwise around v
     std::vector<TriangleId> star;         // star[i] = (v, ring[i], ring[i + 1])
+    std::vector<TriangleId> star_back;    // scratch: the star collected clockwise
     std::vector<TriangleId> outer;        // neighbour across ring edge i
     std::vector<int> outer_index;         // its edge index (filled by remove_vertex)
     std::vector<VertexTriple> tris;       // new triangles
     std::vector<std::array<int, 3>> adj;  // >= 0: local tri * 3 + edge; < 0: -(ring edge + 1)
     std::vector<std::uint8_t> fixed;      // per new triangle: bit i = edge i constrained
     std::vector<int> nxt, prv, owner, stack;
+    std::vector<std::array<double, 2>> ear_key;  // approximate (incircle, orient) per ear
     std::vector<VertexId> chain;
     std::vector<std::pair<int, int>> flips;
     VertexId join_a = kNone, join_b = kNone;
@@ -192,6 +194,11 @@ class Triangulation {
     void clear();
     int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
     void convexify(const Mesh& mesh);
+    // Closed link polygon (interior vertex): the ring as a circular list, one ear at a time.
+    void start_ring();
+    void clip_ear(int c);   // adds the ear (prv[c], c, nxt[c]) and unlinks c
+    void close_ring(int c); // adds the last triangle (prv[c], c, nxt[c])
+    bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
   };
   Result<bool> plan_removal(VertexId v, Hole& hole) const;
   void demote_to_collinear(VertexId removed);
