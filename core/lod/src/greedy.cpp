@@ -155,8 +155,8 @@ class GreedyInserter {
     for (std::size_t i = 0; i < pts_.size(); ++i) {
       if (where[i] == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[where[i]] + count_[where[i]]++] = {p.x, p.y, p.z, p.weight,
-                                                      static_cast<std::uint32_t>(i), state_[i]};
+      pool_[begin_[where[i]] + count_[where[i]]++] = {
+          p.x, p.y, p.z, p.weight, static_cast<std::uint32_t>(i), state_[i]};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -171,8 +171,8 @@ class GreedyInserter {
   // Greedy insertion in the own mesh while the mesh has fewer than max_vertices vertices and
   // the largest effective error is > floor, > 0 and ≥ epsilon. Returns the inserted points in
   // insertion order. Duplicates count into *duplicates.
-  std::vector<std::uint32_t> select(std::size_t vertices, std::size_t max_vertices,
-                                    double epsilon, double floor, std::size_t* duplicates) {
+  std::vector<std::uint32_t> select(std::size_t vertices, std::size_t max_vertices, double epsilon,
+                                    double floor, std::size_t* duplicates) {
     std::vector<std::uint32_t> chosen;
     while (vertices < max_vertices && !heap_.empty()) {
       const std::uint32_t t = heap_.top();
@@ -210,7 +210,8 @@ class GreedyInserter {
     };
     struct Hash {
       std::size_t operator()(const std::array<VertexId, 3>& v) const {
-        return (std::size_t{v[0]} * 0x9E3779B97F4A7C15ull) ^ (std::size_t{v[1]} * 0xC2B2AE3D27D4EB4Full) ^
+        return (std::size_t{v[0]} * 0x9E3779B97F4A7C15ull) ^
+               (std::size_t{v[1]} * 0xC2B2AE3D27D4EB4Full) ^
                (std::size_t{v[2]} * 0x165667B19E3779F9ull);
       }
     };
@@ -344,8 +345,8 @@ class GreedyInserter {
     }
     const int zeros = (o[0] == 0) + (o[1] == 0) + (o[2] == 0);
     if (zeros >= 2) return Outcome::duplicate;
-    if (zeros == 1 && tris_[t].n[static_cast<std::size_t>(
-                          o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2))] == kNone) {
+    if (zeros == 1 &&
+        tris_[t].n[static_cast<std::size_t>(o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2))] == kNone) {
       return Outcome::on_wall;
     }
     state_[pool_[pos].id] = pool_[pos].kind = kInserted;
@@ -538,8 +539,8 @@ class GreedyInserter {
   Triangulation& kernel_;
   const std::vector<tile::Vertex>& pts_;
   std::vector<std::uint8_t>& state_;
-  std::vector<TriangleId> kernel_slot_;  // by own triangle, as copied in start()
-  std::vector<VertexId> kernel_vertex_;   // by own vertex copied from the kernel
+  std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
+  std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
   std::vector<std::uint32_t> vertex_point_;  // by own vertex inserted here (after the copied)
   // The own mesh.
   std::vector<XY> xy_;
@@ -572,8 +573,8 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   points.pts.insert(points.pts.end(), candidates.begin(), candidates.end());
   points.pts.insert(points.pts.end(), extra.begin(), extra.end());
   points.state.assign(points.pts.size(), kExtra);
-  std::fill(points.state.begin(), points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()),
-            kCandidate);
+  std::fill(points.state.begin(),
+            points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()), kCandidate);
   GreedyResult out;
   out.vertex.assign(candidates.size(), kNone);
   auto commit = [&](const std::vector<std::uint32_t>& chosen, bool bulk) -> Status {
@@ -594,7 +595,8 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
       }
       const std::vector<kernel::InsertResult> ins = tri.insert_bulk(p3);
       for (std::size_t k = 0; k < chosen.size(); ++k) {
-        if (ins[k].outcome == kernel::InsertOutcome::inserted) out.vertex[chosen[k]] = ins[k].vertex;
+        if (ins[k].outcome == kernel::InsertOutcome::inserted)
+          out.vertex[chosen[k]] = ins[k].vertex;
       }
     }
     for (std::uint32_t i : chosen) {
@@ -617,9 +619,8 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   for (int round = 0;; ++round) {
     GreedyInserter g(tri, points);
     if (Status s = g.start(); !s.ok()) return s.error();
-    const std::vector<std::uint32_t> chosen =
-        g.select(tri.num_vertices(), round == 0 ? max_vertices : kNoLimit, epsilon, floor,
-                 &out.duplicates);
+    const std::vector<std::uint32_t> chosen = g.select(
+        tri.num_vertices(), round == 0 ? max_vertices : kNoLimit, epsilon, floor, &out.duplicates);
     if (round == 0) floor = g.top_error();
     if (chosen.empty() || round == kMaxRounds) {
       if (!chosen.empty()) {
@@ -628,14 +629,17 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
         GreedyInserter last(tri, points);
         if (Status s = last.start(); !s.ok()) return s.error();
         last.hand_over(out.orphans);
+        out.max_error = last.top_error();
       } else {
         g.hand_over(out.orphans);
+        out.max_error = g.top_error();
       }
       break;
     }
     if (Status s = commit(chosen, round == 0); !s.ok()) return s.error();
     if (g.matches_kernel(out.vertex)) {
       g.hand_over(out.orphans);
+      out.max_error = g.top_error();
       break;
     }
   }

@@ -48,6 +48,8 @@ struct GreedyResult {
   std::vector<kernel::VertexId> vertex;
   std::size_t inserted = 0;
   std::size_t duplicates = 0;  // candidates at exactly the (x, y) of a vertex already there
+  // The largest effective error of a candidate left out, against the kernel's final mesh.
+  double max_error = 0;
   // Every candidate not inserted (duplicates excepted) and every extra point inside the
   // triangulation, filed by triangle (their original z).
   FiledPoints orphans;

@@ -19,13 +19,15 @@
 #include <queue>
 #include <string>
 
-#include "tinstream/kernel/triangulation.hpp"
-#include "tinstream/lod/error.hpp"
 #include "greedy.hpp"
 #include "indexed_heap.hpp"
+#include "tinstream/kernel/triangulation.hpp"
+#include "tinstream/lod/error.hpp"
 
 namespace tinstream::lod {
 
+using detail::FiledPoints;
+using detail::IndexedHeap;
 using kernel::kNone;
 using kernel::TriangleId;
 using kernel::Triangulation;
@@ -33,8 +35,6 @@ using kernel::VertexId;
 using kernel::VertexTriple;
 using kernel::XY;
 using tile::Vertex;
-using detail::FiledPoints;
-using detail::IndexedHeap;
 
 std::size_t greedy_target(const LodOptions& options) {
   if (!(options.greedy_factor > 0)) return 0;
@@ -88,7 +88,9 @@ class InteriorThinner {
  public:
   // `orphans`: points already filed by triangle (the greedy stage's), more may be added.
   InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate, FiledPoints orphans)
-      : tri_(tri), candidate_(std::move(candidate)), heap_(candidate_.size()),
+      : tri_(tri),
+        candidate_(std::move(candidate)),
+        heap_(candidate_.size()),
         orph_(std::move(orphans)) {
     if (orph_.head.size() < tri_.mesh().triangle_slots())
       orph_.head.resize(tri_.mesh().triangle_slots(), kNone);
@@ -160,7 +162,8 @@ class InteriorThinner {
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
-        if (const auto z = at(orph_.x[i], orph_.y[i])) err = std::max(err, std::abs(orph_.z[i] - *z));
+        if (const auto z = at(orph_.x[i], orph_.y[i]))
+          err = std::max(err, std::abs(orph_.z[i] - *z));
       }
     }
     return err + tri_.weight(v);
@@ -186,7 +189,8 @@ class InteriorThinner {
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
-        err = std::max(err, std::abs(orph_.z[i] - surface_at(tris, orph_.x[i], orph_.y[i], nullptr)));
+        err =
+            std::max(err, std::abs(orph_.z[i] - surface_at(tris, orph_.x[i], orph_.y[i], nullptr)));
       }
     }
     return err + tri_.weight(v);
@@ -344,8 +348,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
                             std::to_string(options.max_points));
   }
   if (!(options.epsilon >= 0)) return invalid_argument("lod: epsilon must be ≥ 0");
-  if (!(options.greedy_factor >= 0))
-    return invalid_argument("lod: greedy_factor must be ≥ 0");
+  if (!(options.greedy_factor >= 0)) return invalid_argument("lod: greedy_factor must be ≥ 0");
   ThinStats local;
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
@@ -456,6 +459,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     interior_vertex = std::move(g->vertex);
     st.duplicates = g->duplicates;
     st.greedy_inserted = g->inserted;
+    st.greedy_error = g->max_error;
     filed = std::move(g->orphans);
   }
   std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);

@@ -86,9 +86,12 @@ struct ThinStats {
   std::size_t input_points = 0;  // corners + border + interior given
   std::size_t border_removed = 0;
   std::size_t interior_removed = 0;
-  std::size_t duplicates = 0;  // interior points dropped as exact (x, y) duplicates
+  std::size_t duplicates = 0;       // interior points dropped as exact (x, y) duplicates
   std::size_t greedy_inserted = 0;  // interior points selected by the greedy stage (0: none)
-  double last_error = 0;       // effective error of the last removal (0 when none)
+  // When it ran: the largest effective error of an interior point it left out, against the
+  // surface it handed to the drop stage (before any removal).
+  double greedy_error = 0;
+  double last_error = 0;  // effective error of the last removal (0 when none)
 };
 
 // Triangulates the input with the border constrained and thins it (border first, then
