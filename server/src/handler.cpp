@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <system_error>
 #include <unordered_map>
+#include <variant>
 
 #include "tinstream/server/ingest_paths.hpp"
 #include "tinstream/server/routes.hpp"
@@ -34,36 +35,47 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::vector<std::string_view> split(std::string_view s, char sep) {
-  std::vector<std::string_view> out;
+// The next `sep`-separated item of `rest`, trimmed; `rest` moves past it. Walks a header list
+// without allocating.
+std::string_view next_item(std::string_view& rest, char sep) {
+  const auto p = rest.find(sep);
+  const std::string_view item = trim(rest.substr(0, p));
+  rest = p == std::string_view::npos ? std::string_view() : rest.substr(p + 1);
+  return item;
+}
+
+// Calls fn(item) for every `sep`-separated item of s (trimmed, possibly empty); stops early when
+// fn returns true, and returns whether it did.
+template <typename Fn>
+bool any_item(std::string_view s, char sep, Fn fn) {
   while (true) {
-    const auto p = s.find(sep);
-    out.push_back(trim(s.substr(0, p)));
-    if (p == std::string_view::npos) break;
-    s = s.substr(p + 1);
+    const bool last = s.find(sep) == std::string_view::npos;
+    if (fn(next_item(s, sep))) return true;
+    if (last) return false;
   }
-  return out;
 }
 
 // Quality of `coding` in an Accept-Encoding header: 0 when not acceptable.
 double accept_quality(std::string_view header, std::string_view coding) {
   double star = -1, exact = -1;
-  for (std::string_view item : split(header, ',')) {
-    if (item.empty()) continue;
-    auto parts = split(item, ';');
+  any_item(header, ',', [&](std::string_view item) {
+    if (item.empty()) return false;
+    const std::string_view name = next_item(item, ';');
     double q = 1.0;
-    for (std::size_t i = 1; i < parts.size(); ++i) {
-      if (parts[i].size() > 2 && (parts[i][0] == 'q' || parts[i][0] == 'Q') && parts[i][1] == '=') {
+    any_item(item, ';', [&](std::string_view param) {
+      if (param.size() > 2 && (param[0] == 'q' || param[0] == 'Q') && param[1] == '=') {
         try {
-          q = std::stod(std::string(parts[i].substr(2)));
+          q = std::stod(std::string(param.substr(2)));
         } catch (...) {
           q = 0;
         }
       }
-    }
-    if (iequals(parts[0], coding)) exact = q;
-    if (parts[0] == "*") star = q;
-  }
+      return false;
+    });
+    if (iequals(name, coding)) exact = q;
+    if (name == "*") star = q;
+    return false;
+  });
   if (exact >= 0) return exact;
   if (star >= 0) return star;
   return 0;
@@ -71,30 +83,27 @@ double accept_quality(std::string_view header, std::string_view coding) {
 
 // True when the Accept header asks for the quantized-mesh extension `ext`.
 bool accept_wants_extension(std::string_view accept, std::string_view ext) {
-  for (std::string_view item : split(accept, ',')) {
-    auto parts = split(item, ';');
-    if (!iequals(parts[0], "application/vnd.quantized-mesh")) continue;
-    for (std::size_t i = 1; i < parts.size(); ++i) {
-      if (parts[i].substr(0, 11) != "extensions=") continue;
-      std::string_view list = parts[i].substr(11);
+  return any_item(accept, ',', [&](std::string_view item) {
+    const bool has_params = item.find(';') != std::string_view::npos;
+    if (!iequals(next_item(item, ';'), "application/vnd.quantized-mesh") || !has_params)
+      return false;
+    return any_item(item, ';', [&](std::string_view param) {
+      if (param.substr(0, 11) != "extensions=") return false;
+      std::string_view list = param.substr(11);
       if (!list.empty() && list.front() == '"')
         list = list.substr(1, list.size() >= 2 ? list.size() - 2 : 0);
-      for (std::string_view e : split(list, '-')) {
-        if (e == ext) return true;
-      }
-    }
-  }
-  return false;
+      return any_item(list, '-', [&](std::string_view e) { return e == ext; });
+    });
+  });
 }
 
 bool etag_matches(std::string_view if_none_match, std::string_view etag) {
   if (if_none_match.empty()) return false;
-  for (std::string_view tag : split(if_none_match, ',')) {
+  return any_item(if_none_match, ',', [&](std::string_view tag) {
     if (tag == "*") return true;
     if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
-    if (tag == etag) return true;
-  }
-  return false;
+    return tag == etag;
+  });
 }
 
 int http_status(ErrorCode code) {
@@ -165,14 +174,17 @@ Result<store::TileStore*> get_store(Context& ctx) {
   return ctx.store();
 }
 
-// The layer row, through the layer cache when there is one.
-Result<store::LayerInfo> layer_info(Context& ctx, store::TileStore& st, const std::string& name) {
+// The layer row, through the layer cache when there is one (the store is opened only on a miss).
+Result<std::shared_ptr<const store::LayerInfo>> layer_info(Context& ctx, const std::string& name) {
   if (ctx.layer_cache) {
-    if (auto hit = ctx.layer_cache->get(name)) return std::move(*hit);
+    if (auto hit = ctx.layer_cache->get(name)) return hit;
   }
-  auto info = st.layer(name);
-  if (info && ctx.layer_cache) ctx.layer_cache->put(*info);
-  return info;
+  auto st = get_store(ctx);
+  if (!st) return st.error();
+  auto info = (*st)->layer(name);
+  if (!info) return info.error();
+  if (ctx.layer_cache) ctx.layer_cache->put(*info);
+  return std::make_shared<const store::LayerInfo>(std::move(*info));
 }
 
 // Terrain only for spherical layers; a JSON 409 explains why otherwise.
@@ -240,10 +252,9 @@ void send_maybe_gzip(const Request& req, Response& res,
 }
 
 Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRoute& r) {
-  auto st = get_store(ctx);
-  if (!st) return error_response(st.error());
-  auto info = layer_info(ctx, **st, r.layer);
-  if (!info) return error_response(info.error());
+  auto found = layer_info(ctx, r.layer);
+  if (!found) return error_response(found.error());
+  const store::LayerInfo* info = found->get();
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
   const std::string etag = "\"lj-" + std::to_string(info->version) + "\"";
   Response res;
@@ -258,6 +269,8 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
   std::shared_ptr<const CachedBody> body =
       ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
   if (!body) {
+    auto st = get_store(ctx);
+    if (!st) return error_response(st.error());
     auto ids = (*st)->tile_ids(r.layer);
     if (!ids) return error_response(ids.error());
     terrain::LayerJsonInput in;
@@ -273,7 +286,7 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     auto bytes = terrain::gzip_compress(
         std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
     body = std::make_shared<const CachedBody>(
-        CachedBody{etag, std::string(bytes.begin(), bytes.end())});
+        CachedBody{etag, std::string(bytes.begin(), bytes.end()), nullptr});
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   res.set("Content-Type", "application/json");
@@ -281,66 +294,105 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
   return res;
 }
 
-Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r) {
+// The headers of a terrain answer that do not depend on the request; `with_body` adds those of
+// a 200 with gzip bytes.
+void set_terrain_headers(Response& res, const ServerConfig& config, const std::string& etag,
+                         bool normals, bool with_body) {
+  res.set("Cache-Control", cache_control(config));
+  res.set("Vary", "Accept, Accept-Encoding");
+  res.set("ETag", etag);
+  if (!with_body) return;
+  res.set("Content-Type", normals ? "application/vnd.quantized-mesh;extensions=octvertexnormals"
+                                  : "application/vnd.quantized-mesh");
+}
+
+// Cache key of an encoded terrain tile: layer version, tile and extensions.
+std::string terrain_key(const TerrainRoute& r, std::int64_t version, bool normals) {
+  std::string key;
+  key.reserve(40 + r.layer.size());
+  key.append("qm|").append(r.layer).append("|").append(std::to_string(version)).append("|");
+  key.append(r.id.quadkey()).append(normals ? "|n" : "|");
+  return key;
+}
+
+// Encodes one terrain tile (stored, or a flat ancestor of the coarsest stored level) as gzip
+// quantized-mesh; or the answer that replaces it (404, 304 on a matching If-None-Match, errors).
+std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
+    const Request& req, Context& ctx, const TerrainRoute& r, const store::LayerInfo& info,
+    bool normals) {
   auto st = get_store(ctx);
   if (!st) return error_response(st.error());
-  auto info = layer_info(ctx, **st, r.layer);
-  if (!info) return error_response(info.error());
-  if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
-  const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
-  const std::string key = "qm|" + r.layer + "|" + std::to_string(info->version) + "|" +
-                          r.id.quadkey() + "|" + (normals ? "n" : "");
-  Response res;
-  res.set("Cache-Control", cache_control(ctx.config));
-  res.set("Vary", "Accept, Accept-Encoding");
-
-  // Hot path: a cached encoding of this layer version needs no store access at all.
-  std::shared_ptr<const CachedBody> body =
-      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
-  if (!body) {
-    auto stored = (*st)->tile(r.layer, r.id);
-    if (!stored) return error_response(stored.error());
-    const bool synthetic = !stored->has_value();
-    if (synthetic && r.id.z >= info->min_level) {
-      return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
-                                 std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
-    }
-    std::string base_tag = synthetic
-                               ? "flat-" + r.id.quadkey() + "-" + std::to_string(info->version)
-                               : (**stored).etag;
-    base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
-    const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
-    if (etag_matches(req.if_none_match, etag)) {
-      res.set("ETag", etag);
-      res.status = 304;
-      return res;
-    }
-    tile::TinTile tin;
-    if (synthetic) {
-      tin = terrain::flat_tile(r.id);
-    } else {
-      auto raw = tile::decompress((**stored).compressed);
-      if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
-      auto decoded = tile::decode(*raw);
-      if (!decoded)
-        return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
-      tin = std::move(*decoded);
-    }
-    auto qm = terrain::encode_quantized_mesh(tin, info->projection, {normals});
-    if (!qm) return error_response(qm.error());
-    auto bytes = terrain::gzip_compress(*qm);
-    body = std::make_shared<const CachedBody>(
-        CachedBody{etag, std::string(bytes.begin(), bytes.end())});
-    if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
+  auto stored = (*st)->tile(r.layer, r.id);
+  if (!stored) return error_response(stored.error());
+  const bool synthetic = !stored->has_value();
+  if (synthetic && r.id.z >= info.min_level) {
+    return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
+                               std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
   }
-  res.set("ETag", body->etag);
-  if (etag_matches(req.if_none_match, body->etag)) {
+  std::string base_tag =
+      synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info.version) : (**stored).etag;
+  base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
+  const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
+  if (etag_matches(req.if_none_match, etag)) {
+    Response res;
+    set_terrain_headers(res, ctx.config, etag, normals, false);
     res.status = 304;
     return res;
   }
-  res.set("Content-Type", normals ? "application/vnd.quantized-mesh;extensions=octvertexnormals"
-                                  : "application/vnd.quantized-mesh");
-  send_maybe_gzip(req, res, body);
+  tile::TinTile tin;
+  if (synthetic) {
+    tin = terrain::flat_tile(r.id);
+  } else {
+    auto raw = tile::decompress((**stored).compressed);
+    if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
+    auto decoded = tile::decode(*raw);
+    if (!decoded)
+      return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
+    tin = std::move(*decoded);
+  }
+  auto qm = terrain::encode_quantized_mesh(tin, info.projection, {normals});
+  if (!qm) return error_response(qm.error());
+  auto bytes = terrain::gzip_compress(*qm);
+  Response head;
+  set_terrain_headers(head, ctx.config, etag, normals, true);
+  head.set("Content-Encoding", "gzip");
+  add_cors(head, ctx.config);
+  return std::make_shared<const CachedBody>(
+      CachedBody{etag, std::string(bytes.begin(), bytes.end()),
+                 std::make_shared<const HeaderBlock>(std::move(head.headers))});
+}
+
+Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r) {
+  auto found = layer_info(ctx, r.layer);
+  if (!found) return error_response(found.error());
+  const store::LayerInfo& info = **found;
+  if (auto refusal = refuse_ellipsoidal(info)) return *refusal;
+  const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
+  const std::string key = terrain_key(r, info.version, normals);
+
+  // Hot path: a cached encoding of this layer version needs no store access at all, and its 200
+  // carries headers formatted once.
+  std::shared_ptr<const CachedBody> body =
+      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!body) {
+    auto encoded = encode_terrain(req, ctx, r, info, normals);
+    if (auto* answer = std::get_if<Response>(&encoded)) return std::move(*answer);
+    body = std::move(std::get<std::shared_ptr<const CachedBody>>(encoded));
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
+  }
+  Response res;
+  if (etag_matches(req.if_none_match, body->etag)) {
+    set_terrain_headers(res, ctx.config, body->etag, normals, false);
+    res.status = 304;
+    return res;
+  }
+  if (accept_quality(req.accept_encoding, "gzip") > 0) {
+    res.prebuilt = body->gzip_head;
+    res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
+    return res;
+  }
+  set_terrain_headers(res, ctx.config, body->etag, normals, true);
+  send_maybe_gzip(req, res, body);  // the client takes no gzip: inflated
   return res;
 }
 
@@ -518,9 +570,19 @@ Response dispatch(const Request& req, Context& ctx, const Route& route) {
 
 }  // namespace
 
+HeaderBlock::HeaderBlock(std::vector<std::pair<std::string, std::string>> f)
+    : fields(std::move(f)) {
+  for (const auto& [k, v] : fields) wire.append(k).append(": ").append(v).append("\r\n");
+}
+
 const std::string* Response::header(std::string_view name) const {
   for (const auto& [k, v] : headers) {
     if (iequals(k, name)) return &v;
+  }
+  if (prebuilt) {
+    for (const auto& [k, v] : prebuilt->fields) {
+      if (iequals(k, name)) return &v;
+    }
   }
   return nullptr;
 }
@@ -583,7 +645,8 @@ bool is_upload(const Request& r) {
 }
 
 void add_cors(Response& response, const ServerConfig& config) {
-  if (config.cors_allow_origin.empty()) return;
+  // A prebuilt header block was made with add_cors already (see Response::prebuilt).
+  if (config.cors_allow_origin.empty() || response.prebuilt) return;
   response.set("Access-Control-Allow-Origin", config.cors_allow_origin);
   response.set("Access-Control-Expose-Headers", "ETag, Content-Encoding, Content-Length, Location");
 }
@@ -666,8 +729,8 @@ std::uint64_t TerrainCache::bytes() const {
 struct LayerCache::Impl {
   std::chrono::milliseconds ttl;
   std::mutex mutex;  // guards entries
-  std::unordered_map<std::string,
-                     std::pair<store::LayerInfo, std::chrono::steady_clock::time_point>>
+  std::unordered_map<std::string, std::pair<std::shared_ptr<const store::LayerInfo>,
+                                            std::chrono::steady_clock::time_point>>
       entries;
 };
 
@@ -676,13 +739,13 @@ LayerCache::LayerCache(std::uint32_t ttl_ms) : impl_(std::make_unique<Impl>()) {
 }
 LayerCache::~LayerCache() = default;
 
-std::optional<store::LayerInfo> LayerCache::get(const std::string& name) {
+std::shared_ptr<const store::LayerInfo> LayerCache::get(const std::string& name) {
   std::lock_guard lock(impl_->mutex);
   auto it = impl_->entries.find(name);
-  if (it == impl_->entries.end()) return std::nullopt;
+  if (it == impl_->entries.end()) return nullptr;
   if (std::chrono::steady_clock::now() - it->second.second > impl_->ttl) {
     impl_->entries.erase(it);
-    return std::nullopt;
+    return nullptr;
   }
   return it->second.first;
 }
@@ -690,7 +753,8 @@ std::optional<store::LayerInfo> LayerCache::get(const std::string& name) {
 void LayerCache::put(const store::LayerInfo& info) {
   std::lock_guard lock(impl_->mutex);
   if (impl_->entries.size() > 10000) impl_->entries.clear();
-  impl_->entries[info.name] = {info, std::chrono::steady_clock::now()};
+  impl_->entries[info.name] = {std::make_shared<const store::LayerInfo>(info),
+                               std::chrono::steady_clock::now()};
 }
 
 void LayerCache::clear() {

@@ -1,28 +1,44 @@
-// The socket side of the server: Boost.Beast sessions over one io_context and N threads.
-// All request logic is in handler.cpp; this file only moves bytes, enforces limits and timeouts,
-// and shuts down gracefully.
+// The socket side of the server: Boost.Beast request parsing over N shards, one io_context and one
+// thread each. All request logic is in handler.cpp; this file only moves bytes, enforces limits
+// and timeouts, and shuts down gracefully.
 //
-// Session states (each on the session's strand; shared_from_this keeps it alive while an
+//   acceptor (shard 0) ──round robin──▶ shard k: io_context k, run by thread k
+//                                        └─ its sessions, its timeout sweep, its TileStore
+//
+// A session lives on one shard from accept to close: no strands, no lock and no thread hand-off
+// per request (the acceptor hands each connection over once). Timeouts are deadlines that the
+// shard's sweep timer checks every `sweep` interval (no timer operation per read or write).
+//
+// Session states (each handler on the session's shard; shared_from_this keeps it alive while an
 // operation is pending):
 //
 //   read header ──▶ read body (string, or file for uploads) ──▶ handle() ──▶ write ──┐
 //        ▲                                                                         │
 //        └──────────────────────── keep-alive and not stopping ◀───────────────────┘
-//   any error / Connection: close / stopping ──▶ lingering close (drain, bounded) ──▶ closed
+//   any error / timeout / Connection: close / stopping ──▶ lingering close (drain, bounded) ──▶
+//   closed
+//
+// A response goes out as one gather write: the header block (formatted into a buffer the session
+// reuses, or prebuilt by the handler for cached tiles) and the body bytes (cached tiles: shared,
+// not copied).
 #include "tinstream/server/server.hpp"
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <charconv>
 #include <chrono>
 #include <limits>
 #include <map>
-#include <mutex>
+#include <optional>
 #include <random>
 #include <thread>
+#include <unordered_set>
 
 #include "tinstream/server/handler.hpp"
 #include "tinstream/store/tile_store.hpp"
@@ -33,37 +49,63 @@ namespace beast = boost::beast;
 namespace http = boost::beast::http;
 namespace net = boost::asio;
 using tcp = net::ip::tcp;
+using Clock = std::chrono::steady_clock;
 
 class Session;
 
+// One io_context, run by one thread, and the sessions on it.
+struct Shard {
+  explicit Shard(std::chrono::milliseconds sweep_every)
+      : ioc(1), work(net::make_work_guard(ioc)), sweep(ioc), every(sweep_every) {}
+
+  // Touched only by the shard's own thread (or, once no thread runs the shard, by the thread
+  // destroying the server). Declared before ioc: it outlives the handlers ioc destroys.
+  std::unordered_set<Session*> sessions;
+  net::io_context ioc;
+  // Keeps run() going while the shard has no session; dropped by stop().
+  std::optional<net::executor_work_guard<net::io_context::executor_type>> work;
+  net::steady_timer sweep;  // checks the sessions' deadlines
+  std::chrono::milliseconds every;
+};
+
 struct Server::Impl {
   ~Impl();
-  explicit Impl(const ServerConfig& c)
+  Impl(const ServerConfig& c, unsigned n_shards)
       : serial(next_serial.fetch_add(1)),
         config(c),
-        acceptor(net::make_strand(ioc)),
-        signals(ioc, SIGINT, SIGTERM),
-        grace(ioc) {}
+        shards(make_shards(c, n_shards)),
+        acceptor(shards.front()->ioc),
+        signals(shards.front()->ioc, SIGINT, SIGTERM),
+        grace(shards.front()->ioc) {}
+
+  static std::vector<std::unique_ptr<Shard>> make_shards(const ServerConfig& c, unsigned n) {
+    // Timeouts fire up to one sweep interval late: an eighth of the shortest one, 5-250 ms.
+    const auto every = std::chrono::milliseconds(
+        std::clamp<std::uint32_t>(std::min(c.read_timeout_ms, c.write_timeout_ms) / 8, 5, 250));
+    std::vector<std::unique_ptr<Shard>> out;
+    for (unsigned i = 0; i < std::max(1u, n); ++i) out.push_back(std::make_unique<Shard>(every));
+    return out;
+  }
 
   static inline std::atomic<std::uint64_t> next_serial{1};
   std::uint64_t serial;
   ServerConfig config;
-  net::io_context ioc;
-  tcp::acceptor acceptor;
-  net::signal_set signals;
-  net::steady_timer grace;
   Metrics metrics;
   std::unique_ptr<JobManager> jobs;
   std::unique_ptr<TerrainCache> cache;
   LayerCache layers{1000};
   Context ctx;
   std::atomic<bool> stopping{false};
-  std::chrono::steady_clock::time_point stop_deadline;
-
-  std::mutex sessions_mutex;  // guards sessions
-  std::map<Session*, std::weak_ptr<Session>> sessions;
+  std::atomic<std::int64_t> live_sessions{0};
+  Clock::time_point stop_deadline;
+  std::vector<std::unique_ptr<Shard>> shards;  // at least one; shard 0 also runs what follows
+  tcp::acceptor acceptor;
+  net::signal_set signals;
+  net::steady_timer grace;
+  std::size_t next_shard = 0;  // round robin; the accept handler only
 
   void do_accept();
+  void sweep(Shard& shard);
   void stop();
   void watch_drain();
 };
@@ -95,63 +137,89 @@ Result<store::TileStore*> thread_store(std::uint64_t serial, const std::filesyst
   return slot.get();
 }
 
+std::string_view view(beast::string_view s) { return {s.data(), s.size()}; }
+
+void append_number(std::string& out, std::uint64_t v) {
+  std::array<char, 24> digits{};
+  auto [end, ec] = std::to_chars(digits.data(), digits.data() + digits.size(), v);
+  out.append(digits.data(), end);
+}
+
 }  // namespace
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(tcp::socket&& socket, Server::Impl& server)
-      : stream_(std::move(socket)), server_(server) {
+  Session(tcp::socket&& socket, Server::Impl& server, Shard& shard)
+      : socket_(std::move(socket)), server_(server), shard_(shard) {
     server_.metrics.connection_opened();
+    server_.live_sessions.fetch_add(1);
   }
   ~Session() {
+    shard_.sessions.erase(this);
     server_.metrics.connection_closed();
     if (!upload_path_.empty()) {
       std::error_code ec;
       std::filesystem::remove(upload_path_, ec);
     }
-    std::lock_guard lock(server_.sessions_mutex);
-    server_.sessions.erase(this);
+    server_.live_sessions.fetch_sub(1);
   }
 
-  void start() {
-    {
-      std::lock_guard lock(server_.sessions_mutex);
-      server_.sessions[this] = weak_from_this();
-    }
-    net::dispatch(stream_.get_executor(),
-                  beast::bind_front_handler(&Session::do_read, shared_from_this()));
+  // On the shard's thread. `reject`: answer 503 and close (over max_connections).
+  void start(bool reject) {
+    shard_.sessions.insert(this);
+    if (!reject) return do_read();
+    start_ = Clock::now();
+    reset_request();
+    send(json_error(503, "too many connections"), true);
   }
 
-  void reject() {
-    net::dispatch(stream_.get_executor(), [self = shared_from_this()] {
-      self->start_ = std::chrono::steady_clock::now();
-      self->req_ = Request{};
-      self->req_.method = "-";
-      self->req_.target = "-";
-      self->send(json_error(503, "too many connections"), true);
-    });
-  }
-
-  // Called (posted to the strand) when the server stops: idle connections close now, busy ones
-  // after their response.
+  // On the shard's thread, when the server stops: idle connections close now, busy ones after
+  // their response (bounded by the timeouts and shutdown_grace_ms), with `Connection: close`.
+  // The wait for a next request is cancelled, not closed: the reactor may already have read the
+  // first bytes of one (neither in buffer_ nor in the socket yet), and on_header still gets them.
   void shutdown() {
-    if (reading_header_ && idle()) close_now();
-    // Otherwise a request is in flight (bytes received or being handled): it is answered with
-    // `Connection: close`, bounded by the read/write timeouts and shutdown_grace_ms.
+    if (!reading_header_ || !idle()) return;
+    beast::error_code ec;
+    socket_.cancel(ec);
   }
-  // Only when no thread runs the io_context (Server::Impl's destructor).
-  void force_close() { close_now(); }
-  void shutdown_posted() {
-    net::post(stream_.get_executor(), [self = shared_from_this()] { self->shutdown(); });
+
+  // On the shard's thread: closes the connection when its current read or write is overdue.
+  void check_deadline(Clock::time_point now) {
+    if (now >= deadline_) {
+      deadline_ = Clock::time_point::max();
+      close_now();
+    }
+  }
+
+  void close_now() {
+    beast::error_code ec;
+    socket_.shutdown(tcp::socket::shutdown_both, ec);
+    socket_.close(ec);
   }
 
  private:
   const ServerConfig& cfg() const { return server_.config; }
 
+  void expires_after(std::uint32_t ms) { deadline_ = Clock::now() + std::chrono::milliseconds(ms); }
+
   // No bytes of a next request received, neither buffered nor waiting in the socket.
   bool idle() {
     beast::error_code ec;
-    return buffer_.size() == 0 && stream_.socket().available(ec) == 0;
+    return buffer_.size() == 0 && socket_.available(ec) == 0;
+  }
+
+  // The request fields are reused from one request to the next (their capacity with them).
+  void reset_request() {
+    req_.method.assign("-");
+    req_.target.assign("-");
+    req_.accept.clear();
+    req_.accept_encoding.clear();
+    req_.if_none_match.clear();
+    req_.authorization.clear();
+    req_.content_type.clear();
+    req_.body.clear();
+    req_.body_file.clear();
+    req_.body_file_size = 0;
   }
 
   void do_read() {
@@ -161,18 +229,18 @@ class Session : public std::enable_shared_from_this<Session> {
     // Body limits depend on the route (uploads vs. the rest): checked once the header is known.
     header_parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     reading_header_ = true;
-    stream_.expires_after(std::chrono::milliseconds(cfg().read_timeout_ms));
-    http::async_read_header(stream_, buffer_, *header_parser_,
+    expires_after(cfg().read_timeout_ms);
+    http::async_read_header(socket_, buffer_, *header_parser_,
                             beast::bind_front_handler(&Session::on_header, shared_from_this()));
   }
 
   void on_header(beast::error_code ec, std::size_t) {
     reading_header_ = false;
-    start_ = std::chrono::steady_clock::now();
-    req_ = Request{};
-    req_.method = "-";
-    req_.target = "-";
-    if (ec == http::error::end_of_stream || ec == net::error::eof || ec == beast::error::timeout ||
+    start_ = Clock::now();
+    reset_request();
+    // Cancelled by shutdown(): do_read() closes the connection unless a request arrived since.
+    if (ec == net::error::operation_aborted && server_.stopping) return do_read();
+    if (ec == http::error::end_of_stream || ec == net::error::eof ||
         ec == net::error::operation_aborted || ec == net::error::connection_reset ||
         ec == net::error::bad_descriptor) {
       return close_now();
@@ -186,14 +254,13 @@ class Session : public std::enable_shared_from_this<Session> {
     if (ec) return send(json_error(400, "malformed request: " + ec.message()), true);
 
     const auto& h = header_parser_->get();
-    req_.method = std::string(h.method_string());
-    req_.target = std::string(h.target());
-    auto field = [&](http::field f) { return std::string(h[f]); };
-    req_.accept = field(http::field::accept);
-    req_.accept_encoding = field(http::field::accept_encoding);
-    req_.if_none_match = field(http::field::if_none_match);
-    req_.authorization = field(http::field::authorization);
-    req_.content_type = field(http::field::content_type);
+    req_.method.assign(view(h.method_string()));
+    req_.target.assign(view(h.target()));
+    req_.accept.assign(view(h[http::field::accept]));
+    req_.accept_encoding.assign(view(h[http::field::accept_encoding]));
+    req_.if_none_match.assign(view(h[http::field::if_none_match]));
+    req_.authorization.assign(view(h[http::field::authorization]));
+    req_.content_type.assign(view(h[http::field::content_type]));
     keep_alive_ = h.keep_alive();
     version_ = h.version();
     const bool expect_continue = beast::iequals(h[http::field::expect], "100-continue");
@@ -227,8 +294,8 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       return continue_then(
           [self = shared_from_this()] {
-            self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
-            http::async_read(self->stream_, self->buffer_, *self->file_parser_,
+            self->expires_after(self->cfg().read_timeout_ms);
+            http::async_read(self->socket_, self->buffer_, *self->file_parser_,
                              beast::bind_front_handler(&Session::on_file_body, self));
           },
           expect_continue);
@@ -246,8 +313,8 @@ class Session : public std::enable_shared_from_this<Session> {
     string_parser_->body_limit(cfg().max_body_bytes);
     continue_then(
         [self = shared_from_this()] {
-          self->stream_.expires_after(std::chrono::milliseconds(self->cfg().read_timeout_ms));
-          http::async_read(self->stream_, self->buffer_, *self->string_parser_,
+          self->expires_after(self->cfg().read_timeout_ms);
+          http::async_read(self->socket_, self->buffer_, *self->string_parser_,
                            beast::bind_front_handler(&Session::on_body, self));
         },
         expect_continue && !string_parser_->is_done());
@@ -257,8 +324,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void continue_then(Next next, bool expect_continue) {
     if (!expect_continue) return next();
     static const std::string kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
-    stream_.expires_after(std::chrono::milliseconds(cfg().write_timeout_ms));
-    net::async_write(stream_, net::buffer(kContinue),
+    expires_after(cfg().write_timeout_ms);
+    net::async_write(socket_, net::buffer(kContinue),
                      [self = shared_from_this(), next](beast::error_code ec, std::size_t) {
                        if (ec) return self->close_now();
                        next();
@@ -292,9 +359,28 @@ class Session : public std::enable_shared_from_this<Session> {
     respond();
   }
 
-  void respond() {
-    Response res = handle(req_, server_.ctx);
-    send(std::move(res), !keep_alive_);
+  void respond() { send(handle(req_, server_.ctx), !keep_alive_); }
+
+  // Status line and headers into head_: the handler's headers, its prebuilt block, then what
+  // depends on the connection.
+  void format_head(const Response& res, std::size_t content_length) {
+    head_.clear();
+    head_.append(version_ == 10 ? "HTTP/1.0 " : "HTTP/1.1 ");
+    append_number(head_, static_cast<std::uint64_t>(res.status));
+    head_.push_back(' ');
+    head_.append(
+        view(http::obsolete_reason(http::int_to_status(static_cast<unsigned>(res.status)))));
+    head_.append("\r\nServer: tinstream\r\n");
+    for (const auto& [k, v] : res.headers) head_.append(k).append(": ").append(v).append("\r\n");
+    if (res.prebuilt) head_.append(res.prebuilt->wire);
+    if (close_after_ && version_ != 10) head_.append("Connection: close\r\n");
+    if (!close_after_ && version_ == 10) head_.append("Connection: keep-alive\r\n");
+    if (res.status != 304 && res.status != 204) {
+      head_.append("Content-Length: ");
+      append_number(head_, content_length);
+      head_.append("\r\n");
+    }
+    head_.append("\r\n");
   }
 
   void send(Response res, bool close_after) {
@@ -304,47 +390,34 @@ class Session : public std::enable_shared_from_this<Session> {
     const bool head = req_.method == "HEAD";
     const std::size_t full = res.payload().size();
     body_bytes_ = head ? 0 : full;
-    if (res.shared_body && !head) {
-      // Cached bytes: point the serializer at them; shared_body_ keeps them alive until written.
-      auto msg = std::make_shared<http::response<http::buffer_body>>();
-      shared_body_ = std::move(res.shared_body);
-      msg->body().data = const_cast<char*>(shared_body_->data());
-      msg->body().size = shared_body_->size();
-      msg->body().more = false;
-      return write(std::move(msg), res, full);
-    }
-    auto msg = std::make_shared<http::response<http::string_body>>();
-    if (!head) msg->body() = std::move(res.body);
-    write(std::move(msg), res, full);
-  }
-
-  template <typename Message>
-  void write(std::shared_ptr<Message> msg, const Response& res, std::size_t content_length) {
-    msg->version(version_);
-    msg->result(static_cast<unsigned>(res.status));
-    msg->set(http::field::server, "tinstream");
-    for (const auto& [k, v] : res.headers) msg->set(k, v);
-    msg->keep_alive(!close_after_);
-    if (res.status != 304 && res.status != 204) msg->content_length(content_length);
-    response_ = msg;
-    stream_.expires_after(std::chrono::milliseconds(cfg().write_timeout_ms));
-    http::async_write(stream_, *msg,
-                      beast::bind_front_handler(&Session::on_write, shared_from_this()));
+    format_head(res, full);
+    // The body stays owned by the session until written: shared cached bytes, or the string.
+    shared_body_ = std::move(res.shared_body);
+    body_ = std::move(res.body);
+    const std::array<net::const_buffer, 2> buffers{
+        net::buffer(head_),
+        head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
+    expires_after(cfg().write_timeout_ms);
+    net::async_write(socket_, buffers,
+                     beast::bind_front_handler(&Session::on_write, shared_from_this()));
   }
 
   void on_write(beast::error_code ec, std::size_t) {
-    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(
-                        std::chrono::steady_clock::now() - start_)
-                        .count();
+    deadline_ = Clock::time_point::max();
+    const auto us =
+        std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
     server_.metrics.record(route_, status_, ec ? 0 : body_bytes_, static_cast<double>(us) / 1e6);
     if (cfg().access_log) {
       spdlog::info("{} {} {} {} {}us{}", req_.method, req_.target, status_, body_bytes_, us,
                    ec ? " (write failed: " + ec.message() + ")" : std::string());
     }
-    response_.reset();
     shared_body_.reset();
+    body_.clear();
     if (ec) return close_now();
-    if (close_after_ || server_.stopping) return lingering_close();
+    if (close_after_) return lingering_close();
+    // Stopping or not, the client was told the connection stays open and may already have sent
+    // its next request: do_read() closes an idle connection, else answers that request (with
+    // `Connection: close` when stopping).
     do_read();
   }
 
@@ -352,15 +425,14 @@ class Session : public std::enable_shared_from_this<Session> {
   // reads our response instead of a connection reset.
   void lingering_close() {
     beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    socket_.shutdown(tcp::socket::shutdown_send, ec);
     drained_ = 0;
     drain();
   }
 
   void drain() {
-    stream_.expires_after(
-        std::chrono::milliseconds(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000)));
-    stream_.async_read_some(net::buffer(drain_buffer_),
+    expires_after(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000));
+    socket_.async_read_some(net::buffer(drain_buffer_),
                             [self = shared_from_this()](beast::error_code ec, std::size_t n) {
                               self->drained_ += n;
                               if (ec || self->drained_ > (4u << 20)) return self->close_now();
@@ -368,23 +440,20 @@ class Session : public std::enable_shared_from_this<Session> {
                             });
   }
 
-  void close_now() {
-    beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
-    stream_.socket().close(ec);
-  }
-
-  beast::tcp_stream stream_;
+  tcp::socket socket_;
   beast::flat_buffer buffer_;
   Server::Impl& server_;
+  Shard& shard_;
+  Clock::time_point deadline_ = Clock::time_point::max();  // of the pending read or write
   std::optional<http::request_parser<http::empty_body>> header_parser_;
   std::optional<http::request_parser<http::string_body>> string_parser_;
   std::optional<http::request_parser<http::file_body>> file_parser_;
-  std::shared_ptr<void> response_;
-  std::shared_ptr<const std::string> shared_body_;  // bytes a buffer_body response points into
+  std::string head_;                                // the response's header block
+  std::string body_;                                // the response's own body bytes
+  std::shared_ptr<const std::string> shared_body_;  // or shared, cached ones
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
   Request req_;
-  std::chrono::steady_clock::time_point start_;
+  Clock::time_point start_;
   std::string route_ = "other";
   int status_ = 0;
   std::size_t body_bytes_ = 0;
@@ -398,41 +467,48 @@ class Session : public std::enable_shared_from_this<Session> {
 
 Server::Impl::~Impl() {
   // Handlers still pending after a forced stop (grace period over) own sessions that refer to
-  // this object: close their sockets and let those handlers finish before any member goes away.
+  // this object. No thread runs the shards any more: close the sessions' sockets from here and
+  // let those handlers finish before any member goes away.
   beast::error_code ec;
   acceptor.close(ec);
   signals.cancel(ec);
   grace.cancel();
-  std::vector<std::shared_ptr<Session>> live;
-  {
-    std::lock_guard lock(sessions_mutex);
-    for (auto& [ptr, weak] : sessions) {
-      if (auto s = weak.lock()) live.push_back(std::move(s));
-    }
+  for (auto& shard : shards) {
+    shard->work.reset();
+    shard->sweep.cancel();
+    for (Session* s : shard->sessions) s->close_now();
+    shard->ioc.restart();
+    shard->ioc.run_for(std::chrono::seconds(5));
   }
-  for (auto& s : live) s->force_close();
-  live.clear();
-  ioc.restart();
-  ioc.run_for(std::chrono::seconds(5));
 }
 
 void Server::Impl::do_accept() {
-  acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
+  Shard& target = *shards[next_shard];
+  next_shard = (next_shard + 1) % shards.size();
+  acceptor.async_accept(target.ioc, [this, &target](beast::error_code ec, tcp::socket socket) {
     if (ec) {
       if (!acceptor.is_open() || stopping) return;
       spdlog::warn("accept failed: {}", ec.message());
-    } else {
+    } else if (!stopping) {
       beast::error_code nd;
       socket.set_option(tcp::no_delay(true), nd);  // responses go out in one write; no Nagle wait
-      auto session = std::make_shared<Session>(std::move(socket), *this);
-      if (metrics.open_connections() > static_cast<std::int64_t>(config.max_connections)) {
-        metrics.connection_rejected();
-        session->reject();
-      } else {
-        session->start();
-      }
+      auto session = std::make_shared<Session>(std::move(socket), *this, target);
+      const bool reject =
+          metrics.open_connections() > static_cast<std::int64_t>(config.max_connections);
+      if (reject) metrics.connection_rejected();
+      net::post(target.ioc, [session = std::move(session), reject] { session->start(reject); });
     }
     if (!stopping) do_accept();
+  });
+}
+
+void Server::Impl::sweep(Shard& shard) {
+  const auto now = Clock::now();
+  for (Session* s : shard.sessions) s->check_deadline(now);  // closing erases nothing here
+  if (stopping && shard.sessions.empty()) return;            // lets run() return
+  shard.sweep.expires_after(shard.every);
+  shard.sweep.async_wait([this, &shard](beast::error_code ec) {
+    if (!ec) sweep(shard);
   });
 }
 
@@ -440,34 +516,26 @@ void Server::Impl::stop() {
   if (stopping.exchange(true)) return;
   spdlog::info("shutting down: finishing in-flight requests (grace {} ms)",
                config.shutdown_grace_ms);
-  stop_deadline =
-      std::chrono::steady_clock::now() + std::chrono::milliseconds(config.shutdown_grace_ms);
+  stop_deadline = Clock::now() + std::chrono::milliseconds(config.shutdown_grace_ms);
   net::post(acceptor.get_executor(), [this] {
     beast::error_code ec;
     acceptor.close(ec);
+    signals.cancel(ec);
   });
-  signals.cancel();
-  std::vector<std::shared_ptr<Session>> live;
-  {
-    std::lock_guard lock(sessions_mutex);
-    for (auto& [ptr, weak] : sessions) {
-      if (auto s = weak.lock()) live.push_back(std::move(s));
-    }
+  for (auto& shard : shards) {
+    net::post(shard->ioc, [s = shard.get()] {
+      for (Session* session : s->sessions) session->shutdown();
+    });
+    shard->work.reset();
   }
-  for (auto& s : live) s->shutdown_posted();
-  net::post(ioc, [this] { watch_drain(); });
+  net::post(shards.front()->ioc, [this] { watch_drain(); });
 }
 
 void Server::Impl::watch_drain() {
-  bool empty;
-  {
-    std::lock_guard lock(sessions_mutex);
-    empty = sessions.empty();
-  }
-  if (empty) return;  // nothing left: run() returns once the handlers finish
-  if (std::chrono::steady_clock::now() >= stop_deadline) {
+  if (live_sessions.load() == 0) return;  // nothing left: run() returns once the handlers finish
+  if (Clock::now() >= stop_deadline) {
     spdlog::warn("shutdown grace period over; closing remaining connections");
-    ioc.stop();
+    for (auto& shard : shards) shard->ioc.stop();
     return;
   }
   grace.expires_after(std::chrono::milliseconds(20));
@@ -489,7 +557,9 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
     if (!rw)
       return Error(rw.error().code, "store " + config.store.string() + ": " + rw.error().message);
   }
-  auto impl = std::make_unique<Impl>(config);
+  const unsigned threads =
+      config.threads > 0 ? config.threads : std::max(1u, std::thread::hardware_concurrency());
+  auto impl = std::make_unique<Impl>(config, threads);
   Impl* raw = impl.get();
   // A finished job may have published or replaced a layer: forget cached layer rows.
   IngestRunner wrapped = [runner = std::move(runner), raw](const IngestJobSpec& job,
@@ -539,18 +609,22 @@ void Server::run(bool handle_signals) {
       s.stop();
     });
   }
-  if (!s.stopping) s.do_accept();
-  const unsigned n =
-      s.config.threads > 0 ? s.config.threads : std::max(1u, std::thread::hardware_concurrency());
+  if (!s.stopping) {
+    s.do_accept();
+    for (auto& shard : s.shards) {
+      net::post(shard->ioc, [&s, sh = shard.get()] { s.sweep(*sh); });
+    }
+  }
   spdlog::info("tinstream-server listening on {}:{} with {} threads, store {}", s.config.address,
-               port(), n, s.config.store.string());
+               port(), s.shards.size(), s.config.store.string());
   std::vector<std::thread> threads;
-  auto serve = [&s] {
-    s.ioc.run();
+  auto serve = [&s](Shard& shard) {
+    shard.ioc.run();
     thread_stores().erase(s.serial);
   };
-  for (unsigned i = 1; i < n; ++i) threads.emplace_back(serve);
-  serve();
+  for (std::size_t i = 1; i < s.shards.size(); ++i)
+    threads.emplace_back(serve, std::ref(*s.shards[i]));
+  serve(*s.shards.front());
   for (auto& t : threads) t.join();
   s.jobs->shutdown();
   spdlog::info("tinstream-server stopped");

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <fstream>
@@ -254,6 +255,172 @@ TEST_F(ServerTest, KeepAliveAndPipelining) {
   EXPECT_GT(std::stoul(r4.header("Content-Length")), 100u);
   // Still open: a fifth request on the same connection.
   EXPECT_EQ(c.request("GET", "/healthz").status, 200);
+}
+
+std::string terrain_target(const geo::TileId& id) {
+  return "/tiles/lux/" + std::to_string(id.z) + "/" + std::to_string(id.x) + "/" +
+         std::to_string(id.tms_row()) + ".terrain";
+}
+
+std::string terrain_get(const geo::TileId& id, const std::string& extra_headers = {},
+                        const std::string& method = "GET") {
+  return method + " " + terrain_target(id) +
+         " HTTP/1.1\r\nHost: x\r\nAccept: "
+         "application/vnd.quantized-mesh;extensions=octvertexnormals"
+         "\r\n" +
+         extra_headers + "\r\n";
+}
+
+// Cached tiles answer from a prebuilt header block and shared bytes, the rest from per-request
+// headers: a burst mixing both on one connection must come back in order, framed exactly
+// (a wrong Content-Length would shift every later answer), with the same bytes either way.
+TEST_F(ServerTest, PipelinedBurstOfCachedUncachedAnd304AnsweredInOrder) {
+  const geo::TileId a = kTile, b = *kTile.neighbour(geo::Direction::east),
+                    c = *kTile.neighbour(geo::Direction::west);
+  const std::string gzip = "Accept-Encoding: gzip\r\n";
+  // The ETag of c before anything encoded it: derived from the stored tile's.
+  std::string c_etag;
+  {
+    auto st = store::TileStore::open(store_path_, store::TileStore::Mode::read_only);
+    ASSERT_TRUE(st.ok());
+    auto stored = st->tile("lux", c);
+    ASSERT_TRUE(stored.ok() && stored->has_value());
+    std::string tag = (**stored).etag;
+    tag.erase(std::remove(tag.begin(), tag.end(), '"'), tag.end());
+    c_etag = "\"qm-" + tag + "-n\"";
+  }
+  // b is cached (and its ETag known) before the burst.
+  HttpConnection warm(port_);
+  ASSERT_TRUE(warm.send_raw(terrain_get(b, gzip)));
+  const auto b_ref = warm.read_response();
+  ASSERT_EQ(b_ref.status, 200);
+
+  HttpConnection conn(port_);
+  ASSERT_TRUE(conn.send_raw(
+      terrain_get(a, gzip) +  // 1: miss, encoded
+      terrain_get(a, gzip) +  // 2: hit, prebuilt
+      terrain_get(b, gzip + "If-None-Match: " + b_ref.header("ETag") + "\r\n") +  // 3: 304, hit
+      terrain_get(c, gzip + "If-None-Match: " + c_etag + "\r\n") +                // 4: 304, miss
+      terrain_get(a, gzip, "HEAD") +                                              // 5: HEAD, hit
+      terrain_get(a) +  // 6: no gzip: inflated
+      "GET /tiles/lux/" + a.quadkey() + " HTTP/1.1\r\nHost: x\r\n" + gzip + "\r\n" +  // 7: native
+      terrain_get(*geo::TileId::from_zxy(12, 0, 0), gzip) +                           // 8: 404
+      terrain_get(c, gzip) +                         // 9: miss after a 304
+      "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"));  // 10
+  std::vector<testing::HttpResponse> r;
+  for (int i = 0; i < 10; ++i) r.push_back(conn.read_response(/*head_request=*/i == 4));
+  // Still open and in step afterwards.
+  EXPECT_EQ(conn.request("GET", "/healthz").status, 200);
+
+  HttpConnection ref_conn(port_);
+  ASSERT_TRUE(ref_conn.send_raw(terrain_get(a, gzip)));
+  const auto a_ref = ref_conn.read_response();
+  ASSERT_EQ(a_ref.status, 200);
+  ASSERT_FALSE(a_ref.body.empty());
+  EXPECT_EQ(a_ref.header("Content-Length"), std::to_string(a_ref.body.size()));
+
+  for (int i : {0, 1}) {
+    EXPECT_EQ(r[i].status, 200) << i;
+    EXPECT_EQ(r[i].body, a_ref.body) << i;
+    EXPECT_EQ(r[i].headers, a_ref.headers) << i;
+  }
+  EXPECT_EQ(a_ref.header("Content-Encoding"), "gzip");
+  EXPECT_EQ(a_ref.header("Content-Type"),
+            "application/vnd.quantized-mesh;extensions=octvertexnormals");
+  EXPECT_EQ(a_ref.header("Cache-Control"), "public, max-age=86400");
+  EXPECT_EQ(a_ref.header("Access-Control-Allow-Origin"), "*");
+  EXPECT_FALSE(a_ref.header("ETag").empty());
+  EXPECT_EQ(a_ref.header("Connection"), "");
+
+  EXPECT_EQ(r[2].status, 304);
+  EXPECT_EQ(r[2].header("ETag"), b_ref.header("ETag"));
+  EXPECT_EQ(r[2].header("Content-Length"), "");
+  EXPECT_EQ(r[2].header("Content-Encoding"), "");
+  EXPECT_EQ(r[3].status, 304);
+  EXPECT_EQ(r[3].header("ETag"), c_etag);
+  EXPECT_EQ(r[3].header("Access-Control-Allow-Origin"), "*");
+
+  EXPECT_EQ(r[4].status, 200);
+  EXPECT_TRUE(r[4].body.empty());
+  EXPECT_EQ(r[4].headers, a_ref.headers);
+
+  EXPECT_EQ(r[5].status, 200);
+  EXPECT_EQ(r[5].header("Content-Encoding"), "");
+  EXPECT_EQ(r[5].header("ETag"), a_ref.header("ETag"));
+  EXPECT_EQ(testing::bytes_of(r[5].body), testing::gunzip(a_ref.body));
+
+  EXPECT_EQ(r[6].status, 200);
+  EXPECT_EQ(r[6].header("Content-Encoding"), "gzip");
+  auto native = tile::decode(testing::gunzip(r[6].body));
+  ASSERT_TRUE(native.ok());
+  EXPECT_EQ(native->id, a);
+
+  EXPECT_EQ(r[7].status, 404);
+  EXPECT_EQ(json::parse(r[7].body)["status"], 404);
+
+  EXPECT_EQ(r[8].status, 200);
+  EXPECT_EQ(r[8].header("ETag"), c_etag);
+  EXPECT_EQ(r[8].header("Content-Length"), std::to_string(r[8].body.size()));
+  EXPECT_EQ(testing::decode_quantized_mesh(testing::gunzip(r[8].body)).u.size(), 17u * 17u);
+
+  EXPECT_EQ(r[9].status, 200);
+  EXPECT_EQ(json::parse(r[9].body)["status"], "ok");
+}
+
+// Timeouts are deadlines checked by each io thread's sweep: an idle keep-alive connection and a
+// request header that never ends are both closed once read_timeout_ms has passed, not before.
+TEST_F(ServerTest, ReadTimeoutClosesIdleAndStalledConnections) {
+  stop();
+  start([](ServerConfig& c) { c.read_timeout_ms = 300; });
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  HttpConnection idle(port_);
+  ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
+  // Half the timeout later the connection is still there (and its deadline starts again).
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
+  HttpConnection stalled(port_);
+  ASSERT_TRUE(stalled.send_raw("GET /healthz HTTP/1.1\r\nHost: x\r\n"));
+  HttpConnection busy(port_);  // keeps sending requests: never idle long enough
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(busy.request("GET", "/healthz").status, 200) << i;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_TRUE(stalled.closed_by_peer());
+  EXPECT_TRUE(idle.closed_by_peer());
+  // Closed within a few sweeps of the deadline (generous: a loaded CI machine).
+  EXPECT_LT(clock::now() - t0, std::chrono::seconds(5));
+  EXPECT_EQ(stalled.read_response().status, 0);  // no answer to the stalled request
+}
+
+// With several io threads (one io_context each), stop() still closes idle connections at once,
+// answers every request already received on any thread, and run() returns.
+TEST_F(ServerTest, GracefulShutdownWithSeveralIoThreads) {
+  stop();
+  start([](ServerConfig& c) { c.threads = 4; });
+  std::vector<std::unique_ptr<HttpConnection>> idle, busy;
+  for (int i = 0; i < 8; ++i) {
+    idle.push_back(std::make_unique<HttpConnection>(port_));
+    ASSERT_EQ(idle.back()->request("GET", "/healthz").status, 200);
+    busy.push_back(std::make_unique<HttpConnection>(port_));
+    // A first request makes sure the connection is accepted; then half a request header.
+    ASSERT_EQ(busy.back()->request("GET", "/healthz").status, 200);
+    ASSERT_TRUE(busy.back()->send_raw("GET " + terrain_target(kTile) +
+                                      " HTTP/1.1\r\nHost: x\r\nAccept-Encoding: gzip\r\n"));
+  }
+  server_->stop();
+  for (auto& c : busy) ASSERT_TRUE(c->send_raw("\r\n"));
+  for (auto& c : busy) {
+    auto r = c->read_response();
+    EXPECT_EQ(r.status, 200);
+    EXPECT_EQ(r.header("Connection"), "close");
+    EXPECT_EQ(r.header("Content-Length"), std::to_string(r.body.size()));
+    EXPECT_TRUE(c->closed_by_peer());
+  }
+  for (auto& c : idle) EXPECT_TRUE(c->closed_by_peer());
+  thread_.join();
+  HttpConnection after(port_);
+  EXPECT_EQ(after.request("GET", "/healthz").status, 0);
 }
 
 TEST_F(ServerTest, OversizedHeadersBodiesAndGarbageAre4xxAndServingContinues) {

@@ -53,6 +53,9 @@ void add_cors(Response& response, const ServerConfig& config);
 struct CachedBody {
   std::string etag;
   std::string bytes;
+  // Every header of the 200 answer with these bytes as they are (gzip), when the cache owner
+  // built it; null: the handler formats the headers per request.
+  std::shared_ptr<const HeaderBlock> gzip_head;
 };
 
 // A bounded LRU of encoded (gzip) quantized-mesh tiles and layer.json documents, keyed by layer
@@ -78,7 +81,7 @@ class LayerCache {
  public:
   explicit LayerCache(std::uint32_t ttl_ms = 1000);
   ~LayerCache();
-  std::optional<store::LayerInfo> get(const std::string& name);
+  std::shared_ptr<const store::LayerInfo> get(const std::string& name);  // null: absent or stale
   void put(const store::LayerInfo& info);
   void clear();
 

@@ -25,17 +25,31 @@ struct Request {
   std::uint64_t body_file_size = 0;
 };
 
+// Header fields shared by every identical answer (the 200 of a cached tile), built once: the
+// session sends `wire` as it is, without formatting a header per request.
+struct HeaderBlock {
+  std::vector<std::pair<std::string, std::string>> fields;
+  std::string wire;  // "Name: value\r\n" for each field, in order
+
+  explicit HeaderBlock(std::vector<std::pair<std::string, std::string>> f);
+};
+
 struct Response {
   int status = 200;
   std::vector<std::pair<std::string, std::string>> headers;
+  // When set, sent after `headers`. It already holds every header of the answer that does not
+  // depend on the connection (CORS included): nothing may be added to `headers` that repeats one
+  // of its fields (add_cors leaves such a response alone).
+  std::shared_ptr<const HeaderBlock> prebuilt;
   std::string body;  // bytes
   // When set, sent instead of `body`: shared, immutable bytes (cached tiles), sent without a copy.
   std::shared_ptr<const std::string> shared_body;
   std::string_view payload() const { return shared_body ? std::string_view(*shared_body) : body; }
   std::string route = "other";  // metrics label of the matched route
 
-  const std::string* header(std::string_view name) const;  // case-insensitive; nullptr if absent
-  void set(std::string name, std::string value);           // replaces an existing header
+  // Case-insensitive, in `headers` then `prebuilt`; nullptr if absent.
+  const std::string* header(std::string_view name) const;
+  void set(std::string name, std::string value);  // replaces a header in `headers`
 };
 
 // `{"error": message, "status": status}` with Content-Type application/json.
