@@ -530,14 +530,18 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   return out;
 }
 
-Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinStats* stats) {
+ThinInput thin_input(const tile::TinTile& tile) {
   ThinInput in;
   in.id = tile.id;
   in.corners = tile.corners;
   in.corner_nodata = tile.corner_nodata;
   in.north = tile.north, in.east = tile.east, in.south = tile.south, in.west = tile.west;
   in.interior = tile.interior;
-  auto reduced = thin_tile(in, options, stats);
+  return in;
+}
+
+Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinStats* stats) {
+  auto reduced = thin_tile(thin_input(tile), options, stats);
   if (!reduced.ok()) return reduced.error();
   const tile::TinTile* original = &tile;
   const SurfaceDifference d =

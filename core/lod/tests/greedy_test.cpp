@@ -25,23 +25,13 @@ double rough(double x, double y) {
          15.0 * std::sin(x * 5.0e4 + y * 3.1e4);
 }
 
-ThinInput input_of(const tile::TinTile& t) {
-  ThinInput in;
-  in.id = t.id;
-  in.corners = t.corners;
-  in.corner_nodata = t.corner_nodata;
-  in.north = t.north, in.east = t.east, in.south = t.south, in.west = t.west;
-  in.interior = t.interior;
-  return in;
-}
-
 TEST(Greedy, PlaneInsertsNothing) {
   const auto full =
       grid_tile(kTile, 64, [](double x, double y) { return 50.0 + 800.0 * x - 300.0 * y; });
   LodOptions o;
   o.max_points = 100;  // 65² points ≫ 1.25 × 100: the greedy stage runs
   ThinStats st;
-  auto t = thin_tile(input_of(full), o, &st);
+  auto t = thin_tile(thin_input(full), o, &st);
   ASSERT_TRUE(t.ok()) << t.error().message;
   EXPECT_EQ(st.greedy_inserted, 0u);  // every interior point lies on the border's plane
   EXPECT_TRUE(t->interior.empty());
@@ -63,7 +53,7 @@ TEST(Greedy, SingleSpikeIsTheFirstPointInserted) {
   o.max_points = 4 + 4 * 2 + 1;  // the fixed points and exactly one greedy insertion
   o.greedy_factor = 1.0;
   ThinStats st;
-  auto t = thin_tile(input_of(full), o, &st);
+  auto t = thin_tile(thin_input(full), o, &st);
   ASSERT_TRUE(t.ok()) << t.error().message;
   EXPECT_EQ(st.greedy_inserted, 1u);
   ASSERT_EQ(t->interior.size(), 1u);
@@ -76,7 +66,7 @@ TEST(Greedy, SingleSpikeIsTheFirstPointInserted) {
 // brute-force evaluation at every input point left out.
 TEST(Greedy, ReportedErrorIsTheBruteForceMaximum) {
   const auto lattice = grid_tile(kTile, 32, rough);
-  ThinInput in = input_of(lattice);
+  ThinInput in = thin_input(lattice);
   const geo::MercatorRect r = kTile.bounds();
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> ux(r.min_x + r.width() * 1e-3, r.max_x - r.width() * 1e-3);
@@ -135,7 +125,7 @@ TEST(Greedy, RejectsANegativeFactor) {
   const auto full = grid_tile(kTile, 8, rough);
   LodOptions o;
   o.greedy_factor = -1;
-  EXPECT_FALSE(thin_tile(input_of(full), o).ok());
+  EXPECT_FALSE(thin_tile(thin_input(full), o).ok());
 }
 
 }  // namespace

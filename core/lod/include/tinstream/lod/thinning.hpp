@@ -82,6 +82,9 @@ struct ThinInput {
   std::optional<geo::MercatorRect> rect;
 };
 
+// A tile's own points as the input of thin_tile (no orphans, the tile's rectangle).
+ThinInput thin_input(const tile::TinTile& tile);
+
 struct ThinStats {
   std::size_t input_points = 0;  // corners + border + interior given
   std::size_t border_removed = 0;
