@@ -259,6 +259,32 @@ TEST_F(Cli, MixedInputsInOneIngest) {
   EXPECT_EQ(verify("mixed").status, 0);
 }
 
+TEST_F(Cli, JsonSummaryReportsTheTimeOfEveryPhase) {
+  const fs::path xyz = dir_ / "phases.xyz";
+  write_xyz(xyz, 5000, 4);
+  const Outcome r =
+      ingest("phases", {"--json", "-q", "--crs", "EPSG:4326", "--max-points", "500", xyz.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const std::vector<std::string> expected = {"transform", "sort", "triangulate", "lod", "publish"};
+  ASSERT_EQ(j["phases"].size(), expected.size()) << j["phases"].dump();
+  double wall = 0;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    const auto& p = j["phases"][i];
+    EXPECT_EQ(p["phase"], expected[i]);
+    EXPECT_GE(p["seconds"].get<double>(), 0.0);
+    EXPECT_GE(p["cpu_seconds"].get<double>(), 0.0);
+    wall += p["seconds"].get<double>();
+  }
+  // The phases cover the run: their sum is the total up to opening the store and the clock reads.
+  EXPECT_LE(wall, j["seconds"].get<double>() + 1e-3);
+  EXPECT_GE(wall, 0.5 * j["seconds"].get<double>());
+  // Triangulating and thinning 5000 points takes measurable CPU.
+  EXPECT_GT(
+      j["phases"][2]["cpu_seconds"].get<double>() + j["phases"][3]["cpu_seconds"].get<double>(),
+      0.0);
+}
+
 TEST_F(Cli, BadInputsGiveClearErrorsAndLeaveTheStoreUnchanged) {
   const fs::path good = dir_ / "good.xyz";
   write_xyz(good, 3000, 1);

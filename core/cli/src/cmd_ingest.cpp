@@ -116,6 +116,10 @@ nlohmann::json summary_json(const ingest::IngestSummary& s) {
                       {"rejected_invalid", in.counters.rejected_invalid},
                       {"notes", in.notes}});
   }
+  nlohmann::json phases = nlohmann::json::array();
+  for (const auto& p : s.phases) {
+    phases.push_back({{"phase", p.name}, {"seconds", p.seconds}, {"cpu_seconds", p.cpu_seconds}});
+  }
   return {{"layer", s.layer},
           {"records_read", s.records_read},
           {"points_accepted", s.points_accepted},
@@ -131,6 +135,7 @@ nlohmann::json summary_json(const ingest::IngestSummary& s) {
           {"points_per_second",
            s.seconds > 0 ? static_cast<double>(s.points_accepted) / s.seconds : 0.0},
           {"peak_rss_mb", static_cast<double>(s.peak_rss_bytes) / (1024.0 * 1024.0)},
+          {"phases", phases},
           {"inputs", inputs}};
 }
 
@@ -168,6 +173,11 @@ int run(const IngestArgs& args) {
                 summary->seconds, j["points_per_second"].get<double>(),
                 j["peak_rss_mb"].get<double>());
   std::cout << line;
+  for (const auto& p : summary->phases) {
+    std::snprintf(line, sizeof line, "  %-12s %8.1f s wall %8.1f s CPU\n", p.name.c_str(),
+                  p.seconds, p.cpu_seconds);
+    std::cout << line;
+  }
   return 0;
 }
 

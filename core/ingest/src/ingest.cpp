@@ -80,6 +80,41 @@ std::uint64_t peak_rss_bytes() {
   return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024u;  // Linux reports KiB
 }
 
+namespace {
+
+double process_cpu_seconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  auto sec = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+  };
+  return sec(usage.ru_utime) + sec(usage.ru_stime);
+}
+
+// Closes the running phase (if any) and opens the next one.
+class PhaseClock {
+ public:
+  explicit PhaseClock(std::vector<PhaseTime>& out) : out_(out) {}
+  void next(std::string name) {
+    const auto now = std::chrono::steady_clock::now();
+    const double cpu = process_cpu_seconds();
+    if (!out_.empty()) {
+      out_.back().seconds = std::chrono::duration<double>(now - wall_).count();
+      out_.back().cpu_seconds = cpu - cpu_;
+    }
+    if (!name.empty()) out_.push_back({std::move(name), 0, 0});
+    wall_ = now, cpu_ = cpu;
+  }
+  void stop() { next({}); }
+
+ private:
+  std::vector<PhaseTime>& out_;
+  std::chrono::steady_clock::time_point wall_{};
+  double cpu_ = 0;
+};
+
+}  // namespace
+
 Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSink& progress) {
   const auto start = std::chrono::steady_clock::now();
   if (Status s = store::validate_layer_name(options.layer); !s) return s.error();
@@ -106,6 +141,8 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
 
   IngestSummary summary;
   summary.layer = options.layer;
+  PhaseClock clock(summary.phases);
+  clock.next("transform");
 
   // ── Pass 1: read, reproject, normalised Mercator → run file ──
   transform::TransformOptions topt;
@@ -126,6 +163,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   }
 
   // ── Pass 2: Morton sort + finest level ──
+  clock.next("sort");
   auto run_reader = transform::RunFileReader::open(pass1->run_file);
   if (!run_reader) return run_reader.error();
   std::vector<transform::RunPoint> run_batch;
@@ -178,6 +216,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   if (!writer) return writer.error();
 
   // ── Pass 3: finest tiles on the worker pool, stored by this thread ──
+  clock.next("triangulate");
   std::uint64_t finest_tiles = 0;
   auto pass3 = triangulate::build_finest_tiles(
       *sorted, threads,
@@ -197,6 +236,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   summary.tiles = finest_tiles;
 
   // ── Pass 4: the LOD pyramid ──
+  clock.next("lod");
   info.level_max_error.assign(sorted->finest_level + 1, 0.0);
 #ifdef TINSTREAM_HAVE_LOD
   // Gridded inputs become "reduced TINs" at the finest level when an epsilon is given.
@@ -234,6 +274,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   info.min_level = summary.min_level;
 
   // ── Publish ──
+  clock.next("publish");
   if (progress && !progress({"publish", 0, 1, "steps"})) return cancelled("publish").error();
   info.tile_count = summary.tiles;
   if (Status s = (*writer)->publish(info); !s) return s.error();
@@ -241,6 +282,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   auto published = store->layer(options.layer);
   if (!published) return published.error();
   summary.layer_info = *published;
+  clock.stop();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.peak_rss_bytes = peak_rss_bytes();
   return summary;

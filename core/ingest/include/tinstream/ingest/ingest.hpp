@@ -49,6 +49,13 @@ struct LevelSummary {
   double max_error = 0;
 };
 
+// Wall-clock and process CPU time (all threads) of one pass.
+struct PhaseTime {
+  std::string name;  // "transform", "sort", "triangulate", "lod", "publish"
+  double seconds = 0;
+  double cpu_seconds = 0;
+};
+
 struct IngestSummary {
   std::string layer;
   std::uint64_t records_read = 0;     // over all inputs
@@ -62,6 +69,7 @@ struct IngestSummary {
   std::vector<LevelSummary> levels;
   double halo_overhead = 0;  // points triangulated / points (pass 3)
   double seconds = 0;
+  std::vector<PhaseTime> phases;  // in order; their seconds add up to about `seconds`
   std::uint64_t peak_rss_bytes = 0;
   std::vector<transform::InputSummary> inputs;
   store::LayerInfo layer_info;
