@@ -1,8 +1,9 @@
 // Greedy insertion (Delatin) on a float32 height grid, refined to each requested vertex count.
 // usage: node delatin_run.mjs <grid.f32> <W> <H> <N,N,...> <out dir>
 // Writes <out>/delatin_<N>.txt ("nv nt", then "col row" per vertex, then triangles) and
-// <out>/delatin_times.txt ("N milliseconds" per line: construction + refinement up to N vertices,
-// file writing excluded).
+// <out>/delatin_times.txt ("N milliseconds cpu_milliseconds" per line: construction + refinement
+// up to N vertices, file writing excluded; wall time, and the process's CPU time by
+// process.cpuUsage(), so that a loaded machine can be compared with our CPU time).
 import fs from 'node:fs';
 import Delatin from 'delatin';
 
@@ -13,14 +14,19 @@ const w = Number(W), h = Number(H);
 const targets = counts.split(',').map(Number).sort((a, b) => a - b);
 const times = [];
 const ms = (ns) => Number(ns) / 1e6;
+const cpuMs = (u) => (u.user + u.system) / 1000;
 let t = process.hrtime.bigint();
+let c = process.cpuUsage();
 const tin = new Delatin(data, w, h);
 let spent = process.hrtime.bigint() - t;
+let cpu = cpuMs(process.cpuUsage(c));
 for (const n of targets) {
   t = process.hrtime.bigint();
+  c = process.cpuUsage();
   while (tin.coords.length / 2 < n && tin.getMaxError() > 0) tin.refine();
   spent += process.hrtime.bigint() - t;
-  times.push(`${n} ${ms(spent)}`);
+  cpu += cpuMs(process.cpuUsage(c));
+  times.push(`${n} ${ms(spent)} ${cpu}`);
   const nv = tin.coords.length / 2, nt = tin.triangles.length / 3;
   const lines = [`${nv} ${nt}`];
   for (let i = 0; i < nv; i++) lines.push(`${tin.coords[2 * i]} ${tin.coords[2 * i + 1]}`);

@@ -189,18 +189,28 @@ int main(int argc, char** argv) {
   }
   if (mode != "compare" || argc < 5) return 2;
   const std::string dir = argv[3];
-  std::map<std::size_t, double> delatin_ms;
+  std::map<std::size_t, double> delatin_ms, delatin_cpu_ms;
   {
     std::ifstream f(dir + "/delatin_times.txt");
     std::size_t n;
     double ms;
-    while (f >> n >> ms) delatin_ms[n] = ms;
+    std::string line;
+    while (std::getline(f, line)) {
+      std::istringstream l(line);
+      double cpu = NAN;
+      if (!(l >> n >> ms)) continue;
+      l >> cpu;
+      delatin_ms[n] = ms;
+      delatin_cpu_ms[n] = cpu;
+    }
   }
   const tinstream::lod::ThinInput input = grid_input(g);
   std::printf(
       "| vertices | Delatin max (m) | ours max (m) | max ratio | Delatin RMS (m) | ours RMS (m) | "
-      "RMS ratio | Delatin time (s) | ours time (s) | ours CPU (s) | time ratio |\n");
-  std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      "RMS ratio | Delatin time (s) | ours time (s) | time ratio | Delatin CPU (s) | ours CPU (s) "
+      "| "
+      "CPU ratio |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::size_t n : parse_counts(argv[4])) {
     PixelMesh dm;
     if (!read_delatin(dir + "/delatin_" + std::to_string(n) + ".txt", dm)) {
@@ -229,10 +239,13 @@ int main(int argc, char** argv) {
     const PixelMesh om = to_pixels(g, *ours);
     const Errors de = evaluate(g, dm), oe = evaluate(g, om);
     const double dt = delatin_ms.count(n) ? delatin_ms[n] / 1000.0 : NAN;
+    const double dc = delatin_cpu_ms.count(n) ? delatin_cpu_ms[n] / 1000.0 : NAN;
     std::printf(
-        "| %zu / %zu | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.1f |\n",
+        "| %zu / %zu | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %.3f | %.3f "
+        "| "
+        "%.2f |\n",
         dm.col.size(), ours->vertex_count(), de.max, oe.max, oe.max / de.max, de.rms, oe.rms,
-        oe.rms / de.rms, dt, ours_s, ours_cpu, ours_s / dt);
+        oe.rms / de.rms, dt, ours_s, ours_s / dt, dc, ours_cpu, ours_cpu / dc);
     std::fprintf(stderr, "%zu vertices: border max Delatin %.3f m, ours %.3f m\n", n, de.border_max,
                  oe.border_max);
     std::fflush(stdout);

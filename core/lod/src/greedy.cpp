@@ -168,16 +168,27 @@ class GreedyInserter {
   // The largest effective error of a candidate (0 when none is left).
   double top_error() const { return heap_.empty() ? 0.0 : -heap_.key(heap_.top()); }
 
-  // Greedy insertion in the own mesh while the mesh has fewer than max_vertices vertices and
-  // the largest effective error is > floor, > 0 and ≥ epsilon. Returns the inserted points in
-  // insertion order. Duplicates count into *duplicates.
+  // Greedy insertion in the own mesh while the mesh has fewer than max_vertices vertices (see
+  // settling below) and the largest effective error is > floor, > 0 and ≥ epsilon. Returns the
+  // inserted points in insertion order. Duplicates count into *duplicates.
   std::vector<std::uint32_t> select(std::size_t vertices, std::size_t max_vertices, double epsilon,
                                     double floor, std::size_t* duplicates) {
     std::vector<std::uint32_t> chosen;
-    while (vertices < max_vertices && !heap_.empty()) {
+    // Settling: the largest error is not monotone (inserting a spike makes the pits next to it
+    // stand out), so stopping exactly at max_vertices may leave a freshly raised error that the
+    // drop stage cannot remove. Past max_vertices, insertion goes on while the largest error is
+    // above the lowest one seen over the last tenth of the way there (at most up to twice
+    // max_vertices).
+    const bool limited = max_vertices != kNoLimit;
+    const std::size_t watch_from = limited ? max_vertices - max_vertices / 10 : kNoLimit;
+    const std::size_t hard_cap = limited ? 2 * max_vertices : kNoLimit;
+    double settled = std::numeric_limits<double>::infinity();
+    while (!heap_.empty()) {
       const std::uint32_t t = heap_.top();
       const double e = -heap_.key(t);
       if (!(e > 0) || e < epsilon || !(e > floor)) break;
+      if (vertices >= watch_from) settled = std::min(settled, e);
+      if (vertices >= max_vertices && !(e > settled && vertices < hard_cap)) break;
       const std::uint32_t pos = best_[t];
       const std::uint32_t i = pool_[pos].id;
       const Outcome outcome = insert(pos, t);

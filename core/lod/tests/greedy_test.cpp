@@ -39,7 +39,7 @@ TEST(Greedy, PlaneInsertsNothing) {
   EXPECT_TRUE(tile::check_structure(*t).ok());
 }
 
-TEST(Greedy, SingleSpikeIsTheFirstPointInserted) {
+TEST(Greedy, SingleSpikeIsTheOnePointKept) {
   const geo::MercatorRect r = kTile.bounds();
   const double h = r.width() / 64;
   const double sx = r.min_x + 41 * h, sy = r.max_y - 17 * h;
@@ -55,7 +55,10 @@ TEST(Greedy, SingleSpikeIsTheFirstPointInserted) {
   ThinStats st;
   auto t = thin_tile(thin_input(full), o, &st);
   ASSERT_TRUE(t.ok()) << t.error().message;
-  EXPECT_EQ(st.greedy_inserted, 1u);
+  // The spike goes in first; settling may add a point or two next to it (the tent it raises
+  // over the big border triangles), which the drop stage then removes again.
+  EXPECT_GE(st.greedy_inserted, 1u);
+  EXPECT_LE(st.greedy_inserted, 3u);
   ASSERT_EQ(t->interior.size(), 1u);
   EXPECT_EQ(t->interior[0].x, sx);
   EXPECT_EQ(t->interior[0].y, sy);
