@@ -8,6 +8,8 @@
 //   straight constraint a-v-b  the link splits at a and b into two open chains, each made convex
 //                              against the segment a-b, which becomes one constrained edge
 #include <algorithm>
+#include <array>
+#include <limits>
 #include <string>
 
 #include "tinstream/kernel/triangulation.hpp"
@@ -102,58 +104,81 @@ void Triangulation::Hole::close_ring(int c) {
   add(ring[p], ring[uc], ring[n], owner[uc], owner[n], owner[p]);
 }
 
+// Degree 4 (a quadrilateral hole r0 r1 r2 r3): the diagonal r0-r2 lies inside when the corners
+// at r1 and r3 are strictly convex, r1-r3 when those at r2 and r0 are; when both do, one exact
+// incircle test picks the Delaunay one (on a tie either is). Returns false, leaving the hole
+// untouched, only when neither diagonal is valid (cannot happen for a valid star).
+bool Triangulation::Hole::triangulate_quad(const Mesh& mesh) {
+  const XY &r0 = mesh.xy(ring[0]), &r1 = mesh.xy(ring[1]), &r2 = mesh.xy(ring[2]),
+           &r3 = mesh.xy(ring[3]);
+  const bool d02 = orient2d(r0, r1, r2) > 0.0 && orient2d(r2, r3, r0) > 0.0;
+  const bool d13 = orient2d(r1, r2, r3) > 0.0 && orient2d(r3, r0, r1) > 0.0;
+  if (!d02 && !d13) return false;
+  if (d02 && !(d13 && incircle(r0, r1, r2, r3) > 0.0)) {
+    clip_ear(1);  // (r0, r1, r2), then (r0, r2, r3)
+    close_ring(2);
+  } else {
+    clip_ear(2);  // (r1, r2, r3), then (r1, r3, r0)
+    close_ring(3);
+  }
+  return true;
+}
+
 // Devillers' ear queue ("On deletion in Delaunay triangulations", 2002): of all ears of the link
 // polygon, the one whose circumcircle has the largest power with respect to v is a Delaunay
 // triangle of the hole, so clipping ears in that order needs no flips afterwards. The powers are
-// compared in plain floating point (power = -incircle(ear, v) / orient(ear), compared by cross
-// multiplication); every chosen ear is then checked with the exact predicates like any ear, and
+// compared in plain floating point (power = -incircle(ear, v) / orient(ear)); every chosen ear is then checked with the exact predicates like any ear, and
 // the Lawson pass of plan_removal still verifies every new diagonal exactly, so a wrong choice
 // near a tie costs a flip, never correctness. Returns false (hole to be rebuilt by the plain ear
 // clipping) when the chosen ear is not a valid ear, which happens only near degeneracies.
 bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
-  const std::size_t k = ring.size();
-  ear_key.resize(k);
-  auto at = [&](int i) -> const XY& { return mesh.xy(ring[static_cast<std::size_t>(i)]); };
-  auto evaluate = [&](int c) {
-    const auto uc = static_cast<std::size_t>(c);
-    const XY &a = at(prv[uc]), &b = at(c), &d = at(nxt[uc]);
+  // The remaining ring as a small array (ring indices, in order) with one key per ear: a linear
+  // scan finds the best ear without chasing list links.
+  std::array<int, kEarQueueMax> at{};
+  std::array<double, kEarQueueMax> key{};
+  std::size_t left = ring.size();
+  for (std::size_t m = 0; m < left; ++m) at[m] = static_cast<int>(m);
+  auto xy = [&](std::size_t m) -> const XY& {
+    return mesh.xy(ring[static_cast<std::size_t>(at[m])]);
+  };
+  auto evaluate = [&](std::size_t m) {
+    const XY &a = xy(m == 0 ? left - 1 : m - 1), &b = xy(m), &d = xy(m + 1 == left ? 0 : m + 1);
     const double ax = a.x - pv.x, ay = a.y - pv.y, bx = b.x - pv.x, by = b.y - pv.y;
     const double dx = d.x - pv.x, dy = d.y - pv.y;
     const double orient = (ax - dx) * (by - dy) - (ay - dy) * (bx - dx);
     const double inc = (ax * ax + ay * ay) * (bx * dy - dx * by) +
                        (bx * bx + by * by) * (dx * ay - ax * dy) +
                        (dx * dx + dy * dy) * (ax * by - bx * ay);
-    ear_key[uc] = {inc, orient};
+    // A reflex or flat corner (approximately) is no ear; NaN never wins either.
+    key[m] = orient > 0.0 ? inc / orient : std::numeric_limits<double>::infinity();
   };
-  for (std::size_t i = 0; i < k; ++i) evaluate(static_cast<int>(i));
-  std::size_t left = k;
-  int start = 0;
+  for (std::size_t m = 0; m < left; ++m) evaluate(m);
   while (left > 3) {
-    int best = -1;
-    int i = start;
-    for (std::size_t m = 0; m < left; ++m, i = nxt[static_cast<std::size_t>(i)]) {
-      const auto& key = ear_key[static_cast<std::size_t>(i)];
-      if (!(key[1] > 0.0)) continue;  // reflex or flat corner (approximately): not an ear
-      if (best < 0) {
-        best = i;
-        continue;
-      }
-      const auto& kb = ear_key[static_cast<std::size_t>(best)];
-      if (key[0] * kb[1] < kb[0] * key[1]) best = i;  // smaller incircle / orient
+    std::size_t best = 0;
+    for (std::size_t m = 1; m < left; ++m) {
+      if (key[m] < key[best]) best = m;
     }
-    if (best < 0) return false;
-    const auto ub = static_cast<std::size_t>(best);
-    const int p = prv[ub], n = nxt[ub];
-    if (orient2d(at(p), at(best), at(n)) <= 0.0 || orient2d(at(p), at(n), pv) <= 0.0) {
+    const std::size_t mp = best == 0 ? left - 1 : best - 1, mn = best + 1 == left ? 0 : best + 1;
+    if (!(key[best] < std::numeric_limits<double>::infinity()) ||
+        orient2d(xy(mp), xy(best), xy(mn)) <= 0.0 || orient2d(xy(mp), xy(mn), pv) <= 0.0) {
       return false;
     }
-    clip_ear(best);
+    const auto p = static_cast<std::size_t>(at[mp]), c = static_cast<std::size_t>(at[best]),
+               n = static_cast<std::size_t>(at[mn]);
+    // Edges opposite p = (c, n): ring owner of c; opposite c = (n, p): new; opposite n = (p, c).
+    const int L = add(ring[p], ring[c], ring[n], owner[c], kUnset, owner[p]);
+    owner[p] = L * 3 + 1;
+    for (std::size_t m = best; m + 1 < left; ++m) {
+      at[m] = at[m + 1];
+      key[m] = key[m + 1];
+    }
     --left;
-    start = p;
-    evaluate(p);
-    evaluate(n);
+    evaluate(best == 0 ? left - 1 : best - 1);  // the ears at p and n changed
+    evaluate(best == left ? 0 : best);
   }
-  close_ring(start);
+  const auto p = static_cast<std::size_t>(at[0]), c = static_cast<std::size_t>(at[1]),
+             n = static_cast<std::size_t>(at[2]);
+  add(ring[p], ring[c], ring[n], owner[c], owner[n], owner[p]);
   return true;
 }
 
@@ -304,6 +329,9 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // so it contains no other vertex and the rest stays star-shaped around v.
     const XY pv = mesh_.xy(v);
     hole.start_ring();
+    if (k == 4 && hole.triangulate_quad(mesh_)) {
+      return true;  // the diagonal was chosen with exact predicates: nothing to flip
+    }
     if (k <= kEarQueueMax && hole.clip_delaunay_ears(mesh_, pv)) {
       // done: every ear was checked exactly; the flips below only verify
     } else {

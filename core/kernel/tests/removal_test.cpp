@@ -51,6 +51,60 @@ TEST(Removal, RemovingAnInteriorVertexGivesTheTriangulationWithoutIt) {
   expect_valid(t);
 }
 
+// Degree-4 stars have their own path (one diagonal picked with exact predicates, no flips).
+// In general position the result must equal the triangulation built without the point; the
+// quadrilateral links include non-convex ones, where only one diagonal is valid.
+TEST(Removal, DegreeFourStarsTakeTheDelaunayDiagonal) {
+  std::size_t removed = 0, non_convex = 0;
+  for (std::uint32_t seed = 1; seed <= 40 && removed < 200; ++seed) {
+    const auto pts = test::uniform_points(60, 500 + seed);
+    Triangulation t;
+    const auto res = t.insert_bulk(pts);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const VertexId v = res[i].vertex;
+      if (!t.is_vertex(v) || t.is_on_hull(v)) continue;
+      const std::vector<VertexId> link = t.adjacent_vertices(v);
+      if (link.size() != 4) continue;
+      for (std::size_t c = 0; c < 4; ++c) {
+        if (orient2d(t.xy(link[(c + 3) % 4]), t.xy(link[c]), t.xy(link[(c + 1) % 4])) <= 0.0) {
+          ++non_convex;
+          break;
+        }
+      }
+      ASSERT_TRUE(t.remove_vertex(v).ok());
+      ++removed;
+      Triangulation fresh;
+      std::map<VertexId, VertexId> fresh_to_t;
+      for (std::size_t j = 0; j < pts.size(); ++j) {
+        if (t.is_vertex(res[j].vertex)) fresh_to_t[fresh.insert(pts[j]).vertex] = res[j].vertex;
+      }
+      std::set<VertexTriple> expected;
+      for (auto tr : fresh.finite_triangles()) {
+        expected.insert(sorted({fresh_to_t[tr[0]], fresh_to_t[tr[1]], fresh_to_t[tr[2]]}));
+      }
+      ASSERT_EQ(triangle_set(t), expected) << "seed " << seed << ", input point " << i;
+    }
+  }
+  EXPECT_GE(removed, 100u);
+  EXPECT_GE(non_convex, 10u);
+}
+
+// Cocircular squares: every degree-4 removal is a tie (either diagonal is Delaunay); the result
+// must still be valid, checked with exact predicates after every removal.
+TEST(Removal, DegreeFourStarsOnALatticeStayDelaunay) {
+  Triangulation t;
+  const auto res = t.insert_bulk(test::lattice_points(12));
+  std::size_t removed = 0;
+  for (const auto& r : res) {
+    if (!t.is_vertex(r.vertex) || t.is_on_hull(r.vertex)) continue;
+    if (t.adjacent_vertices(r.vertex).size() != 4) continue;
+    ASSERT_TRUE(t.remove_vertex(r.vertex).ok());
+    ++removed;
+    ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+  }
+  EXPECT_GE(removed, 5u);
+}
+
 TEST(Removal, PreviewEqualsTheTrianglesThatRemovalCreates) {
   const auto pts = test::clustered_points(500, 8);
   Triangulation t;

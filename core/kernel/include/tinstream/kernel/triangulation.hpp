@@ -198,6 +198,7 @@ class Triangulation {
     void start_ring();
     void clip_ear(int c);   // adds the ear (prv[c], c, nxt[c]) and unlinks c
     void close_ring(int c); // adds the last triangle (prv[c], c, nxt[c])
+    bool triangulate_quad(const Mesh& mesh);
     bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
   };
   Result<bool> plan_removal(VertexId v, Hole& hole) const;
