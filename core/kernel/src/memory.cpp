@@ -1,4 +1,4 @@
-// Memory hints for the mesh arrays (see detail::HugePageAllocator in mesh.hpp).
+// Memory hints for the mesh arrays (see Mesh::reserve_vertices / reserve_triangles).
 #include <cstdint>
 
 #include "tinstream/kernel/mesh.hpp"
@@ -9,9 +9,10 @@
 
 namespace tinstream::kernel::detail {
 
-void advise_huge_pages(void* p, std::size_t bytes) {
+void advise_huge_pages(const void* p, std::size_t bytes) {
 #if defined(MADV_HUGEPAGE)
   constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  if (p == nullptr || bytes < 2 * kHuge) return;
   const auto begin = reinterpret_cast<std::uintptr_t>(p);
   const std::uintptr_t first = (begin + kHuge - 1) & ~(kHuge - 1);
   const std::uintptr_t last = (begin + bytes) & ~(kHuge - 1);

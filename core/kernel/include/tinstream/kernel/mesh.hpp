@@ -29,7 +29,6 @@
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
-#include <memory>
 #include <vector>
 
 #include "tinstream/kernel/predicates.hpp"
@@ -43,29 +42,11 @@ inline constexpr VertexId kInfiniteVertex = 0;
 
 namespace detail {
 // Asks the OS to back the 2 MiB-aligned part of [p, p + bytes) with transparent huge pages
-// (Linux madvise(MADV_HUGEPAGE); a no-op elsewhere or when refused). Point location and vertex
-// removal touch the big arrays at random; with 4 KiB pages nearly every such access is also a TLB
-// miss, which costs more than the cache miss itself under virtualisation.
-void advise_huge_pages(void* p, std::size_t bytes);
-
-// std::allocator that gives large blocks (>= 4 MiB, allocated before anything touches them) the
-// huge-page hint. Same heap, same accounting (mallinfo), no extra memory.
-template <typename T>
-struct HugePageAllocator {
-  using value_type = T;
-  HugePageAllocator() = default;
-  template <typename U>
-  HugePageAllocator(const HugePageAllocator<U>&) {}  // NOLINT(google-explicit-constructor)
-  T* allocate(std::size_t n) {
-    T* p = std::allocator<T>{}.allocate(n);
-    if (n * sizeof(T) >= (std::size_t{4} << 20)) advise_huge_pages(p, n * sizeof(T));
-    return p;
-  }
-  void deallocate(T* p, std::size_t n) { std::allocator<T>{}.deallocate(p, n); }
-  friend bool operator==(const HugePageAllocator&, const HugePageAllocator&) { return true; }
-};
-template <typename T>
-using HugeVector = std::vector<T, HugePageAllocator<T>>;
+// (Linux madvise(MADV_HUGEPAGE); a no-op elsewhere, when refused, or for blocks under 4 MiB).
+// Point location and vertex removal touch the big arrays at random; with 4 KiB pages nearly every
+// such access is also a TLB miss, which costs more than the cache miss itself under
+// virtualisation. Only pages not yet touched are affected, so it is given right after a reserve.
+void advise_huge_pages(const void* p, std::size_t bytes);
 }  // namespace detail
 
 inline constexpr int next3(int i) { return i == 2 ? 0 : i + 1; }
@@ -88,11 +69,16 @@ class Mesh {
     vtri_.push_back(kNone);
     return static_cast<VertexId>(xy_.size() - 1);
   }
+  // Reserves room for n vertices; the arrays reached at random get the huge-page hint (only a
+  // bulk reserve does: growth one element at a time keeps ordinary pages, whose faults are
+  // cheaper than huge-page compaction when only a few elements are added).
   void reserve_vertices(std::size_t n) {
     xy_.reserve(n + 1);
     z_.reserve(n + 1);
     weight_.reserve(n + 1);
     vtri_.reserve(n + 1);
+    detail::advise_huge_pages(xy_.data(), xy_.capacity() * sizeof(XY));
+    detail::advise_huge_pages(vtri_.data(), vtri_.capacity() * sizeof(TriangleId));
   }
   std::size_t vertex_slots() const { return xy_.size(); }  // including slot 0 and removed ones
   const XY& xy(VertexId v) const { return xy_[v]; }
@@ -314,6 +300,7 @@ class Mesh {
   void reserve_triangles(std::size_t n) {
     tris_.reserve(n);
     if (any_constrained_) flags_.reserve(n);
+    detail::advise_huge_pages(tris_.data(), tris_.capacity() * sizeof(Triangle));
   }
   std::size_t memory_bytes() const {
     return xy_.capacity() * sizeof(XY) + (z_.capacity() + weight_.capacity()) * sizeof(double) +
@@ -322,12 +309,11 @@ class Mesh {
   }
 
  private:
-  // The arrays that edits reach at random get huge pages (see detail::HugePageAllocator).
-  detail::HugeVector<XY> xy_;
+  std::vector<XY> xy_;
   std::vector<double> z_;
   std::vector<double> weight_;
-  detail::HugeVector<TriangleId> vtri_;
-  detail::HugeVector<Triangle> tris_;
+  std::vector<TriangleId> vtri_;
+  std::vector<Triangle> tris_;
   std::vector<std::uint8_t> flags_;  // bit i: edge opposite v[i] constrained
   std::vector<TriangleId> free_;
   std::size_t ghosts_ = 0;
