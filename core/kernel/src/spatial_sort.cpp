@@ -94,9 +94,11 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
   const auto max_cell = static_cast<std::uint32_t>(cells);
 
   // BRIO rounds without shuffling: a hash of the index picks the round with a geometric
-  // distribution (last round about half of the points, the one before a quarter, ...; round 0
-  // gets the first ~64-128). Keys are (round, Hilbert index); one radix sort orders them.
-  const int last_round = std::max(0, static_cast<int>(std::bit_width(n)) - 7);
+  // distribution of ratio 1/4 as in CGAL's spatial_sort (last round about 3/4 of the points, the
+  // one before 3/16, ...; round 0 gets the first ~64-256). Keys are (round, Hilbert index); one
+  // radix sort orders them. (Ratio 1/2 made twice as many rounds, each a sweep over the whole
+  // mesh: the 4e6-point build was 25 % slower; 1/8 measured the same as 1/4.)
+  const int last_round = std::max(0, (static_cast<int>(std::bit_width(n)) - 6) / 2);
   struct Keyed {
     std::uint32_t key;
     std::uint32_t index;
@@ -107,7 +109,7 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
     const auto gx = std::min(static_cast<std::uint32_t>((points[i].x - xmin) * scale), max_cell);
     const auto gy = std::min(static_cast<std::uint32_t>((points[i].y - ymin) * scale), max_cell);
     const int tz = std::countr_zero(mix(i) | (1ull << 62));
-    const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz));
+    const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz / 2));
     keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits, table), i};
   }
   const int key_bits =
