@@ -36,9 +36,13 @@ using kernel::VertexTriple;
 using kernel::XY;
 using tile::Vertex;
 
-std::size_t greedy_target(const LodOptions& options) {
+std::size_t greedy_target(const LodOptions& options, std::size_t points) {
   if (!(options.greedy_factor > 0)) return 0;
-  const double t = std::ceil(options.greedy_factor * static_cast<double>(options.max_points));
+  const double budget = static_cast<double>(options.max_points);
+  const double factor = static_cast<double>(points) <= 4 * budget
+                            ? std::max(options.greedy_factor, 2.0)
+                            : options.greedy_factor;
+  const double t = std::ceil(factor * budget);
   if (!(t < 1e15)) return 0;
   return std::max(options.max_points, static_cast<std::size_t>(t));
 }
@@ -395,7 +399,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     for (const auto& v : s) add(v);
   }
   const std::size_t n_fixed = pts.size();
-  const std::size_t target = greedy_target(options);
+  const std::size_t target = greedy_target(options, n_fixed + in.interior.size());
   const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
   if (!greedy) {
     for (const auto& v : in.interior) add(v);

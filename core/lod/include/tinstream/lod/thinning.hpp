@@ -44,15 +44,18 @@ struct LodOptions {
   // spread over the perimeter by side length for a non-square rectangle (ThinInput::rect). Same
   // tile size ⇒ same budgets, so neighbours stay watertight.
   std::size_t border_points_per_side = 0;
-  // Greedy preselection (large inputs): when corners + border + interior exceed
-  // ⌈greedy_factor × max_points⌉ points, the interior is first *built up* by greedy insertion
-  // to that many points, and only those are thinned by the drop heuristic; every other point
-  // stays in the error estimate as an orphan. 0 = drop from all points (slow on big grids).
+  // Greedy preselection: when corners + (thinned) border + interior exceed the target
+  // (greedy_target), the interior is first *built up* by greedy insertion to that many points,
+  // and only those are thinned by the drop heuristic; every other point stays in the error
+  // estimate as an orphan. 0 = drop from all points (slow on big grids).
   double greedy_factor = 1.25;
 };
 
-// The point count the greedy stage builds up to (0 = no greedy stage), see greedy_factor.
-std::size_t greedy_target(const LodOptions& options);
+// The point count the greedy stage builds up to for an input of `points` (0 = no greedy
+// stage): ⌈f × max_points⌉ with f = greedy_factor, but at least 2 when points ≤ 4 × max_points
+// (pass-4 parents: their drop stage is affordable, and a real ingest's coarse levels came out
+// better with it; bench/lod/RESULTS.md).
+std::size_t greedy_target(const LodOptions& options, std::size_t points);
 
 // The per-side budget that `options` implies (see LodOptions::border_points_per_side).
 std::size_t side_budget(const LodOptions& options);
