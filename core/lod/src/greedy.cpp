@@ -57,6 +57,13 @@ struct Plane {
     dzb = zb - za, dzc = zc - za;
     inv_det = 1.0 / (bx * cy - by * cx);
   }
+  // The smallest barycentric weight at (x, y): ≥ 0 inside (up to rounding).
+  double min_weight(double x, double y) const {
+    const double qx = x - ax, qy = y - ay;
+    const double wb = (qx * cy - qy * cx) * inv_det;
+    const double wc = (bx * qy - by * qx) * inv_det;
+    return std::min(std::min(wb, wc), 1.0 - wb - wc);
+  }
   // Height at (x, y); *min_weight (≥ 0 inside up to rounding) the smallest barycentric weight.
   double at(double x, double y, double* min_weight) const {
     const double qx = x - ax, qy = y - ay;
@@ -325,11 +332,11 @@ class GreedyInserter {
     }
   }
   // Joins t to the star being built: its points are gathered for re-filing.
+  // Its bucket stays in the pool (refile appends the new buckets after it) until refile has
+  // read it.
   void take(std::uint32_t t) {
     star_.push_back(t);
-    for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
-      if (pool_[k].kind == kCandidate || pool_[k].kind == kExtra) gathered_.push_back(pool_[k]);
-    }
+    taken_.push_back({begin_[t], count_[t]});
     live_ -= count_[t];
     count_[t] = 0;
   }
@@ -363,7 +370,7 @@ class GreedyInserter {
     state_[pool_[pos].id] = pool_[pos].kind = kInserted;
     const auto pv = static_cast<std::uint32_t>(xy_.size());
     star_.clear();
-    gathered_.clear();
+    taken_.clear();
     if (zeros == 1) {
       const int k = o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2);
       xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(pool_[pos].id);
@@ -453,41 +460,54 @@ class GreedyInserter {
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
     const std::size_t n = star_.size();
     star_count_.assign(n, 0);
-    slot_.resize(gathered_.size());
-    surface_.resize(gathered_.size());
+    std::size_t entries = 0;
+    for (const auto& [b, c] : taken_) entries += c;
+    slot_.resize(entries);
+    surface_.resize(entries);
     const bool by_angle = n > kSmallStar;
     if (by_angle) sort_star_by_angle();
-    for (std::size_t g = 0; g < gathered_.size(); ++g) {
-      double best_w = -std::numeric_limits<double>::infinity(), z = 0, w;
-      std::uint32_t k = 0;
-      if (by_angle) {
-        // The sector of the pseudo-angle, then its neighbours if rounding put q outside it.
-        const XY& c = xy_.back();
-        const double a = pseudo_angle(gathered_[g].x - c.x, gathered_[g].y - c.y);
-        const auto it = std::upper_bound(sector_start_.begin(), sector_start_.end(), a);
-        const std::size_t at = it == sector_start_.begin()
-                                   ? n - 1
-                                   : static_cast<std::size_t>(it - sector_start_.begin()) - 1;
-        for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
-          const std::uint32_t s = sector_[(at + d) % n];
-          const double zs = planes_[s].at(gathered_[g].x, gathered_[g].y, &w);
-          if (w > best_w) best_w = w, z = zs, k = s;
-          if (w >= 0) break;
+    const XY& c = xy_.back();
+    std::size_t g = 0, moved = 0;
+    for (const auto& [b, cnt] : taken_) {
+      for (std::uint32_t e = b; e < b + cnt; ++e, ++g) {
+        const Filed& f = pool_[e];
+        if (f.kind != kCandidate && f.kind != kExtra) {
+          slot_[g] = kNone;
+          continue;
         }
-      }
-      if (!(best_w >= 0)) {
-        for (std::size_t s = 0; s < n; ++s) {
-          const double zs = planes_[s].at(gathered_[g].x, gathered_[g].y, &w);
-          if (w > best_w) best_w = w, z = zs, k = static_cast<std::uint32_t>(s);
-          if (w >= 0) break;
+        double best_w = -std::numeric_limits<double>::infinity(), w;
+        std::uint32_t k = 0;
+        if (by_angle) {
+          // The sector of the pseudo-angle, then its neighbours if rounding put q outside it.
+          const double a = pseudo_angle(f.x - c.x, f.y - c.y);
+          const auto it = std::upper_bound(sector_start_.begin(), sector_start_.end(), a);
+          const std::size_t at = it == sector_start_.begin()
+                                     ? n - 1
+                                     : static_cast<std::size_t>(it - sector_start_.begin()) - 1;
+          for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
+            const std::uint32_t s = sector_[(at + d) % n];
+            w = planes_[s].min_weight(f.x, f.y);
+            if (w > best_w) best_w = w, k = s;
+            if (w >= 0) break;
+          }
         }
+        if (!(best_w >= 0)) {
+          for (std::size_t s = 0; s < n; ++s) {
+            w = planes_[s].min_weight(f.x, f.y);
+            if (w > best_w) best_w = w, k = static_cast<std::uint32_t>(s);
+            if (w >= 0) break;
+          }
+        }
+        slot_[g] = k;
+        surface_[g] = planes_[k].at(f.x, f.y, &w);
+        ++star_count_[k];
+        ++moved;
       }
-      slot_[g] = k;
-      surface_[g] = z;
-      ++star_count_[k];
     }
+    // The new buckets go after everything (the taken ones included), so reading and writing
+    // never overlap; positions are indices, valid across the resize.
     auto at = static_cast<std::uint32_t>(pool_.size());
-    pool_.resize(pool_.size() + gathered_.size());
+    pool_.resize(pool_.size() + moved);
     star_best_.assign(n, kNone);
     star_error_.assign(n, -1.0);
     for (std::size_t k = 0; k < n; ++k) {
@@ -495,16 +515,20 @@ class GreedyInserter {
       count_[star_[k]] = 0;
       at += star_count_[k];
     }
-    for (std::size_t g = 0; g < gathered_.size(); ++g) {
-      const std::size_t k = slot_[g];
-      const std::uint32_t t = star_[k];
-      const std::uint32_t pos = begin_[t] + count_[t]++;
-      pool_[pos] = gathered_[g];
-      if (gathered_[g].kind != kCandidate) continue;
-      const double e = effective_error(gathered_[g], surface_[g]);
-      if (e > star_error_[k]) star_error_[k] = e, star_best_[k] = pos;
+    g = 0;
+    for (const auto& [b, cnt] : taken_) {
+      for (std::uint32_t e = b; e < b + cnt; ++e, ++g) {
+        if (slot_[g] == kNone) continue;
+        const std::size_t k = slot_[g];
+        const std::uint32_t t = star_[k];
+        const std::uint32_t pos = begin_[t] + count_[t]++;
+        pool_[pos] = pool_[e];
+        if (pool_[pos].kind != kCandidate) continue;
+        const double err = effective_error(pool_[pos], surface_[g]);
+        if (err > star_error_[k]) star_error_[k] = err, star_best_[k] = pos;
+      }
     }
-    live_ += gathered_.size();
+    live_ += moved;
     for (std::size_t k = 0; k < n; ++k) set_best(star_[k], star_best_[k], star_error_[k]);
   }
 
@@ -565,7 +589,7 @@ class GreedyInserter {
   IndexedHeap heap_;                 // triangles by −(largest effective error), then id
   // Scratch of one insertion.
   std::vector<std::uint32_t> star_, stack_, star_best_, star_count_;
-  std::vector<Filed> gathered_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
   std::vector<std::uint32_t> slot_;
   std::vector<double> star_error_, surface_;
   std::vector<std::uint32_t> sector_;
