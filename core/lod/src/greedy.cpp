@@ -26,6 +26,7 @@
 #include <unordered_map>
 
 #include "indexed_heap.hpp"
+#include "plane.hpp"
 #include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::lod::detail {
@@ -44,34 +45,6 @@ constexpr int prev3(int i) { return i == 0 ? 2 : i - 1; }
 struct Tri {
   std::array<std::uint32_t, 3> v;  // local vertex ids, counter-clockwise
   std::array<std::uint32_t, 3> n;  // neighbour across the edge opposite v[i], or kNone
-};
-
-// The linear interpolant of one triangle, set up once for many points: barycentric weights
-// relative to its first corner (for accuracy far from the origin).
-struct Plane {
-  double ax, ay, az, bx, by, cx, cy, dzb, dzc, inv_det;
-
-  Plane(const XY& a, const XY& b, const XY& c, double za, double zb, double zc) {
-    ax = a.x, ay = a.y, az = za;
-    bx = b.x - ax, by = b.y - ay, cx = c.x - ax, cy = c.y - ay;
-    dzb = zb - za, dzc = zc - za;
-    inv_det = 1.0 / (bx * cy - by * cx);
-  }
-  // The smallest barycentric weight at (x, y): ≥ 0 inside (up to rounding).
-  double min_weight(double x, double y) const {
-    const double qx = x - ax, qy = y - ay;
-    const double wb = (qx * cy - qy * cx) * inv_det;
-    const double wc = (bx * qy - by * qx) * inv_det;
-    return std::min(std::min(wb, wc), 1.0 - wb - wc);
-  }
-  // Height at (x, y); *min_weight (≥ 0 inside up to rounding) the smallest barycentric weight.
-  double at(double x, double y, double* min_weight) const {
-    const double qx = x - ax, qy = y - ay;
-    const double wb = (qx * cy - qy * cx) * inv_det;
-    const double wc = (bx * qy - by * qx) * inv_det;
-    *min_weight = std::min(std::min(wb, wc), 1.0 - wb - wc);
-    return az + wb * dzb + wc * dzc;
-  }
 };
 
 // Stars with more triangles than this locate re-filed points by angle (binary search) instead

@@ -21,6 +21,7 @@
 
 #include "greedy.hpp"
 #include "indexed_heap.hpp"
+#include "plane.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
 
@@ -28,6 +29,7 @@ namespace tinstream::lod {
 
 using detail::FiledPoints;
 using detail::IndexedHeap;
+using detail::Plane;
 using kernel::kNone;
 using kernel::TriangleId;
 using kernel::Triangulation;
@@ -72,22 +74,6 @@ struct QueueEntry {
 };
 using MinQueue = std::priority_queue<QueueEntry, std::vector<QueueEntry>, std::greater<>>;
 
-// Linear interpolation in the closed triangle (a, b, c) at p with barycentric weights clamped to
-// the triangle (p is inside up to rounding); coordinates relative to a for accuracy.
-double interpolate_in(const XY& a, const XY& b, const XY& c, double za, double zb, double zc,
-                      double px, double py, double* min_weight) {
-  const double bx = b.x - a.x, by = b.y - a.y, cx = c.x - a.x, cy = c.y - a.y;
-  const double qx = px - a.x, qy = py - a.y;
-  const double det = bx * cy - by * cx;
-  double wb = (qx * cy - qy * cx) / det;
-  double wc = (bx * qy - by * qx) / det;
-  double wa = 1.0 - wb - wc;
-  if (min_weight) *min_weight = std::min({wa, wb, wc});
-  wa = std::max(wa, 0.0), wb = std::max(wb, 0.0), wc = std::max(wc, 0.0);
-  const double s = wa + wb + wc;
-  return (wa * za + wb * zb + wc * zc) / s;
-}
-
 class InteriorThinner {
  public:
   // `orphans`: points already filed by triangle (the greedy stage's), more may be added.
@@ -129,22 +115,27 @@ class InteriorThinner {
   }
 
  private:
-  // Index into `tris` of the replacement triangle containing (x, y) (largest smallest barycentric
-  // weight), and the interpolated z.
-  double surface_at(const std::vector<VertexTriple>& tris, double x, double y,
-                    std::size_t* which) const {
-    double best_w = -std::numeric_limits<double>::infinity(), best_z = 0;
+  // The planes of the replacement triangles `tris`, for surface_at.
+  void set_planes(const std::vector<VertexTriple>& tris) const {
+    planes_.clear();
+    for (const auto& t : tris) {
+      planes_.emplace_back(tri_.xy(t[0]), tri_.xy(t[1]), tri_.xy(t[2]), tri_.z(t[0]), tri_.z(t[1]),
+                           tri_.z(t[2]));
+    }
+  }
+  // Index of the set_planes triangle containing (x, y) (largest smallest barycentric weight),
+  // and the interpolated z.
+  double surface_at(double x, double y, std::size_t* which) const {
+    double best_w = -std::numeric_limits<double>::infinity();
     std::size_t best = 0;
-    for (std::size_t k = 0; k < tris.size(); ++k) {
-      const auto& t = tris[k];
-      double w;
-      const double z = interpolate_in(tri_.xy(t[0]), tri_.xy(t[1]), tri_.xy(t[2]), tri_.z(t[0]),
-                                      tri_.z(t[1]), tri_.z(t[2]), x, y, &w);
-      if (w > best_w) best_w = w, best_z = z, best = k;
+    for (std::size_t k = 0; k < planes_.size(); ++k) {
+      const double w = planes_[k].min_weight(x, y);
+      if (w > best_w) best_w = w, best = k;
       if (w >= 0) break;
     }
     if (which) *which = best;
-    return best_z;
+    double w;
+    return planes_[best].at(x, y, &w);
   }
 
   // The kernel does not re-triangulate a star that is the whole triangulation (it takes that for
@@ -187,14 +178,13 @@ class InteriorThinner {
     auto preview = tri_.removal_preview(v);
     if (is_last(v, preview)) return evaluate_last(v);
     if (!preview.ok() || preview->empty()) return std::nullopt;
-    const auto& tris = *preview;
+    set_planes(*preview);
     const XY& p = tri_.xy(v);
-    double err = std::abs(tri_.z(v) - surface_at(tris, p.x, p.y, nullptr));
+    double err = std::abs(tri_.z(v) - surface_at(p.x, p.y, nullptr));
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
-        err =
-            std::max(err, std::abs(orph_.z[i] - surface_at(tris, orph_.x[i], orph_.y[i], nullptr)));
+        err = std::max(err, std::abs(orph_.z[i] - surface_at(orph_.x[i], orph_.y[i], nullptr)));
       }
     }
     return err + tri_.weight(v);
@@ -253,16 +243,17 @@ class InteriorThinner {
       if (new_ids_[k] >= orph_.head.size())
         orph_.head.resize(static_cast<std::size_t>(new_ids_[k]) + 1, kNone);
     }
+    set_planes(tris);
     for (std::uint32_t i : gathered_) {
       std::size_t k;
-      surface_at(tris, orph_.x[i], orph_.y[i], &k);
+      surface_at(orph_.x[i], orph_.y[i], &k);
       const TriangleId t = new_ids_[k];
       orph_.next[i] = orph_.head[t];
       orph_.head[t] = i;
     }
     {
       std::size_t k;
-      surface_at(tris, pv.x, pv.y, &k);
+      surface_at(pv.x, pv.y, &k);
       orph_.push(pv.x, pv.y, zv, new_ids_[k]);
     }
     // Eager update of the former neighbours. (Lazily re-evaluating them only when they reach the
@@ -278,6 +269,7 @@ class InteriorThinner {
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
   IndexedHeap heap_;                     // candidates by (effective error, vertex id)
   FiledPoints orph_;                     // the orphans, by triangle slot
+  mutable std::vector<Plane> planes_;    // scratch of surface_at
   std::vector<std::uint32_t> gathered_;
   std::vector<TriangleId> new_ids_;
   VertexId removed_last_ = kNone;
