@@ -12,7 +12,9 @@
 # same URL list (every tile), the same headers (gzip + octvertexnormals, as CesiumJS sends) and
 # send the same bytes; tinstream-server answers from its LRU (warmed up first), nginx from the page
 # cache with sendfile. RSS is sampled every 0.5 s (nginx: master + workers). Needs wrk, nginx,
-# curl, python3 (scripts/install-deps.sh --bench).
+# curl, python3 (scripts/install-deps.sh --bench). Server CPU per request (utime + stime from
+# /proc during the run; nginx: master + workers) is recorded too: it depends far less than req/s
+# on what else runs on the machine.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -22,9 +24,10 @@ SERVER_PORT=${SERVER_PORT:-18080}
 NGINX_PORT=${NGINX_PORT:-18081}
 WORK=$(mktemp -d /tmp/tinstream-bench.XXXXXX)
 chmod 755 "$WORK"  # nginx workers run as an unprivileged user
-SERVER_PID= NGINX_PID=
+SERVER_PID= NGINX_PID= SAMPLER=
 
 cleanup() {
+  [[ -n $SAMPLER ]] && kill "$SAMPLER" 2>/dev/null || true
   [[ -n $SERVER_PID ]] && kill "$SERVER_PID" 2>/dev/null && wait "$SERVER_PID" 2>/dev/null || true
   [[ -n $NGINX_PID ]] && kill "$NGINX_PID" 2>/dev/null || true
   rm -rf "$WORK"
@@ -133,10 +136,21 @@ for p in "$P1" "$PN"; do
   cmp -s "$WORK/a" "$WORK/b" || { echo "run.sh: $p differs between the servers" >&2; exit 1; }
 done
 
+TICKS=$(getconf CLK_TCK)
 rss_kb() {  # total VmRSS of the given pids and their children
   local total=0 pid
   for pid in "$@" $(pgrep -P "$(echo "$@" | tr ' ' ',')" 2>/dev/null || true); do
-    total=$((total + $(awk '/VmRSS/ {print $2}' "/proc/$pid/status" 2>/dev/null || echo 0)))
+    local kb; kb=$(awk '/VmRSS/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
+    total=$((total + ${kb:-0}))  # a process that just exited has no VmRSS
+  done
+  echo "$total"
+}
+
+cpu_ticks() {  # user + system CPU clock ticks of the given pids and their children
+  local total=0 pid
+  for pid in "$@" $(pgrep -P "$(echo "$@" | tr ' ' ',')" 2>/dev/null || true); do
+    local t; t=$(awk '{print $14 + $15}' "/proc/$pid/stat" 2>/dev/null || true)
+    total=$((total + ${t:-0}))
   done
   echo "$total"
 }
@@ -148,14 +162,21 @@ run_wrk() {  # name pid prefix-url prefix-path connections
   local max=$before
   ( while true; do rss_kb "$pid"; sleep 0.5; done ) >"$WORK/rss.$name.$conns" &
   local sampler=$!
+  SAMPLER=$sampler
+  local cpu_before; cpu_before=$(cpu_ticks "$pid")
   TILE_PATHS=$WORK/paths.txt PREFIX=$prefix wrk -t2 -c"$conns" -d"${DURATION}s" --timeout 5s \
     -s "$ROOT/bench/server/urls.lua" "$url" >"$WORK/wrk.$name.$conns"
+  local cpu_after; cpu_after=$(cpu_ticks "$pid")
   kill "$sampler" 2>/dev/null; wait "$sampler" 2>/dev/null || true
+  SAMPLER=
   max=$(sort -n "$WORK/rss.$name.$conns" | tail -n1)
   local after; after=$(rss_kb "$pid")
-  echo "$name $conns $(grep RESULT "$WORK/wrk.$name.$conns" | cut -d' ' -f2-) rss_before_kb=$before rss_max_kb=$max rss_after_kb=$after"
+  kill -0 "$pid" 2>/dev/null && [[ $(awk '/^State/ {print $2}' "/proc/$pid/status") != Z ]] ||
+    { echo "run.sh: $name (pid $pid) died during the run" >&2; exit 1; }
+  echo "$name $conns $(grep RESULT "$WORK/wrk.$name.$conns" | cut -d' ' -f2-) rss_before_kb=$before rss_max_kb=$max rss_after_kb=$after cpu_s=$(( (cpu_after - cpu_before) * 1000 / TICKS ))e-3"
 }
 
+LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg)
 {
   for c in 64 256; do
     run_wrk tinstream "$SERVER_PID" "$BASE" "/tiles/$LAYER" "$c"
@@ -163,7 +184,10 @@ run_wrk() {  # name pid prefix-url prefix-path connections
   done
 } | tee "$WORK/results.txt"
 
-python3 - "$WORK/results.txt" "$SOURCE" "$EXPORT" "$TILES" "$BYTES" "$DURATION" <<'PY'
+LOAD_END=$(cut -d' ' -f1-3 /proc/loadavg)
+COMMIT=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
+python3 - "$WORK/results.txt" "$SOURCE" "$EXPORT" "$TILES" "$BYTES" "$DURATION" "$THREADS" \
+  "$LOAD_START" "$LOAD_END" "$COMMIT" <<'PY'
 import sys, datetime, os, platform
 rows = {}
 for line in open(sys.argv[1]):
@@ -172,16 +196,20 @@ for line in open(sys.argv[1]):
     rows[(parts[0], int(parts[1]))] = {k: float(v) for k, v in kv.items()}
 print(f"\n### Serving benchmark — {datetime.datetime.utcnow():%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {platform.node()}\n")
 print(f"Store: {sys.argv[2]}; static copy: {sys.argv[3]}; {sys.argv[4]} tiles, {int(sys.argv[5])/1e6:.1f} MB gzip; "
-      f"wrk -t2, {sys.argv[6]} s per run, keep-alive, all on one machine over loopback.\n")
-print("| server | conns | req/s | p50 ms | p99 ms | errors | RSS before → max → after (MB) |")
-print("|---|---:|---:|---:|---:|---:|---|")
+      f"wrk -t2, {sys.argv[6]} s per run, keep-alive, all on one machine over loopback; "
+      f"{sys.argv[7]} io threads / nginx workers; commit {sys.argv[10]}; "
+      f"load average {sys.argv[8]} (start) → {sys.argv[9]} (end).\n")
+print("| server | conns | req/s | p50 ms | p99 ms | errors | server CPU µs/req | RSS before → max → after (MB) |")
+print("|---|---:|---:|---:|---:|---:|---:|---|")
 for (name, c), r in sorted(rows.items(), key=lambda kv: (kv[0][1], kv[0][0] != "tinstream")):
     print(f"| {name} | {c} | {r['rps']:.0f} | {r['p50_ms']:.2f} | {r['p99_ms']:.2f} | {int(r['errors'])} | "
-          f"{r['rss_before_kb']/1024:.1f} → {r['rss_max_kb']/1024:.1f} → {r['rss_after_kb']/1024:.1f} |")
-print("\n| conns | throughput tinstream/nginx | p99 tinstream/nginx |")
-print("|---:|---:|---:|")
+          f"{r['cpu_s']*1e6/max(r['requests'],1):.1f} | {r['rss_before_kb']/1024:.1f} → {r['rss_max_kb']/1024:.1f} → {r['rss_after_kb']/1024:.1f} |")
+print("\n| conns | throughput tinstream/nginx | p99 tinstream/nginx | CPU per request tinstream/nginx |")
+print("|---:|---:|---:|---:|")
 for c in sorted({c for _, c in rows}):
     t, n = rows.get(("tinstream", c)), rows.get(("nginx", c))
     if t and n:
-        print(f"| {c} | {t['rps']/n['rps']:.2f}× | {t['p99_ms']/max(n['p99_ms'],1e-9):.2f}× |")
+        cpu = lambda r: r['cpu_s'] / max(r['requests'], 1)
+        print(f"| {c} | {t['rps']/n['rps']:.2f}× | {t['p99_ms']/max(n['p99_ms'],1e-9):.2f}× | "
+              f"{cpu(t)/max(cpu(n),1e-12):.2f}× |")
 PY

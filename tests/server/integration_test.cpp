@@ -1,6 +1,10 @@
 // The server library on a real loopback socket (port 0), against a real SQLite store.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -365,6 +369,41 @@ TEST_F(ServerTest, PipelinedBurstOfCachedUncachedAnd304AnsweredInOrder) {
 
   EXPECT_EQ(r[9].status, 200);
   EXPECT_EQ(json::parse(r[9].body)["status"], "ok");
+}
+
+// Clients that vanish in the middle of their answers (a small receive window, a pipelined burst
+// left unread, then a reset or a plain close) cost the server nothing but those connections.
+TEST_F(ServerTest, ClientsVanishingMidResponseLeaveTheServerServing) {
+  // Cache the tile first, so that the burst is answered from the cache.
+  ASSERT_EQ(http_get(port_, terrain_target(kTile), {{"Accept-Encoding", "gzip"}}).status, 200);
+  std::string burst;
+  for (int i = 0; i < 400; ++i)
+    burst +=
+        "GET " + terrain_target(kTile) + " HTTP/1.1\r\nHost: x\r\nAccept-Encoding: gzip\r\n\r\n";
+  for (int round = 0; round < 8; ++round) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    const int small = 2048;
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(port_);
+    ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    ASSERT_EQ(::send(fd, burst.data(), burst.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(burst.size()));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (round % 2 == 0) {  // a reset while answers are still being written, else a plain close
+      const linger reset{1, 0};
+      ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
+    }
+    ::close(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+  auto again = http_get(port_, terrain_target(kTile), {{"Accept-Encoding", "gzip"}});
+  EXPECT_EQ(again.status, 200);
+  EXPECT_EQ(again.header("Content-Length"), std::to_string(again.body.size()));
 }
 
 // Timeouts are deadlines checked by each io thread's sweep: an idle keep-alive connection and a
