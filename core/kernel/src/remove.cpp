@@ -1,9 +1,13 @@
 // Vertex removal: the star of v is re-triangulated in a small local structure (ear clipping on
 // the star-shaped link polygon, then Lawson flips inside the hole only), which both
-// removal_preview (read-only) and remove_vertex (writes it back) use. Expected O(degree).
+// removal_preview (read-only) and remove_vertex (writes it back) use. Expected O(degree) (the
+// ear queue is O(degree^2), used up to degree 24).
 //
 // Hole cases:
-//   interior vertex            closed link polygon, ears clipped in the star-shaped order
+//   interior vertex            closed link polygon: degree 4 by one exact incircle test; up to
+//                              degree 24 ears in Devillers' order (flips only verify); larger
+//                              stars, or when that order fails near a degeneracy, ears clipped
+//                              in the star-shaped order, then flips
 //   hull vertex                open link chain, made convex (Graham-like scan) + ghost triangles
 //   straight constraint a-v-b  the link splits at a and b into two open chains, each made convex
 //                              against the segment a-b, which becomes one constrained edge
@@ -127,10 +131,11 @@ bool Triangulation::Hole::triangulate_quad(const Mesh& mesh) {
 // Devillers' ear queue ("On deletion in Delaunay triangulations", 2002): of all ears of the link
 // polygon, the one whose circumcircle has the largest power with respect to v is a Delaunay
 // triangle of the hole, so clipping ears in that order needs no flips afterwards. The powers are
-// compared in plain floating point (power = -incircle(ear, v) / orient(ear)); every chosen ear is then checked with the exact predicates like any ear, and
-// the Lawson pass of plan_removal still verifies every new diagonal exactly, so a wrong choice
-// near a tie costs a flip, never correctness. Returns false (hole to be rebuilt by the plain ear
-// clipping) when the chosen ear is not a valid ear, which happens only near degeneracies.
+// compared in plain floating point (power = -incircle(ear, v) / orient(ear)); every chosen ear is
+// then checked with the exact predicates like any ear, and the Lawson pass of plan_removal still
+// verifies every new diagonal exactly, so a wrong choice near a tie costs a flip, never
+// correctness. Returns false (hole to be rebuilt by the plain ear clipping) when the chosen ear is
+// not a valid ear, which happens only near degeneracies.
 bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
   // The remaining ring as a small array (ring indices, in order) with one key per ear: a linear
   // scan finds the best ear without chasing list links.

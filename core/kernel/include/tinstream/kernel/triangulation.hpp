@@ -196,8 +196,8 @@ class Triangulation {
     void convexify(const Mesh& mesh);
     // Closed link polygon (interior vertex): the ring as a circular list, one ear at a time.
     void start_ring();
-    void clip_ear(int c);   // adds the ear (prv[c], c, nxt[c]) and unlinks c
-    void close_ring(int c); // adds the last triangle (prv[c], c, nxt[c])
+    void clip_ear(int c);    // adds the ear (prv[c], c, nxt[c]) and unlinks c
+    void close_ring(int c);  // adds the last triangle (prv[c], c, nxt[c])
     bool triangulate_quad(const Mesh& mesh);
     bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
   };
