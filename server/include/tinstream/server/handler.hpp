@@ -1,7 +1,7 @@
 // tinstream/server/handler.hpp — request → response, without sockets.
 //
 // handle() is the whole request logic: route parsing, authorisation, store lookups, content
-// negotiation, ETags, CORS. The session code (src/session.cpp) only moves bytes. handle() is
+// negotiation, ETags, CORS. The session code (src/server.cpp) only moves bytes. handle() is
 // called concurrently from every io thread; everything it touches through Context is either
 // immutable, thread-safe (Metrics, JobManager, TerrainCache) or per-thread (the store).
 #pragma once

@@ -1,14 +1,17 @@
-// tinstream/server/server.hpp — the HTTP server: Boost.Beast/Asio, one io_context, N threads.
+// tinstream/server/server.hpp — the HTTP server: Boost.Beast/Asio, one io_context per io thread.
 //
-// Each connection is an asynchronous session owned by shared_from_this, on its own strand:
-// keep-alive, pipelined requests answered in order, a timeout on every read and write, header
-// and body limits, at most max_connections sessions (more get 503 and are closed). Each io
-// thread opens its own read-only TileStore. stop() (also on SIGINT/SIGTERM when
-// handle_signals) closes the listener, lets in-flight responses finish (up to
-// shutdown_grace_ms), closes idle keep-alive connections and returns from run().
+// Each connection is an asynchronous session owned by shared_from_this. The listener hands every
+// accepted connection, round robin, to one io thread (its own io_context), where the session stays
+// until it closes: no strand, lock or thread hand-off per request. Keep-alive, pipelined requests
+// answered in order, a timeout on every read and write (deadlines checked by each thread's sweep
+// timer, so up to one sweep interval late), header and body limits, at most max_connections
+// sessions (more get 503 and are closed). Each io thread opens its own read-only TileStore.
+// stop() (also on SIGINT/SIGTERM when handle_signals) closes the listener, closes idle keep-alive
+// connections, answers requests already received (with `Connection: close`, up to
+// shutdown_grace_ms) and returns from run().
 //
-// Threads: create() and run() on the caller's thread; run() blocks until stopped; stop() from
-// any thread. Beast is kept out of this header (pimpl).
+// Threads: create() and run() on the caller's thread (run() makes threads-1 more); run() blocks
+// until stopped; stop() from any thread. Beast is kept out of this header (pimpl).
 #pragma once
 
 #include <cstdint>
