@@ -38,13 +38,9 @@ using kernel::VertexTriple;
 using kernel::XY;
 using tile::Vertex;
 
-std::size_t greedy_target(const LodOptions& options, std::size_t points) {
+std::size_t greedy_target(const LodOptions& options) {
   if (!(options.greedy_factor > 0)) return 0;
-  const double budget = static_cast<double>(options.max_points);
-  const double factor = static_cast<double>(points) <= 4 * budget
-                            ? std::max(options.greedy_factor, 2.0)
-                            : options.greedy_factor;
-  const double t = std::ceil(factor * budget);
+  const double t = std::ceil(options.greedy_factor * static_cast<double>(options.max_points));
   if (!(t < 1e15)) return 0;
   return std::max(options.max_points, static_cast<std::size_t>(t));
 }
@@ -391,7 +387,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     for (const auto& v : s) add(v);
   }
   const std::size_t n_fixed = pts.size();
-  const std::size_t target = greedy_target(options, n_fixed + in.interior.size());
+  const std::size_t target = greedy_target(options);
   const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
   if (!greedy) {
     for (const auto& v : in.interior) add(v);

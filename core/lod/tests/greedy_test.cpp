@@ -80,7 +80,7 @@ TEST(Greedy, ReportedErrorIsTheBruteForceMaximum) {
     const double x = ux(rng), y = uy(rng);
     in.interior.push_back({x, y, rough(x, y), 0});
   }
-  for (std::size_t budget : {40u, 200u, 600u}) {  // all < 1/4 of the input (greedy_target)
+  for (std::size_t budget : {40u, 200u, 600u}) {
     LodOptions o;
     o.max_points = budget;
     o.greedy_factor = 1.0;

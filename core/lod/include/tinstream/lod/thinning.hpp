@@ -51,11 +51,9 @@ struct LodOptions {
   double greedy_factor = 1.25;
 };
 
-// The point count the greedy stage builds up to for an input of `points` (0 = no greedy
-// stage): ⌈f × max_points⌉ with f = greedy_factor, but at least 2 when points ≤ 4 × max_points
-// (pass-4 parents: their drop stage is affordable, and a real ingest's coarse levels came out
-// better with it; bench/lod/RESULTS.md).
-std::size_t greedy_target(const LodOptions& options, std::size_t points);
+// The point count the greedy stage builds up to, ⌈greedy_factor × max_points⌉ (0 = no greedy
+// stage).
+std::size_t greedy_target(const LodOptions& options);
 
 // The per-side budget that `options` implies (see LodOptions::border_points_per_side).
 std::size_t side_budget(const LodOptions& options);
