@@ -128,7 +128,9 @@ class GreedyInserter {
     // Buckets in triangle order (counting sort).
     std::uint32_t at = 0;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) begin_[t] = at, at += count_[t];
-    pool_.reserve(2 * static_cast<std::size_t>(at) + 8192);
+    // A re-filing appends at most the live points and compaction follows once the pool holds
+    // more than twice them (or could not take the next re-filing): 3 × never reallocates.
+    pool_.reserve(3 * static_cast<std::size_t>(at) + 8192);
     spare_.reserve(at + 4096);
     pool_.resize(at);
     std::fill(count_.begin(), count_.end(), 0);
@@ -356,7 +358,9 @@ class GreedyInserter {
     refile();
     // Filed under a neighbour by rounding: that triangle's ranking still names the point.
     if (std::find(star_.begin(), star_.end(), filed_under) == star_.end()) rank(filed_under);
-    if (pool_.size() > 2 * live_ + 4096) compact();
+    // Compact when the garbage reaches the live points, and before the next re-filing (which
+    // appends at most the live points) could outgrow the pool: a reallocation would double it.
+    if (pool_.size() > 2 * live_ + 4096 || pool_.size() + live_ > pool_.capacity()) compact();
     return Outcome::inserted;
   }
 
