@@ -1,4 +1,5 @@
-// tinstream/lod/thinning.hpp — error-ordered point removal (Lee 1989 drop heuristic) on one tile.
+// tinstream/lod/thinning.hpp — thinning one tile: greedy insertion, then error-ordered point
+// removal (Lee 1989 drop heuristic).
 //
 // Contract (DESIGN.md §3, pass 4):
 //  * Border first, deterministically, from the border points alone. Each side (both corners
@@ -8,12 +9,15 @@
 //    The smallest effective error goes first (ties: the point nearer the side's start, by
 //    position). Two neighbours hold bit-identical copies of their shared side (same points, same
 //    order), so they compute bit-identical results: same-level tiles stay watertight.
-//  * Then the border is held fixed (constrained) and the interior is thinned in 2-D: a point's
-//    error is the largest vertical difference that removing it would make at the point itself
-//    and at every input point already removed inside its star (the "orphans", kept with their
-//    original z), evaluated on the re-triangulated star (Triangulation::removal_preview).
-//    Priority queue with lazy invalidation; after a removal the former neighbours are
-//    re-evaluated.
+//  * Then the border is held fixed (constrained). Large inputs (more than greedy_target points)
+//    are first built up by greedy insertion: from the border alone, the interior point of
+//    largest effective vertical error is inserted until greedy_target points (settling a little
+//    past it while a just-raised error is above the lowest seen before); every other point
+//    becomes an orphan. Then the interior is thinned in 2-D: a point's error is the largest
+//    vertical difference that removing it would make at the point itself and at every input
+//    point already out of the surface inside its star (the "orphans", kept with their original
+//    z), evaluated on the re-triangulated star (Triangulation::removal_preview). Indexed
+//    priority queue; after a removal the former neighbours are re-evaluated.
 //  * Stopping rule, for a side and for the interior alike: keep removing while the count is above
 //    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
 //    Corners are never removed.
