@@ -14,7 +14,7 @@
 # cache with sendfile. RSS is sampled every 0.5 s (nginx: master + workers). Needs wrk, nginx,
 # curl, python3 (scripts/install-deps.sh --bench). Server CPU per request (utime + stime from
 # /proc during the run; nginx: master + workers) is recorded too: it depends far less than req/s
-# on what else runs on the machine.
+# on what else runs on the machine; so is wrk's (the load generator shares the cores).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -164,7 +164,8 @@ run_wrk() {  # name pid prefix-url prefix-path connections
   local sampler=$!
   SAMPLER=$sampler
   local cpu_before; cpu_before=$(cpu_ticks "$pid")
-  TILE_PATHS=$WORK/paths.txt PREFIX=$prefix wrk -t2 -c"$conns" -d"${DURATION}s" --timeout 5s \
+  TILE_PATHS=$WORK/paths.txt PREFIX=$prefix /usr/bin/time -o "$WORK/time.$name.$conns" -f "%U %S" \
+    wrk -t2 -c"$conns" -d"${DURATION}s" --timeout 5s \
     -s "$ROOT/bench/server/urls.lua" "$url" >"$WORK/wrk.$name.$conns"
   local cpu_after; cpu_after=$(cpu_ticks "$pid")
   kill "$sampler" 2>/dev/null; wait "$sampler" 2>/dev/null || true
@@ -173,7 +174,7 @@ run_wrk() {  # name pid prefix-url prefix-path connections
   local after; after=$(rss_kb "$pid")
   kill -0 "$pid" 2>/dev/null && [[ $(awk '/^State/ {print $2}' "/proc/$pid/status") != Z ]] ||
     { echo "run.sh: $name (pid $pid) died during the run" >&2; exit 1; }
-  echo "$name $conns $(grep RESULT "$WORK/wrk.$name.$conns" | cut -d' ' -f2-) rss_before_kb=$before rss_max_kb=$max rss_after_kb=$after cpu_s=$(( (cpu_after - cpu_before) * 1000 / TICKS ))e-3"
+  echo "$name $conns $(grep RESULT "$WORK/wrk.$name.$conns" | cut -d' ' -f2-) rss_before_kb=$before rss_max_kb=$max rss_after_kb=$after cpu_s=$(( (cpu_after - cpu_before) * 1000 / TICKS ))e-3 wrk_cpu_s=$(awk '{print $1 + $2}' "$WORK/time.$name.$conns")"
 }
 
 LOAD_START=$(cut -d' ' -f1-3 /proc/loadavg)
@@ -199,11 +200,11 @@ print(f"Store: {sys.argv[2]}; static copy: {sys.argv[3]}; {sys.argv[4]} tiles, {
       f"wrk -t2, {sys.argv[6]} s per run, keep-alive, all on one machine over loopback; "
       f"{sys.argv[7]} io threads / nginx workers; commit {sys.argv[10]}; "
       f"load average {sys.argv[8]} (start) → {sys.argv[9]} (end).\n")
-print("| server | conns | req/s | p50 ms | p99 ms | errors | server CPU µs/req | RSS before → max → after (MB) |")
-print("|---|---:|---:|---:|---:|---:|---:|---|")
+print("| server | conns | req/s | p50 ms | p99 ms | errors | server CPU µs/req | wrk CPU µs/req | RSS before → max → after (MB) |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
 for (name, c), r in sorted(rows.items(), key=lambda kv: (kv[0][1], kv[0][0] != "tinstream")):
     print(f"| {name} | {c} | {r['rps']:.0f} | {r['p50_ms']:.2f} | {r['p99_ms']:.2f} | {int(r['errors'])} | "
-          f"{r['cpu_s']*1e6/max(r['requests'],1):.1f} | {r['rss_before_kb']/1024:.1f} → {r['rss_max_kb']/1024:.1f} → {r['rss_after_kb']/1024:.1f} |")
+          f"{r['cpu_s']*1e6/max(r['requests'],1):.1f} | {r['wrk_cpu_s']*1e6/max(r['requests'],1):.1f} | {r['rss_before_kb']/1024:.1f} → {r['rss_max_kb']/1024:.1f} → {r['rss_after_kb']/1024:.1f} |")
 print("\n| conns | throughput tinstream/nginx | p99 tinstream/nginx | CPU per request tinstream/nginx |")
 print("|---:|---:|---:|---:|")
 for c in sorted({c for _, c in rows}):
