@@ -86,8 +86,8 @@ void Triangulation::Hole::start_ring() {
   prv.resize(k);
   owner.resize(k);
   for (std::size_t i = 0; i < k; ++i) {
-    nxt[i] = static_cast<int>((i + 1) % k);
-    prv[i] = static_cast<int>((i + k - 1) % k);
+    nxt[i] = static_cast<int>(i + 1 == k ? 0 : i + 1);
+    prv[i] = static_cast<int>(i == 0 ? k - 1 : i - 1);
     owner[i] = -static_cast<int>(i) - 1;  // ring edge i
   }
 }
@@ -136,54 +136,66 @@ bool Triangulation::Hole::triangulate_quad(const Mesh& mesh) {
 // verifies every new diagonal exactly, so a wrong choice near a tie costs a flip, never
 // correctness. Returns false (hole to be rebuilt by the plain ear clipping) when the chosen ear is
 // not a valid ear, which happens only near degeneracies.
+//
+// The ring is copied once into small arrays relative to v (coordinates, lifts x^2 + y^2, and the
+// cross product of each current polygon edge, which the incircle determinant of an ear shares
+// with its neighbours), so an ear key is a handful of flops; clipped corners get an infinite key
+// and the argmin scans all k slots (no list chasing, no shifting).
 bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
-  // The remaining ring as a small array (ring indices, in order) with one key per ear: a linear
-  // scan finds the best ear without chasing list links.
-  std::array<int, kEarQueueMax> at{};
-  std::array<double, kEarQueueMax> key{};
-  std::size_t left = ring.size();
-  for (std::size_t m = 0; m < left; ++m) at[m] = static_cast<int>(m);
-  auto xy = [&](std::size_t m) -> const XY& {
-    return mesh.xy(ring[static_cast<std::size_t>(at[m])]);
-  };
-  auto evaluate = [&](std::size_t m) {
-    const XY &a = xy(m == 0 ? left - 1 : m - 1), &b = xy(m), &d = xy(m + 1 == left ? 0 : m + 1);
-    const double ax = a.x - pv.x, ay = a.y - pv.y, bx = b.x - pv.x, by = b.y - pv.y;
-    const double dx = d.x - pv.x, dy = d.y - pv.y;
-    const double orient = (ax - dx) * (by - dy) - (ay - dy) * (bx - dx);
-    const double inc = (ax * ax + ay * ay) * (bx * dy - dx * by) +
-                       (bx * bx + by * by) * (dx * ay - ax * dy) +
-                       (dx * dx + dy * dy) * (ax * by - bx * ay);
-    // A reflex or flat corner (approximately) is no ear; NaN never wins either.
-    key[m] = orient > 0.0 ? inc / orient : std::numeric_limits<double>::infinity();
-  };
-  for (std::size_t m = 0; m < left; ++m) evaluate(m);
-  while (left > 3) {
-    std::size_t best = 0;
-    for (std::size_t m = 1; m < left; ++m) {
-      if (key[m] < key[best]) best = m;
-    }
-    const std::size_t mp = best == 0 ? left - 1 : best - 1, mn = best + 1 == left ? 0 : best + 1;
-    if (!(key[best] < std::numeric_limits<double>::infinity()) ||
-        orient2d(xy(mp), xy(best), xy(mn)) <= 0.0 || orient2d(xy(mp), xy(mn), pv) <= 0.0) {
-      return false;
-    }
-    const auto p = static_cast<std::size_t>(at[mp]), c = static_cast<std::size_t>(at[best]),
-               n = static_cast<std::size_t>(at[mn]);
-    // Edges opposite p = (c, n): ring owner of c; opposite c = (n, p): new; opposite n = (p, c).
-    const int L = add(ring[p], ring[c], ring[n], owner[c], kUnset, owner[p]);
-    owner[p] = L * 3 + 1;
-    for (std::size_t m = best; m + 1 < left; ++m) {
-      at[m] = at[m + 1];
-      key[m] = key[m + 1];
-    }
-    --left;
-    evaluate(best == 0 ? left - 1 : best - 1);  // the ears at p and n changed
-    evaluate(best == left ? 0 : best);
+  const std::size_t k = ring.size();
+  std::array<double, kEarQueueMax> x, y, lift, edge, key;
+  std::array<int, kEarQueueMax> nx, pr, own;
+  for (std::size_t m = 0; m < k; ++m) {
+    const XY& p = mesh.xy(ring[m]);
+    x[m] = p.x - pv.x;
+    y[m] = p.y - pv.y;
+    lift[m] = x[m] * x[m] + y[m] * y[m];
+    nx[m] = static_cast<int>(m + 1 == k ? 0 : m + 1);
+    pr[m] = static_cast<int>(m == 0 ? k - 1 : m - 1);
+    own[m] = -static_cast<int>(m) - 1;  // ring edge m
   }
-  const auto p = static_cast<std::size_t>(at[0]), c = static_cast<std::size_t>(at[1]),
-             n = static_cast<std::size_t>(at[2]);
-  add(ring[p], ring[c], ring[n], owner[c], owner[n], owner[p]);
+  auto cross = [&](std::size_t a, std::size_t b) { return x[a] * y[b] - x[b] * y[a]; };
+  for (std::size_t m = 0; m < k; ++m) edge[m] = cross(m, static_cast<std::size_t>(nx[m]));
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // Ear (p, m, n): incircle(p, m, n, v) expanded along the lifts; edge[p] = cross(p, m),
+  // edge[m] = cross(m, n).
+  auto evaluate = [&](std::size_t m) {
+    const auto p = static_cast<std::size_t>(pr[m]), n = static_cast<std::size_t>(nx[m]);
+    const double orient = (x[p] - x[n]) * (y[m] - y[n]) - (y[p] - y[n]) * (x[m] - x[n]);
+    const double inc = lift[p] * edge[m] - lift[m] * cross(p, n) + lift[n] * edge[p];
+    // A reflex or flat corner (approximately) is no ear; NaN never wins either.
+    key[m] = orient > 0.0 ? inc / orient : kInf;
+  };
+  for (std::size_t m = 0; m < k; ++m) evaluate(m);
+  tris.reserve(k - 2);
+  adj.reserve(k - 2);
+  fixed.reserve(k - 2);
+  std::size_t c = 0;
+  for (std::size_t left = k; left > 3; --left) {
+    double best_key = key[0];
+    c = 0;
+    for (std::size_t m = 1; m < k; ++m) {
+      const bool better = key[m] < best_key;
+      c = better ? m : c;
+      best_key = better ? key[m] : best_key;
+    }
+    if (!(best_key < kInf)) return false;
+    const auto p = static_cast<std::size_t>(pr[c]), n = static_cast<std::size_t>(nx[c]);
+    const XY &a = mesh.xy(ring[p]), &b = mesh.xy(ring[c]), &d = mesh.xy(ring[n]);
+    if (orient2d(a, b, d) <= 0.0 || orient2d(a, d, pv) <= 0.0) return false;
+    // Edges opposite p = (c, n): owner of c; opposite c = (n, p): new; opposite n = (p, c).
+    const int L = add(ring[p], ring[c], ring[n], own[c], kUnset, own[p]);
+    own[p] = L * 3 + 1;
+    nx[p] = static_cast<int>(n);
+    pr[n] = static_cast<int>(p);
+    edge[p] = cross(p, n);
+    key[c] = kInf;
+    evaluate(p);  // the ears at p and n changed
+    evaluate(n);
+    c = p;
+  }
+  const auto p = static_cast<std::size_t>(pr[c]), n = static_cast<std::size_t>(nx[c]);
+  add(ring[p], ring[c], ring[n], own[c], own[n], own[p]);
   return true;
 }
 
@@ -266,6 +278,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     }
   }
   auto code = [](std::size_t i) { return -static_cast<int>(i) - 1; };
+  bool ear_diagonals = false;  // the hole came from clip_delaunay_ears
   if (ghost_pos >= 0) {
     // Hull vertex: ring[ghost_pos] == 0; the chain runs from ring[ghost_pos + 1] around to
     // ring[ghost_pos - 1].
@@ -333,12 +346,13 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // convex corner at c and v strictly left of p->n lies inside the two star triangles at c,
     // so it contains no other vertex and the rest stays star-shaped around v.
     const XY pv = mesh_.xy(v);
-    hole.start_ring();
-    if (k == 4 && hole.triangulate_quad(mesh_)) {
-      return true;  // the diagonal was chosen with exact predicates: nothing to flip
+    if (k == 4) {
+      hole.start_ring();
+      if (hole.triangulate_quad(mesh_)) return true;  // chosen exactly: nothing to flip
     }
     if (k <= kEarQueueMax && hole.clip_delaunay_ears(mesh_, pv)) {
       // done: every ear was checked exactly; the flips below only verify
+      ear_diagonals = true;
     } else {
       hole.tris.clear();
       hole.adj.clear();
@@ -378,10 +392,16 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   // Lawson flips inside the hole (finite local triangles, unfixed local edges only).
   auto& st = hole.flips;
   st.clear();
-  for (std::size_t L = 0; L < hole.tris.size(); ++L) {
-    for (int i = 0; i < 3; ++i) {  // each diagonal once, from its lower-numbered side
-      const int o = hole.adj[L][static_cast<std::size_t>(i)];
-      if (o >= 0 && static_cast<std::size_t>(o / 3) > L) st.emplace_back(static_cast<int>(L), i);
+  if (ear_diagonals) {
+    // Ear L's new edge (index 1) is the diagonal shared with a later triangle; the last
+    // triangle adds none.
+    for (std::size_t L = 0; L + 1 < hole.tris.size(); ++L) st.emplace_back(static_cast<int>(L), 1);
+  } else {
+    for (std::size_t L = 0; L < hole.tris.size(); ++L) {
+      for (int i = 0; i < 3; ++i) {  // each diagonal once, from its lower-numbered side
+        const int o = hole.adj[L][static_cast<std::size_t>(i)];
+        if (o >= 0 && static_cast<std::size_t>(o / 3) > L) st.emplace_back(static_cast<int>(L), i);
+      }
     }
   }
   const bool has_ghosts = ghost_pos >= 0;
@@ -502,6 +522,7 @@ Status Triangulation::remove_vertex(VertexId v) {
     mesh_.set_vertices(id[L], t[0], t[1], t[2]);
   }
   for (std::size_t L = 0; L < nnew; ++L) {
+    const auto& t = hole.tris[L];
     for (int i = 0; i < 3; ++i) {
       const int o = hole.adj[L][static_cast<std::size_t>(i)];
       if (o >= 0) {
@@ -511,13 +532,14 @@ Status Triangulation::remove_vertex(VertexId v) {
         const auto r = static_cast<std::size_t>(-o - 1);
         const TriangleId out = hole.outer[r];
         mesh_.link(id[L], i, out, hole.outer_index[r]);
+        // Ring edge r starts at ring[r] = t[next3(i)]; every ring vertex starts one ring edge.
+        mesh_.set_vertex_triangle(t[static_cast<std::size_t>(next3(i))], id[L]);
         if (has_constraints_) {
           mesh_.set_constrained(id[L], i,
                                 out != kNone && mesh_.constrained(out, hole.outer_index[r]));
         }
       }
     }
-    for (VertexId w : hole.tris[L]) mesh_.set_vertex_triangle(w, id[L]);
   }
   mesh_.set_vertex_triangle(v, kNone);
   --live_vertices_;

@@ -128,17 +128,19 @@ class Mesh {
     const TriangleId u = tris_[t].n[i];
     if (u != kNone) set_constrained(u, mirror(t, i), on);
   }
-  // Index of vertex v in t, or -1.
+  // Index of vertex v in t, or -1. Branch-free: which corner holds v is unpredictable, and a
+  // mispredicted compare chain cost more than the arithmetic in the star walks of removal.
   int index_of(TriangleId t, VertexId v) const {
     const auto& tv = tris_[t].v;
-    return tv[0] == v ? 0 : tv[1] == v ? 1 : tv[2] == v ? 2 : -1;
+    const int at12 = static_cast<int>(tv[1] == v) | (static_cast<int>(tv[2] == v) << 1);
+    return at12 - 1 + static_cast<int>(tv[0] == v) + static_cast<int>(at12 != 0);
   }
   // Index j such that tri(n[i]).n[j] == t. Requires: n[i] != kNone.
   int mirror(TriangleId t, int i) const { return index_of_neighbour(tris_[t].n[i], t); }
   // Index j such that tri(u).n[j] == t. Requires: t is a neighbour of u.
   int index_of_neighbour(TriangleId u, TriangleId t) const {
     const auto& un = tris_[u].n;
-    return un[0] == t ? 0 : un[1] == t ? 1 : 2;
+    return static_cast<int>(un[1] == t) | (static_cast<int>(un[2] == t) << 1);  // branch-free
   }
 
   TriangleId new_triangle(VertexId a, VertexId b, VertexId c) {
