@@ -65,12 +65,18 @@ struct PointSet {
   std::vector<tile::Vertex> pts;    // candidates, then extra points
   std::vector<std::uint8_t> state;  // by point
   std::size_t candidates = 0;
+  const Lattice* lattice = nullptr;  // when the candidates form one: they are scanned, not filed
 };
 
 class GreedyInserter {
  public:
   GreedyInserter(Triangulation& tri, PointSet& points)
-      : kernel_(tri), pts_(points.pts), state_(points.state), heap_(0) {}
+      : kernel_(tri),
+        pts_(points.pts),
+        state_(points.state),
+        lattice_(points.lattice),
+        filed_from_(points.lattice ? points.candidates : 0),
+        heap_(0) {}
 
   // Copies the kernel's triangulation (the fixed points), files every point under its triangle
   // and ranks the triangles.
@@ -108,7 +114,7 @@ class GreedyInserter {
     best_.assign(tris_.size(), kNone);
     heap_.grow(tris_.size());
     std::vector<std::uint32_t> where(pts_.size(), kNone);
-    for (std::size_t i = 0; i < pts_.size(); ++i) {
+    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
       if (state_[i] != kCandidate && state_[i] != kExtra) continue;
       const tile::Vertex& p = pts_[i];
       const TriangleId t = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)
@@ -142,7 +148,7 @@ class GreedyInserter {
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-      if (count_[t] != 0) rank(t);
+      if (count_[t] != 0 || lattice_) rank(t);
     }
     return {};
   }
@@ -171,9 +177,9 @@ class GreedyInserter {
       if (!(e > 0) || e < epsilon || !(e > floor)) break;
       if (vertices >= watch_from) settled = std::min(settled, e);
       if (vertices >= max_vertices && !(e > settled && vertices < hard_cap)) break;
-      const std::uint32_t pos = best_[t];
-      const std::uint32_t i = pool_[pos].id;
-      const Outcome outcome = insert(pos, t);
+      const Pick pick = picked(t);
+      const std::uint32_t i = pick.id;
+      const Outcome outcome = insert(pick, t);
       switch (outcome) {
         case Outcome::inserted:
           chosen.push_back(i);
@@ -186,7 +192,7 @@ class GreedyInserter {
           break;
       }
       if (outcome != Outcome::inserted) {
-        state_[i] = pool_[pos].kind = outcome == Outcome::duplicate ? kGone : kExtra;
+        set_state(pick, outcome == Outcome::duplicate ? kGone : kExtra);
         rank(t);
       }
     }
@@ -276,7 +282,57 @@ class GreedyInserter {
     }
     live_ -= begin_[t] + count_[t] - kept;
     count_[t] = kept - begin_[t];
+    if (lattice_) {
+      rank_cells(t);
+    } else {
+      set_best(t, best, best_e);
+    }
+  }
+
+  // On a lattice: t's best candidate is the candidate cell of largest effective error inside it.
+  void rank_cells(std::uint32_t t) {
+    const auto& v = tris_[t].v;
+    const Lattice& l = *lattice_;
+    const Gradient g(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
+    double best_e = -1;
+    std::uint32_t best = kNone;
+    const std::size_t w = l.width();
+    const double* weight = l.weight.empty() ? nullptr : l.weight.data();
+    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], [&](std::size_t j, std::size_t i0,
+                                                        std::size_t i1) {
+      const double base = g.az + g.gy * (l.ys[j] - g.ay);
+      const std::size_t row = j * w;
+      for (std::size_t i = i0; i <= i1; ++i) {
+        const std::size_t c = row + i;
+        double e = std::abs(l.z[c] - (base + g.gx * (l.xs[i] - g.ax)));
+        if (weight) e += weight[c];
+        if (e > best_e && state_[l.point[c]] == kCandidate) {
+          best_e = e, best = static_cast<std::uint32_t>(c);
+        }
+      }
+    });
     set_best(t, best, best_e);
+  }
+
+  // The candidate named by best_[t]: a pool entry, or on a lattice a cell.
+  struct Pick {
+    double x, y, z;
+    std::uint32_t id;   // index into pts_
+    std::uint32_t pos;  // pool index or cell
+  };
+  Pick picked(std::uint32_t t) const {
+    const std::uint32_t pos = best_[t];
+    if (lattice_) {
+      const Lattice& l = *lattice_;
+      const std::size_t w = l.width();
+      return {l.xs[pos % w], l.ys[pos / w], l.z[pos], l.point[pos], pos};
+    }
+    const Filed& f = pool_[pos];
+    return {f.x, f.y, f.z, f.id, pos};
+  }
+  void set_state(const Pick& c, State s) {
+    state_[c.id] = s;
+    if (!lattice_) pool_[c.pos].kind = s;
   }
 
   void set_best(std::uint32_t t, std::uint32_t best, double error) {
@@ -316,11 +372,11 @@ class GreedyInserter {
     count_[t] = 0;
   }
 
-  // Inserts the candidate at pool_[pos], filed under t (t contains it up to rounding: a short
-  // walk corrects it).
-  Outcome insert(std::uint32_t pos, std::uint32_t t) {
-    const XY p{pool_[pos].x, pool_[pos].y};
-    const double pz = pool_[pos].z;
+  // Inserts the candidate `c`, found in t (t contains it up to rounding: a short walk corrects
+  // it).
+  Outcome insert(const Pick& c, std::uint32_t t) {
+    const XY p{c.x, c.y};
+    const double pz = c.z;
     const std::uint32_t filed_under = t;
     double o[3];
     for (int steps = 0;; ++steps) {
@@ -342,16 +398,16 @@ class GreedyInserter {
         tris_[t].n[static_cast<std::size_t>(o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2))] == kNone) {
       return Outcome::on_wall;
     }
-    state_[pool_[pos].id] = pool_[pos].kind = kInserted;
+    set_state(c, kInserted);
     const auto pv = static_cast<std::uint32_t>(xy_.size());
     star_.clear();
     taken_.clear();
     if (zeros == 1) {
       const int k = o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2);
-      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(pool_[pos].id);
+      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(c.id);
       split_edge(t, k, pv);
     } else {
-      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(pool_[pos].id);
+      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(c.id);
       split_triangle(t, pv);
     }
     legalize(pv);
@@ -506,7 +562,13 @@ class GreedyInserter {
       }
     }
     live_ += moved;
-    for (std::size_t k = 0; k < n; ++k) set_best(star_[k], star_best_[k], star_error_[k]);
+    for (std::size_t k = 0; k < n; ++k) {
+      if (lattice_) {
+        rank_cells(star_[k]);
+      } else {
+        set_best(star_[k], star_best_[k], star_error_[k]);
+      }
+    }
   }
 
   // A number in [0, 4) increasing with the angle of (dx, dy) from the +x axis (no atan2).
@@ -542,7 +604,7 @@ class GreedyInserter {
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
       const auto nb = static_cast<std::uint32_t>(spare_.size());
       spare_.insert(spare_.end(), pool_.begin() + begin_[t], pool_.begin() + begin_[t] + count_[t]);
-      if (best_[t] != kNone) best_[t] = nb + (best_[t] - begin_[t]);
+      if (best_[t] != kNone && !lattice_) best_[t] = nb + (best_[t] - begin_[t]);
       begin_[t] = nb;
     }
     pool_.swap(spare_);
@@ -551,6 +613,8 @@ class GreedyInserter {
   Triangulation& kernel_;
   const std::vector<tile::Vertex>& pts_;
   std::vector<std::uint8_t>& state_;
+  const Lattice* lattice_;   // the candidates' lattice, or null (then they are filed too)
+  std::size_t filed_from_;   // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
   std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
   std::vector<std::uint32_t> vertex_point_;  // by own vertex inserted here (after the copied)
@@ -578,9 +642,10 @@ class GreedyInserter {
 
 Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
-                                   double epsilon) {
+                                   double epsilon, const Lattice* lattice) {
   PointSet points;
   points.candidates = candidates.size();
+  points.lattice = lattice;
   points.pts.reserve(candidates.size() + extra.size());
   points.pts.insert(points.pts.end(), candidates.begin(), candidates.end());
   points.pts.insert(points.pts.end(), extra.begin(), extra.end());

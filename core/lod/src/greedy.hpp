@@ -21,6 +21,7 @@
 #include <span>
 #include <vector>
 
+#include "lattice.hpp"
 #include "tinstream/base/result.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/tile/tin_tile.hpp"
@@ -58,12 +59,15 @@ struct GreedyResult {
 // Inserts candidates into `tri` (already holding the fixed points) until it has `max_vertices`
 // vertices, or until the largest effective error is 0 or below `epsilon`. `extra` points are
 // filed and carried along but never inserted (dropped border points, a parent's internal cross).
+// With `lattice` (the candidates form it, lattice.hpp), the candidates are not filed: each
+// triangle's best one is found by scanning its lattice cells, and GreedyResult::orphans holds the
+// extra points only.
 // Errors: a candidate outside the triangulation or not finite (invalid_argument), a kernel
 // failure (internal).
 // Requires: tri.dimension() == 2, uncut.
 Result<GreedyResult> greedy_insert(kernel::Triangulation& tri,
                                    std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
-                                   double epsilon);
+                                   double epsilon, const Lattice* lattice = nullptr);
 
 }  // namespace tinstream::lod::detail

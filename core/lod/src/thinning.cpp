@@ -21,6 +21,7 @@
 
 #include "greedy.hpp"
 #include "indexed_heap.hpp"
+#include "lattice.hpp"
 #include "plane.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
@@ -73,11 +74,15 @@ using MinQueue = std::priority_queue<QueueEntry, std::vector<QueueEntry>, std::g
 class InteriorThinner {
  public:
   // `orphans`: points already filed by triangle (the greedy stage's), more may be added.
-  InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate, FiledPoints orphans)
+  // `lattice`: the input's interior points (all of them, any state) as a lattice whose cells are
+  // scanned for the error (the filed orphans are then the others only), or null.
+  InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate, FiledPoints orphans,
+                  const detail::Lattice* lattice)
       : tri_(tri),
         candidate_(std::move(candidate)),
         heap_(candidate_.size()),
-        orph_(std::move(orphans)) {
+        orph_(std::move(orphans)),
+        lattice_(lattice) {
     if (orph_.head.size() < tri_.mesh().triangle_slots())
       orph_.head.resize(tri_.mesh().triangle_slots(), kNone);
   }
@@ -150,6 +155,9 @@ class InteriorThinner {
     const auto zv = at(p.x, p.y);
     if (!zv) return std::nullopt;
     double err = std::abs(tri_.z(v) - *zv);
+    if (lattice_) {
+      for (const auto& t : rest.finite_triangles()) err = std::max(err, lattice_error(t, rest));
+    }
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
@@ -158,6 +166,12 @@ class InteriorThinner {
       }
     }
     return err + tri_.weight(v);
+  }
+
+  // Largest |z − surface| over the lattice cells in triangle t of `tri`.
+  double lattice_error(const VertexTriple& t, const Triangulation& tri) const {
+    return detail::max_deviation(*lattice_, tri.xy(t[0]), tri.xy(t[1]), tri.xy(t[2]), tri.z(t[0]),
+                                 tri.z(t[1]), tri.z(t[2]));
   }
 
   bool is_last(VertexId v, const Result<std::vector<VertexTriple>>& preview) const {
@@ -177,6 +191,9 @@ class InteriorThinner {
     set_planes(*preview);
     const XY& p = tri_.xy(v);
     double err = std::abs(tri_.z(v) - surface_at(p.x, p.y, nullptr));
+    if (lattice_) {
+      for (const auto& t : *preview) err = std::max(err, lattice_error(t, tri_));
+    }
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
@@ -247,7 +264,7 @@ class InteriorThinner {
       orph_.next[i] = orph_.head[t];
       orph_.head[t] = i;
     }
-    {
+    if (!lattice_) {  // (on a lattice, v's cell is scanned with the others)
       std::size_t k;
       surface_at(pv.x, pv.y, &k);
       orph_.push(pv.x, pv.y, zv, new_ids_[k]);
@@ -268,6 +285,7 @@ class InteriorThinner {
   mutable std::vector<Plane> planes_;    // scratch of surface_at
   std::vector<std::uint32_t> gathered_;
   std::vector<TriangleId> new_ids_;
+  const detail::Lattice* lattice_;
   VertexId removed_last_ = kNone;
 };
 
@@ -441,10 +459,22 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
 
   // ---- 3. thin the interior: greedy insertion up to the target (large inputs), then drop -----
   FiledPoints filed;
+  // Gridded input (the interior a complete lattice inside the rectangle): both stages scan
+  // lattice cells instead of filing every point under its triangle.
+  std::optional<detail::Lattice> lattice;
+  if (greedy && options.lattice_scan) {
+    lattice = detail::find_lattice(in.interior);
+    if (lattice && !(lattice->xs.front() >= r.min_x && lattice->xs.back() <= r.max_x &&
+                     lattice->ys.front() >= r.min_y && lattice->ys.back() <= r.max_y)) {
+      lattice.reset();  // points outside: the general path reports them
+    }
+  }
+  st.lattice = lattice.has_value();
   if (greedy) {
     std::vector<Vertex> extra = in.orphans;
     extra.insert(extra.end(), dropped.begin(), dropped.end());
-    auto g = detail::greedy_insert(tri, in.interior, extra, target, options.epsilon);
+    auto g = detail::greedy_insert(tri, in.interior, extra, target, options.epsilon,
+                                   lattice ? &*lattice : nullptr);
     if (!g.ok()) {
       return Error(g.error().code, "lod: " + tile_name(in.id) + ": " + g.error().message);
     }
@@ -460,7 +490,8 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   }
   VertexId removed_last = kNone;
   {
-    InteriorThinner thinner(tri, std::move(candidate), std::move(filed));
+    InteriorThinner thinner(tri, std::move(candidate), std::move(filed),
+                            lattice ? &*lattice : nullptr);
     if (!greedy) {
       for (const auto& o : in.orphans) thinner.add_orphan(o);
       for (const auto& o : dropped) thinner.add_orphan(o);

@@ -53,6 +53,11 @@ struct LodOptions {
   // and only those are thinned by the drop heuristic; every other point stays in the error
   // estimate as an orphan. 0 = drop from all points (slow on big grids).
   double greedy_factor = 1.25;
+  // Gridded input: when the interior points form a complete rectilinear lattice (every column ×
+  // row position once, e.g. a DEM's cells), both stages find a triangle's points by scanning its
+  // lattice cells row by row instead of filing every point under its triangle. Same errors (up
+  // to rounding), less time and memory. false = always file (the general path).
+  bool lattice_scan = true;
 };
 
 // The point count the greedy stage builds up to, ⌈greedy_factor × max_points⌉ (0 = no greedy
@@ -100,6 +105,7 @@ struct ThinStats {
   // surface it handed to the drop stage (before any removal).
   double greedy_error = 0;
   double last_error = 0;  // effective error of the last removal (0 when none)
+  bool lattice = false;   // the greedy and drop stages scanned the interior as a lattice
 };
 
 // Triangulates the input with the border constrained and thins it (border first, then

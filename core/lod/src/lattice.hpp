@@ -1,0 +1,154 @@
+// A tile's interior points when they form a complete rectilinear lattice (gridded input: a DEM's
+// cells, in any projection that keeps rows and columns straight, e.g. geographic → Web
+// Mercator). Both thinning stages then scan a triangle's lattice cells row by row, like a
+// rasteriser (Delatin does the same on its grid), instead of keeping every point filed under the
+// triangle that contains it: no per-point bucket memory, no re-filing when triangles change.
+// Internal to core/lod.
+//
+//   ys[H-1] ┬  ·   ·   ·   ·      cell (i, j) = point at (xs[i], ys[j]), index j × W + i;
+//           │  ·   ·  /·\  ·      the triangle's cells are visited as one run of columns
+//   ys[j]   ┼  ·   · / · \ ·  ←   [i0, i1] per row j (closed triangle, plus a millionth of a
+//           │  ·   ·/__·__\·      cell: a point on an edge is visited from both sides)
+//   ys[0]   ┴──┴───┴───┴───┴──
+//             xs[0]        xs[W-1]
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "tinstream/kernel/mesh.hpp"
+#include "tinstream/tile/tin_tile.hpp"
+
+namespace tinstream::lod::detail {
+
+struct Lattice {
+  std::vector<double> xs, ys;        // strictly ascending
+  std::vector<double> z;             // by cell
+  std::vector<double> weight;        // by cell; empty when every weight is 0
+  std::vector<std::uint32_t> point;  // by cell: index into the list the lattice was found in
+
+  std::size_t width() const { return xs.size(); }
+  std::size_t cells() const { return z.size(); }
+  double weight_of(std::size_t cell) const { return weight.empty() ? 0.0 : weight[cell]; }
+
+  // First index of `axis` whose value is ≥ v (`axis.size()` when none); `scale` = 1 / the mean
+  // spacing, for a first guess that is exact on a uniform lattice.
+  static std::size_t first_at_or_after(const std::vector<double>& axis, double scale, double v) {
+    const double g = std::floor((v - axis.front()) * scale);
+    const auto n = static_cast<std::ptrdiff_t>(axis.size());
+    auto i = static_cast<std::ptrdiff_t>(std::clamp(g, 0.0, static_cast<double>(n)));
+    while (i > 0 && axis[static_cast<std::size_t>(i - 1)] >= v) --i;
+    while (i < n && axis[static_cast<std::size_t>(i)] < v) ++i;
+    return static_cast<std::size_t>(i);
+  }
+  // First index of `axis` whose value is > v.
+  static std::size_t first_after(const std::vector<double>& axis, double scale, double v) {
+    const double g = std::floor((v - axis.front()) * scale) + 1;
+    const auto n = static_cast<std::ptrdiff_t>(axis.size());
+    auto i = static_cast<std::ptrdiff_t>(std::clamp(g, 0.0, static_cast<double>(n)));
+    while (i > 0 && axis[static_cast<std::size_t>(i - 1)] > v) --i;
+    while (i < n && axis[static_cast<std::size_t>(i)] <= v) ++i;
+    return static_cast<std::size_t>(i);
+  }
+
+  // Calls row(j, i0, i1) for every row j that meets the closed triangle (a, b, c) (any
+  // orientation), with [i0, i1] its columns inside (i0 ≤ i1). Rows in ascending order.
+  template <typename F>
+  void for_each_run(const kernel::XY& a, kernel::XY b, kernel::XY c, F&& row) const {
+    if ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x) < 0) std::swap(b, c);
+    const kernel::XY v[3] = {a, b, c};
+    const double y_lo = std::min({a.y, b.y, c.y}) - tol_y_;
+    const double y_hi = std::max({a.y, b.y, c.y}) + tol_y_;
+    const std::size_t j0 = first_at_or_after(ys, scale_y_, y_lo);
+    const std::size_t j1 = first_after(ys, scale_y_, y_hi);
+    // Counter-clockwise: the inside is left of every edge p → q, i.e. x ≤ the edge's x at y on
+    // an upward edge and x ≥ it on a downward one (horizontal edges bound the rows only).
+    double px[3], py[3], slope[3];
+    int up[3];
+    for (int k = 0; k < 3; ++k) {
+      const kernel::XY& p = v[k];
+      const kernel::XY& q = v[k == 2 ? 0 : k + 1];
+      const double dy = q.y - p.y;
+      px[k] = p.x, py[k] = p.y;
+      up[k] = dy > 0 ? 1 : (dy < 0 ? -1 : 0);
+      slope[k] = dy != 0 ? (q.x - p.x) / dy : 0.0;
+    }
+    for (std::size_t j = j0; j < j1; ++j) {
+      const double y = ys[j];
+      double lo = -std::numeric_limits<double>::infinity();
+      double hi = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < 3; ++k) {
+        if (up[k] == 0) continue;
+        const double x = px[k] + slope[k] * (y - py[k]);
+        if (up[k] > 0) {
+          hi = std::min(hi, x);
+        } else {
+          lo = std::max(lo, x);
+        }
+      }
+      const std::size_t i0 = first_at_or_after(xs, scale_x_, lo - tol_x_);
+      const std::size_t i1 = first_after(xs, scale_x_, hi + tol_x_);
+      if (i0 < i1) row(j, i0, i1 - 1);
+    }
+  }
+
+  // First column whose x is ≥ x, first row whose y is ≥ y (width() / rows when none).
+  std::size_t first_column_at_or_after(double x) const {
+    return first_at_or_after(xs, scale_x_, x);
+  }
+  std::size_t first_row_at_or_after(double y) const { return first_at_or_after(ys, scale_y_, y); }
+
+  // Sets the guesses and tolerances from xs and ys (find_lattice does it).
+  void finish() {
+    const auto mean = [](const std::vector<double>& a) {
+      return a.size() > 1 ? (a.back() - a.front()) / static_cast<double>(a.size() - 1) : 1.0;
+    };
+    const double dx = mean(xs), dy = mean(ys);
+    scale_x_ = 1.0 / dx, scale_y_ = 1.0 / dy;
+    tol_x_ = 1e-6 * dx, tol_y_ = 1e-6 * dy;
+  }
+
+ private:
+  double scale_x_ = 1, scale_y_ = 1, tol_x_ = 0, tol_y_ = 0;
+};
+
+// The lattice that `points` fill exactly once each (every column × row position present, no
+// duplicate, finite), or nullopt. O(n) plus sorting one row and one column.
+std::optional<Lattice> find_lattice(std::span<const tile::Vertex> points);
+
+// The height of the triangle (a, b, c) as a + gx·(x − a.x) + gy·(y − a.y), for scanning.
+struct Gradient {
+  double ax, ay, az, gx, gy;
+  Gradient(const kernel::XY& a, const kernel::XY& b, const kernel::XY& c, double za, double zb,
+           double zc) {
+    const double bx = b.x - a.x, by = b.y - a.y, cx = c.x - a.x, cy = c.y - a.y;
+    const double dzb = zb - za, dzc = zc - za;
+    const double inv = 1.0 / (bx * cy - by * cx);
+    ax = a.x, ay = a.y, az = za;
+    gx = (cy * dzb - by * dzc) * inv;
+    gy = (bx * dzc - cx * dzb) * inv;
+  }
+};
+
+// Largest |z − surface| over the lattice cells of the closed triangle (a, b, c) (0 when none).
+inline double max_deviation(const Lattice& l, const kernel::XY& a, const kernel::XY& b,
+                            const kernel::XY& c, double za, double zb, double zc) {
+  const Gradient g(a, b, c, za, zb, zc);
+  double worst = 0;
+  const std::size_t w = l.width();
+  l.for_each_run(a, b, c, [&](std::size_t j, std::size_t i0, std::size_t i1) {
+    const double base = g.az + g.gy * (l.ys[j] - g.ay);
+    const double* z = l.z.data() + j * w;
+    for (std::size_t i = i0; i <= i1; ++i) {
+      worst = std::max(worst, std::abs(z[i] - (base + g.gx * (l.xs[i] - g.ax))));
+    }
+  });
+  return worst;
+}
+
+}  // namespace tinstream::lod::detail
