@@ -15,7 +15,7 @@ bool lex_greater(const XY& p, const XY& q) { return p.x > q.x || (p.x == q.x && 
 // opposite v[i]; kNoTri on the hull), on which cocircular ties are flipped to the canonical
 // diagonal by Lawson flips under the perturbed predicate. Only ties can flip (the kernel's result
 // is already Delaunay), so the work is proportional to the number of ties.
-constexpr std::uint32_t kNoTri = 0xFFFFFFFFu;
+constexpr std::uint32_t kNoTri = kNoNeighbour;
 
 struct FlipMesh {
   std::vector<IndexTriangle> v;  // input indices
@@ -94,6 +94,10 @@ int perturbed_incircle(const XY& a, const XY& b, const XY& c, const XY& d) {
 }
 
 std::vector<IndexTriangle> delaunay(const std::vector<XY>& points) {
+  return delaunay_mesh(points).triangles;
+}
+
+DelaunayMesh delaunay_mesh(const std::vector<XY>& points) {
   std::vector<kernel::Point3> in(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) in[i] = {points[i].x, points[i].y, 0.0, 0.0};
   kernel::Triangulation dt;
@@ -124,7 +128,7 @@ std::vector<IndexTriangle> delaunay(const std::vector<XY>& points) {
     }
   }
   canonicalize(points, m);
-  return std::move(m.v);
+  return {std::move(m.v), std::move(m.n)};
 }
 
 }  // namespace tinstream::triangulate::detail

@@ -31,4 +31,14 @@ int perturbed_incircle(const kernel::XY& a, const kernel::XY& b, const kernel::X
 // `points`) covering the convex hull of `points`. Requires: points are pairwise distinct.
 std::vector<IndexTriangle> delaunay(const std::vector<kernel::XY>& points);
 
+// The same triangulation with neighbour links: neighbours[t][i] is the triangle across the edge
+// opposite triangles[t][i] (from triangles[t][i+1] to triangles[t][i+2]), kNoNeighbour on the
+// convex hull — so the hull edges are found in one pass, without sorting the edges.
+constexpr std::uint32_t kNoNeighbour = 0xFFFFFFFFu;
+struct DelaunayMesh {
+  std::vector<IndexTriangle> triangles;
+  std::vector<std::array<std::uint32_t, 3>> neighbours;
+};
+DelaunayMesh delaunay_mesh(const std::vector<kernel::XY>& points);
+
 }  // namespace tinstream::triangulate::detail

@@ -299,15 +299,19 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   };
   // Gathers what the current local triangulation says is missing: points inside the circumcircle
   // of a triangle touching R, or beyond a local hull edge touching R (both only within B).
-  auto grow_halo = [&](const std::vector<XY>& v, const std::vector<detail::IndexTriangle>& tri) {
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> directed;
-    directed.reserve(tri.size() * 3);
-    for (const auto& t : tri) {
-      for (std::size_t k = 0; k < 3; ++k) directed.emplace_back(t[k], t[(k + 1) % 3]);
+  auto grow_halo = [&](const std::vector<XY>& v, const detail::DelaunayMesh& mesh) {
+    const auto& tri = mesh.triangles;
+    // The local hull's edges, directed counter-clockwise (no triangle beyond them), visited in
+    // (from, to) order so that the cells are gathered in the same order on every run.
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;
+    for (std::size_t t = 0; t < tri.size(); ++t) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (mesh.neighbours[t][k] == detail::kNoNeighbour)
+          hull.emplace_back(tri[t][(k + 1) % 3], tri[t][(k + 2) % 3]);
+      }
     }
-    std::sort(directed.begin(), directed.end());
-    for (const auto& [ia, ib] : directed) {
-      if (std::binary_search(directed.begin(), directed.end(), std::make_pair(ib, ia))) continue;
+    std::sort(hull.begin(), hull.end());
+    for (const auto& [ia, ib] : hull) {
       const XY &a = v[ia], &b = v[ib];
       if (!bbox_meets(a, b, b, R)) continue;
       // Nothing lies beyond an edge that no vertex of the global convex hull lies beyond.
@@ -399,9 +403,9 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     }
     xy.resize(pts.size());
     for (std::size_t i = 0; i < pts.size(); ++i) xy[i] = {pts[i].x, pts[i].y};
-    tris = detail::delaunay(xy);
-
-    grow_halo(xy, tris);
+    detail::DelaunayMesh mesh = detail::delaunay_mesh(xy);
+    grow_halo(xy, mesh);
+    tris = std::move(mesh.triangles);
     if (!peek_error.ok()) return peek_error.error();
     // Only cells that hold points matter.
     std::erase_if(pending, [&](const auto& cell) {
