@@ -36,18 +36,12 @@ inline double orient2d(const XY& a, const XY& b, const XY& c) {
   const double left = (a.x - c.x) * (b.y - c.y);
   const double right = (a.y - c.y) * (b.x - c.x);
   const double det = left - right;
-  double sum;
-  if (left > 0.0) {
-    if (right <= 0.0) return det;
-    sum = left + right;
-  } else if (left < 0.0) {
-    if (right >= 0.0) return det;
-    sum = -left - right;
-  } else {
-    return det;  // left is exactly 0: det = -right is exact
-  }
-  const double bound = detail::kOrientBoundA * sum;
-  if (det >= bound || -det >= bound) return det;
+  // Shewchuk's bound on |left + right| when the two products have the same sign, written without
+  // branching on their signs (those branches were mispredicted about as often as not). With
+  // opposite signs or a zero product there is no cancellation, |det| >= (|left| + |right|)(1 - eps)
+  // passes the test and its sign is right; with left = right = 0, det = 0 is exact.
+  const double bound = detail::kOrientBoundA * (__builtin_fabs(left) + __builtin_fabs(right));
+  if (__builtin_fabs(det) >= bound) return det;
   return detail::orient2d_exact(a, b, c);
 }
 
