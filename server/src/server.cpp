@@ -18,9 +18,12 @@
 //   any error / timeout / Connection: close / stopping ──▶ lingering close (drain, bounded) ──▶
 //   closed
 //
-// A response goes out as one gather write: the header block (formatted into a buffer the session
-// reuses, or prebuilt by the handler for cached tiles) and the body bytes (cached tiles: shared,
-// not copied).
+// Requests are read by the session's own loop (read_some into a buffer the session keeps, Beast's
+// basic_parser over it, the handler's fields stored straight into the Request), not Beast's
+// composed read operations and field containers: no allocation per request field, and a
+// pipelined burst is parsed from one read. A response goes out as one gather write: the header
+// block (formatted into a buffer the session reuses, or prebuilt by the handler for cached tiles)
+// and the body bytes (cached tiles: shared, not copied), offered whole to each writev.
 #include "tinstream/server/server.hpp"
 
 #include <spdlog/spdlog.h>
@@ -139,11 +142,100 @@ Result<store::TileStore*> thread_store(std::uint64_t serial, const std::filesyst
 
 std::string_view view(beast::string_view s) { return {s.data(), s.size()}; }
 
+// Completion condition of a response write: offer the kernel everything left in each call.
+// (Asio's transfer_all caps every writev at 64 KiB, which splits most terrain tiles in two
+// system calls and two pushes of TCP segments.)
+std::size_t whole_buffers(const beast::error_code& ec, std::size_t) {
+  return ec ? 0 : std::numeric_limits<std::size_t>::max();
+}
+
 void append_number(std::string& out, std::uint64_t v) {
   std::array<char, 24> digits{};
   auto [end, ec] = std::to_chars(digits.data(), digits.data() + digits.size(), v);
   out.append(digits.data(), end);
 }
+
+// Bytes asked of the socket per read when the buffer has less room: a few requests' worth.
+constexpr std::size_t kReadSize = 4096;
+
+// Beast's HTTP/1 request grammar and limits (header_limit, body_limit, chunked decoding), with
+// the fields the handler reads stored straight into the session's Request: no field container
+// and no allocation per field. The body goes to Request::body, or to the upload file once
+// write_body_to() has named one. Repeated fields: the first one counts.
+class RequestParser final : public http::basic_parser<true> {
+ public:
+  explicit RequestParser(Request& request) : req_(request) {}
+
+  unsigned version() const { return version_; }
+  bool expect_continue() const { return expect_continue_; }
+  std::uint64_t body_bytes() const { return body_bytes_; }
+  void write_body_to(beast::file& file) { file_ = &file; }
+
+ private:
+  void on_request_impl(http::verb, beast::string_view method, beast::string_view target,
+                       int version, beast::error_code&) override {
+    req_.method.assign(method.data(), method.size());
+    req_.target.assign(target.data(), target.size());
+    version_ = static_cast<unsigned>(version);
+  }
+  void on_response_impl(int, beast::string_view, int, beast::error_code&) override {}
+
+  void on_field_impl(http::field name, beast::string_view, beast::string_view value,
+                     beast::error_code&) override {
+    const auto first = [&](std::string& out, unsigned bit) {
+      if (seen_ & bit) return;
+      seen_ |= bit;
+      out.assign(value.data(), value.size());
+    };
+    switch (name) {
+      case http::field::accept:
+        return first(req_.accept, 1u);
+      case http::field::accept_encoding:
+        return first(req_.accept_encoding, 2u);
+      case http::field::if_none_match:
+        return first(req_.if_none_match, 4u);
+      case http::field::authorization:
+        return first(req_.authorization, 8u);
+      case http::field::content_type:
+        return first(req_.content_type, 16u);
+      case http::field::expect:
+        if (seen_ & 32u) return;
+        seen_ |= 32u;
+        expect_continue_ = beast::iequals(value, "100-continue");
+        return;
+      default:
+        return;
+    }
+  }
+  void on_header_impl(beast::error_code&) override {}
+
+  void on_body_init_impl(const boost::optional<std::uint64_t>& length,
+                         beast::error_code&) override {
+    if (!file_ && length) req_.body.reserve(static_cast<std::size_t>(*length));
+  }
+  std::size_t on_body_impl(beast::string_view body, beast::error_code& ec) override {
+    if (file_) {
+      file_->write(body.data(), body.size(), ec);
+    } else {
+      req_.body.append(body.data(), body.size());
+    }
+    body_bytes_ += body.size();
+    return body.size();
+  }
+  void on_chunk_header_impl(std::uint64_t, beast::string_view, beast::error_code&) override {}
+  std::size_t on_chunk_body_impl(std::uint64_t, beast::string_view body,
+                                 beast::error_code& ec) override {
+    return on_body_impl(body, ec);
+  }
+  void on_finish_impl(beast::error_code&) override {}
+
+  Request& req_;
+  beast::file* file_ = nullptr;
+  std::uint64_t body_bytes_ = 0;
+  unsigned version_ = 11;
+  unsigned seen_ = 0;  // bits of the fields already stored
+  bool expect_continue_ = false;
+};
 
 }  // namespace
 
@@ -222,24 +314,67 @@ class Session : public std::enable_shared_from_this<Session> {
     req_.body_file_size = 0;
   }
 
+  // Waits for the next request: its header within read_timeout_ms of now, however it trickles in.
   void do_read() {
     if (server_.stopping && idle()) return close_now();
-    header_parser_.emplace();
-    header_parser_->header_limit(cfg().max_header_bytes);
-    // Body limits depend on the route (uploads vs. the rest): checked once the header is known.
-    header_parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
+    reset_request();
+    parser_.emplace(req_);
+    parser_->header_limit(cfg().max_header_bytes);
+    // Body limits depend on the route (uploads vs. the rest): set once the header is known.
+    parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     reading_header_ = true;
     expires_after(cfg().read_timeout_ms);
-    http::async_read_header(socket_, buffer_, *header_parser_,
-                            beast::bind_front_handler(&Session::on_header, shared_from_this()));
+    parse();
   }
 
-  void on_header(beast::error_code ec, std::size_t) {
+  // Feeds the buffered bytes to the parser until the header (or, after it, the body) is
+  // complete, reading more while it needs them; then on_header or on_body. A pipelined next
+  // request stays in buffer_.
+  void parse() {
+    beast::error_code ec;
+    const auto complete = [this] {
+      return reading_header_ ? parser_->is_header_done() : parser_->is_done();
+    };
+    while (buffer_.size() > 0 && !complete()) {
+      buffer_.consume(parser_->put(buffer_.data(), ec));
+      if (ec == http::error::need_more) {
+        ec = {};
+        break;
+      }
+      if (ec) break;
+    }
+    if (!ec && !complete()) return read_more();
+    parsed(ec);
+  }
+
+  void parsed(beast::error_code ec) { reading_header_ ? on_header(ec) : on_body(ec); }
+
+  void read_more() {
+    // At least a few requests' worth per read: a pipelined burst costs one system call.
+    const std::size_t size = std::max<std::size_t>(kReadSize, buffer_.capacity() - buffer_.size());
+    socket_.async_read_some(
+        buffer_.prepare(size),
+        [self = shared_from_this()](beast::error_code ec, std::size_t n) { self->on_read(ec, n); });
+  }
+
+  void on_read(beast::error_code ec, std::size_t n) {
+    buffer_.commit(n);
+    if (ec == net::error::eof) {
+      if (!parser_->got_some()) return parsed(http::error::end_of_stream);
+      ec = {};
+      parser_->put_eof(ec);  // a message cut short: partial_message
+      return parsed(ec);
+    }
+    if (ec) return parsed(ec);
+    parse();
+  }
+
+  void on_header(beast::error_code ec) {
     reading_header_ = false;
     start_ = Clock::now();
-    reset_request();
     // Cancelled by shutdown(): do_read() closes the connection unless a request arrived since.
     if (ec == net::error::operation_aborted && server_.stopping) return do_read();
+    if (ec) reset_request();  // the answer to a broken request names no method or target
     if (ec == http::error::end_of_stream || ec == net::error::eof ||
         ec == net::error::operation_aborted || ec == net::error::connection_reset ||
         ec == net::error::bad_descriptor) {
@@ -253,25 +388,22 @@ class Session : public std::enable_shared_from_this<Session> {
     if (ec == http::error::body_limit) return send(json_error(413, "request body too large"), true);
     if (ec) return send(json_error(400, "malformed request: " + ec.message()), true);
 
-    const auto& h = header_parser_->get();
-    req_.method.assign(view(h.method_string()));
-    req_.target.assign(view(h.target()));
-    req_.accept.assign(view(h[http::field::accept]));
-    req_.accept_encoding.assign(view(h[http::field::accept_encoding]));
-    req_.if_none_match.assign(view(h[http::field::if_none_match]));
-    req_.authorization.assign(view(h[http::field::authorization]));
-    req_.content_type.assign(view(h[http::field::content_type]));
-    keep_alive_ = h.keep_alive();
-    version_ = h.version();
-    const bool expect_continue = beast::iequals(h[http::field::expect], "100-continue");
-    const auto length = header_parser_->content_length();
+    keep_alive_ = parser_->keep_alive();
+    version_ = parser_->version();
+    const bool expect_continue = parser_->expect_continue();
+    const auto length = parser_->content_length();
+    // Reads the body (on_body once complete), after a 100 Continue when the client asked for it.
+    const auto read_body = [self = shared_from_this()] {
+      self->expires_after(self->cfg().read_timeout_ms);
+      self->parse();
+    };
 
     if (is_upload(req_)) {
       if (auto denied = check_admin(req_, server_.ctx)) return send(std::move(*denied), true);
       if (cfg().upload_dir.empty()) {
         return send(json_error(403, "uploads are disabled (no upload_dir configured)"), true);
       }
-      if (!length && !header_parser_->chunked()) {
+      if (!length && !parser_->chunked()) {
         return send(json_error(411, "upload: Content-Length or chunked encoding required"), true);
       }
       if (length && *length > cfg().max_upload_bytes) {
@@ -282,42 +414,26 @@ class Session : public std::enable_shared_from_this<Session> {
       std::error_code fs_ec;
       std::filesystem::create_directories(cfg().upload_dir, fs_ec);
       upload_path_ = cfg().upload_dir / ("upload-" + random_hex(16));
-      file_parser_.emplace(std::move(*header_parser_));
-      file_parser_->body_limit(cfg().max_upload_bytes);
       beast::error_code open_ec;
-      file_parser_->get().body().open(upload_path_.c_str(), beast::file_mode::write_new, open_ec);
+      upload_file_.open(upload_path_.c_str(), beast::file_mode::write_new, open_ec);
       if (open_ec) {
         upload_path_.clear();
         return send(
             json_error(500, "upload: cannot create a file in upload_dir: " + open_ec.message()),
             true);
       }
-      return continue_then(
-          [self = shared_from_this()] {
-            self->expires_after(self->cfg().read_timeout_ms);
-            http::async_read(self->socket_, self->buffer_, *self->file_parser_,
-                             beast::bind_front_handler(&Session::on_file_body, self));
-          },
-          expect_continue);
+      parser_->write_body_to(upload_file_);
+      parser_->body_limit(cfg().max_upload_bytes);
+      return continue_then(read_body, expect_continue);
     }
     if (length && *length > cfg().max_body_bytes) {
       return send(json_error(413, "request body larger than max_body_bytes = " +
                                       std::to_string(cfg().max_body_bytes)),
                   true);
     }
-    if (header_parser_->is_done()) {  // no body (GET and friends): answer right away
-      header_parser_.reset();
-      return respond();
-    }
-    string_parser_.emplace(std::move(*header_parser_));
-    string_parser_->body_limit(cfg().max_body_bytes);
-    continue_then(
-        [self = shared_from_this()] {
-          self->expires_after(self->cfg().read_timeout_ms);
-          http::async_read(self->socket_, self->buffer_, *self->string_parser_,
-                           beast::bind_front_handler(&Session::on_body, self));
-        },
-        expect_continue && !string_parser_->is_done());
+    if (parser_->is_done()) return respond();  // no body (GET and friends): answer right away
+    parser_->body_limit(cfg().max_body_bytes);
+    continue_then(read_body, expect_continue);
   }
 
   template <typename Next>
@@ -332,30 +448,23 @@ class Session : public std::enable_shared_from_this<Session> {
                      });
   }
 
-  void on_body(beast::error_code ec, std::size_t) {
+  void on_body(beast::error_code ec) {
+    const bool upload = upload_file_.is_open();
     if (ec == http::error::body_limit) {
-      return send(json_error(413, "request body larger than max_body_bytes = " +
-                                      std::to_string(cfg().max_body_bytes)),
+      return send(upload ? json_error(413, "upload larger than max_upload_bytes = " +
+                                               std::to_string(cfg().max_upload_bytes))
+                         : json_error(413, "request body larger than max_body_bytes = " +
+                                               std::to_string(cfg().max_body_bytes)),
                   true);
     }
     if (ec) return close_now();
-    req_.body = string_parser_->release().body();
-    string_parser_.reset();
-    respond();
-  }
-
-  void on_file_body(beast::error_code ec, std::size_t) {
-    if (ec == http::error::body_limit) {
-      return send(json_error(413, "upload larger than max_upload_bytes = " +
-                                      std::to_string(cfg().max_upload_bytes)),
-                  true);
+    if (upload) {
+      upload_file_.close(ec);
+      if (ec) return send(json_error(500, "upload: " + ec.message()), true);
+      req_.body_file_size = parser_->body_bytes();
+      req_.body_file = std::move(upload_path_);  // handle() owns the file from here
+      upload_path_.clear();
     }
-    if (ec) return close_now();
-    file_parser_->get().body().close();
-    req_.body_file_size = file_parser_->get().body().size();
-    file_parser_.reset();
-    req_.body_file = std::move(upload_path_);  // handle() owns the file from here
-    upload_path_.clear();
     respond();
   }
 
@@ -398,7 +507,7 @@ class Session : public std::enable_shared_from_this<Session> {
         net::buffer(head_),
         head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     expires_after(cfg().write_timeout_ms);
-    net::async_write(socket_, buffers,
+    net::async_write(socket_, buffers, whole_buffers,
                      beast::bind_front_handler(&Session::on_write, shared_from_this()));
   }
 
@@ -445,12 +554,11 @@ class Session : public std::enable_shared_from_this<Session> {
   Server::Impl& server_;
   Shard& shard_;
   Clock::time_point deadline_ = Clock::time_point::max();  // of the pending read or write
-  std::optional<http::request_parser<http::empty_body>> header_parser_;
-  std::optional<http::request_parser<http::string_body>> string_parser_;
-  std::optional<http::request_parser<http::file_body>> file_parser_;
-  std::string head_;                                // the response's header block
-  std::string body_;                                // the response's own body bytes
-  std::shared_ptr<const std::string> shared_body_;  // or shared, cached ones
+  std::optional<RequestParser> parser_;                    // of the request being read, into req_
+  beast::file upload_file_;                                // open while an upload body is read
+  std::string head_;                                       // the response's header block
+  std::string body_;                                       // the response's own body bytes
+  std::shared_ptr<const std::string> shared_body_;         // or shared, cached ones
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
   Request req_;
   Clock::time_point start_;

@@ -432,6 +432,104 @@ TEST_F(ServerTest, ReadTimeoutClosesIdleAndStalledConnections) {
   EXPECT_EQ(stalled.read_response().status, 0);  // no answer to the stalled request
 }
 
+// A client trickling a header in, one byte at a time, never gets an answer: the read deadline runs
+// from the start of the request, not from the last byte received (slow-loris).
+TEST_F(ServerTest, SlowLorisIsCutOffAtTheReadDeadline) {
+  stop();
+  start([](ServerConfig& c) { c.read_timeout_ms = 400; });
+  using clock = std::chrono::steady_clock;
+  HttpConnection slow(port_);
+  const std::string header =
+      "GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(200, 'a') + "\r\n\r\n";
+  const auto t0 = clock::now();
+  std::size_t sent = 0;
+  for (; sent < header.size(); ++sent) {  // a byte every 40 ms: 10 per timeout
+    if (!slow.send_raw(header.substr(sent, 1))) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  }
+  const auto elapsed = clock::now() - t0;
+  EXPECT_LT(sent, header.size());  // the server hung up before the header was complete
+  EXPECT_GE(elapsed, std::chrono::milliseconds(400));
+  EXPECT_LT(elapsed, std::chrono::seconds(3));
+  EXPECT_EQ(slow.read_response().status, 0);
+  EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+}
+
+// Responses far larger than one write (native tiles of a dense layer, several hundred KiB,
+// between cached terrain tiles):
+// pipelined, to a reader that lets the socket buffers fill up before reading, they come back
+// whole and in order.
+TEST_F(ServerTest, LargePipelinedResponsesToASlowReaderArriveWhole) {
+  stop();
+  testing::write_test_layer(store_path_, "dense", geo::Projection::spherical, 257);
+  start({});
+  const std::string native = "/tiles/dense/" + kTile.quadkey();
+  const std::string gzip_native =
+      "GET " + native + " HTTP/1.1\r\nHost: x\r\nAccept-Encoding: gzip\r\n\r\n";
+  const auto ref = http_get(port_, native);  // inflated: the raw tile bytes
+  ASSERT_EQ(ref.status, 200);
+  ASSERT_GT(ref.body.size(), 256u * 1024u);
+  const auto ref_gz = http_get(port_, native, {{"Accept-Encoding", "gzip"}});
+  ASSERT_EQ(ref_gz.status, 200);
+  const std::string terrain = "GET /tiles/dense/12/" + std::to_string(kTile.x) + "/" +
+                              std::to_string(kTile.tms_row()) +
+                              ".terrain HTTP/1.1\r\nHost: x\r\nAccept-Encoding: gzip\r\n\r\n";
+  const auto ref_qm = http_get(port_,
+                               "/tiles/dense/12/" + std::to_string(kTile.x) + "/" +
+                                   std::to_string(kTile.tms_row()) + ".terrain",
+                               {{"Accept-Encoding", "gzip"}});
+  ASSERT_EQ(ref_qm.status, 200);
+
+  HttpConnection c(port_);
+  std::string burst;
+  for (int i = 0; i < 3; ++i) {
+    burst += "GET " + native + " HTTP/1.1\r\nHost: x\r\n\r\n" + terrain + gzip_native;
+  }
+  ASSERT_TRUE(c.send_raw(burst));
+  std::this_thread::sleep_for(
+      std::chrono::milliseconds(200));  // the server blocks on a full window
+  for (int i = 0; i < 3; ++i) {
+    const auto raw = c.read_response();
+    EXPECT_EQ(raw.status, 200) << i;
+    EXPECT_TRUE(raw.body == ref.body) << i << ": " << raw.body.size() << " bytes";
+    const auto qm = c.read_response();
+    EXPECT_EQ(qm.status, 200) << i;
+    EXPECT_TRUE(qm.body == ref_qm.body) << i << ": " << qm.body.size() << " bytes";
+    const auto gz = c.read_response();
+    EXPECT_EQ(gz.status, 200) << i;
+    EXPECT_TRUE(gz.body == ref_gz.body) << i << ": " << gz.body.size() << " bytes";
+  }
+  EXPECT_EQ(c.request("GET", "/healthz").status, 200);
+}
+
+// Requests split at every possible byte boundary (here: sent one byte at a time, a header and a
+// JSON body) are parsed as when they arrive whole.
+TEST_F(ServerTest, RequestsArrivingByteByByteAreParsedWhole) {
+  HttpConnection c(port_);
+  const std::string body = "{\"layer\": \"x\"}";
+  const std::string reqs =
+      "GET /layers/lux HTTP/1.1\r\nHost: x\r\n\r\n"
+      "POST /admin/ingest HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+      "Content-Type: application/json\r\nContent-Length: " +
+      std::to_string(body.size()) + "\r\n\r\n" + body +
+      "GET /healthz HTTP/1.0\r\nConnection: keep-alive\r\n\r\n";
+  for (char ch : reqs) {
+    ASSERT_TRUE(c.send_raw(std::string(1, ch)));
+    std::this_thread::sleep_for(std::chrono::microseconds(300));
+  }
+  const auto layer = c.read_response();
+  EXPECT_EQ(layer.status, 200);
+  EXPECT_EQ(json::parse(layer.body)["name"], "lux");
+  const auto ingest = c.read_response();
+  EXPECT_EQ(ingest.status, 400);  // parsed: the body names no sources
+  EXPECT_NE(json::parse(ingest.body)["error"].get<std::string>().find("sources"),
+            std::string::npos);
+  const auto health = c.read_response();
+  EXPECT_EQ(health.status, 200);
+  EXPECT_EQ(health.header("Connection"), "keep-alive");
+  EXPECT_EQ(c.request("GET", "/healthz").status, 200);
+}
+
 // With several io threads (one io_context each), stop() still closes idle connections at once,
 // answers every request already received on any thread, and run() returns.
 TEST_F(ServerTest, GracefulShutdownWithSeveralIoThreads) {
