@@ -53,6 +53,18 @@ struct Tri {
 constexpr std::size_t kSmallStar = 12;
 constexpr std::size_t kNoLimit = std::numeric_limits<std::size_t>::max();
 
+// Whether four distinct points are the corners of an axis-parallel rectangle, hence exactly
+// cocircular (incircle 0, no flip). Lattices are full of them, and the exact predicate decides
+// each by slow expanded arithmetic once its floating-point filter fails.
+bool axis_rectangle(const XY& a, const XY& b, const XY& c, const XY& d) {
+  const double x1 = a.x != b.x ? b.x : (a.x != c.x ? c.x : d.x);
+  const double y1 = a.y != b.y ? b.y : (a.y != c.y ? c.y : d.y);
+  auto either = [](double v, double u, double w) { return v == u || v == w; };
+  return x1 != a.x && y1 != a.y && either(b.x, a.x, x1) && either(c.x, a.x, x1) &&
+         either(d.x, a.x, x1) && either(b.y, a.y, y1) && either(c.y, a.y, y1) &&
+         either(d.y, a.y, y1);
+}
+
 enum State : std::uint8_t {
   kCandidate,  // may be inserted
   kInserted,
@@ -298,8 +310,7 @@ class GreedyInserter {
     std::uint32_t best = kNone;
     const std::size_t w = l.width();
     const double* weight = l.weight.empty() ? nullptr : l.weight.data();
-    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], [&](std::size_t j, std::size_t i0,
-                                                        std::size_t i1) {
+    auto scan_row = [&](std::size_t j, std::size_t i0, std::size_t i1) {
       const double base = g.az + g.gy * (l.ys[j] - g.ay);
       const std::size_t row = j * w;
       for (std::size_t i = i0; i <= i1; ++i) {
@@ -310,7 +321,8 @@ class GreedyInserter {
           best_e = e, best = static_cast<std::uint32_t>(c);
         }
       }
-    });
+    };
+    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row);
     set_best(t, best, best_e);
   }
 
@@ -471,6 +483,7 @@ class GreedyInserter {
       std::size_t jq = 0;
       while (U.v[jq] == x || U.v[jq] == y) ++jq;
       const std::uint32_t q = U.v[jq];
+      if (axis_rectangle(xy_[x], xy_[y], xy_[p], xy_[q])) continue;  // cocircular: no flip
       if (!(kernel::incircle(xy_[x], xy_[y], xy_[p], xy_[q]) > 0)) continue;
       // U = (y, x, q) rotated: the edge (x, q) is opposite y, (q, y) opposite x.
       std::size_t jy = 0, jx = 0;
@@ -613,8 +626,8 @@ class GreedyInserter {
   Triangulation& kernel_;
   const std::vector<tile::Vertex>& pts_;
   std::vector<std::uint8_t>& state_;
-  const Lattice* lattice_;   // the candidates' lattice, or null (then they are filed too)
-  std::size_t filed_from_;   // points below this index are scanned on the lattice, not filed
+  const Lattice* lattice_;  // the candidates' lattice, or null (then they are filed too)
+  std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
   std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
   std::vector<std::uint32_t> vertex_point_;  // by own vertex inserted here (after the copied)
@@ -698,7 +711,9 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
     if (Status s = g.start(); !s.ok()) return s.error();
     const std::vector<std::uint32_t> chosen = g.select(
         tri.num_vertices(), round == 0 ? max_vertices : kNoLimit, epsilon, floor, &out.duplicates);
-    if (round == 0) floor = g.top_error();
+    // (Repairs are for errors the kernel's diagonals raised; the point that round 0 stopped at
+    // comes out equal up to rounding, which must not decide whether it goes in.)
+    if (round == 0) floor = g.top_error() * (1 + 1e-9);
     if (chosen.empty() || round == kMaxRounds) {
       if (!chosen.empty()) {
         // Give up repairing: re-file in the kernel's mesh as it is (the error stays honest).
