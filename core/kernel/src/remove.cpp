@@ -23,14 +23,11 @@ namespace tinstream::kernel {
 
 using detail::kPendingTriangle;
 
+// ring, outer and outer_index are resized to the degree once the star is known (no
+// per-element growth).
 void Triangulation::Hole::clear() {
-  ring.clear();
   star.clear();
-  outer.clear();
-  outer_index.clear();
-  tris.clear();
-  adj.clear();
-  fixed.clear();
+  ntri = 0;
   join_a = join_b = kNone;
   degenerate = false;
 }
@@ -38,10 +35,11 @@ void Triangulation::Hole::clear() {
 // Adds local triangle (a, b, c) whose edges opposite a, b, c have owner codes oa, ob, oc; a
 // local owner gets its back reference.
 inline int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc) {
-  const int L = static_cast<int>(tris.size());
-  tris.push_back({a, b, c});
-  adj.push_back({oa, ob, oc});
-  fixed.push_back(0);
+  if (ntri == tris.size()) grow();
+  const int L = static_cast<int>(ntri++);
+  tris[static_cast<std::size_t>(L)] = {a, b, c};
+  adj[static_cast<std::size_t>(L)] = {oa, ob, oc};
+  fixed[static_cast<std::size_t>(L)] = 0;
   auto back = [&](int o, int code) {
     if (o >= 0) adj[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)] = code;
   };
@@ -49,6 +47,13 @@ inline int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, 
   back(ob, L * 3 + 1);
   back(oc, L * 3 + 2);
   return L;
+}
+
+void Triangulation::Hole::grow() {
+  const std::size_t n = std::max<std::size_t>(16, 2 * tris.size());
+  tris.resize(n);
+  adj.resize(n);
+  fixed.resize(n);
 }
 
 namespace {
@@ -170,9 +175,6 @@ bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
     den[m] = ear ? orient : 0.0;
   };
   for (std::size_t m = 0; m < k; ++m) evaluate(m);
-  tris.reserve(k - 2);
-  adj.reserve(k - 2);
-  fixed.reserve(k - 2);
   std::size_t c = 0;
   for (std::size_t left = k; left > 3; --left) {
     double best_num = num[0], best_den = den[0];
@@ -235,15 +237,18 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     bwd = bnext;
   }
   star.insert(star.end(), back.rbegin(), back.rend());
-  for (std::size_t pos = 0; pos < star.size(); ++pos) {
+  const std::size_t k = star.size();
+  hole.ring.resize(k);
+  hole.outer.resize(k);
+  for (std::size_t pos = 0; pos < k; ++pos) {
     const TriangleId t = star[pos];
     const int j = mesh_.index_of(t, v);
     const Triangle& T = mesh_.tri(t);
-    hole.ring.push_back(T.v[next3(j)]);
+    hole.ring[pos] = T.v[next3(j)];
     // The outer triangles are written only by remove_vertex and the ring coordinates are read
     // by the ear clipping below: start all their (independent) cache misses now. (Issued during
     // the walk instead, they delayed the walk's own misses: uniform 1e6 removal 700 -> 860 ms.)
-    hole.outer.push_back(T.n[j]);
+    hole.outer[pos] = T.n[j];
     if (T.n[j] != kNone) mesh_.prefetch_triangle(T.n[j]);
     mesh_.prefetch_vertex(T.v[next3(j)]);
     if (has_constraints_ && mesh_.constrained(t, prev3(j))) {
@@ -256,7 +261,6 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
       ++finite_in_star;
     }
   }
-  const std::size_t k = hole.ring.size();
   if (n_constrained > 0) {
     if (n_constrained != 2 || orient2d(mesh_.xy(spokes_constrained[0]), mesh_.xy(v),
                                        mesh_.xy(spokes_constrained[1])) != 0.0) {
@@ -360,9 +364,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
       // done: every ear was checked exactly; the flips below only verify
       ear_diagonals = true;
     } else {
-      hole.tris.clear();
-      hole.adj.clear();
-      hole.fixed.clear();
+      hole.ntri = 0;
       hole.start_ring();
       auto& nxt = hole.nxt;
       auto& prv = hole.prv;
@@ -400,10 +402,19 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   st.clear();
   if (ear_diagonals) {
     // Ear L's new edge (index 1) is the diagonal shared with a later triangle; the last
-    // triangle adds none.
-    for (std::size_t L = 0; L + 1 < hole.tris.size(); ++L) st.emplace_back(static_cast<int>(L), 1);
+    // triangle adds none. The hole is interior, so no diagonal is fixed or touches the ghost:
+    // when all of them pass the exact test (the usual outcome) nothing is left to flip.
+    bool all_delaunay = true;
+    for (std::size_t L = 0; L + 1 < hole.ntri && all_delaunay; ++L) {
+      const int o = hole.adj[L][1];
+      const VertexTriple& T = hole.tris[L];
+      const VertexId q = hole.tris[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)];
+      all_delaunay = incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]), mesh_.xy(q)) <= 0.0;
+    }
+    if (all_delaunay) return true;
+    for (std::size_t L = 0; L + 1 < hole.ntri; ++L) st.emplace_back(static_cast<int>(L), 1);
   } else {
-    for (std::size_t L = 0; L < hole.tris.size(); ++L) {
+    for (std::size_t L = 0; L < hole.ntri; ++L) {
       for (int i = 0; i < 3; ++i) {  // each diagonal once, from its lower-numbered side
         const int o = hole.adj[L][static_cast<std::size_t>(i)];
         if (o >= 0 && static_cast<std::size_t>(o / 3) > L) st.emplace_back(static_cast<int>(L), i);
@@ -429,7 +440,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     if (incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]),
                  mesh_.xy(S[static_cast<std::size_t>(j)])) <= 0.0)
       continue;
-    if (++guard > 64 * hole.tris.size() * hole.tris.size() + 64)
+    if (++guard > 64 * hole.ntri * hole.ntri + 64)
       return Error(ErrorCode::internal, name() + ": flips do not converge");
     // Same flip as Mesh::flip: T = (p, u, w), S = (q, w, u) -> T = (p, u, q), S = (q, w, p).
     const VertexId p = T[static_cast<std::size_t>(i)], u = T[static_cast<std::size_t>(next3(i))],
@@ -471,7 +482,8 @@ Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) con
   planned_revision_ = revision_;
   std::vector<VertexTriple> out;
   if (hole.degenerate) return out;
-  for (const auto& t : hole.tris) {
+  for (std::size_t L = 0; L < hole.ntri; ++L) {
+    const VertexTriple& t = hole.tris[L];
     if (t[0] != kInfiniteVertex && t[1] != kInfiniteVertex && t[2] != kInfiniteVertex)
       out.push_back(t);
   }
@@ -520,7 +532,7 @@ Status Triangulation::remove_vertex(VertexId v) {
     hole.outer_index[r] = out == kNone ? 0 : mesh_.index_of_neighbour(out, hole.star[r]);
   }
   // Re-use the star's triangle slots for the new triangles and free the two left over.
-  const std::size_t nnew = hole.tris.size();
+  const std::size_t nnew = hole.ntri;
   const std::vector<TriangleId>& id = hole.star;
   for (std::size_t L = nnew; L < hole.star.size(); ++L) mesh_.free_triangle(hole.star[L]);
   for (std::size_t L = 0; L < nnew; ++L) {

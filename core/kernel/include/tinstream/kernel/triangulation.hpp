@@ -182,17 +182,20 @@ class Triangulation {
     std::vector<TriangleId> star_back;    // scratch: the star collected clockwise
     std::vector<TriangleId> outer;        // neighbour across ring edge i
     std::vector<int> outer_index;         // its edge index (filled by remove_vertex)
-    std::vector<VertexTriple> tris;       // new triangles
+    // New triangles: the first ntri entries of tris, adj and fixed (buffers that only grow, so
+    // that adding a triangle is a few stores).
+    std::size_t ntri = 0;
+    std::vector<VertexTriple> tris;
     std::vector<std::array<int, 3>> adj;  // >= 0: local tri * 3 + edge; < 0: -(ring edge + 1)
     std::vector<std::uint8_t> fixed;      // per new triangle: bit i = edge i constrained
     std::vector<int> nxt, prv, owner, stack;
-    std::vector<std::array<double, 2>> ear_key;  // approximate (incircle, orient) per ear
     std::vector<VertexId> chain;
     std::vector<std::pair<int, int>> flips;
     VertexId join_a = kNone, join_b = kNone;
     bool degenerate = false;
     void clear();
     int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
+    void grow();
     void convexify(const Mesh& mesh);
     // Closed link polygon (interior vertex): the ring as a circular list, one ear at a time.
     void start_ring();
