@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <string>
 
@@ -86,6 +88,41 @@ void accumulate(SurfaceDifference& d, const std::array<P2, 12>& q, const std::ar
   }
 }
 
+// Spreads the low 16 bits of v to the even bit positions.
+std::uint32_t spread_bits(std::uint32_t v) {
+  v &= 0xFFFFu;
+  v = (v | (v << 8)) & 0x00FF00FFu;
+  v = (v | (v << 4)) & 0x0F0F0F0Fu;
+  v = (v | (v << 2)) & 0x33333333u;
+  v = (v | (v << 1)) & 0x55555555u;
+  return v;
+}
+
+// Puts triangles in Z order of their centroids within r, so that consecutive fine triangles are
+// neighbours: most then lie in the previous one's coarse triangle (the hint), and the grid cells
+// a query touches are still in cache.
+void sort_spatially(std::vector<FlatTriangle>& ts, const geo::MercatorRect& r) {
+  const double sx = 65535.0 / std::max(r.width(), std::numeric_limits<double>::min());
+  const double sy = 65535.0 / std::max(r.height(), std::numeric_limits<double>::min());
+  auto cell = [](double v) {
+    return static_cast<std::uint32_t>(std::clamp(v, 0.0, 65535.0));
+  };
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> keys(ts.size());
+  for (std::size_t i = 0; i < ts.size(); ++i) {
+    const FlatTriangle& t = ts[i];
+    const double cx = (t.p[0].x + t.p[1].x + t.p[2].x) / 3.0;
+    const double cy = (t.p[0].y + t.p[1].y + t.p[2].y) / 3.0;
+    keys[i] = {spread_bits(cell((cx - r.min_x) * sx)) |
+                   (spread_bits(cell((cy - r.min_y) * sy)) << 1),
+               static_cast<std::uint32_t>(i)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<FlatTriangle> sorted;
+  sorted.reserve(ts.size());
+  for (const auto& k : keys) sorted.push_back(ts[k.second]);
+  ts = std::move(sorted);
+}
+
 }  // namespace
 
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
@@ -102,6 +139,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
   for (const tile::TinTile* fine : fines) {
     ft.clear();
     detail::append_triangles(*fine, true, ft);
+    sort_spatially(ft, coarse.id.bounds());
     for (const FlatTriangle& f0 : ft) {
       const P2 o = f0.p[0];
       const FlatTriangle f = translated(f0, o);
@@ -124,7 +162,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
         if (inside < 0) {
           for (std::uint32_t ci : candidates) {
             const FlatTriangle c = translated(grid.triangles()[ci], o);
-            std::array<P2, 12> a{}, b{};
+            std::array<P2, 12> a, b;  // not zeroed: only the first n entries are read
             a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
             int n = 3;
             n = clip(a, n, c.p[0], c.p[1], b);
@@ -133,7 +171,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
             if (n == 0) continue;
             n = clip(a, n, c.p[2], c.p[0], b);
             if (n == 0) continue;
-            std::array<double, 12> v{};
+            std::array<double, 12> v;
             for (int k = 0; k < n; ++k) {
               const P2 q = b[static_cast<std::size_t>(k)];
               v[static_cast<std::size_t>(k)] = plane_at(c, q.x, q.y) - plane_at(f, q.x, q.y);
