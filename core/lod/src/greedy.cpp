@@ -23,7 +23,6 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <unordered_map>
 
 #include "indexed_heap.hpp"
 #include "plane.hpp"
@@ -215,32 +214,34 @@ class GreedyInserter {
   // point): whether the kernel's mesh is the own one, triangle for triangle (cocircular ties
   // may be split differently). When it is, hand_over() may follow.
   bool matches_kernel(const std::vector<VertexId>& point_vertex) {
-    auto key = [](std::array<VertexId, 3> v) {
-      std::sort(v.begin(), v.end());
-      return v;
-    };
-    struct Hash {
-      std::size_t operator()(const std::array<VertexId, 3>& v) const {
-        return (std::size_t{v[0]} * 0x9E3779B97F4A7C15ull) ^
-               (std::size_t{v[1]} * 0xC2B2AE3D27D4EB4Full) ^
-               (std::size_t{v[2]} * 0x165667B19E3779F9ull);
-      }
-    };
-    std::unordered_map<std::array<VertexId, 3>, TriangleId, Hash> slot_of;
-    slot_of.reserve(tris_.size());
-    kernel_.for_each_finite_triangle(
-        [&](TriangleId t, const kernel::Triangle& T) { slot_of.emplace(key(T.v), t); });
-    if (slot_of.size() != tris_.size()) return false;
+    const kernel::Mesh& mesh = kernel_.mesh();
+    if (kernel_.num_finite_triangles() != tris_.size()) return false;
     const std::size_t copied = kernel_vertex_.size();
     auto kernel_id = [&](std::uint32_t v) {
       return v < copied ? kernel_vertex_[v] : point_vertex[vertex_point_[v - copied]];
     };
     kernel_slot_.resize(tris_.size());
+    // Same count, so the meshes are equal when each own triangle (a, b, c) is a kernel triangle:
+    // looked up among the triangles around a (both counter-clockwise).
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
       const auto& v = tris_[t].v;
-      const auto it = slot_of.find(key({kernel_id(v[0]), kernel_id(v[1]), kernel_id(v[2])}));
-      if (it == slot_of.end()) return false;
-      kernel_slot_[t] = it->second;
+      const VertexId a = kernel_id(v[0]), b = kernel_id(v[1]), c = kernel_id(v[2]);
+      const TriangleId start = mesh.vertex_triangle(a);
+      TriangleId u = start;
+      kernel_slot_[t] = kNone;
+      for (std::size_t steps = 0; steps < mesh.triangle_slots(); ++steps) {
+        const int i = mesh.index_of(u, a);
+        if (i < 0) return false;
+        const kernel::Triangle& T = mesh.tri(u);
+        if (T.v[static_cast<std::size_t>(next3(i))] == b &&
+            T.v[static_cast<std::size_t>(prev3(i))] == c) {
+          kernel_slot_[t] = u;
+          break;
+        }
+        u = T.n[static_cast<std::size_t>(next3(i))];
+        if (u == start || u == kNone) break;
+      }
+      if (kernel_slot_[t] == kNone) return false;
     }
     return true;
   }
