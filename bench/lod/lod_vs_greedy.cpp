@@ -226,6 +226,9 @@ int main(int argc, char** argv) {
       o.border_points_per_side = std::stoul(b);
     // LOD_GREEDY_FACTOR overrides LodOptions::greedy_factor (0 = drop heuristic from all points).
     if (const char* k = std::getenv("LOD_GREEDY_FACTOR")) o.greedy_factor = std::stod(k);
+    // LOD_LATTICE_SCAN=0 turns LodOptions::lattice_scan off (every point filed under its
+    // triangle, the general path used for scattered points).
+    if (const char* l = std::getenv("LOD_LATTICE_SCAN")) o.lattice_scan = std::string(l) != "0";
     const auto t0 = std::chrono::steady_clock::now();
     const std::clock_t c0 = std::clock();
     auto ours = tinstream::lod::thin_tile(input, o);

@@ -5,6 +5,8 @@
 #
 #   bench/lod/run.sh                      # defaults below
 #   COUNTS=1000,20000 BUILD_DIR=build-lod bench/lod/run.sh
+#   LOD_GREEDY_FACTOR=1.2 bench/lod/run.sh   # LodOptions::greedy_factor (0 = drop from all points)
+#   LOD_LATTICE_SCAN=0 bench/lod/run.sh      # file every point (the general path), no lattice scan
 #
 # Needs: node + npm (Delatin is installed here by `npm install` into bench/lod/node_modules),
 # GDAL, a C++20 compiler, and the tinstream_lod library built (done here with CMake).

@@ -77,6 +77,9 @@ struct PointSet {
   std::vector<std::uint8_t> state;  // by point
   std::size_t candidates = 0;
   const Lattice* lattice = nullptr;  // when the candidates form one: they are scanned, not filed
+  // With a lattice: by cell, its z while it is a candidate, NaN once it is not (a NaN error never
+  // wins the scan's comparison, so the scan needs no look-up of the state).
+  std::vector<double> candidate_z;
 };
 
 class GreedyInserter {
@@ -86,6 +89,7 @@ class GreedyInserter {
         pts_(points.pts),
         state_(points.state),
         lattice_(points.lattice),
+        candidate_z_(points.candidate_z),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
 
@@ -316,9 +320,9 @@ class GreedyInserter {
       const std::size_t row = j * w;
       for (std::size_t i = i0; i <= i1; ++i) {
         const std::size_t c = row + i;
-        double e = std::abs(l.z[c] - (base + g.gx * (l.xs[i] - g.ax)));
+        double e = std::abs(candidate_z_[c] - (base + g.gx * (l.xs[i] - g.ax)));
         if (weight) e += weight[c];
-        if (e > best_e && state_[l.point[c]] == kCandidate) {
+        if (e > best_e) {
           best_e = e, best = static_cast<std::uint32_t>(c);
         }
       }
@@ -346,6 +350,7 @@ class GreedyInserter {
   void set_state(const Pick& c, State s) {
     state_[c.id] = s;
     if (!lattice_) pool_[c.pos].kind = s;
+    if (lattice_ && s != kCandidate) candidate_z_[c.pos] = std::numeric_limits<double>::quiet_NaN();
   }
 
   void set_best(std::uint32_t t, std::uint32_t best, double error) {
@@ -627,7 +632,8 @@ class GreedyInserter {
   Triangulation& kernel_;
   const std::vector<tile::Vertex>& pts_;
   std::vector<std::uint8_t>& state_;
-  const Lattice* lattice_;  // the candidates' lattice, or null (then they are filed too)
+  const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
+  std::vector<double>& candidate_z_;  // PointSet::candidate_z
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
   std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
@@ -660,6 +666,7 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   PointSet points;
   points.candidates = candidates.size();
   points.lattice = lattice;
+  if (lattice) points.candidate_z = lattice->z;
   points.pts.reserve(candidates.size() + extra.size());
   points.pts.insert(points.pts.end(), candidates.begin(), candidates.end());
   points.pts.insert(points.pts.end(), extra.begin(), extra.end());
