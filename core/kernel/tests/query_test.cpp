@@ -34,6 +34,32 @@ TEST(Interpolation, EmptyOrCollinearGivesNothing) {
   EXPECT_FALSE(t.interpolate(0.5, 0.5).has_value());
 }
 
+// index_of and index_of_neighbour are branch-free; other modules test membership with
+// index_of(t, v) >= 0, so a vertex not in the triangle must give -1.
+TEST(Accessors, MeshIndexOfFindsEveryCornerAndNeighbourAndMinusOneOtherwise) {
+  Triangulation t;
+  t.insert_bulk(test::uniform_points(200, 63));
+  const Mesh& m = t.mesh();
+  std::size_t checked = 0;
+  for (TriangleId id = 0; id < m.triangle_slots(); ++id) {
+    if (!m.is_live(id)) continue;
+    const Triangle& tr = m.tri(id);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_EQ(m.index_of(id, tr.v[static_cast<std::size_t>(i)]), i);
+      const TriangleId u = tr.n[static_cast<std::size_t>(i)];
+      ASSERT_NE(u, kNone);
+      const int j = m.index_of_neighbour(u, id);
+      EXPECT_EQ(m.tri(u).n[static_cast<std::size_t>(j)], id);
+      EXPECT_EQ(m.mirror(id, i), j);
+      // The vertex of u opposite the shared edge is not a corner of this triangle.
+      EXPECT_EQ(m.index_of(id, m.tri(u).v[static_cast<std::size_t>(j)]), -1);
+    }
+    EXPECT_EQ(m.index_of(id, static_cast<VertexId>(t.vertex_id_bound() + 5)), -1);
+    ++checked;
+  }
+  EXPECT_GT(checked, 300u);
+}
+
 TEST(Accessors, StarOfACentreVertexIsCounterClockwise) {
   Triangulation t;
   const auto c = t.insert({0, 0, 0}).vertex;

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <random>
 #include <set>
@@ -170,6 +171,26 @@ struct Generator {
   std::vector<Point3> (*make)();
 };
 
+// Parallel scan lines with jitter, coordinates rounded to 1 cm as in LAS files (the benchmark's
+// LiDAR-like set, small): many exactly collinear and cocircular quadruples, so the ear queue's
+// floating-point order is often wrong or tied and the exact checks behind it decide.
+std::vector<Point3> quantised_scan_lines(std::size_t n, std::uint32_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> jitter(0.0, 0.05);
+  const double side = std::sqrt(static_cast<double>(n)) * 0.5;
+  std::vector<Point3> p;
+  double y = 0.0;
+  while (p.size() < n) {
+    for (double x = 0.0; x < side && p.size() < n; x += 0.45) {
+      const double px = std::round((x + jitter(rng)) * 100.0) / 100.0;
+      const double py = std::round((y + jitter(rng) + 0.02 * x) * 100.0) / 100.0;
+      p.push_back({px, py, 0.0, 0.0});
+    }
+    y += 0.5;
+  }
+  return p;
+}
+
 const Generator kGenerators[] = {
     {"uniform", [] { return test::uniform_points(250, 41); }},
     {"clustered", [] { return test::clustered_points(250, 42); }},
@@ -178,6 +199,7 @@ const Generator kGenerators[] = {
     {"duplicates", [] { return test::duplicate_heavy_points(300, 43); }},
     {"ulp_apart", [] { return test::ulp_points(250, 44); }},
     {"mercator_tile", [] { return test::mercator_tile_points(250, 45); }},
+    {"quantised_scan_lines", [] { return quantised_scan_lines(300, 47); }},
     {"collinear_plus_one",
      [] {
        auto p = test::collinear_points(40, 46);
@@ -211,6 +233,26 @@ TEST_P(RemovalProperty, RemovingAllPointsInRandomOrderKeepsTheStructureValid) {
 
 INSTANTIATE_TEST_SUITE_P(Fixtures, RemovalProperty, ::testing::ValuesIn(kGenerators),
                          [](const auto& p) { return std::string(p.param.name); });
+
+// The benchmark's pattern: half of a quantised scan-line set removed in scan order (each
+// removal next to the previous one's new triangles), exact validity checked along the way.
+TEST(Removal, HalfOfQuantisedScanLinesInScanOrderStaysDelaunay) {
+  const auto pts = quantised_scan_lines(3000, 48);
+  Triangulation t;
+  const auto res = t.insert_bulk(pts);
+  std::mt19937 rng(5);
+  std::size_t removed = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (rng() % 2 == 0 || !t.is_vertex(res[i].vertex)) continue;
+    const Status s = t.remove_vertex(res[i].vertex);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    if (++removed % 100 == 0) {
+      ASSERT_NO_FATAL_FAILURE(expect_valid(t));
+    }
+  }
+  EXPECT_GT(removed, 1200u);
+  expect_valid(t);
+}
 
 TEST(Removal, HullVertexRemovalShrinksTheHull) {
   Triangulation t;
