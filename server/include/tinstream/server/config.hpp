@@ -26,7 +26,7 @@ struct ServerConfig {
   std::uint32_t max_header_bytes = 8192;
   std::uint64_t max_body_bytes = 1u << 20;  // non-upload request bodies
   std::uint32_t max_connections = 1024;
-  std::uint32_t read_timeout_ms = 30000;          // per read, including keep-alive idle time
+  std::uint32_t read_timeout_ms = 30000;          // per request header (then body), idle time included
   std::uint32_t write_timeout_ms = 30000;         // per response write
   std::uint32_t cache_max_age_s = 86400;          // Cache-Control max-age for tiles
   std::string cors_allow_origin = "*";            // empty: no CORS headers
