@@ -123,6 +123,22 @@ void sort_spatially(std::vector<FlatTriangle>& ts, const geo::MercatorRect& r) {
   ts = std::move(sorted);
 }
 
+// A triangle's plane as a value at its first corner and a gradient, so that evaluating it costs
+// two multiplications (no division per point). Degenerate triangles: constant z[0], as plane_at.
+struct Plane {
+  double z0 = 0, gx = 0, gy = 0;
+  double at(double dx, double dy) const { return z0 + gx * dx + gy * dy; }  // relative to p[0]
+};
+
+Plane plane_of(const FlatTriangle& t) {
+  const double bx = t.p[1].x - t.p[0].x, by = t.p[1].y - t.p[0].y;
+  const double cx = t.p[2].x - t.p[0].x, cy = t.p[2].y - t.p[0].y;
+  const double det = bx * cy - by * cx;
+  if (!(det != 0)) return {t.z[0], 0, 0};
+  const double dzb = t.z[1] - t.z[0], dzc = t.z[2] - t.z[0];
+  return {t.z[0], (dzb * cy - dzc * by) / det, (dzc * bx - dzb * cx) / det};
+}
+
 }  // namespace
 
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
@@ -133,6 +149,9 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
   // side: the error is measured where both surfaces have data (see error.hpp).
   detail::append_triangles(coarse, true, ct);
   TriangleGrid grid(std::move(ct), coarse.id.bounds());
+  std::vector<Plane> planes;
+  planes.reserve(grid.triangles().size());
+  for (const FlatTriangle& t : grid.triangles()) planes.push_back(plane_of(t));
   std::vector<FlatTriangle> ft;
   std::vector<std::uint32_t> candidates;
   std::int64_t hint = -1;  // the coarse triangle that held the previous fine triangle
@@ -143,6 +162,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
     for (const FlatTriangle& f0 : ft) {
       const P2 o = f0.p[0];
       const FlatTriangle f = translated(f0, o);
+      const Plane fp = plane_of(f);
       // Fast path: most fine triangles lie inside one coarse triangle (the overlay cell is the
       // fine triangle itself; the other candidates meet it at most on their boundary, adding
       // no area and the same values there). Decided with exact orientation tests.
@@ -162,6 +182,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
         if (inside < 0) {
           for (std::uint32_t ci : candidates) {
             const FlatTriangle c = translated(grid.triangles()[ci], o);
+            const Plane& cp = planes[ci];
             std::array<P2, 12> a, b;  // not zeroed: only the first n entries are read
             a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
             int n = 3;
@@ -174,7 +195,8 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
             std::array<double, 12> v;
             for (int k = 0; k < n; ++k) {
               const P2 q = b[static_cast<std::size_t>(k)];
-              v[static_cast<std::size_t>(k)] = plane_at(c, q.x, q.y) - plane_at(f, q.x, q.y);
+              v[static_cast<std::size_t>(k)] =
+                  cp.at(q.x - c.p[0].x, q.y - c.p[0].y) - fp.at(q.x, q.y);
             }
             accumulate(d, b, v, n);
           }
@@ -182,12 +204,14 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
         }
       }
       hint = inside;
-      const FlatTriangle c = translated(grid.triangles()[static_cast<std::size_t>(inside)], o);
-      std::array<P2, 12> q{};
-      std::array<double, 12> v{};
+      const FlatTriangle& c = grid.triangles()[static_cast<std::size_t>(inside)];
+      const Plane& cp = planes[static_cast<std::size_t>(inside)];
+      const P2 co{c.p[0].x - o.x, c.p[0].y - o.y};  // the coarse corner relative to o
+      std::array<P2, 12> q;
+      std::array<double, 12> v;
       for (std::size_t k = 0; k < 3; ++k) {
         q[k] = f.p[k];
-        v[k] = plane_at(c, q[k].x, q[k].y) - f.z[k];
+        v[k] = cp.at(q[k].x - co.x, q[k].y - co.y) - f.z[k];
       }
       accumulate(d, q, v, 3);
     }
