@@ -508,12 +508,16 @@ class GreedyInserter {
   // Files the gathered points into the star (largest smallest barycentric weight), each star
   // triangle's bucket appended at the pool's end, and re-ranks the star.
   void refile() {
-    planes_.clear();
-    for (std::uint32_t s : star_) planes_.push_back(plane(s));
     const std::size_t n = star_.size();
-    star_count_.assign(n, 0);
     std::size_t entries = 0;
     for (const auto& [b, c] : taken_) entries += c;
+    if (entries == 0 && lattice_) {  // nothing filed (the usual case on a lattice): rank only
+      for (std::uint32_t t : star_) count_[t] = 0, rank_cells(t);
+      return;
+    }
+    planes_.clear();
+    for (std::uint32_t s : star_) planes_.push_back(plane(s));
+    star_count_.assign(n, 0);
     slot_.resize(entries);
     surface_.resize(entries);
     const bool by_angle = n > kSmallStar;

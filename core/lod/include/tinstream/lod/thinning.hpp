@@ -18,6 +18,10 @@
 //    point already out of the surface inside its star (the "orphans", kept with their original
 //    z), evaluated on the re-triangulated star (Triangulation::removal_preview). Indexed
 //    priority queue; after a removal the former neighbours are re-evaluated.
+//  * Gridded input (interior points a complete rectilinear lattice, LodOptions::lattice_scan):
+//    both stages find the points inside a triangle by scanning its lattice cells row by row
+//    rather than keeping every point filed under its triangle; the errors are the same (every
+//    cell of a removed star counts, its outline included).
 //  * Stopping rule, for a side and for the interior alike: keep removing while the count is above
 //    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
 //    Corners are never removed.
