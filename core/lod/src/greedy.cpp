@@ -327,7 +327,7 @@ class GreedyInserter {
         }
       }
     };
-    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row);
+    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row, candidate_z_.data());
     set_best(t, best, best_e);
   }
 

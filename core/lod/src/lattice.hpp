@@ -59,7 +59,8 @@ struct Lattice {
   // Calls row(j, i0, i1) for every row j that meets the closed triangle (a, b, c) (any
   // orientation), with [i0, i1] its columns inside (i0 ≤ i1). Rows in ascending order.
   template <typename F>
-  void for_each_run(const kernel::XY& a, kernel::XY b, kernel::XY c, F&& row) const {
+  void for_each_run(const kernel::XY& a, kernel::XY b, kernel::XY c, F&& row,
+                    const double* prefetch = nullptr) const {
     if ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x) < 0) std::swap(b, c);
     const kernel::XY v[3] = {a, b, c};
     const double y_lo = std::min({a.y, b.y, c.y}) - tol_y_;
@@ -78,6 +79,20 @@ struct Lattice {
       up[k] = dy > 0 ? 1 : (dy < 0 ? -1 : 0);
       slope[k] = dy != 0 ? (q.x - p.x) / dy : 0.0;
     }
+    // The runs are found first, in batches, and their first cells in `prefetch` (the array the
+    // caller reads by cell) requested together: the rows of a triangle lie far apart in memory,
+    // and scanning them one by one waits for one cache miss after the other.
+    constexpr std::size_t kBatch = 16;
+    std::size_t run_j[kBatch], run_i0[kBatch], run_i1[kBatch], runs = 0;
+    auto flush = [&] {
+      if (prefetch) {
+        for (std::size_t k = 0; k < runs; ++k) {
+          __builtin_prefetch(prefetch + run_j[k] * xs.size() + run_i0[k]);
+        }
+      }
+      for (std::size_t k = 0; k < runs; ++k) row(run_j[k], run_i0[k], run_i1[k]);
+      runs = 0;
+    };
     for (std::size_t j = j0; j < j1; ++j) {
       const double y = ys[j];
       double lo = -std::numeric_limits<double>::infinity();
@@ -93,8 +108,12 @@ struct Lattice {
       }
       const std::size_t i0 = first_at_or_after(xs, scale_x_, lo - tol_x_);
       const std::size_t i1 = first_after(xs, scale_x_, hi + tol_x_);
-      if (i0 < i1) row(j, i0, i1 - 1);
+      if (i0 < i1) {
+        run_j[runs] = j, run_i0[runs] = i0, run_i1[runs] = i1 - 1;
+        if (++runs == kBatch) flush();
+      }
     }
+    flush();
   }
 
   // First column whose x is ≥ x, first row whose y is ≥ y (width() / rows when none).
@@ -141,13 +160,14 @@ inline double max_deviation(const Lattice& l, const kernel::XY& a, const kernel:
   const Gradient g(a, b, c, za, zb, zc);
   double worst = 0;
   const std::size_t w = l.width();
-  l.for_each_run(a, b, c, [&](std::size_t j, std::size_t i0, std::size_t i1) {
+  auto scan_row = [&](std::size_t j, std::size_t i0, std::size_t i1) {
     const double base = g.az + g.gy * (l.ys[j] - g.ay);
     const double* z = l.z.data() + j * w;
     for (std::size_t i = i0; i <= i1; ++i) {
       worst = std::max(worst, std::abs(z[i] - (base + g.gx * (l.xs[i] - g.ax))));
     }
-  });
+  };
+  l.for_each_run(a, b, c, scan_row, l.z.data());
   return worst;
 }
 
