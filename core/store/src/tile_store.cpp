@@ -35,7 +35,7 @@ namespace {
 
 // Batched writes: a transaction is committed after this many tiles or bytes, whichever first.
 constexpr std::size_t kBatchTiles = 256;
-constexpr std::size_t kBatchBytes = 32u << 20;
+constexpr std::size_t kBatchBytes = 8u << 20;  // bounds the ingest's memory (was 32 MiB)
 constexpr int kBusyTimeoutMs = 10000;
 // The largest tile decode will inflate (the codec's default).
 constexpr std::size_t kMaxTileBytes = 256u << 20;

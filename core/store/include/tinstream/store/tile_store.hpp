@@ -101,7 +101,7 @@ class TileStore {
 };
 
 // Writes one new layer version. Single-threaded. put() batches tiles in memory (256 tiles or
-// 32 MiB) and writes each batch in one short transaction, so the file's write lock is never held
+// 8 MiB) and writes each batch in one short transaction, so the file's write lock is never held
 // while the caller computes; tiles still in memory are lost if the process dies (the version is
 // unpublished then anyway).
 class LayerWriter {
