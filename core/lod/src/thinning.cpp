@@ -459,10 +459,14 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
 
   // ---- 3. thin the interior: greedy insertion up to the target (large inputs), then drop -----
   FiledPoints filed;
-  // Gridded input (the interior a complete lattice inside the rectangle): both stages scan
-  // lattice cells instead of filing every point under its triangle.
+  // Gridded input (the interior a complete lattice inside the rectangle, more than 4 ×
+  // max_points): both stages scan lattice cells instead of filing every point under its
+  // triangle. Smaller inputs (every pass-4 parent) stay on the general path: there the greedy
+  // stage inserts most points anyway and the scan saves nothing (N00E010's ingest: same LOD CPU),
+  // while its drop-stage cost also counts the cells on a star's outline, which made different
+  // choices than the general path and a larger chained error bound at the coarse levels.
   std::optional<detail::Lattice> lattice;
-  if (greedy && options.lattice_scan) {
+  if (greedy && options.lattice_scan && in.interior.size() > 4 * options.max_points) {
     lattice = detail::find_lattice(in.interior);
     if (lattice && !(lattice->xs.front() >= r.min_x && lattice->xs.back() <= r.max_x &&
                      lattice->ys.front() >= r.min_y && lattice->ys.back() <= r.max_y)) {

@@ -222,8 +222,8 @@ std::set<std::pair<double, double>> positions(const std::vector<Vertex>& v) {
 // of a removed star counts on the lattice, in the general path only when it was filed inside.)
 TEST(Lattice, ThinTileKeepsWhatTheGeneralPathKeeps) {
   for (bool weighted : {false, true}) {
-    const tile::TinTile grid = noisy_grid(40, 9, weighted);
-    for (std::size_t budget : {50u, 200u, 500u}) {
+    const tile::TinTile grid = noisy_grid(40, 9, weighted);  // 39² interior points
+    for (std::size_t budget : {50u, 200u, 350u}) {           // the scan needs more than 4 × budget
       LodOptions o;
       o.max_points = budget;
       ThinStats scan_st, filed_st;
@@ -231,6 +231,12 @@ TEST(Lattice, ThinTileKeepsWhatTheGeneralPathKeeps) {
       o.lattice_scan = false;
       auto filed = thin_tile(thin_input(grid), o, &filed_st);
       ASSERT_TRUE(scanned.ok() && filed.ok());
+      o.lattice_scan = true;
+      o.max_points = 400;  // 4 × 400 > 39²: the general path
+      ThinStats small_st;
+      ASSERT_TRUE(thin_tile(thin_input(grid), o, &small_st).ok());
+      EXPECT_FALSE(small_st.lattice);
+      EXPECT_GT(small_st.greedy_inserted, 0u);
       EXPECT_TRUE(scan_st.lattice);
       EXPECT_FALSE(filed_st.lattice);
       ASSERT_GT(scan_st.greedy_inserted, 0u);

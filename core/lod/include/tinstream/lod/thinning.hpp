@@ -18,10 +18,11 @@
 //    point already out of the surface inside its star (the "orphans", kept with their original
 //    z), evaluated on the re-triangulated star (Triangulation::removal_preview). Indexed
 //    priority queue; after a removal the former neighbours are re-evaluated.
-//  * Gridded input (interior points a complete rectilinear lattice, LodOptions::lattice_scan):
+//  * Gridded input (interior points a complete rectilinear lattice of more than 4 × max_points,
+//    LodOptions::lattice_scan):
 //    both stages find the points inside a triangle by scanning its lattice cells row by row
-//    rather than keeping every point filed under its triangle; the errors are the same (every
-//    cell of a removed star counts, its outline included).
+//    rather than keeping every point filed under its triangle (in the drop stage every cell of
+//    a removed star counts, its outline included).
 //  * Stopping rule, for a side and for the interior alike: keep removing while the count is above
 //    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
 //    Corners are never removed.
@@ -57,10 +58,11 @@ struct LodOptions {
   // and only those are thinned by the drop heuristic; every other point stays in the error
   // estimate as an orphan. 0 = drop from all points (slow on big grids).
   double greedy_factor = 1.25;
-  // Gridded input: when the interior points form a complete rectilinear lattice (every column ×
-  // row position once, e.g. a DEM's cells), both stages find a triangle's points by scanning its
-  // lattice cells row by row instead of filing every point under its triangle. Same errors (up
-  // to rounding), less time and memory. false = always file (the general path).
+  // Gridded input: when the interior points (more than 4 × max_points) form a complete
+  // rectilinear lattice (every column × row position once, e.g. a DEM's cells), both stages
+  // find a triangle's points by scanning its lattice cells row by row instead of filing every
+  // point under its triangle: the same greedy choices, a drop stage that also counts the cells
+  // on a removed star's outline, less time and memory. false = always file (the general path).
   bool lattice_scan = true;
 };
 
