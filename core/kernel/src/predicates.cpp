@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cassert>
+#include <cmath>
 #include <cstddef>
 
 namespace tinstream::kernel::detail {
@@ -196,15 +197,139 @@ Expansion lift(const Expansion& dx, const Expansion& dy) {
   return r;
 }
 
+// ── Short expansions on raw arrays, linear time ──────────────────────────────────────────────
+// For the common degenerate case (lattices, nearby points): every coordinate difference is exact,
+// so the determinants are short sums of exact products, evaluated without the general path's
+// 512-component temporaries.
+
+// h = e * b; returns h's length. e nonoverlapping, increasing magnitude, no zeros; same for h.
+std::size_t scale_short(std::size_t n, const double* e, double b, double* h) {
+  if (n == 0 || b == 0.0) return 0;
+  std::size_t k = 0;
+  double q, hh;
+  two_product(e[0], b, q, hh);
+  if (hh != 0.0) h[k++] = hh;
+  for (std::size_t i = 1; i < n; ++i) {
+    double p1, p0, sum, err;
+    two_product(e[i], b, p1, p0);
+    two_sum(q, p0, sum, err);
+    if (err != 0.0) h[k++] = err;
+    fast_two_sum(p1, sum, q, err);
+    if (err != 0.0) h[k++] = err;
+  }
+  if (q != 0.0) h[k++] = q;
+  return k;
+}
+
+// h = e + f by merging the components in order of magnitude and summing them in one pass
+// (Shewchuk's Fast-Expansion-Sum with zero elimination; Two-Sum at every step). Returns h's length.
+std::size_t sum_short(std::size_t en, const double* e, std::size_t fn, const double* f,
+                      double* h) {
+  std::size_t i = 0, j = 0, k = 0;
+  auto next = [&]() {
+    if (j >= fn || (i < en && std::abs(e[i]) <= std::abs(f[j]))) return e[i++];
+    return f[j++];
+  };
+  if (en + fn == 0) return 0;
+  double q = next();
+  while (i < en || j < fn) {
+    double sum, err;
+    two_sum(q, next(), sum, err);
+    q = sum;
+    if (err != 0.0) h[k++] = err;
+  }
+  if (q != 0.0 || k == 0) h[k++] = q;
+  return (k == 1 && h[0] == 0.0) ? 0 : k;
+}
+
+// a*b - c*d exactly, for doubles; returns the length (≤ 4).
+std::size_t cross_short(double a, double b, double c, double d, double* h) {
+  double x1, y1, x0, y0;
+  two_product(a, b, x1, y1);
+  two_product(c, d, x0, y0);
+  double p[2], m[2];
+  std::size_t pn = 0, mn = 0;
+  if (y1 != 0.0) p[pn++] = y1;
+  if (x1 != 0.0) p[pn++] = x1;
+  if (y0 != 0.0) m[mn++] = -y0;
+  if (x0 != 0.0) m[mn++] = -x0;
+  return sum_short(pn, p, mn, m, h);
+}
+
+// (dx² + dy²) · e exactly; returns the length (≤ 8·len(e)).
+std::size_t lift_times(double dx, double dy, std::size_t n, const double* e, double* h) {
+  double t1[8], t2[16], t3[8], t4[16];
+  const std::size_t n1 = scale_short(n, e, dx, t1);
+  const std::size_t n2 = scale_short(n1, t1, dx, t2);
+  const std::size_t n3 = scale_short(n, e, dy, t3);
+  const std::size_t n4 = scale_short(n3, t3, dy, t4);
+  return sum_short(n2, t2, n4, t4, h);
+}
+
+double incircle_exact_differences(double adx, double ady, double bdx, double bdy, double cdx,
+                                  double cdy) {
+  double bc[4], ca[4], ab[4];
+  const std::size_t bcn = cross_short(bdx, cdy, cdx, bdy, bc);
+  const std::size_t can = cross_short(cdx, ady, adx, cdy, ca);
+  const std::size_t abn = cross_short(adx, bdy, bdx, ady, ab);
+  double at[32], bt[32], ct[32], s[64], det[96];
+  const std::size_t an = lift_times(adx, ady, bcn, bc, at);
+  const std::size_t bn = lift_times(bdx, bdy, can, ca, bt);
+  const std::size_t cn = lift_times(cdx, cdy, abn, ab, ct);
+  const std::size_t sn = sum_short(an, at, bn, bt, s);
+  const std::size_t dn = sum_short(sn, s, cn, ct, det);
+  return dn == 0 ? 0.0 : det[dn - 1];
+}
+
+// Whether the four points are the corners of one axis-parallel rectangle of nonzero size (in any
+// order): then they are exactly cocircular. The commonest degenerate case by far — every cell of a
+// DEM lattice (also in Mercator, where rows are unevenly spaced) — decided by comparisons alone.
+bool axis_parallel_rectangle(const XY& a, const XY& b, const XY& c, const XY& d) {
+  const XY* p[4] = {&a, &b, &c, &d};
+  const double x0 = a.x, y0 = a.y;
+  double x1 = x0, y1 = y0;
+  for (const XY* q : p) {
+    if (q->x != x0) x1 = q->x;
+    if (q->y != y0) y1 = q->y;
+  }
+  if (x1 == x0 || y1 == y0) return false;
+  bool seen[4] = {false, false, false, false};
+  for (const XY* q : p) {
+    if ((q->x != x0 && q->x != x1) || (q->y != y0 && q->y != y1)) return false;
+    const int corner = (q->x == x1 ? 1 : 0) + (q->y == y1 ? 2 : 0);
+    if (seen[corner]) return false;
+    seen[corner] = true;
+  }
+  return true;
+}
+
+bool exact_difference(double a, double b, double& d) {
+  double err;
+  two_diff(a, b, d, err);
+  return err == 0.0;
+}
+
 }  // namespace
 
 double orient2d_exact(const XY& a, const XY& b, const XY& c) {
+  if (double d[4]; exact_difference(a.x, c.x, d[0]) && exact_difference(a.y, c.y, d[1]) &&
+                   exact_difference(b.x, c.x, d[2]) && exact_difference(b.y, c.y, d[3])) {
+    double h[4];
+    const std::size_t n = cross_short(d[0], d[3], d[1], d[2], h);
+    return n == 0 ? 0.0 : h[n - 1];
+  }
   const Expansion acx = from_diff(a.x, c.x), acy = from_diff(a.y, c.y);
   const Expansion bcx = from_diff(b.x, c.x), bcy = from_diff(b.y, c.y);
   return cross(acx, bcy, acy, bcx).sign_value();
 }
 
 double incircle_exact(const XY& a, const XY& b, const XY& c, const XY& d) {
+  if (axis_parallel_rectangle(a, b, c, d)) return 0.0;
+  if (double e[6]; exact_difference(a.x, d.x, e[0]) && exact_difference(a.y, d.y, e[1]) &&
+                   exact_difference(b.x, d.x, e[2]) && exact_difference(b.y, d.y, e[3]) &&
+                   exact_difference(c.x, d.x, e[4]) && exact_difference(c.y, d.y, e[5])) {
+    return incircle_exact_differences(e[0], e[1], e[2], e[3], e[4], e[5]);
+  }
   const Expansion adx = from_diff(a.x, d.x), ady = from_diff(a.y, d.y);
   const Expansion bdx = from_diff(b.x, d.x), bdy = from_diff(b.y, d.y);
   const Expansion cdx = from_diff(c.x, d.x), cdy = from_diff(c.y, d.y);

@@ -3,6 +3,7 @@
 #include <gmpxx.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -148,6 +149,58 @@ TEST(Predicates, IncircleOneUlpApartMatchesExactSign) {
       ASSERT_EQ(sign(incircle(a, b, c, d)), exact_incircle(a, b, c, d)) << i << "," << j;
     }
   }
+}
+
+// The exact stages themselves (not only through the filter), on lattices whose coordinate
+// differences are exact — the short path of incircle_exact / orient2d_exact — and on the same
+// points nudged by one ulp so that some differences are inexact (the general path). Lattice steps
+// of 2^-k at Mercator tile scale, big offsets, and integer lattices: many exactly cocircular and
+// collinear tuples, all against GMP.
+TEST(Predicates, ExactStagesOnLatticesMatchGmp) {
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<int> cell(-6, 6);
+  std::uniform_int_distribution<int> coin(0, 3);
+  struct Lattice {
+    double ox, oy, step;
+  };
+  const Lattice lattices[] = {{0.3, -0.2, 0x1p-30}, {0.0, 0.0, 1.0}, {1e6, -3e5, 0.25},
+                              {-0.75, 0.5, 0x1p-40}, {12345.0, 678.0, 3.0}};
+  int cocircular = 0, collinear = 0;
+  for (const auto& l : lattices) {
+    for (int k = 0; k < 6000; ++k) {
+      XY p[4];
+      for (auto& q : p) q = {l.ox + l.step * cell(rng), l.oy + l.step * cell(rng)};
+      if (coin(rng) == 0) p[3].x = std::nextafter(p[3].x, 1e300);  // an inexact difference
+      if (coin(rng) == 0) p[0].y = std::nextafter(p[0].y, -1e300);
+      const int in = exact_incircle(p[0], p[1], p[2], p[3]);
+      ASSERT_EQ(sign(detail::incircle_exact(p[0], p[1], p[2], p[3])), in) << k;
+      ASSERT_EQ(sign(detail::incircle_exact(p[1], p[0], p[2], p[3])), -in) << k;
+      const int on = exact_orient(p[0], p[1], p[2]);
+      ASSERT_EQ(sign(detail::orient2d_exact(p[0], p[1], p[2])), on) << k;
+      ASSERT_EQ(sign(detail::orient2d_exact(p[1], p[0], p[2])), -on) << k;
+      cocircular += in == 0 && on != 0;
+      collinear += on == 0;
+    }
+  }
+  // Axis-parallel rectangles (cocircular by comparisons alone) with uneven sides, as the rows of
+  // a DEM in Mercator, in every vertex order; and near-rectangles one ulp off, which are not.
+  for (int k = 0; k < 2000; ++k) {
+    const double x0 = 0.3 + 0x1p-30 * cell(rng), y0 = -0.2 + 0x1p-31 * cell(rng);
+    const double x1 = x0 + 0x1p-30 * (1 + coin(rng)), y1 = y0 + 1e-9 * (1 + coin(rng));
+    XY p[4] = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+    if (k % 3 == 1) p[2].x = std::nextafter(p[2].x, 1e300);
+    if (k % 3 == 2) p[3].y = std::nextafter(p[3].y, -1e300);
+    std::shuffle(std::begin(p), std::end(p), rng);
+    ASSERT_EQ(sign(detail::incircle_exact(p[0], p[1], p[2], p[3])),
+              exact_incircle(p[0], p[1], p[2], p[3]))
+        << k;
+    if (k % 3 == 0) {
+      ASSERT_EQ(exact_incircle(p[0], p[1], p[2], p[3]), 0);
+    }
+  }
+  // The inputs really are degenerate often (the reason the exact stages exist).
+  EXPECT_GT(cocircular, 300);
+  EXPECT_GT(collinear, 500);
 }
 
 }  // namespace
