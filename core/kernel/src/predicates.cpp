@@ -83,27 +83,11 @@ void grow(const Expansion& e, double b, Expansion& h) {
   assert(h.n <= kCap);
 }
 
+std::size_t scale_short(std::size_t n, const double* e, double b, double* h);
+
 // h = e * b (Shewchuk's Scale-Expansion), zero components removed.
 void scale(const Expansion& e, double b, Expansion& h) {
-  std::size_t k = 0;
-  if (e.n == 0 || b == 0.0) {
-    h.n = 0;
-    return;
-  }
-  double q, hh;
-  two_product(e.c[0], b, q, hh);
-  if (hh != 0.0) h.c[k++] = hh;
-  for (std::size_t i = 1; i < e.n; ++i) {
-    double p1, p0;
-    two_product(e.c[i], b, p1, p0);
-    double sum, err;
-    two_sum(q, p0, sum, err);
-    if (err != 0.0) h.c[k++] = err;
-    fast_two_sum(p1, sum, q, err);
-    if (err != 0.0) h.c[k++] = err;
-  }
-  if (q != 0.0) h.c[k++] = q;
-  h.n = k;
+  h.n = scale_short(e.n, e.c.data(), b, h.c.data());
   assert(h.n <= kCap);
 }
 
