@@ -81,6 +81,7 @@ class InteriorThinner {
       : tri_(tri),
         candidate_(std::move(candidate)),
         heap_(candidate_.size()),
+        exact_(candidate_.size(), 0),
         orph_(std::move(orphans)),
         lattice_(lattice) {
     if (orph_.head.size() < tri_.mesh().triangle_slots())
@@ -106,6 +107,10 @@ class InteriorThinner {
       const std::uint32_t v = heap_.top();
       const double error = heap_.key(v);
       if (tri_.num_vertices() <= max_points && error >= epsilon) break;
+      if (!exact_[v]) {  // a lower bound on top: replace it by the exact error, look again
+        evaluate_and_push(v, true);
+        continue;
+      }
       heap_.pop();
       Status s = remove(v);
       if (!s.ok()) return s.error();
@@ -183,17 +188,22 @@ class InteriorThinner {
   VertexId removed_last() const { return removed_last_; }
 
  private:
-  // Effective error of removing v, or nullopt when v cannot be removed.
-  std::optional<double> evaluate(VertexId v) const {
+  // Effective error of removing v, or nullopt when v cannot be removed. Without `exact` (on a
+  // lattice), the lattice cells are left out: a lower bound, *exact says which it is.
+  std::optional<double> evaluate(VertexId v, bool exact, bool* is_exact) const {
     auto preview = tri_.removal_preview(v);
+    *is_exact = true;
     if (is_last(v, preview)) return evaluate_last(v);
     if (!preview.ok() || preview->empty()) return std::nullopt;
     set_planes(*preview);
+    preview_of_ = v;
+    preview_ = std::move(*preview);
     const XY& p = tri_.xy(v);
     double err = std::abs(tri_.z(v) - surface_at(p.x, p.y, nullptr));
-    if (lattice_) {
-      for (const auto& t : *preview) err = std::max(err, lattice_error(t, tri_));
+    if (lattice_ && exact) {
+      for (const auto& t : preview_) err = std::max(err, lattice_error(t, tri_));
     }
+    *is_exact = exact || !lattice_;
     for (TriangleId t : tri_.incident_triangles(v, true)) {
       if (t >= orph_.head.size()) continue;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
@@ -203,17 +213,26 @@ class InteriorThinner {
     return err + tri_.weight(v);
   }
 
-  void evaluate_and_push(VertexId v) {
-    const auto e = evaluate(v);
+  // Keys v by its effective error, or (without `exact`) by a lower bound of it, computed
+  // without the lattice scan: run() makes a key exact when it reaches the top, so the order of
+  // removals is the one of exact keys throughout (an exact key on top is at most every other
+  // vertex's exact error), and the vertices that never get near the top are never scanned.
+  void evaluate_and_push(VertexId v, bool exact = false) {
+    bool is_exact = false;
+    const auto e = evaluate(v, exact, &is_exact);
     if (!e) {
       heap_.erase(v);
       return;
     }
+    exact_[v] = is_exact;
     heap_.set(v, *e);
   }
 
   Status remove(VertexId v) {
-    auto preview = tri_.removal_preview(v);
+    // (The last evaluate() was usually v's own, on the current mesh: its preview is reused.)
+    auto preview = preview_of_ == v ? Result<std::vector<VertexTriple>>(std::move(preview_))
+                                    : tri_.removal_preview(v);
+    preview_of_ = kNone;
     if (is_last(v, preview)) {
       // Nothing is left to evaluate after it; the caller re-triangulates the border alone.
       candidate_[v] = 0;
@@ -281,8 +300,13 @@ class InteriorThinner {
   Triangulation& tri_;
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
   IndexedHeap heap_;                     // candidates by (effective error, vertex id)
+  std::vector<std::uint8_t> exact_;      // by vertex: its key is its error, not a lower bound
   FiledPoints orph_;                     // the orphans, by triangle slot
   mutable std::vector<Plane> planes_;    // scratch of surface_at
+  // The removal preview of the last evaluate() that had one (of preview_of_ on the current
+  // mesh; kNone once a removal changed it).
+  mutable VertexId preview_of_ = kNone;
+  mutable std::vector<VertexTriple> preview_;
   std::vector<std::uint32_t> gathered_;
   std::vector<TriangleId> new_ids_;
   const detail::Lattice* lattice_;
