@@ -68,8 +68,10 @@ int run(const SampleArgs& a) {
   }
   const auto count = static_cast<std::uint64_t>(a.points);
   const double side = std::sqrt(static_cast<double>(count) / a.density);
-  const double strip = 100.0;  // flight strips along x, as a scanner writes them
-  const auto strips = static_cast<std::uint64_t>(std::max(1.0, std::ceil(side / strip)));
+  // Flight strips along x, as a scanner writes them: about 100 m wide, dividing the square
+  // exactly (a clipped last strip would pile its points onto the north edge as one line).
+  const auto strips = static_cast<std::uint64_t>(std::max(1.0, std::round(side / 100.0)));
+  const double strip = side / static_cast<double>(strips);
 
   // Header (227 bytes) + one GeoKeyDirectory VLR (54 + 8 + 3·8 bytes).
   constexpr std::size_t kHeader = 227, kVlr = 54 + 32;
