@@ -71,9 +71,18 @@ enum State : std::uint8_t {
   kExtra,  // filed, never inserted (extra points; a candidate on a boundary edge)
 };
 
+// The candidates, then the extra points, as one list (views of the caller's: no copy).
+struct PointList {
+  std::span<const tile::Vertex> candidates, extra;
+  std::size_t size() const { return candidates.size() + extra.size(); }
+  const tile::Vertex& operator[](std::size_t i) const {
+    return i < candidates.size() ? candidates[i] : extra[i - candidates.size()];
+  }
+};
+
 // The points of one greedy_insert call and what became of them; shared by its rounds.
 struct PointSet {
-  std::vector<tile::Vertex> pts;    // candidates, then extra points
+  PointList pts;                    // candidates, then extra points
   std::vector<std::uint8_t> state;  // by point
   std::size_t candidates = 0;
   const Lattice* lattice = nullptr;  // when the candidates form one: they are scanned, not filed
@@ -128,7 +137,8 @@ class GreedyInserter {
     count_.assign(tris_.size(), 0);
     best_.assign(tris_.size(), kNone);
     heap_.grow(tris_.size());
-    std::vector<std::uint32_t> where(pts_.size(), kNone);
+    // where[i − filed_from_]: the triangle of point i.
+    std::vector<std::uint32_t> where(pts_.size() - filed_from_, kNone);
     for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
       if (state_[i] != kCandidate && state_[i] != kExtra) continue;
       const tile::Vertex& p = pts_[i];
@@ -143,8 +153,8 @@ class GreedyInserter {
         state_[i] = kGone;  // an extra point outside: not part of this surface
         continue;
       }
-      where[i] = local_tri[t];
-      ++count_[where[i]];
+      where[i - filed_from_] = local_tri[t];
+      ++count_[local_tri[t]];
     }
     // Buckets in triangle order (counting sort).
     std::uint32_t at = 0;
@@ -155,10 +165,11 @@ class GreedyInserter {
     spare_.reserve(at + 4096);
     pool_.resize(at);
     std::fill(count_.begin(), count_.end(), 0);
-    for (std::size_t i = 0; i < pts_.size(); ++i) {
-      if (where[i] == kNone) continue;
+    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
+      const std::uint32_t t = where[i - filed_from_];
+      if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[where[i]] + count_[where[i]]++] = {
+      pool_[begin_[t] + count_[t]++] = {
           p.x, p.y, p.z, p.weight, static_cast<std::uint32_t>(i), state_[i]};
     }
     live_ = at;
@@ -634,7 +645,7 @@ class GreedyInserter {
   }
 
   Triangulation& kernel_;
-  const std::vector<tile::Vertex>& pts_;
+  PointList pts_;
   std::vector<std::uint8_t>& state_;
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
@@ -671,9 +682,7 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   points.candidates = candidates.size();
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;
-  points.pts.reserve(candidates.size() + extra.size());
-  points.pts.insert(points.pts.end(), candidates.begin(), candidates.end());
-  points.pts.insert(points.pts.end(), extra.begin(), extra.end());
+  points.pts = {candidates, extra};
   points.state.assign(points.pts.size(), kExtra);
   std::fill(points.state.begin(),
             points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()), kCandidate);
