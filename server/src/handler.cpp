@@ -308,13 +308,12 @@ void set_terrain_headers(Response& res, const ServerConfig& config, const std::s
                                   : "application/vnd.quantized-mesh");
 }
 
-// Cache key of an encoded terrain tile: layer version, tile and extensions.
-std::string terrain_key(const TerrainRoute& r, std::int64_t version, bool normals) {
-  std::string key;
-  key.reserve(40 + r.layer.size());
+// Cache key of an encoded terrain tile: layer version, tile and extensions; written into `key`
+// (a buffer the caller reuses: no allocation per request).
+void terrain_key(std::string& key, const TerrainRoute& r, std::int64_t version, bool normals) {
+  key.clear();
   key.append("qm|").append(r.layer).append("|").append(std::to_string(version)).append("|");
   key.append(r.id.quadkey()).append(normals ? "|n" : "|");
-  return key;
 }
 
 // Encodes one terrain tile (stored, or a flat ancestor of the coarsest stored level) as gzip
@@ -370,7 +369,8 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
   const store::LayerInfo& info = **found;
   if (auto refusal = refuse_ellipsoidal(info)) return *refusal;
   const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
-  const std::string key = terrain_key(r, info.version, normals);
+  thread_local std::string key;  // handle_terrain never runs nested on one thread
+  terrain_key(key, r, info.version, normals);
 
   // Hot path: a cached encoding of this layer version needs no store access at all, and its 200
   // carries headers formatted once.

@@ -36,6 +36,15 @@ bool is_read(std::string_view m) { return m == "GET" || m == "HEAD"; }
 }  // namespace
 
 std::optional<std::string> percent_decode(std::string_view in, bool plus_is_space) {
+  // Most segments (every one of a tile request) have nothing to decode: copied whole.
+  bool plain = true;
+  for (const char c : in) {
+    if (c == '%' || c == '\0' || (c == '+' && plus_is_space)) {
+      plain = false;
+      break;
+    }
+  }
+  if (plain) return std::string(in);
   std::string out;
   out.reserve(in.size());
   for (std::size_t i = 0; i < in.size(); ++i) {
@@ -97,6 +106,7 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
 
   // Split and decode segments.
   std::vector<std::string> seg;
+  seg.reserve(8);  // one allocation for any route's segments
   std::string_view rest = path.substr(1);
   while (true) {
     const auto slash = rest.find('/');

@@ -292,7 +292,9 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   const ServerConfig& cfg() const { return server_.config; }
 
-  void expires_after(std::uint32_t ms) { deadline_ = Clock::now() + std::chrono::milliseconds(ms); }
+  void expires_after(std::uint32_t ms, Clock::time_point now = Clock::now()) {
+    deadline_ = now + std::chrono::milliseconds(ms);
+  }
 
   // No bytes of a next request received, neither buffered nor waiting in the socket.
   bool idle() {
@@ -315,7 +317,7 @@ class Session : public std::enable_shared_from_this<Session> {
   }
 
   // Waits for the next request: its header within read_timeout_ms of now, however it trickles in.
-  void do_read() {
+  void do_read(Clock::time_point now = Clock::now()) {
     if (server_.stopping && idle()) return close_now();
     reset_request();
     parser_.emplace(req_);
@@ -323,7 +325,7 @@ class Session : public std::enable_shared_from_this<Session> {
     // Body limits depend on the route (uploads vs. the rest): set once the header is known.
     parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     reading_header_ = true;
-    expires_after(cfg().read_timeout_ms);
+    expires_after(cfg().read_timeout_ms, now);
     parse();
   }
 
@@ -513,8 +515,8 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void on_write(beast::error_code ec, std::size_t) {
     deadline_ = Clock::time_point::max();
-    const auto us =
-        std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
+    const auto now = Clock::now();  // also the start of the wait for a next request
+    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(now - start_).count();
     server_.metrics.record(route_, status_, ec ? 0 : body_bytes_, static_cast<double>(us) / 1e6);
     if (cfg().access_log) {
       spdlog::info("{} {} {} {} {}us{}", req_.method, req_.target, status_, body_bytes_, us,
@@ -527,7 +529,7 @@ class Session : public std::enable_shared_from_this<Session> {
     // Stopping or not, the client was told the connection stays open and may already have sent
     // its next request: do_read() closes an idle connection, else answers that request (with
     // `Connection: close` when stopping).
-    do_read();
+    do_read(now);
   }
 
   // Half-close, then drain what the client still sends (bounded in bytes and time) so that it

@@ -123,6 +123,8 @@ TEST(Routes, PercentDecoding) {
   EXPECT_FALSE(percent_decode("%00").has_value());
   EXPECT_EQ(*percent_decode("a+b", true), "a b");
   EXPECT_EQ(*percent_decode("a+b", false), "a+b");
+  EXPECT_EQ(*percent_decode("plain_segment-1.terrain", true), "plain_segment-1.terrain");
+  EXPECT_FALSE(percent_decode(std::string_view("a\0b", 3)).has_value());  // a raw NUL too
 }
 
 TEST(Config, ParsesKeysAndRejectsUnknownOnes) {
