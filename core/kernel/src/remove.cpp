@@ -23,10 +23,9 @@ namespace tinstream::kernel {
 
 using detail::kPendingTriangle;
 
-// ring, outer and outer_index are resized to the degree once the star is known (no
-// per-element growth).
+// The star buffers (ring, star, outer and their scratch) only grow; Hole::degree is in use.
 void Triangulation::Hole::clear() {
-  star.clear();
+  degree = 0;
   ntri = 0;
   join_a = join_b = kNone;
   degenerate = false;
@@ -47,6 +46,11 @@ inline int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, 
   back(ob, L * 3 + 1);
   back(oc, L * 3 + 2);
   return L;
+}
+
+void Triangulation::Hole::grow_star(std::size_t n) {
+  n = std::max<std::size_t>(n, 2 * star.size());
+  for (auto* b : {&ring, &star, &outer, &star_back, &ring_back, &outer_back}) b->resize(n);
 }
 
 void Triangulation::Hole::grow() {
@@ -88,7 +92,7 @@ void Triangulation::Hole::convexify(const Mesh& mesh) {
 }
 
 void Triangulation::Hole::start_ring() {
-  const std::size_t k = ring.size();
+  const std::size_t k = degree;
   nxt.resize(k);
   prv.resize(k);
   owner.resize(k);
@@ -149,7 +153,8 @@ bool Triangulation::Hole::triangulate_quad(const Mesh& mesh) {
 // with its neighbours), so an ear key is a handful of flops and no division; clipped corners get
 // a key that never wins, and the argmin scans all k slots (no list chasing, no shifting).
 bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
-  const std::size_t k = ring.size();
+  const std::size_t k = degree;
+  if (k < 3 || k > kEarQueueMax) return false;
   std::array<double, kEarQueueMax> x, y, lift, edge, num, den;
   std::array<int, kEarQueueMax> nx, pr, own;
   for (std::size_t m = 0; m < k; ++m) {
@@ -209,6 +214,8 @@ bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
 Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   auto name = [v] { return "vertex " + std::to_string(v); };
   if (cut_) return unsupported(name() + ": the mesh was cut, it no longer accepts edits");
+  // v's coordinates are read only after the star walk (a chain of misses): load them meanwhile.
+  if (v < mesh_.vertex_slots()) __builtin_prefetch(&mesh_.xy(v));
   if (!is_vertex(v) || mesh_.vertex_triangle(v) == kPendingTriangle) {
     return invalid_argument(name() + ": not a live vertex of the triangulation");
   }
@@ -219,46 +226,75 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   int ghost_pos = -1;
   // Collect the star, walking around v in both directions at once: each step is a dependent
   // load, usually a cache miss when removals come in random order; two independent chains let
-  // the misses of one overlap with the other's.
-  auto& star = hole.star;
-  auto& back = hole.star_back;  // clockwise from t0's predecessor
-  back.clear();
+  // the misses of one overlap with the other's. Each star triangle is read once: its ring vertex
+  // and outer neighbour are recorded on the way.
+  if (hole.star.size() < 16) hole.grow_star(16);
+  TriangleId* star = hole.star.data();
+  VertexId* ring = hole.ring.data();
+  TriangleId* outer = hole.outer.data();
+  TriangleId* back = hole.star_back.data();  // clockwise from t0's predecessor
+  VertexId* ring_back = hole.ring_back.data();
+  TriangleId* outer_back = hole.outer_back.data();
+  std::size_t nf = 0, nb = 0;
   const TriangleId t0 = mesh_.vertex_triangle(v);
   TriangleId fwd = t0;
-  TriangleId bwd = mesh_.tri(t0).n[prev3(mesh_.index_of(t0, v))];
+  int jf = mesh_.index_of(t0, v);
+  TriangleId bwd = mesh_.tri(t0).n[prev3(jf)];
   for (;;) {
-    star.push_back(fwd);
+    if (nf + nb + 2 > hole.star.size()) {
+      hole.grow_star(nf + nb + 2);
+      star = hole.star.data();
+      ring = hole.ring.data();
+      outer = hole.outer.data();
+      back = hole.star_back.data();
+      ring_back = hole.ring_back.data();
+      outer_back = hole.outer_back.data();
+    }
+    const Triangle& F = mesh_.tri(fwd);
+    star[nf] = fwd;
+    ring[nf] = F.v[next3(jf)];
+    outer[nf] = F.n[jf];
+    ++nf;
     if (fwd == bwd) break;
-    back.push_back(bwd);
-    const TriangleId fnext = mesh_.tri(fwd).n[next3(mesh_.index_of(fwd, v))];
-    const TriangleId bnext = mesh_.tri(bwd).n[prev3(mesh_.index_of(bwd, v))];
+    const int jb = mesh_.index_of(bwd, v);
+    const Triangle& B = mesh_.tri(bwd);
+    back[nb] = bwd;
+    ring_back[nb] = B.v[next3(jb)];
+    outer_back[nb] = B.n[jb];
+    ++nb;
+    const TriangleId fnext = F.n[next3(jf)];
+    const TriangleId bnext = B.n[prev3(jb)];
     if (fnext == bwd) break;
     fwd = fnext;
     bwd = bnext;
+    jf = mesh_.index_of(fwd, v);
   }
-  star.insert(star.end(), back.rbegin(), back.rend());
-  const std::size_t k = star.size();
-  hole.ring.resize(k);
-  hole.outer.resize(k);
+  for (std::size_t i = 0; i < nb; ++i) {
+    star[nf + i] = back[nb - 1 - i];
+    ring[nf + i] = ring_back[nb - 1 - i];
+    outer[nf + i] = outer_back[nb - 1 - i];
+  }
+  const std::size_t k = nf + nb;
+  hole.degree = k;
   for (std::size_t pos = 0; pos < k; ++pos) {
-    const TriangleId t = star[pos];
-    const int j = mesh_.index_of(t, v);
-    const Triangle& T = mesh_.tri(t);
-    hole.ring[pos] = T.v[next3(j)];
     // The outer triangles are written only by remove_vertex and the ring coordinates are read
     // by the ear clipping below: start all their (independent) cache misses now. (Issued during
     // the walk instead, they delayed the walk's own misses: uniform 1e6 removal 700 -> 860 ms.)
-    hole.outer[pos] = T.n[j];
-    if (T.n[j] != kNone) mesh_.prefetch_triangle(T.n[j]);
-    mesh_.prefetch_vertex(T.v[next3(j)]);
-    if (has_constraints_ && mesh_.constrained(t, prev3(j))) {
-      if (n_constrained < 2) spokes_constrained[n_constrained] = T.v[next3(j)];
-      ++n_constrained;
-    }
-    if (T.v[next3(j)] == kInfiniteVertex) {
+    if (outer[pos] != kNone) mesh_.prefetch_triangle(outer[pos]);
+    mesh_.prefetch_vertex(ring[pos]);
+    if (ring[pos] == kInfiniteVertex) {
       ghost_pos = static_cast<int>(pos);
-    } else if (T.v[prev3(j)] != kInfiniteVertex) {
+    } else if (ring[pos + 1 == k ? 0 : pos + 1] != kInfiniteVertex) {
       ++finite_in_star;
+    }
+  }
+  if (has_constraints_) {
+    for (std::size_t pos = 0; pos < k; ++pos) {
+      const TriangleId t = star[pos];
+      if (mesh_.constrained(t, prev3(mesh_.index_of(t, v)))) {
+        if (n_constrained < 2) spokes_constrained[n_constrained] = ring[pos];
+        ++n_constrained;
+      }
     }
   }
   if (n_constrained > 0) {
@@ -318,10 +354,8 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // join_a-join_b is marked constrained by remove_vertex.
   } else if (hole.join_a != kNone) {
     // Two open chains join_a -> ... -> join_b and join_b -> ... -> join_a.
-    const auto ia = static_cast<std::size_t>(
-        std::find(hole.ring.begin(), hole.ring.end(), hole.join_a) - hole.ring.begin());
-    const auto ib = static_cast<std::size_t>(
-        std::find(hole.ring.begin(), hole.ring.end(), hole.join_b) - hole.ring.begin());
+    const auto ia = static_cast<std::size_t>(std::find(ring, ring + k, hole.join_a) - ring);
+    const auto ib = static_cast<std::size_t>(std::find(ring, ring + k, hole.join_b) - ring);
     int last_owner[2];
     for (int side = 0; side < 2; ++side) {
       const std::size_t from = side == 0 ? ia : ib, to = side == 0 ? ib : ia;
@@ -408,7 +442,8 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     for (std::size_t L = 0; L + 1 < hole.ntri && all_delaunay; ++L) {
       const int o = hole.adj[L][1];
       const VertexTriple& T = hole.tris[L];
-      const VertexId q = hole.tris[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)];
+      const VertexId q =
+          hole.tris[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)];
       all_delaunay = incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]), mesh_.xy(q)) <= 0.0;
     }
     if (all_delaunay) return true;
@@ -502,39 +537,21 @@ void Triangulation::demote_to_collinear(VertexId removed) {
   hint_ = kNone;
 }
 
-Status Triangulation::remove_vertex(VertexId v) {
-  if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
-      mesh_.vertex_triangle(v) == kPendingTriangle) {
-    std::erase(pending_, v);
-    mesh_.set_vertex_triangle(v, kNone);
-    --live_vertices_;
-    ++revision_;
-    return {};
-  }
-  Hole& hole = hole_;
-  const bool planned_already = planned_vertex_ == v && planned_revision_ == revision_;
-  planned_vertex_ = kNone;
-  if (!planned_already) {
-    Result<bool> planned = plan_removal(v, hole);
-    if (!planned.ok()) return planned.error();
-  }
-  ++revision_;
-  if (hole.degenerate) {
-    demote_to_collinear(v);
-    --live_vertices_;
-    return {};
-  }
+// Writes the planned hole into the mesh, constrained edges included: the new triangles take the
+// star's slots in order (the two left over are freed) and every outer triangle is re-linked.
+// Returns the id of the first new triangle.
+TriangleId Triangulation::write_hole_general(Hole& hole) {
   // Where each outer triangle refers back to the star, read before anything is rewritten (an
   // outer triangle may border two ring edges, and the star's slots are reused below).
-  hole.outer_index.resize(hole.outer.size());
-  for (std::size_t r = 0; r < hole.outer.size(); ++r) {
+  hole.outer_index.resize(hole.degree);
+  for (std::size_t r = 0; r < hole.degree; ++r) {
     const TriangleId out = hole.outer[r];
     hole.outer_index[r] = out == kNone ? 0 : mesh_.index_of_neighbour(out, hole.star[r]);
   }
   // Re-use the star's triangle slots for the new triangles and free the two left over.
   const std::size_t nnew = hole.ntri;
   const std::vector<TriangleId>& id = hole.star;
-  for (std::size_t L = nnew; L < hole.star.size(); ++L) mesh_.free_triangle(hole.star[L]);
+  for (std::size_t L = nnew; L < hole.degree; ++L) mesh_.free_triangle(hole.star[L]);
   for (std::size_t L = 0; L < nnew; ++L) {
     const auto& t = hole.tris[L];
     mesh_.set_vertices(id[L], t[0], t[1], t[2]);
@@ -559,9 +576,102 @@ Status Triangulation::remove_vertex(VertexId v) {
       }
     }
   }
+  return hole.star[0];
+}
+
+// Same without constraints, with fewer writes: each new triangle that has a ring edge takes the
+// slot of the star triangle across that edge, so the outer triangle there still points at the
+// right id and is neither read nor written; only the other ring edges (two per hole, plus one
+// per new triangle without a ring edge) re-link their outer triangle. Stars of more than 64
+// triangles take the general path.
+TriangleId Triangulation::write_hole(Hole& hole) {
+  const std::size_t nnew = hole.ntri, k = hole.degree;
+  constexpr std::size_t kMax = 64;
+  if (k > kMax || nnew > k) return write_hole_general(hole);
+  const TriangleId* star = hole.star.data();
+  const TriangleId* outer = hole.outer.data();
+  const std::array<int, 3>* adj = hole.adj.data();
+  const VertexTriple* tris = hole.tris.data();
+  std::array<TriangleId, kMax> slot;  // mesh id of new triangle L
+  std::array<int, kMax> kept;         // its edge whose outer link stays, or -1
+  std::array<int, kMax> at;           // by ring edge: where its outer triangle points back
+  std::uint64_t taken = 0;            // bit r: star slot r reused
+  // Where the outer triangles to re-link point back is read here, before anything is rewritten
+  // (an outer triangle may border two ring edges, and the star's slots are reused).
+  for (std::size_t L = 0; L < nnew; ++L) {
+    const auto& a = adj[L];
+    int keep = -1;
+    for (int i = 0; i < 3; ++i) {
+      const int o = a[static_cast<std::size_t>(i)];
+      if (o >= 0) continue;
+      const auto r = static_cast<unsigned>(-o - 1);
+      if (keep < 0) {
+        keep = i;
+        slot[L] = star[r];
+        taken |= std::uint64_t{1} << r;
+      } else if (outer[r] != kNone) {
+        at[r] = mesh_.index_of_neighbour(outer[r], star[r]);
+      }
+    }
+    kept[L] = keep;
+  }
+  for (std::size_t L = 0; L < nnew; ++L) {
+    if (kept[L] >= 0) continue;
+    const auto r = static_cast<unsigned>(__builtin_ctzll(~taken));
+    slot[L] = star[r];
+    taken |= std::uint64_t{1} << r;
+  }
+  const std::uint64_t all = k == kMax ? ~std::uint64_t{0} : (std::uint64_t{1} << k) - 1;
+  for (std::uint64_t left = all & ~taken; left != 0; left &= left - 1) {
+    mesh_.free_triangle(star[__builtin_ctzll(left)]);
+  }
+  for (std::size_t L = 0; L < nnew; ++L) {
+    const TriangleId id = slot[L];
+    Triangle T{tris[L], {}};
+    for (int i = 0; i < 3; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const int o = adj[L][ui];
+      if (o >= 0) {
+        T.n[ui] = slot[static_cast<std::size_t>(o / 3)];
+        continue;
+      }
+      const auto r = static_cast<std::size_t>(-o - 1);
+      T.n[ui] = outer[r];
+      if (i != kept[L] && outer[r] != kNone) mesh_.set_neighbour(outer[r], at[r], id);
+      // Ring edge r starts at ring[r] = T.v[next3(i)]; every ring vertex starts one ring edge.
+      mesh_.set_vertex_triangle(T.v[static_cast<std::size_t>(next3(i))], id);
+    }
+    mesh_.set_triangle(id, T);
+  }
+  return slot[0];
+}
+
+Status Triangulation::remove_vertex(VertexId v) {
+  if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
+      mesh_.vertex_triangle(v) == kPendingTriangle) {
+    std::erase(pending_, v);
+    mesh_.set_vertex_triangle(v, kNone);
+    --live_vertices_;
+    ++revision_;
+    return {};
+  }
+  Hole& hole = hole_;
+  const bool planned_already = planned_vertex_ == v && planned_revision_ == revision_;
+  planned_vertex_ = kNone;
+  if (!planned_already) {
+    Result<bool> planned = plan_removal(v, hole);
+    if (!planned.ok()) return planned.error();
+  }
+  ++revision_;
+  if (hole.degenerate) {
+    demote_to_collinear(v);
+    --live_vertices_;
+    return {};
+  }
+  const TriangleId first = has_constraints_ ? write_hole_general(hole) : write_hole(hole);
   mesh_.set_vertex_triangle(v, kNone);
   --live_vertices_;
-  hint_ = id[0];
+  hint_ = first;
   if (hole.join_a != kNone) {
     int i;
     const TriangleId t = find_edge(hole.join_a, hole.join_b, &i);

@@ -317,6 +317,38 @@ TEST(Removal, OnlyInteriorVertexOfAConvexPolygonLeavesItsTriangulation) {
   expect_valid(h);
 }
 
+// The centre of a ring of n points (radii jittered, no four cocircular) is joined to all of
+// them; removing it must give the triangulation of the ring alone. Degrees around 24 and 64
+// cross the limits of the ear queue and of remove_vertex's slot reuse (above 64 the general
+// write-back runs).
+TEST(Removal, HighDegreeCentreLeavesTheTriangulationOfItsRing) {
+  for (int n : {5, 6, 7, 24, 25, 40, 63, 64, 65, 66, 100}) {
+    SCOPED_TRACE(n);
+    std::mt19937 rng(static_cast<unsigned>(n));
+    std::uniform_real_distribution<double> jitter(1.0, 1.0 + 0.5 / (n * n));
+    std::vector<Point3> ring;
+    for (int i = 0; i < n; ++i) {
+      const double a = 2.0 * M_PI * i / n, r = jitter(rng);
+      ring.push_back({r * std::cos(a), r * std::sin(a), 0.0});
+    }
+    Triangulation with, without;
+    for (const Point3& p : ring) {
+      with.insert(p);
+      without.insert(p);
+    }
+    const auto c = with.insert({0.001, -0.002, 0.0});
+    ASSERT_EQ(with.incident_triangles(c.vertex).size(), static_cast<std::size_t>(n));
+    ASSERT_TRUE(with.remove_vertex(c.vertex).ok());
+    expect_valid(with);
+    EXPECT_EQ(triangle_set(with), triangle_set(without));
+    // the freed and reused slots still work for further edits
+    const auto d = with.insert({0.3, 0.1, 0.0});
+    ASSERT_TRUE(with.remove_vertex(d.vertex).ok());
+    expect_valid(with);
+    EXPECT_EQ(triangle_set(with), triangle_set(without));
+  }
+}
+
 TEST(Removal, RemovedVertexIdIsNotReused) {
   Triangulation t;
   t.insert_bulk(test::uniform_points(50, 3));

@@ -171,6 +171,12 @@ class Mesh {
     tris_[t].v = {a, b, c};
     if (a == kInfiniteVertex || b == kInfiniteVertex || c == kInfiniteVertex) ++ghosts_;
   }
+  // Rewrites a live triangle's vertices and neighbours at once (keeps the ghost count right).
+  void set_triangle(TriangleId t, const Triangle& tri) {
+    ghosts_ -= static_cast<std::size_t>(is_ghost(t));
+    tris_[t] = tri;
+    ghosts_ += static_cast<std::size_t>(is_ghost(t));
+  }
   void set_neighbour(TriangleId t, int i, TriangleId u) { tris_[t].n[i] = u; }
   // Makes t (edge i) and u (edge j) neighbours of each other.
   void link(TriangleId t, int i, TriangleId u, int j) {

@@ -177,11 +177,15 @@ class Triangulation {
   // The re-triangulated star of a vertex being removed, in local indices (see remove.cpp).
   // Kept as a member so that removals reuse its buffers instead of allocating.
   struct Hole {
-    std::vector<VertexId> ring;           // link vertices, counter-clockwise around v
-    std::vector<TriangleId> star;         // star[i] = (v, ring[i], ring[i + 1])
-    std::vector<TriangleId> star_back;    // scratch: the star collected clockwise
-    std::vector<TriangleId> outer;        // neighbour across ring edge i
-    std::vector<int> outer_index;         // its edge index (filled by remove_vertex)
+    // The star: the first `degree` entries of ring, star and outer (buffers that only grow).
+    std::size_t degree = 0;
+    std::vector<VertexId> ring;          // link vertices, counter-clockwise around v
+    std::vector<TriangleId> star;        // star[i] = (v, ring[i], ring[i + 1])
+    std::vector<TriangleId> outer;       // neighbour across ring edge i
+    std::vector<TriangleId> star_back;   // scratch: the star collected clockwise
+    std::vector<VertexId> ring_back;     // scratch: its ring vertices
+    std::vector<TriangleId> outer_back;  // scratch: its outer neighbours
+    std::vector<int> outer_index;        // its edge index (filled by remove_vertex)
     // New triangles: the first ntri entries of tris, adj and fixed (buffers that only grow, so
     // that adding a triangle is a few stores).
     std::size_t ntri = 0;
@@ -196,6 +200,7 @@ class Triangulation {
     void clear();
     int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
     void grow();
+    void grow_star(std::size_t n);  // room for a star of n triangles
     void convexify(const Mesh& mesh);
     // Closed link polygon (interior vertex): the ring as a circular list, one ear at a time.
     void start_ring();
@@ -205,6 +210,8 @@ class Triangulation {
     bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
   };
   Result<bool> plan_removal(VertexId v, Hole& hole) const;
+  TriangleId write_hole(Hole& hole);
+  TriangleId write_hole_general(Hole& hole);
   void demote_to_collinear(VertexId removed);
   TriangleId find_edge(VertexId a, VertexId b, int* index) const;
   bool segment_chain_present(VertexId a, VertexId b) const;
