@@ -326,17 +326,29 @@ class GreedyInserter {
     std::uint32_t best = kNone;
     const std::size_t w = l.width();
     const double* weight = l.weight.empty() ? nullptr : l.weight.data();
+    // (Everything the loops read is in locals, and the best cell of a row is kept in
+    // registers: the compiler cannot tell that storing it does not change the gradient.)
     auto scan_row = [&](std::size_t j, std::size_t i0, std::size_t i1) {
+      const double gx = g.gx, ax = g.ax;
       const double base = g.az + g.gy * (l.ys[j] - g.ay);
       const std::size_t row = j * w;
-      for (std::size_t i = i0; i <= i1; ++i) {
-        const std::size_t c = row + i;
-        double e = std::abs(candidate_z_[c] - (base + g.gx * (l.xs[i] - g.ax)));
-        if (weight) e += weight[c];
-        if (e > best_e) {
-          best_e = e, best = static_cast<std::uint32_t>(c);
+      const double* z = candidate_z_.data() + row;
+      const double* x = l.xs.data();
+      double row_e = best_e;
+      std::size_t row_i = kNone;
+      if (weight) {
+        const double* wt = weight + row;
+        for (std::size_t i = i0; i <= i1; ++i) {
+          const double e = std::abs(z[i] - (base + gx * (x[i] - ax))) + wt[i];
+          if (e > row_e) row_e = e, row_i = i;
+        }
+      } else {
+        for (std::size_t i = i0; i <= i1; ++i) {
+          const double e = std::abs(z[i] - (base + gx * (x[i] - ax)));
+          if (e > row_e) row_e = e, row_i = i;
         }
       }
+      if (row_i != kNone) best_e = row_e, best = static_cast<std::uint32_t>(row + row_i);
     };
     l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row, candidate_z_.data());
     set_best(t, best, best_e);

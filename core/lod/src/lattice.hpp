@@ -37,23 +37,31 @@ struct Lattice {
   double weight_of(std::size_t cell) const { return weight.empty() ? 0.0 : weight[cell]; }
 
   // First index of `axis` whose value is ≥ v (`axis.size()` when none); `scale` = 1 / the mean
-  // spacing, for a first guess that is exact on a uniform lattice.
+  // spacing, for a first guess that is exact on a uniform lattice. (The guess truncates a
+  // clamped non-negative value: std::floor is a library call on the baseline x86-64 target.)
   static std::size_t first_at_or_after(const std::vector<double>& axis, double scale, double v) {
-    const double g = std::floor((v - axis.front()) * scale);
     const auto n = static_cast<std::ptrdiff_t>(axis.size());
-    auto i = static_cast<std::ptrdiff_t>(std::clamp(g, 0.0, static_cast<double>(n)));
+    auto i = guess(axis, scale, v) + 1;
+    if (i > n) i = n;
     while (i > 0 && axis[static_cast<std::size_t>(i - 1)] >= v) --i;
     while (i < n && axis[static_cast<std::size_t>(i)] < v) ++i;
     return static_cast<std::size_t>(i);
   }
   // First index of `axis` whose value is > v.
   static std::size_t first_after(const std::vector<double>& axis, double scale, double v) {
-    const double g = std::floor((v - axis.front()) * scale) + 1;
     const auto n = static_cast<std::ptrdiff_t>(axis.size());
-    auto i = static_cast<std::ptrdiff_t>(std::clamp(g, 0.0, static_cast<double>(n)));
+    auto i = guess(axis, scale, v) + 1;
+    if (i > n) i = n;
     while (i > 0 && axis[static_cast<std::size_t>(i - 1)] > v) --i;
     while (i < n && axis[static_cast<std::size_t>(i)] <= v) ++i;
     return static_cast<std::size_t>(i);
+  }
+  // ⌊(v − axis[0]) · scale⌋ clamped to [0, axis.size()] (the index of the last value ≤ v on a
+  // uniform lattice; 0 for NaN).
+  static std::ptrdiff_t guess(const std::vector<double>& axis, double scale, double v) {
+    const double x = (v - axis.front()) * scale;
+    const auto n = static_cast<double>(axis.size());
+    return static_cast<std::ptrdiff_t>(x > 0 ? (x < n ? x : n) : 0.0);
   }
 
   // Calls row(j, i0, i1) for every row j that meets the closed triangle (a, b, c) (any
@@ -68,17 +76,27 @@ struct Lattice {
     const std::size_t j0 = first_at_or_after(ys, scale_y_, y_lo);
     const std::size_t j1 = first_after(ys, scale_y_, y_hi);
     // Counter-clockwise: the inside is left of every edge p → q, i.e. x ≤ the edge's x at y on
-    // an upward edge and x ≥ it on a downward one (horizontal edges bound the rows only).
-    double px[3], py[3], slope[3];
-    int up[3];
+    // an upward edge and x ≥ it on a downward one (horizontal edges bound the rows only). A
+    // triangle has one or two edges of each kind; the single one is taken twice, so that every
+    // row is two evaluations per side without branches.
+    double lx[2], ly[2], ls[2], rx[2], ry[2], rs[2];
+    int nl = 0, nr = 0;
     for (int k = 0; k < 3; ++k) {
       const kernel::XY& p = v[k];
       const kernel::XY& q = v[k == 2 ? 0 : k + 1];
       const double dy = q.y - p.y;
-      px[k] = p.x, py[k] = p.y;
-      up[k] = dy > 0 ? 1 : (dy < 0 ? -1 : 0);
-      slope[k] = dy != 0 ? (q.x - p.x) / dy : 0.0;
+      if (dy > 0) {
+        rx[nr] = p.x, ry[nr] = p.y, rs[nr] = (q.x - p.x) / dy, ++nr;
+      } else if (dy < 0) {
+        lx[nl] = p.x, ly[nl] = p.y, ls[nl] = (q.x - p.x) / dy, ++nl;
+      }
     }
+    // (None of a kind: all three on one row, a degenerate triangle; that side is unbounded.)
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    if (nl == 0) lx[0] = -kInf, ly[0] = 0, ls[0] = 0, nl = 1;
+    if (nr == 0) rx[0] = kInf, ry[0] = 0, rs[0] = 0, nr = 1;
+    if (nl == 1) lx[1] = lx[0], ly[1] = ly[0], ls[1] = ls[0];
+    if (nr == 1) rx[1] = rx[0], ry[1] = ry[0], rs[1] = rs[0];
     // The runs are found first, in batches, and their first cells in `prefetch` (the array the
     // caller reads by cell) requested together: the rows of a triangle lie far apart in memory,
     // and scanning them one by one waits for one cache miss after the other.
@@ -95,17 +113,9 @@ struct Lattice {
     };
     for (std::size_t j = j0; j < j1; ++j) {
       const double y = ys[j];
-      double lo = -std::numeric_limits<double>::infinity();
-      double hi = std::numeric_limits<double>::infinity();
-      for (int k = 0; k < 3; ++k) {
-        if (up[k] == 0) continue;
-        const double x = px[k] + slope[k] * (y - py[k]);
-        if (up[k] > 0) {
-          hi = std::min(hi, x);
-        } else {
-          lo = std::max(lo, x);
-        }
-      }
+      const double lo = std::max(lx[0] + ls[0] * (y - ly[0]), lx[1] + ls[1] * (y - ly[1]));
+      const double hi = std::min(rx[0] + rs[0] * (y - ry[0]), rx[1] + rs[1] * (y - ry[1]));
+      if (!(lo <= hi + 2 * tol_x_)) continue;  // no column can be in [lo − tol, hi + tol]
       const std::size_t i0 = first_at_or_after(xs, scale_x_, lo - tol_x_);
       const std::size_t i1 = first_after(xs, scale_x_, hi + tol_x_);
       if (i0 < i1) {
@@ -161,11 +171,15 @@ inline double max_deviation(const Lattice& l, const kernel::XY& a, const kernel:
   double worst = 0;
   const std::size_t w = l.width();
   auto scan_row = [&](std::size_t j, std::size_t i0, std::size_t i1) {
+    const double gx = g.gx, ax = g.ax;
     const double base = g.az + g.gy * (l.ys[j] - g.ay);
     const double* z = l.z.data() + j * w;
+    const double* x = l.xs.data();
+    double row_worst = worst;
     for (std::size_t i = i0; i <= i1; ++i) {
-      worst = std::max(worst, std::abs(z[i] - (base + g.gx * (l.xs[i] - g.ax))));
+      row_worst = std::max(row_worst, std::abs(z[i] - (base + gx * (x[i] - ax))));
     }
+    worst = row_worst;
   };
   l.for_each_run(a, b, c, scan_row, l.z.data());
   return worst;
