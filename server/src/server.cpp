@@ -472,26 +472,40 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void respond() { send(handle(req_, server_.ctx), !keep_alive_); }
 
-  // Status line and headers into head_: the handler's headers, its prebuilt block, then what
+  // Status line and headers into `out`: the handler's headers, its prebuilt block, then what
   // depends on the connection.
-  void format_head(const Response& res, std::size_t content_length) {
-    head_.clear();
-    head_.append(version_ == 10 ? "HTTP/1.0 " : "HTTP/1.1 ");
-    append_number(head_, static_cast<std::uint64_t>(res.status));
-    head_.push_back(' ');
-    head_.append(
-        view(http::obsolete_reason(http::int_to_status(static_cast<unsigned>(res.status)))));
-    head_.append("\r\nServer: tinstream\r\n");
-    for (const auto& [k, v] : res.headers) head_.append(k).append(": ").append(v).append("\r\n");
-    if (res.prebuilt) head_.append(res.prebuilt->wire);
-    if (close_after_ && version_ != 10) head_.append("Connection: close\r\n");
-    if (!close_after_ && version_ == 10) head_.append("Connection: keep-alive\r\n");
+  void format_head(std::string& out, const Response& res, std::size_t content_length) const {
+    out.clear();
+    out.append(version_ == 10 ? "HTTP/1.0 " : "HTTP/1.1 ");
+    append_number(out, static_cast<std::uint64_t>(res.status));
+    out.push_back(' ');
+    out.append(view(http::obsolete_reason(http::int_to_status(static_cast<unsigned>(res.status)))));
+    out.append("\r\nServer: tinstream\r\n");
+    for (const auto& [k, v] : res.headers) out.append(k).append(": ").append(v).append("\r\n");
+    if (res.prebuilt) out.append(res.prebuilt->wire);
+    if (close_after_ && version_ != 10) out.append("Connection: close\r\n");
+    if (!close_after_ && version_ == 10) out.append("Connection: keep-alive\r\n");
     if (res.status != 304 && res.status != 204) {
-      head_.append("Content-Length: ");
-      append_number(head_, content_length);
-      head_.append("\r\n");
+      out.append("Content-Length: ");
+      append_number(out, content_length);
+      out.append("\r\n");
     }
-    head_.append("\r\n");
+    out.append("\r\n");
+  }
+
+  // The head of `res` when it is the same for every keep-alive HTTP/1.1 request (a cached tile's
+  // 200): formatted once into its prebuilt block and shared; else null.
+  const std::string* shared_head(const Response& res, std::size_t content_length) const {
+    if (!res.prebuilt || res.status != 200 || !res.headers.empty() || version_ != 11 ||
+        close_after_) {
+      return nullptr;
+    }
+    const HeaderBlock& block = *res.prebuilt;
+    std::call_once(block.keep_alive_once, [&] {
+      format_head(block.keep_alive_head, res, content_length);
+      block.keep_alive_length = content_length;
+    });
+    return block.keep_alive_length == content_length ? &block.keep_alive_head : nullptr;
   }
 
   void send(Response res, bool close_after) {
@@ -501,12 +515,15 @@ class Session : public std::enable_shared_from_this<Session> {
     const bool head = req_.method == "HEAD";
     const std::size_t full = res.payload().size();
     body_bytes_ = head ? 0 : full;
-    format_head(res, full);
-    // The body stays owned by the session until written: shared cached bytes, or the string.
+    const std::string* whole_head = shared_head(res, full);
+    if (!whole_head) format_head(head_, res, full);
+    // The body (and a shared head) stays owned by the session until written: shared cached
+    // bytes, or the string.
+    prebuilt_ = std::move(res.prebuilt);
     shared_body_ = std::move(res.shared_body);
     body_ = std::move(res.body);
     const std::array<net::const_buffer, 2> buffers{
-        net::buffer(head_),
+        net::buffer(whole_head ? *whole_head : head_),
         head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     expires_after(cfg().write_timeout_ms);
     net::async_write(socket_, buffers, whole_buffers,
@@ -522,6 +539,7 @@ class Session : public std::enable_shared_from_this<Session> {
       spdlog::info("{} {} {} {} {}us{}", req_.method, req_.target, status_, body_bytes_, us,
                    ec ? " (write failed: " + ec.message() + ")" : std::string());
     }
+    prebuilt_.reset();
     shared_body_.reset();
     body_.clear();
     if (ec) return close_now();
@@ -561,6 +579,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string head_;                                       // the response's header block
   std::string body_;                                       // the response's own body bytes
   std::shared_ptr<const std::string> shared_body_;         // or shared, cached ones
+  std::shared_ptr<const HeaderBlock> prebuilt_;            // holds a shared head being written
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
   Request req_;
   Clock::time_point start_;

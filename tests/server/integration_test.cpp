@@ -371,6 +371,60 @@ TEST_F(ServerTest, PipelinedBurstOfCachedUncachedAnd304AnsweredInOrder) {
   EXPECT_EQ(json::parse(r[9].body)["status"], "ok");
 }
 
+// A cached tile's 200 on a keep-alive HTTP/1.1 connection goes out with a head formatted once
+// and shared; every other connection still gets its own Connection header, the rest unchanged.
+TEST_F(ServerTest, SharedHeadOfCachedTilesOnlyForKeepAliveHttp11) {
+  const std::string gzip = "Accept-Encoding: gzip\r\n";
+  HttpConnection first(port_);
+  ASSERT_TRUE(first.send_raw(terrain_get(kTile, gzip) + terrain_get(kTile, gzip)));
+  const auto miss = first.read_response();
+  const auto hit = first.read_response();  // formats the shared head
+  ASSERT_EQ(miss.status, 200);
+  ASSERT_EQ(hit.status, 200);
+  EXPECT_EQ(hit.headers, miss.headers);
+  EXPECT_EQ(hit.body, miss.body);
+  EXPECT_EQ(hit.header("Content-Length"), std::to_string(hit.body.size()));
+  EXPECT_EQ(hit.header("Connection"), "");
+
+  const auto expect_same_but_connection = [&](const testing::HttpResponse& r,
+                                              const std::string& connection, const char* what) {
+    EXPECT_EQ(r.status, 200) << what;
+    EXPECT_EQ(r.body, hit.body) << what;
+    EXPECT_EQ(r.header("Connection"), connection) << what;
+    auto headers = r.headers;
+    headers.erase("connection");
+    EXPECT_EQ(headers, hit.headers) << what;
+  };
+  std::string request = terrain_get(kTile, gzip);
+  const auto http10 = [&](const std::string& extra) {
+    std::string r = request;
+    r.replace(r.find("HTTP/1.1"), 8, "HTTP/1.0");
+    return r.insert(r.size() - 2, extra);
+  };
+  {
+    HttpConnection c(port_);
+    ASSERT_TRUE(c.send_raw(http10("Connection: keep-alive\r\n") + request));
+    expect_same_but_connection(c.read_response(), "keep-alive", "HTTP/1.0 keep-alive");
+    expect_same_but_connection(c.read_response(), "", "HTTP/1.1 after it");
+  }
+  {
+    HttpConnection c(port_);
+    ASSERT_TRUE(c.send_raw(http10("")));
+    const auto r = c.read_response();
+    EXPECT_EQ(r.status, 200);
+    EXPECT_EQ(r.body, hit.body);
+    EXPECT_EQ(r.header("Content-Length"), hit.header("Content-Length"));
+    EXPECT_NE(r.header("Connection"), "keep-alive");
+    EXPECT_TRUE(c.closed_by_peer());
+  }
+  {
+    HttpConnection c(port_);
+    ASSERT_TRUE(c.send_raw(terrain_get(kTile, gzip + "Connection: close\r\n")));
+    expect_same_but_connection(c.read_response(), "close", "HTTP/1.1 Connection: close");
+    EXPECT_TRUE(c.closed_by_peer());
+  }
+}
+
 // Clients that vanish in the middle of their answers (a small receive window, a pipelined burst
 // left unread, then a reset or a plain close) cost the server nothing but those connections.
 TEST_F(ServerTest, ClientsVanishingMidResponseLeaveTheServerServing) {

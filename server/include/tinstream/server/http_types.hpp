@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -30,6 +31,12 @@ struct Request {
 struct HeaderBlock {
   std::vector<std::pair<std::string, std::string>> fields;
   std::string wire;  // "Name: value\r\n" for each field, in order
+  // The whole head of a 200 with this block and nothing else on a keep-alive HTTP/1.1
+  // connection (status line to blank line, Content-Length keep_alive_length), formatted by the
+  // session the first time it sends one, then sent as it is.
+  mutable std::once_flag keep_alive_once;
+  mutable std::string keep_alive_head;
+  mutable std::size_t keep_alive_length = 0;
 
   explicit HeaderBlock(std::vector<std::pair<std::string, std::string>> f);
 };
