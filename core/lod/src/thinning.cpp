@@ -121,6 +121,29 @@ class InteriorThinner {
   }
 
  private:
+  // Calls f(t) for the finite triangles around v, walking its fan in the mesh (the kernel's
+  // incident_triangles() allocates a vector each call). Requires: v a live vertex.
+  template <typename F>
+  void for_each_star_triangle(VertexId v, F&& f) const {
+    const kernel::Mesh& m = tri_.mesh();
+    const TriangleId t0 = m.vertex_triangle(v);
+    TriangleId t = t0;
+    do {
+      const int k = m.index_of(t, v);
+      const TriangleId next = m.tri(t).n[k == 2 ? 0 : k + 1];
+      if (next == kNone) {  // a cut mesh (not made here): the kernel walks both ways
+        for (TriangleId u : tri_.incident_triangles(v, true)) f(u);
+        return;
+      }
+      t = next;
+    } while (t != t0);
+    do {
+      if (!m.is_ghost(t)) f(t);
+      const int k = m.index_of(t, v);
+      t = m.tri(t).n[k == 2 ? 0 : k + 1];
+    } while (t != t0);
+  }
+
   // The planes of the replacement triangles `tris`, for surface_at.
   void set_planes(const std::vector<VertexTriple>& tris) const {
     planes_.clear();
@@ -163,13 +186,13 @@ class InteriorThinner {
     if (lattice_) {
       for (const auto& t : rest.finite_triangles()) err = std::max(err, lattice_error(t, rest));
     }
-    for (TriangleId t : tri_.incident_triangles(v, true)) {
-      if (t >= orph_.head.size()) continue;
+    for_each_star_triangle(v, [&](TriangleId t) {
+      if (t >= orph_.head.size()) return;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
         if (const auto z = at(orph_.x[i], orph_.y[i]))
           err = std::max(err, std::abs(orph_.z[i] - *z));
       }
-    }
+    });
     return err + tri_.weight(v);
   }
 
@@ -204,12 +227,12 @@ class InteriorThinner {
       for (const auto& t : preview_) err = std::max(err, lattice_error(t, tri_));
     }
     *is_exact = exact || !lattice_;
-    for (TriangleId t : tri_.incident_triangles(v, true)) {
-      if (t >= orph_.head.size()) continue;
+    for_each_star_triangle(v, [&](TriangleId t) {
+      if (t >= orph_.head.size()) return;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
         err = std::max(err, std::abs(orph_.z[i] - surface_at(orph_.x[i], orph_.y[i], nullptr)));
       }
-    }
+    });
     return err + tri_.weight(v);
   }
 
@@ -241,7 +264,9 @@ class InteriorThinner {
     }
     if (!preview.ok()) return preview.error();
     const std::vector<VertexTriple> tris = std::move(*preview);
-    const std::vector<TriangleId> star = tri_.incident_triangles(v, true);
+    std::vector<TriangleId>& star = star_;
+    star.clear();
+    for_each_star_triangle(v, [&](TriangleId t) { star.push_back(t); });
     const std::vector<VertexId> ring = tri_.adjacent_vertices(v);
     gathered_.clear();
     for (TriangleId t : star) {
@@ -260,14 +285,11 @@ class InteriorThinner {
     new_ids_.assign(tris.size(), kNone);
     for (std::size_t k = 0; k < tris.size(); ++k) {
       const auto& want = tris[k];
-      for (TriangleId t : tri_.incident_triangles(want[0], true)) {
-        const auto& tv = tri_.mesh().tri(t).v;
+      for_each_star_triangle(want[0], [&](TriangleId t) {
         if (tri_.mesh().index_of(t, want[1]) >= 0 && tri_.mesh().index_of(t, want[2]) >= 0) {
           new_ids_[k] = t;
-          (void)tv;
-          break;
         }
-      }
+      });
       if (new_ids_[k] == kNone) {
         return Error(ErrorCode::internal, "lod: replacement triangle of vertex " +
                                               std::to_string(v) + " not found after removal");
@@ -308,6 +330,7 @@ class InteriorThinner {
   mutable VertexId preview_of_ = kNone;
   mutable std::vector<VertexTriple> preview_;
   std::vector<std::uint32_t> gathered_;
+  std::vector<TriangleId> star_;  // remove(): v's triangles
   std::vector<TriangleId> new_ids_;
   const detail::Lattice* lattice_;
   VertexId removed_last_ = kNone;
