@@ -83,6 +83,7 @@ class InteriorThinner {
         heap_(candidate_.size()),
         exact_(candidate_.size(), 0),
         orph_(std::move(orphans)),
+        bound_(lattice ? candidate_.size() : 0),
         lattice_(lattice) {
     if (orph_.head.size() < tri_.mesh().triangle_slots())
       orph_.head.resize(tri_.mesh().triangle_slots(), kNone);
@@ -108,7 +109,8 @@ class InteriorThinner {
       const double error = heap_.key(v);
       if (tri_.num_vertices() <= max_points && error >= epsilon) break;
       if (!exact_[v]) {  // a lower bound on top: replace it by the exact error, look again
-        evaluate_and_push(v, true);
+        heap_.set(v, exact_error(v));
+        exact_[v] = 1;
         continue;
       }
       heap_.pop();
@@ -211,9 +213,10 @@ class InteriorThinner {
   VertexId removed_last() const { return removed_last_; }
 
  private:
-  // Effective error of removing v, or nullopt when v cannot be removed. Without `exact` (on a
-  // lattice), the lattice cells are left out: a lower bound, *exact says which it is.
-  std::optional<double> evaluate(VertexId v, bool exact, bool* is_exact) const {
+  // Effective error of removing v, or nullopt when v cannot be removed. On a lattice, the
+  // lattice cells are left out: a lower bound (*is_exact says which it is), and the preview and
+  // the error without them are kept for exact_error().
+  std::optional<double> evaluate(VertexId v, bool* is_exact) const {
     auto preview = tri_.removal_preview(v);
     *is_exact = true;
     if (is_last(v, preview)) return evaluate_last(v);
@@ -223,16 +226,28 @@ class InteriorThinner {
     preview_ = std::move(*preview);
     const XY& p = tri_.xy(v);
     double err = std::abs(tri_.z(v) - surface_at(p.x, p.y, nullptr));
-    if (lattice_ && exact) {
-      for (const auto& t : preview_) err = std::max(err, lattice_error(t, tri_));
-    }
-    *is_exact = exact || !lattice_;
+    *is_exact = !lattice_;
     for_each_star_triangle(v, [&](TriangleId t) {
       if (t >= orph_.head.size()) return;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
         err = std::max(err, std::abs(orph_.z[i] - surface_at(orph_.x[i], orph_.y[i], nullptr)));
       }
     });
+    if (lattice_) {
+      bound_[v] = {err, static_cast<std::uint32_t>(bound_tris_.size()),
+                   static_cast<std::uint32_t>(preview_.size())};
+      bound_tris_.insert(bound_tris_.end(), preview_.begin(), preview_.end());
+    }
+    return err + tri_.weight(v);
+  }
+
+  // v's effective error from its lower bound (the last evaluate(v), on the current star: every
+  // change of the star evaluates v again) and the lattice cells of its kept preview.
+  double exact_error(VertexId v) const {
+    const Bound& b = bound_[v];
+    double err = b.error;
+    for (std::uint32_t k = b.first; k < b.first + b.count; ++k)
+      err = std::max(err, lattice_error(bound_tris_[k], tri_));
     return err + tri_.weight(v);
   }
 
@@ -240,9 +255,9 @@ class InteriorThinner {
   // without the lattice scan: run() makes a key exact when it reaches the top, so the order of
   // removals is the one of exact keys throughout (an exact key on top is at most every other
   // vertex's exact error), and the vertices that never get near the top are never scanned.
-  void evaluate_and_push(VertexId v, bool exact = false) {
+  void evaluate_and_push(VertexId v) {
     bool is_exact = false;
-    const auto e = evaluate(v, exact, &is_exact);
+    const auto e = evaluate(v, &is_exact);
     if (!e) {
       heap_.erase(v);
       return;
@@ -329,6 +344,14 @@ class InteriorThinner {
   // mesh; kNone once a removal changed it).
   mutable VertexId preview_of_ = kNone;
   mutable std::vector<VertexTriple> preview_;
+  // On a lattice, by vertex: its last evaluate()'s error without the lattice cells, and its
+  // preview, bound_tris_[first, first + count) (appended; a few MB over a whole thinning).
+  struct Bound {
+    double error = 0;
+    std::uint32_t first = 0, count = 0;
+  };
+  mutable std::vector<Bound> bound_;
+  mutable std::vector<VertexTriple> bound_tris_;
   std::vector<std::uint32_t> gathered_;
   std::vector<TriangleId> star_;  // remove(): v's triangles
   std::vector<TriangleId> new_ids_;
