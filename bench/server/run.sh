@@ -36,6 +36,10 @@ case ${PIN:-} in
   1) CONFIGS=pinned ;;
   *) CONFIGS="shared pinned" ;;
 esac
+if [[ $CONFIGS == *pinned* ]] && (( $(nproc) < 2 )); then
+  echo "run.sh: the pinned configuration needs 2 CPUs; running the shared one only" >&2
+  CONFIGS=shared
+fi
 SERVER_PORT=${SERVER_PORT:-18080}
 NGINX_PORT=${NGINX_PORT:-18081}
 WORK=$(mktemp -d /tmp/tinstream-bench.XXXXXX)
