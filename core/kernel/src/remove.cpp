@@ -29,6 +29,7 @@ void Triangulation::Hole::clear() {
   ntri = 0;
   join_a = join_b = kNone;
   degenerate = false;
+  hull = false;
 }
 
 // Adds local triangle (a, b, c) whose edges opposite a, b, c have owner codes oa, ob, oc; a
@@ -40,7 +41,7 @@ inline int Triangulation::Hole::add(VertexId a, VertexId b, VertexId c, int oa, 
   adj[static_cast<std::size_t>(L)] = {oa, ob, oc};
   fixed[static_cast<std::size_t>(L)] = 0;
   auto back = [&](int o, int code) {
-    if (o >= 0) adj[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)] = code;
+    if (o >= 0) adj[static_cast<unsigned>(o) / 3u][static_cast<unsigned>(o) % 3u] = code;
   };
   back(oa, L * 3);
   back(ob, L * 3 + 1);
@@ -157,14 +158,26 @@ bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
   if (k < 3 || k > kEarQueueMax) return false;
   std::array<double, kEarQueueMax> x, y, lift, edge, num, den;
   std::array<int, kEarQueueMax> nx, pr, own;
+  // nx[m] = m + 1, pr[m] = m - 1 (cyclic), own[m] = ring edge m: copied whole, then closed.
+  static constexpr auto kTables = [] {
+    std::array<std::array<int, kEarQueueMax>, 3> t{};
+    for (std::size_t m = 0; m < kEarQueueMax; ++m) {
+      t[0][m] = static_cast<int>(m) + 1;
+      t[1][m] = static_cast<int>(m) - 1;
+      t[2][m] = -static_cast<int>(m) - 1;
+    }
+    return t;
+  }();
+  nx = kTables[0];
+  pr = kTables[1];
+  own = kTables[2];
+  nx[k - 1] = 0;
+  pr[0] = static_cast<int>(k - 1);
   for (std::size_t m = 0; m < k; ++m) {
     const XY& p = mesh.xy(ring[m]);
     x[m] = p.x - pv.x;
     y[m] = p.y - pv.y;
     lift[m] = x[m] * x[m] + y[m] * y[m];
-    nx[m] = static_cast<int>(m + 1 == k ? 0 : m + 1);
-    pr[m] = static_cast<int>(m == 0 ? k - 1 : m - 1);
-    own[m] = -static_cast<int>(m) - 1;  // ring edge m
   }
   auto cross = [&](std::size_t a, std::size_t b) { return x[a] * y[b] - x[b] * y[a]; };
   for (std::size_t m = 0; m < k; ++m) edge[m] = cross(m, static_cast<std::size_t>(nx[m]));
@@ -222,7 +235,6 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
   hole.clear();
   VertexId spokes_constrained[2] = {kNone, kNone};
   std::size_t n_constrained = 0;
-  std::size_t finite_in_star = 0;
   int ghost_pos = -1;
   // Collect the star, walking around v in both directions at once: each step is a dependent
   // load, usually a cache miss when removals come in random order; two independent chains let
@@ -282,12 +294,11 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // the walk instead, they delayed the walk's own misses: uniform 1e6 removal 700 -> 860 ms.)
     if (outer[pos] != kNone) mesh_.prefetch_triangle(outer[pos]);
     mesh_.prefetch_vertex(ring[pos]);
-    if (ring[pos] == kInfiniteVertex) {
-      ghost_pos = static_cast<int>(pos);
-    } else if (ring[pos + 1 == k ? 0 : pos + 1] != kInfiniteVertex) {
-      ++finite_in_star;
-    }
+    if (ring[pos] == kInfiniteVertex) ghost_pos = static_cast<int>(pos);
   }
+  // The ghost vertex is at most once in the link; the two star triangles at it are ghosts.
+  const std::size_t finite_in_star = ghost_pos >= 0 ? k - 2 : k;
+  hole.hull = ghost_pos >= 0;
   if (has_constraints_) {
     for (std::size_t pos = 0; pos < k; ++pos) {
       const TriangleId t = star[pos];
@@ -442,8 +453,7 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     for (std::size_t L = 0; L + 1 < hole.ntri && all_delaunay; ++L) {
       const int o = hole.adj[L][1];
       const VertexTriple& T = hole.tris[L];
-      const VertexId q =
-          hole.tris[static_cast<std::size_t>(o / 3)][static_cast<std::size_t>(o % 3)];
+      const VertexId q = hole.tris[static_cast<unsigned>(o) / 3u][static_cast<unsigned>(o) % 3u];
       all_delaunay = incircle(mesh_.xy(T[0]), mesh_.xy(T[1]), mesh_.xy(T[2]), mesh_.xy(q)) <= 0.0;
     }
     if (all_delaunay) return true;
@@ -632,7 +642,7 @@ TriangleId Triangulation::write_hole(Hole& hole) {
       const auto ui = static_cast<std::size_t>(i);
       const int o = adj[L][ui];
       if (o >= 0) {
-        T.n[ui] = slot[static_cast<std::size_t>(o / 3)];
+        T.n[ui] = slot[static_cast<unsigned>(o) / 3u];
         continue;
       }
       const auto r = static_cast<std::size_t>(-o - 1);
@@ -641,7 +651,11 @@ TriangleId Triangulation::write_hole(Hole& hole) {
       // Ring edge r starts at ring[r] = T.v[next3(i)]; every ring vertex starts one ring edge.
       mesh_.set_vertex_triangle(T.v[static_cast<std::size_t>(next3(i))], id);
     }
-    mesh_.set_triangle(id, T);
+    if (hole.hull) {
+      mesh_.set_triangle(id, T);
+    } else {
+      mesh_.set_finite_triangle(id, T);
+    }
   }
   return slot[0];
 }

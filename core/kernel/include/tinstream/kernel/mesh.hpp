@@ -177,6 +177,12 @@ class Mesh {
     tris_[t] = tri;
     ghosts_ += static_cast<std::size_t>(is_ghost(t));
   }
+  // Same for a finite triangle replacing a finite one (no ghost count to keep).
+  void set_finite_triangle(TriangleId t, const Triangle& tri) {
+    assert(!is_ghost(t) && tri.v[0] != kInfiniteVertex && tri.v[1] != kInfiniteVertex &&
+           tri.v[2] != kInfiniteVertex);
+    tris_[t] = tri;
+  }
   void set_neighbour(TriangleId t, int i, TriangleId u) { tris_[t].n[i] = u; }
   // Makes t (edge i) and u (edge j) neighbours of each other.
   void link(TriangleId t, int i, TriangleId u, int j) {

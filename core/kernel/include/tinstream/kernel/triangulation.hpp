@@ -197,6 +197,7 @@ class Triangulation {
     std::vector<std::pair<int, int>> flips;
     VertexId join_a = kNone, join_b = kNone;
     bool degenerate = false;
+    bool hull = false;  // the ghost vertex is in the link
     void clear();
     int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
     void grow();
