@@ -83,7 +83,7 @@ class InteriorThinner {
         heap_(candidate_.size()),
         exact_(candidate_.size(), 0),
         orph_(std::move(orphans)),
-        bound_(lattice ? candidate_.size() : 0),
+        bound_(candidate_.size()),
         lattice_(lattice) {
     if (orph_.head.size() < tri_.mesh().triangle_slots())
       orph_.head.resize(tri_.mesh().triangle_slots(), kNone);
@@ -147,7 +147,7 @@ class InteriorThinner {
   }
 
   // The planes of the replacement triangles `tris`, for surface_at.
-  void set_planes(const std::vector<VertexTriple>& tris) const {
+  void set_planes(std::span<const VertexTriple> tris) const {
     planes_.clear();
     for (const auto& t : tris) {
       planes_.emplace_back(tri_.xy(t[0]), tri_.xy(t[1]), tri_.xy(t[2]), tri_.z(t[0]), tri_.z(t[1]),
@@ -213,9 +213,10 @@ class InteriorThinner {
   VertexId removed_last() const { return removed_last_; }
 
  private:
-  // Effective error of removing v, or nullopt when v cannot be removed. On a lattice, the
-  // lattice cells are left out: a lower bound (*is_exact says which it is), and the preview and
-  // the error without them are kept for exact_error().
+  // Effective error of removing v, or nullopt when v cannot be removed. Except for the last
+  // interior vertex, a lower bound (*is_exact says which it is): the error at v itself, plus on
+  // a lattice the few filed orphans, without the lattice cells or (general path) the orphans;
+  // the preview and that error are kept for exact_error().
   std::optional<double> evaluate(VertexId v, bool* is_exact) const {
     auto preview = tri_.removal_preview(v);
     *is_exact = true;
@@ -226,35 +227,47 @@ class InteriorThinner {
     preview_ = std::move(*preview);
     const XY& p = tri_.xy(v);
     double err = std::abs(tri_.z(v) - surface_at(p.x, p.y, nullptr));
-    *is_exact = !lattice_;
+    *is_exact = false;
+    if (lattice_) err = std::max(err, orphan_error(v));  // (few: the lattice's cells are not)
+    bound_[v] = {err, static_cast<std::uint32_t>(bound_tris_.size()),
+                 static_cast<std::uint32_t>(preview_.size())};
+    bound_tris_.insert(bound_tris_.end(), preview_.begin(), preview_.end());
+    return err + tri_.weight(v);
+  }
+
+  // Largest |z − surface| over the orphans filed under v's triangles, the surface being the
+  // set_planes() triangles.
+  double orphan_error(VertexId v) const {
+    double err = 0;
     for_each_star_triangle(v, [&](TriangleId t) {
       if (t >= orph_.head.size()) return;
       for (std::uint32_t i = orph_.head[t]; i != kNone; i = orph_.next[i]) {
         err = std::max(err, std::abs(orph_.z[i] - surface_at(orph_.x[i], orph_.y[i], nullptr)));
       }
     });
+    return err;
+  }
+
+  // v's effective error from its lower bound (the last evaluate(v), on the current star: every
+  // change of the star evaluates v again) and the lattice cells, or the orphans, of its kept
+  // preview.
+  double exact_error(VertexId v) const {
+    const Bound& b = bound_[v];
+    const std::span<const VertexTriple> tris(bound_tris_.data() + b.first, b.count);
+    double err = b.error;
     if (lattice_) {
-      bound_[v] = {err, static_cast<std::uint32_t>(bound_tris_.size()),
-                   static_cast<std::uint32_t>(preview_.size())};
-      bound_tris_.insert(bound_tris_.end(), preview_.begin(), preview_.end());
+      for (const auto& t : tris) err = std::max(err, lattice_error(t, tri_));
+    } else {
+      set_planes(tris);
+      err = std::max(err, orphan_error(v));
     }
     return err + tri_.weight(v);
   }
 
-  // v's effective error from its lower bound (the last evaluate(v), on the current star: every
-  // change of the star evaluates v again) and the lattice cells of its kept preview.
-  double exact_error(VertexId v) const {
-    const Bound& b = bound_[v];
-    double err = b.error;
-    for (std::uint32_t k = b.first; k < b.first + b.count; ++k)
-      err = std::max(err, lattice_error(bound_tris_[k], tri_));
-    return err + tri_.weight(v);
-  }
-
-  // Keys v by its effective error, or (without `exact`) by a lower bound of it, computed
-  // without the lattice scan: run() makes a key exact when it reaches the top, so the order of
-  // removals is the one of exact keys throughout (an exact key on top is at most every other
-  // vertex's exact error), and the vertices that never get near the top are never scanned.
+  // Keys v by a lower bound of its effective error (evaluate()): run() makes a key exact when it
+  // reaches the top, so the order of removals is the one of exact keys throughout (an exact key
+  // on top is at most every other vertex's exact error), and the cells and orphans of the
+  // vertices that never get near the top are never visited.
   void evaluate_and_push(VertexId v) {
     bool is_exact = false;
     const auto e = evaluate(v, &is_exact);
@@ -344,8 +357,8 @@ class InteriorThinner {
   // mesh; kNone once a removal changed it).
   mutable VertexId preview_of_ = kNone;
   mutable std::vector<VertexTriple> preview_;
-  // On a lattice, by vertex: its last evaluate()'s error without the lattice cells, and its
-  // preview, bound_tris_[first, first + count) (appended; a few MB over a whole thinning).
+  // By vertex: its last evaluate()'s lower bound (without the weight) and its preview,
+  // bound_tris_[first, first + count) (appended; a few MB over a whole thinning).
   struct Bound {
     double error = 0;
     std::uint32_t first = 0, count = 0;
