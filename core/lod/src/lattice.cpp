@@ -31,10 +31,16 @@ std::optional<Lattice> find_lattice(std::span<const tile::Vertex> points) {
   l.point.assign(points.size(), kernel::kNone);
   l.z.resize(points.size());
   if (weighted) l.weight.resize(points.size());
+  // (Gridded input usually comes row by row: the cell after the previous one is tried first.)
+  std::size_t i = w, j = h;
   for (std::size_t k = 0; k < points.size(); ++k) {
     const auto& p = points[k];
-    const std::size_t i = l.first_column_at_or_after(p.x);
-    const std::size_t j = l.first_row_at_or_after(p.y);
+    if (i + 1 < w && j < h && l.xs[i + 1] == p.x && l.ys[j] == p.y) {
+      ++i;
+    } else {
+      i = l.first_column_at_or_after(p.x);
+      j = l.first_row_at_or_after(p.y);
+    }
     if (i == w || j == h || l.xs[i] != p.x || l.ys[j] != p.y) return std::nullopt;
     const std::size_t cell = j * w + i;
     if (l.point[cell] != kernel::kNone) return std::nullopt;  // a duplicate (then one is missing)
