@@ -1,6 +1,7 @@
 #include "tinstream/triangulate/finest_tiles.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <condition_variable>
@@ -9,6 +10,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <tuple>
 #include <unordered_set>
 
 #include "delaunay.hpp"
@@ -22,6 +24,8 @@ using subdivide::SortedPoint;
 
 constexpr std::uint32_t kKeyLevel = 30;
 constexpr std::uint32_t kDefaultSubShift = 4;
+// Above this many triangles with large circles in a halo round, ask per point (ConflictSearch).
+constexpr std::size_t kFewLargeCircles = 16;
 
 std::uint64_t pack(std::uint32_t x, std::uint32_t y) {
   return (static_cast<std::uint64_t>(x) << 32) | y;
@@ -155,6 +159,106 @@ std::vector<XY> convex_hull(std::vector<XY> points) {
   return hull;
 }
 
+// Whether a point lies in the (perturbed) circumcircle of some triangle of a canonical Delaunay
+// mesh that touches the rectangle R — the halo's question, answered per point: locate the point
+// by a visibility walk (from the previous answer's triangle), then search its conflict region,
+// the triangles whose circle holds it. That region is connected (Bowyer–Watson's cavity; for a
+// point outside the hull it hangs off the hull edges the point sees), so a breadth-first search
+// through conflicting triangles finds all of it. Cost: the walk plus the region, instead of one
+// test per (circle, point) pair — which a dense, slightly curved line of points (thousands of
+// slivers whose huge circles sweep along the whole halo band) makes quadratic.
+class ConflictSearch {
+ public:
+  ConflictSearch(const std::vector<XY>& v, const detail::DelaunayMesh& mesh,
+                 const geo::MercatorRect& r)
+      : v_(v), tri_(mesh.triangles), nb_(mesh.neighbours), r_(r), mark_(tri_.size(), 0) {}
+
+  // True when p is inside the circle of a triangle touching R (conservatively true if the walk
+  // made no progress, which cannot happen on a Delaunay mesh). `tests` counts in-circle tests.
+  bool conflicts_near_r(const XY& p, std::uint64_t& tests) {
+    if (tri_.empty()) return false;
+    std::uint32_t t = hint_;
+    int exit_edge = -1;
+    for (std::size_t steps = 0;; ++steps) {
+      if (steps > tri_.size() + 8) return true;
+      int cross = -1;
+      for (int j = 0; j < 3 && cross < 0; ++j) {
+        const int k = (j + static_cast<int>(steps)) % 3;  // rotate the start: no cycling
+        if (kernel::orient2d(at(t, k + 1), at(t, k + 2), p) < 0) cross = k;
+      }
+      if (cross < 0) break;  // inside t or on its boundary
+      const std::uint32_t next = nb_[t][static_cast<std::size_t>(cross)];
+      if (next == detail::kNoNeighbour) {
+        exit_edge = cross;
+        break;
+      }
+      t = next;
+    }
+    hint_ = t;
+    if (++stamp_ == 0) {  // wrapped: clear the marks
+      std::fill(mark_.begin(), mark_.end(), 0);
+      stamp_ = 1;
+    }
+    queue_.clear();
+    push(t);
+    if (exit_edge >= 0) {
+      // The hull edges p sees, both ways along the hull from the one the walk left through.
+      for (const bool forward : {true, false}) {
+        std::uint32_t ct = t;
+        int ck = exit_edge;
+        for (std::size_t i = 0; i < tri_.size(); ++i) {
+          std::tie(ct, ck) = adjacent_hull_edge(ct, ck, forward);
+          if (kernel::orient2d(at(ct, ck + 1), at(ct, ck + 2), p) > 0) break;
+          push(ct);
+        }
+      }
+    }
+    for (std::size_t head = 0; head < queue_.size(); ++head) {
+      const std::uint32_t q = queue_[head];
+      ++tests;
+      if (detail::perturbed_incircle(at(q, 0), at(q, 1), at(q, 2), p) <= 0) continue;
+      if (bbox_meets(at(q, 0), at(q, 1), at(q, 2), r_)) return true;
+      for (std::uint32_t n : nb_[q]) {
+        if (n != detail::kNoNeighbour) push(n);
+      }
+    }
+    return false;
+  }
+
+ private:
+  const XY& at(std::uint32_t t, int k) const { return v_[tri_[t][static_cast<std::size_t>(k % 3)]]; }
+  int index_of(std::uint32_t t, std::uint32_t vertex) const {
+    return tri_[t][0] == vertex ? 0 : tri_[t][1] == vertex ? 1 : 2;
+  }
+  void push(std::uint32_t t) {
+    if (mark_[t] == stamp_) return;
+    mark_[t] = stamp_;
+    queue_.push_back(t);
+  }
+  // The hull edge after (forward) or before the hull edge opposite corner k of t, counter-
+  // clockwise along the hull, found by turning around its end (start) vertex.
+  std::pair<std::uint32_t, int> adjacent_hull_edge(std::uint32_t t, int k, bool forward) const {
+    const std::uint32_t pivot = tri_[t][static_cast<std::size_t>((k + (forward ? 2 : 1)) % 3)];
+    const int turn = forward ? 2 : 1;  // the edge of a triangle leaving / entering the pivot
+    int e = (k + (forward ? 1 : 2)) % 3;
+    for (std::size_t i = 0; i < tri_.size(); ++i) {
+      const std::uint32_t n = nb_[t][static_cast<std::size_t>(e)];
+      if (n == detail::kNoNeighbour) break;
+      t = n;
+      e = (index_of(t, pivot) + turn) % 3;
+    }
+    return {t, e};
+  }
+
+  const std::vector<XY>& v_;
+  const std::vector<detail::IndexTriangle>& tri_;
+  const std::vector<std::array<std::uint32_t, 3>>& nb_;
+  geo::MercatorRect r_;
+  std::vector<std::uint32_t> mark_;
+  std::uint32_t stamp_ = 0, hint_ = 0;
+  std::vector<std::uint32_t> queue_;
+};
+
 }  // namespace
 
 double canonical_circumradius2(XY a, XY b, XY c) {
@@ -247,6 +351,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     for (std::int64_t cx = x0 - 1; cx <= x0 + n; ++cx) want(cx, cy);
   }
 
+  std::uint64_t circle_tests = 0;
   std::vector<SortedPoint> pts, chunk;
   // Points of candidate cells, read once per tile and tested exactly before a cell joins.
   std::unordered_map<std::uint64_t, std::vector<XY>> peeked;
@@ -301,6 +406,14 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   // of a triangle touching R, or beyond a local hull edge touching R (both only within B).
   auto grow_halo = [&](const std::vector<XY>& v, const detail::DelaunayMesh& mesh) {
     const auto& tri = mesh.triangles;
+    if (tri.empty()) {
+      // Fewer than three points, or all on one line (a tile with one or two points of its own
+      // at the data's edge): no triangle to ask, so everything in B may matter — gather it.
+      scan_cells(
+          B, [](const geo::MercatorRect&) { return true; },
+          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>&) { want(cx, cy); });
+      return;
+    }
     // The local hull's edges, directed counter-clockwise (no triangle beyond them), visited in
     // (from, to) order so that the cells are gathered in the same order on every run.
     std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;
@@ -351,7 +464,33 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     // While the local hull still moves near R, the circles of its slivers are meaningless (and
     // huge): settle the hull first.
     if (!pending.empty()) return;
-    for (const auto& t : tri) {
+    // The triangles touching R whose circle reaches beyond `inner` (only there can a point not
+    // yet gathered lie inside it). Small circles: test the points of the few cells each meets.
+    // Many large ones (a dense, slightly curved line of points gives thousands of slivers whose
+    // circles sweep along all of B): ask per point instead (ConflictSearch), once for the cells
+    // their boxes cover.
+    const double large_r = 2 * cell_width;
+    std::vector<Circle> large;
+    auto scan_circle = [&](const XY& a, const XY& b, const XY& c, const Circle& circle) {
+      geo::MercatorRect box = B;
+      if (!circle.unbounded) {
+        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+        box = {circle.cx - r, circle.cy - r, circle.cx + r, circle.cy + r};
+      }
+      scan_cells(
+          box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
+          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+            if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
+                  ++circle_tests;
+                  return detail::perturbed_incircle(a, b, c, p) > 0;
+                })) {
+              want(cx, cy);
+            }
+          });
+    };
+    std::vector<std::size_t> large_triangles;
+    for (std::size_t ti = 0; ti < tri.size(); ++ti) {
+      const auto& t = tri[ti];
       const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
       if (!bbox_meets(a, b, c, R)) continue;
       const Circle circle = circumcircle(a, b, c);
@@ -362,22 +501,44 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
             circle.cy - r > inner.min_y && circle.cy + r < inner.max_y) {
           continue;
         }
+        if (r <= large_r) {
+          scan_circle(a, b, c, circle);
+          continue;
+        }
       }
-      geo::MercatorRect box = B;
-      if (!circle.unbounded) {
-        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
-        box = {circle.cx - r, circle.cy - r, circle.cx + r, circle.cy + r};
-      }
-      scan_cells(
-          box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
-          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
-            if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
-                  return detail::perturbed_incircle(a, b, c, p) > 0;
-                })) {
-              want(cx, cy);
-            }
-          });
+      large.push_back(circle);
+      large_triangles.push_back(ti);
     }
+    if (large.size() <= kFewLargeCircles) {
+      for (std::size_t i = 0; i < large.size(); ++i) {
+        const auto& t = tri[large_triangles[i]];
+        scan_circle(v[t[0]], v[t[1]], v[t[2]], large[i]);
+      }
+      return;
+    }
+    geo::MercatorRect cover{B.max_x, B.max_y, B.min_x, B.min_y};  // empty
+    for (const Circle& circle : large) {
+      if (circle.unbounded) {
+        cover = B;
+        break;
+      }
+      const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+      cover.min_x = std::min(cover.min_x, circle.cx - r);
+      cover.min_y = std::min(cover.min_y, circle.cy - r);
+      cover.max_x = std::max(cover.max_x, circle.cx + r);
+      cover.max_y = std::max(cover.max_y, circle.cy + r);
+    }
+    ConflictSearch search(v, mesh, R);
+    scan_cells(
+        cover, [](const geo::MercatorRect&) { return true; },
+        [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+          for (const XY& p : points) {
+            if (search.conflicts_near_r(p, circle_tests)) {
+              want(cx, cy);
+              break;
+            }
+          }
+        });
   };
   std::vector<XY> xy;
   std::vector<detail::IndexTriangle> tris;
@@ -416,6 +577,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   if (stats) {
     stats->gathered_points = pts.size();
     stats->rounds = round + 1;
+    stats->circle_tests = circle_tests;
   }
 
   // ── Cut at the tile border ──
@@ -590,6 +752,7 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
     }
     summary.gathered_points += done.stats.gathered_points;
     summary.max_rounds = std::max(summary.max_rounds, done.stats.rounds);
+    summary.circle_tests += done.stats.circle_tests;
     if (Status s = sink(std::move(*done.tile)); !s) {
       failure = s;
       break;

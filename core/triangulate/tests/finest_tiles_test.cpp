@@ -185,15 +185,20 @@ void expect_no_point_lost(const Fixture& f, const std::vector<InputPoint>& pts) 
   }
 }
 
+// Watertight, Delaunay, nothing lost, edge points from the global triangulation.
+void expect_global_tiles(const Fixture& f, const std::vector<InputPoint>& pts) {
+  expect_watertight(f);
+  expect_delaunay_tiles(f);
+  expect_no_point_lost(f, pts);
+  expect_edge_points_match_global(f, pts);
+}
+
 TEST(FinestTiles, RandomPointsGiveWatertightGloballyDelaunayTiles) {
   const auto pts = random_points(6000, 1, 0.1, 0.2, 3e-4);
   const Fixture f = build(pts, 400, 2, "random");
   ASSERT_GT(f.tiles.size(), 8u);
   EXPECT_EQ(f.tiles.size(), f.run.tiles.size());
-  expect_watertight(f);
-  expect_delaunay_tiles(f);
-  expect_no_point_lost(f, pts);
-  expect_edge_points_match_global(f, pts);
+  expect_global_tiles(f, pts);
 }
 
 TEST(FinestTiles, HaloIsABandNotWholeNeighbours) {
@@ -222,6 +227,35 @@ TEST(FinestTiles, HaloIsABandNotWholeNeighbours) {
   EXPECT_GT(interior, 0);
   // Over all tiles (boundary ones included) the overhead stays moderate.
   EXPECT_LT(f.summary.gathered_points, 3 * pts.size());
+}
+
+TEST(FinestTiles, SparseTilesAtTheDataEdgeStayWatertight) {
+  // A few points per tile (one dense spot deepens the finest level for the whole layer): tiles at
+  // the data's edge may hold one or two points of their own, too few for a triangle. They must
+  // still gather their halo (once, such a tile stopped at once and lost its edge points).
+  const auto pts = random_points(6000, 1, 0.1, 0.2, 3e-4);
+  const Fixture f = build(pts, 20, 2, "sparse");
+  ASSERT_GT(f.tiles.size(), 300u);
+  expect_global_tiles(f, pts);
+}
+
+TEST(FinestTiles, DenseSlightlyCurvedLineStaysGlobalAndCheap) {
+  // A dense line of points on a slightly curved arc (a densified breakline or survey transect):
+  // consecutive points form slivers whose circumcircles are huge and sweep along the whole halo
+  // band. Testing every nearby point against every such circle made the halo quadratic (3.7e9
+  // in-circle tests for a 2e6-point cloud with such a line); each candidate point is now located
+  // and asked once. The tiles must still be exactly the global Delaunay ones.
+  auto pts = random_points(6000, 5, 0.1, 0.2, 3e-4);
+  for (int i = 0; i < 8000; ++i) {
+    const double x = 0.1 + 3e-4 * (i + 0.5) / 8000;
+    const double d = x - 0.10015;
+    pts.push_back({x, 0.20015 + 50.0 * d * d, 100.0 + 1e6 * d});  // radius of curvature 0.01
+  }
+  const Fixture f = build(pts, 400, 2, "curved-line");
+  ASSERT_GT(f.tiles.size(), 16u);
+  expect_global_tiles(f, pts);
+  // Work: a few dozen in-circle tests per point (was thousands).
+  EXPECT_LT(f.summary.circle_tests, 100 * pts.size()) << f.summary.circle_tests;
 }
 
 TEST(FinestTiles, PlanarSurfaceInterpolatesEdgeAndCornerPointsOnThePlane) {

@@ -85,6 +85,7 @@ struct FinestTileOptions {
 struct FinestTileStats {
   std::uint64_t gathered_points = 0;  // points triangulated for this tile (own + halo)
   int rounds = 0;                     // halo growth rounds
+  std::uint64_t circle_tests = 0;     // point-in-circumcircle tests deciding the halo
 };
 
 // Computes one finest tile. `reader` must read the run that `cells` indexes.
@@ -100,6 +101,7 @@ struct TriangulateSummary {
   std::uint64_t tiles = 0;
   std::uint64_t gathered_points = 0;  // Σ points triangulated (own + halo): overhead measure
   int max_rounds = 0;
+  std::uint64_t circle_tests = 0;  // Σ point-in-circumcircle tests (work measure of the halo)
 };
 using TileSink = std::function<Status(tile::TinTile&&)>;
 Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, unsigned threads,
