@@ -226,7 +226,9 @@ class ConflictSearch {
   }
 
  private:
-  const XY& at(std::uint32_t t, int k) const { return v_[tri_[t][static_cast<std::size_t>(k % 3)]]; }
+  const XY& at(std::uint32_t t, int k) const {
+    return v_[tri_[t][static_cast<std::size_t>(k % 3)]];
+  }
   int index_of(std::uint32_t t, std::uint32_t vertex) const {
     return tri_[t][0] == vertex ? 0 : tri_[t][1] == vertex ? 1 : 2;
   }
