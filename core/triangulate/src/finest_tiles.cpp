@@ -52,6 +52,9 @@ Circle circumcircle(const XY& a, const XY& b, const XY& c) {
 }
 
 // Conservative: true whenever the circle may meet the closed rectangle.
+// The radius with the relative margin every halo test of a circle uses.
+double padded_radius(const Circle& c) { return std::sqrt(c.r2) * (1.0 + 1e-9); }
+
 bool circle_meets(const Circle& c, const geo::MercatorRect& r) {
   if (c.unbounded) return true;
   const double dx = std::max({r.min_x - c.cx, 0.0, c.cx - r.max_x});
@@ -472,11 +475,11 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     // circles sweep along all of B): ask per point instead (ConflictSearch), once for the cells
     // their boxes cover.
     const double large_r = 2 * cell_width;
-    std::vector<Circle> large;
+    std::vector<std::pair<Circle, std::size_t>> large;  // (circle, its triangle)
     auto scan_circle = [&](const XY& a, const XY& b, const XY& c, const Circle& circle) {
       geo::MercatorRect box = B;
       if (!circle.unbounded) {
-        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+        const double r = padded_radius(circle);
         box = {circle.cx - r, circle.cy - r, circle.cx + r, circle.cy + r};
       }
       scan_cells(
@@ -490,7 +493,6 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
             }
           });
     };
-    std::vector<std::size_t> large_triangles;
     for (std::size_t ti = 0; ti < tri.size(); ++ti) {
       const auto& t = tri[ti];
       const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
@@ -498,7 +500,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       const Circle circle = circumcircle(a, b, c);
       // Circles inside R grown by one cell lie in cells gathered from the start (own + ring).
       if (!circle.unbounded) {
-        const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+        const double r = padded_radius(circle);
         if (circle.cx - r > inner.min_x && circle.cx + r < inner.max_x &&
             circle.cy - r > inner.min_y && circle.cy + r < inner.max_y) {
           continue;
@@ -508,23 +510,22 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
           continue;
         }
       }
-      large.push_back(circle);
-      large_triangles.push_back(ti);
+      large.emplace_back(circle, ti);
     }
     if (large.size() <= kFewLargeCircles) {
-      for (std::size_t i = 0; i < large.size(); ++i) {
-        const auto& t = tri[large_triangles[i]];
-        scan_circle(v[t[0]], v[t[1]], v[t[2]], large[i]);
+      for (const auto& [circle, ti] : large) {
+        const auto& t = tri[ti];
+        scan_circle(v[t[0]], v[t[1]], v[t[2]], circle);
       }
       return;
     }
     geo::MercatorRect cover{B.max_x, B.max_y, B.min_x, B.min_y};  // empty
-    for (const Circle& circle : large) {
+    for (const auto& [circle, ti] : large) {
       if (circle.unbounded) {
         cover = B;
         break;
       }
-      const double r = std::sqrt(circle.r2) * (1.0 + 1e-9);
+      const double r = padded_radius(circle);
       cover.min_x = std::min(cover.min_x, circle.cx - r);
       cover.min_y = std::min(cover.min_y, circle.cy - r);
       cover.max_x = std::max(cover.max_x, circle.cx + r);
