@@ -16,7 +16,12 @@ packages=(
   clang-format clang-tidy curl
 )
 if [[ ${1:-} == --bench ]]; then
-  packages+=(wrk nginx nodejs npm time)
+  packages+=(wrk nginx time)
+  # Node.js for the delatin peer: Debian's nodejs + npm, unless a Node.js with npm is already
+  # installed (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm package).
+  if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+    packages+=(nodejs npm)
+  fi
 fi
 
 missing=()
