@@ -30,113 +30,332 @@ double error_rounding_allowance(const tile::TinTile& coarse) {
 
 namespace {
 
-FlatTriangle translated(const FlatTriangle& t, P2 o) {
-  FlatTriangle r = t;
-  for (auto& p : r.p) p = {p.x - o.x, p.y - o.y};
-  return r;
-}
-
-// Sutherland–Hodgman: keeps the part of `poly` left of (or on) the directed line a → b.
-int clip(const std::array<P2, 12>& poly, int n, P2 a, P2 b, std::array<P2, 12>& out) {
-  const double ex = b.x - a.x, ey = b.y - a.y;
-  auto side = [&](P2 p) { return ex * (p.y - a.y) - ey * (p.x - a.x); };
-  int m = 0;
-  for (int i = 0; i < n; ++i) {
-    const P2 s = poly[static_cast<std::size_t>(i)], e = poly[static_cast<std::size_t>((i + 1) % n)];
-    const double ds = side(s), de = side(e);
-    if (ds >= 0) out[static_cast<std::size_t>(m++)] = s;
-    if ((ds >= 0) != (de >= 0) && m < 12) {
-      const double f = ds / (ds - de);
-      out[static_cast<std::size_t>(m++)] = {s.x + (e.x - s.x) * f, s.y + (e.y - s.y) * f};
-    }
-    if (m >= 11) break;  // a triangle clipped by three lines has at most 6 vertices
-  }
-  return m;
-}
-
-// Whether the fine triangle lies inside (or on the boundary of) the coarse triangle: exact
-// orientation tests of its three vertices against the coarse triangle's three edges.
-bool contains(const FlatTriangle& c, const FlatTriangle& f) {
-  if (f.min_x < c.min_x || f.max_x > c.max_x || f.min_y < c.min_y || f.max_y > c.max_y) {
-    return false;
-  }
-  for (int e = 0; e < 3; ++e) {
-    const kernel::XY a{c.p[e].x, c.p[e].y}, b{c.p[(e + 1) % 3].x, c.p[(e + 1) % 3].y};
-    for (const P2& q : f.p) {
-      if (kernel::orient2d(a, b, {q.x, q.y}) < 0) return false;
-    }
-  }
-  return true;
-}
-
-// Adds one overlay cell (polygon q[0..n), coordinates relative to the fine triangle's first
-// vertex) with the difference values v[k] at its vertices.
-void accumulate(SurfaceDifference& d, const std::array<P2, 12>& q, const std::array<double, 12>& v,
-                int n) {
-  for (int k = 0; k < n; ++k)
-    d.max_abs = std::max(d.max_abs, std::abs(v[static_cast<std::size_t>(k)]));
-  ++d.polygons;
-  for (int k = 1; k + 1 < n; ++k) {
-    const P2 p0 = q[0], p1 = q[static_cast<std::size_t>(k)],
-             p2 = q[static_cast<std::size_t>(k + 1)];
-    const double area =
-        0.5 * std::abs((p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x));
-    const double v0 = v[0], v1 = v[static_cast<std::size_t>(k)],
-                 v2 = v[static_cast<std::size_t>(k + 1)];
-    d.area += area;
-    d.sum_sq_area += area / 6.0 * (v0 * v0 + v1 * v1 + v2 * v2 + v0 * v1 + v1 * v2 + v2 * v0);
-  }
-}
-
-// Spreads the low 16 bits of v to the even bit positions.
-std::uint32_t spread_bits(std::uint32_t v) {
-  v &= 0xFFFFu;
-  v = (v | (v << 8)) & 0x00FF00FFu;
-  v = (v | (v << 4)) & 0x0F0F0F0Fu;
-  v = (v | (v << 2)) & 0x33333333u;
-  v = (v | (v << 1)) & 0x55555555u;
-  return v;
-}
-
-// Puts triangles in Z order of their centroids within r, so that consecutive fine triangles are
-// neighbours: most then lie in the previous one's coarse triangle (the hint), and the grid cells
-// a query touches are still in cache.
-void sort_spatially(std::vector<FlatTriangle>& ts, const geo::MercatorRect& r) {
-  const double sx = 65535.0 / std::max(r.width(), std::numeric_limits<double>::min());
-  const double sy = 65535.0 / std::max(r.height(), std::numeric_limits<double>::min());
-  auto cell = [](double v) {
-    return static_cast<std::uint32_t>(std::clamp(v, 0.0, 65535.0));
-  };
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> keys(ts.size());
-  for (std::size_t i = 0; i < ts.size(); ++i) {
-    const FlatTriangle& t = ts[i];
-    const double cx = (t.p[0].x + t.p[1].x + t.p[2].x) / 3.0;
-    const double cy = (t.p[0].y + t.p[1].y + t.p[2].y) / 3.0;
-    keys[i] = {spread_bits(cell((cx - r.min_x) * sx)) |
-                   (spread_bits(cell((cy - r.min_y) * sy)) << 1),
-               static_cast<std::uint32_t>(i)};
-  }
-  std::sort(keys.begin(), keys.end());
-  std::vector<FlatTriangle> sorted;
-  sorted.reserve(ts.size());
-  for (const auto& k : keys) sorted.push_back(ts[k.second]);
-  ts = std::move(sorted);
-}
-
-// A triangle's plane as a value at its first corner and a gradient, so that evaluating it costs
-// two multiplications (no division per point). Degenerate triangles: constant z[0], as plane_at.
+// A plane as a value at a reference point and a gradient: two multiplications per evaluation.
+// Degenerate triangles give the constant z of their first corner.
 struct Plane {
-  double z0 = 0, gx = 0, gy = 0;
-  double at(double dx, double dy) const { return z0 + gx * dx + gy * dy; }  // relative to p[0]
+  double x0 = 0, y0 = 0, z0 = 0, gx = 0, gy = 0;
+  double at(double x, double y) const { return z0 + gx * (x - x0) + gy * (y - y0); }
 };
 
-Plane plane_of(const FlatTriangle& t) {
-  const double bx = t.p[1].x - t.p[0].x, by = t.p[1].y - t.p[0].y;
-  const double cx = t.p[2].x - t.p[0].x, cy = t.p[2].y - t.p[0].y;
+Plane plane_of(const kernel::XY& a, double za, const kernel::XY& b, double zb, const kernel::XY& c,
+               double zc) {
+  const double bx = b.x - a.x, by = b.y - a.y;
+  const double cx = c.x - a.x, cy = c.y - a.y;
   const double det = bx * cy - by * cx;
-  if (!(det != 0)) return {t.z[0], 0, 0};
-  const double dzb = t.z[1] - t.z[0], dzc = t.z[2] - t.z[0];
-  return {t.z[0], (dzb * cy - dzc * by) / det, (dzc * bx - dzb * cx) / det};
+  if (!(det != 0)) return {a.x, a.y, za, 0, 0};
+  const double dzb = zb - za, dzc = zc - za;
+  return {a.x, a.y, za, (dzb * cy - dzc * by) / det, (dzc * bx - dzb * cx) / det};
+}
+
+// A tile's vertex positions and heights in the tile numbering (tin_tile.hpp).
+void vertex_arrays(const tile::TinTile& tile, std::vector<kernel::XY>& p, std::vector<double>& z) {
+  const std::size_t nv = tile.vertex_count();
+  p.clear(), z.clear();
+  p.reserve(nv), z.reserve(nv);
+  auto add = [&](const tile::Vertex& v) { p.push_back({v.x, v.y}), z.push_back(v.z); };
+  for (const auto& v : tile.corners) add(v);
+  for (const auto* list : {&tile.north, &tile.east, &tile.south, &tile.west, &tile.interior}) {
+    for (const auto& v : *list) add(v);
+  }
+}
+
+// The coarse tile as an indexed mesh with neighbour links, for walks with exact orientation
+// tests. Numbering as kernel::Mesh: n[i][k] is the triangle across the edge opposite corner k,
+// i.e. the edge t[i][k+1] → t[i][k+2]; -1 on the tile border.
+//
+//              t[k]
+//              /  \    n[k+1] across t[k+2] → t[k]
+//     n[k+2]  /    \   n[k+2] across t[k] → t[k+1]
+//            /      \  n[k]   across t[k+1] → t[k+2]
+//      t[k+1] ────── t[k+2]
+//               n[k]
+struct WalkMesh {
+  std::vector<kernel::XY> p;
+  std::vector<double> z;
+  std::vector<tile::Triangle> t;
+  std::vector<std::array<std::int32_t, 3>> n;
+  std::vector<std::uint8_t> data;         // not incident to a NODATA corner
+  std::vector<std::uint8_t> vertex_data;  // incident to a data triangle
+  std::vector<Plane> plane;
+
+  explicit WalkMesh(const tile::TinTile& tile) {
+    vertex_arrays(tile, p, z);
+    const std::size_t nv = p.size();
+    t = tile.triangles;
+    n.assign(t.size(), {-1, -1, -1});
+    data.resize(t.size());
+    vertex_data.assign(nv, 0);
+    plane.resize(t.size());
+    // Triangles around each vertex (CSR, entries 4 × triangle + the vertex's corner index), then
+    // each edge's twin among the triangles around its end; a twin found links both ways.
+    std::vector<std::uint32_t> start(nv + 1, 0), around(3 * t.size());
+    for (const auto& tr : t) {
+      for (auto v : tr) ++start[v + 1];
+    }
+    for (std::size_t i = 1; i <= nv; ++i) start[i] += start[i - 1];
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::uint32_t i = 0; i < t.size(); ++i) {
+      for (std::uint32_t k = 0; k < 3; ++k) around[fill[t[i][k]]++] = 4 * i + k;
+    }
+    for (std::uint32_t i = 0; i < t.size(); ++i) {
+      const auto& tr = t[i];
+      bool nodata = false;
+      for (auto v : tr) nodata = nodata || (v < 4 && tile.corner_nodata[v]);
+      data[i] = nodata ? 0 : 1;
+      if (!nodata) {
+        for (auto v : tr) vertex_data[v] = 1;
+      }
+      plane[i] = plane_of(p[tr[0]], z[tr[0]], p[tr[1]], z[tr[1]], p[tr[2]], z[tr[2]]);
+      for (int k = 0; k < 3; ++k) {
+        if (n[i][k] >= 0) continue;
+        const std::uint32_t a = tr[(k + 1) % 3], b = tr[(k + 2) % 3];
+        // The twin is the edge b → a: a triangle j with b at corner m and a at corner m + 1.
+        for (std::uint32_t s = start[b]; s < start[b + 1]; ++s) {
+          const std::uint32_t j = around[s] >> 2, m = around[s] & 3;
+          if (t[j][(m + 1) % 3] == a) {
+            n[i][k] = static_cast<std::int32_t>(j);
+            n[j][(m + 2) % 3] = static_cast<std::int32_t>(i);
+            break;
+          }
+        }
+      }
+    }
+  }
+
+  const kernel::XY& corner(std::uint32_t i, int k) const { return p[t[i][k]]; }
+
+  bool contains(std::uint32_t i, const kernel::XY& q) const {
+    for (int k = 0; k < 3; ++k) {
+      if (kernel::orient2d(corner(i, (k + 1) % 3), corner(i, (k + 2) % 3), q) < 0) return false;
+    }
+    return true;
+  }
+
+  // A triangle containing q (closed), walking from `from` by exact visibility tests; the edge
+  // tested first rotates, so the walk cannot cycle. -1 when the walk leaves the mesh or exceeds its
+  // step budget (not on a valid triangulation that covers q).
+  std::int64_t locate(std::uint32_t from, const kernel::XY& q) const {
+    std::uint32_t i = from;
+    int r = 0;
+    for (std::size_t steps = 0; steps <= 4 * t.size() + 8; ++steps) {
+      int out = -1;
+      for (int j = 0; j < 3; ++j) {
+        const int k = (r + j) % 3;
+        if (kernel::orient2d(corner(i, (k + 1) % 3), corner(i, (k + 2) % 3), q) < 0) {
+          out = k;
+          break;
+        }
+      }
+      if (out < 0) return i;
+      if (n[i][out] < 0) return -1;
+      i = static_cast<std::uint32_t>(n[i][out]);
+      r = (r + 1) % 3;
+    }
+    return -1;
+  }
+
+  // A data triangle containing q (closed), searched among the triangles around `i` (which
+  // contains q) that contain q too; -1 when q has no data triangle (inside the NODATA region).
+  std::int64_t data_triangle_at(std::uint32_t i, const kernel::XY& q) const {
+    if (data[i]) return i;
+    std::array<std::uint32_t, 64> seen{};
+    std::size_t count = 0, next = 0;
+    seen[count++] = i;
+    while (next < count) {
+      const std::uint32_t c = seen[next++];
+      for (int k = 0; k < 3; ++k) {
+        const std::int32_t j = n[c][k];
+        if (j < 0) continue;
+        const auto u = static_cast<std::uint32_t>(j);
+        if (std::find(seen.begin(), seen.begin() + static_cast<std::ptrdiff_t>(count), u) !=
+                seen.begin() + static_cast<std::ptrdiff_t>(count) ||
+            !contains(u, q)) {
+          continue;
+        }
+        if (data[u]) return u;
+        if (count < seen.size()) seen[count++] = u;
+      }
+    }
+    return -1;
+  }
+};
+
+// The fine tile's vertices in the tile numbering.
+struct FineVertices {
+  std::vector<kernel::XY> p;
+  std::vector<double> z;
+  explicit FineVertices(const tile::TinTile& tile) { vertex_arrays(tile, p, z); }
+};
+
+void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDifference& d,
+                    std::uint32_t& hint, std::vector<std::uint8_t>& coarse_matched) {
+  const FineVertices f(fine);
+  const std::size_t nv = f.p.size();
+  constexpr std::int64_t kUnknown = -2;  // not located yet; -1: outside every data triangle
+  std::vector<std::int64_t> where(nv, kUnknown);  // containing coarse triangle
+  std::vector<double> dv(nv, 0.0);                // coarse − fine at the vertex
+  const geo::MercatorRect fr = fine.id.bounds();
+
+  auto nodata_tri = [&](const tile::Triangle& tr) {
+    return (tr[0] < 4 && fine.corner_nodata[tr[0]]) || (tr[1] < 4 && fine.corner_nodata[tr[1]]) ||
+           (tr[2] < 4 && fine.corner_nodata[tr[2]]);
+  };
+  // Directed edges of the fine NODATA triangles (sorted): an edge of a data triangle whose other
+  // side is NODATA is walked from the data side whatever its direction. Only edges between two
+  // vertices of NODATA triangles are looked up.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> nodata_edges;
+  std::vector<std::uint8_t> near_nodata;
+  for (const auto& tr : fine.triangles) {
+    if (!nodata_tri(tr)) continue;
+    if (near_nodata.empty()) near_nodata.assign(nv, 0);
+    for (int k = 0; k < 3; ++k) {
+      nodata_edges.emplace_back(tr[k], tr[(k + 1) % 3]);
+      near_nodata[tr[k]] = 1;
+    }
+  }
+  std::sort(nodata_edges.begin(), nodata_edges.end());
+  auto nodata_beyond = [&](std::uint32_t u, std::uint32_t w) {
+    return !near_nodata.empty() && near_nodata[u] && near_nodata[w] &&
+           std::binary_search(nodata_edges.begin(), nodata_edges.end(), std::make_pair(w, u));
+  };
+  auto on_border = [&](std::uint32_t a, std::uint32_t b) {
+    const kernel::XY &pa = f.p[a], &pb = f.p[b];
+    return (pa.x == pb.x && (pa.x == fr.min_x || pa.x == fr.max_x)) ||
+           (pa.y == pb.y && (pa.y == fr.min_y || pa.y == fr.max_y));
+  };
+
+  // Locates vertex v in triangle i (containing it) and evaluates the difference there.
+  std::uint32_t located_in = hint;
+  auto settle = [&](std::uint32_t v, std::uint32_t i) {
+    located_in = i;
+    const kernel::XY& q = f.p[v];
+    for (int k = 0; k < 3; ++k) {
+      if (c.corner(i, k).x == q.x && c.corner(i, k).y == q.y) coarse_matched[c.t[i][k]] = 1;
+    }
+    const std::int64_t di = c.data_triangle_at(i, q);
+    where[v] = di;
+    if (di >= 0) dv[v] = c.plane[static_cast<std::size_t>(di)].at(q.x, q.y) - f.z[v];
+  };
+  auto locate = [&](std::uint32_t v) -> bool {
+    const std::int64_t i = c.locate(located_in, f.p[v]);
+    if (i < 0) return false;
+    settle(v, static_cast<std::uint32_t>(i));
+    return true;
+  };
+
+  // Walks the fine edge u → w through the coarse mesh from `from` (a triangle containing u),
+  // evaluating the difference where it crosses coarse edges when `measure`; returns the triangle
+  // where the walk ends (it contains w), or -1.
+  auto walk = [&](std::uint32_t u, std::uint32_t w, std::uint32_t from, bool measure) {
+    const kernel::XY &pu = f.p[u], &pw = f.p[w];
+    std::uint32_t i = from;
+    int entry = -1;
+    for (std::size_t steps = 0; steps <= c.t.size() + 8; ++steps) {
+      int exit = -1;
+      for (int k = 0; k < 3 && exit < 0; ++k) {
+        if (k == entry) continue;
+        const kernel::XY &a = c.corner(i, (k + 1) % 3), &b = c.corner(i, (k + 2) % 3);
+        if (kernel::orient2d(a, b, pw) >= 0) continue;
+        // w is beyond this edge; the segment leaves through it when a is on the right of u → w
+        // and b on the left (or on the line).
+        if (kernel::orient2d(pu, pw, a) <= 0 && kernel::orient2d(pu, pw, b) >= 0) exit = k;
+      }
+      if (exit < 0) return static_cast<std::int64_t>(i);  // w is in triangle i
+      const std::int32_t next = c.n[i][exit];
+      const std::uint32_t ia = c.t[i][(exit + 1) % 3], ib = c.t[i][(exit + 2) % 3];
+      if (measure && (c.data[i] || (next >= 0 && c.data[static_cast<std::size_t>(next)]))) {
+        // The crossing point, as a fraction s along the coarse edge a → b and a fraction r along
+        // the fine edge u → w (floating point: error_rounding_allowance covers the rounding).
+        const kernel::XY &a = c.p[ia], &b = c.p[ib];
+        auto cross = [](const kernel::XY& o, const kernel::XY& e, const kernel::XY& q) {
+          return (e.x - o.x) * (q.y - o.y) - (e.y - o.y) * (q.x - o.x);
+        };
+        const double oa = cross(pu, pw, a), ob = cross(pu, pw, b);
+        const double ou = cross(a, b, pu), ow = cross(a, b, pw);
+        double s = oa - ob != 0 ? oa / (oa - ob) : 0.5;
+        double r = ou - ow != 0 ? ou / (ou - ow) : 0.0;
+        s = std::clamp(s, 0.0, 1.0), r = std::clamp(r, 0.0, 1.0);
+        const double zc = c.z[ia] + s * (c.z[ib] - c.z[ia]);
+        const double zf = f.z[u] + r * (f.z[w] - f.z[u]);
+        d.max_abs = std::max(d.max_abs, std::abs(zc - zf));
+        ++d.crossings;
+      }
+      if (next < 0) return std::int64_t{-1};
+      const auto j = static_cast<std::uint32_t>(next);
+      const auto& tj = c.t[j];
+      entry = tj[0] != ia && tj[0] != ib ? 0 : (tj[1] != ia && tj[1] != ib ? 1 : 2);
+      i = j;
+    }
+    return std::int64_t{-1};
+  };
+
+  bool lost = false;  // a walk failed (not a valid covering triangulation): whole-tile fallback
+  for (const auto& tr : fine.triangles) {
+    if (nodata_tri(tr)) continue;
+    if (where[tr[0]] == kUnknown && !locate(tr[0])) {
+      lost = true;
+      break;
+    }
+    for (int k = 0; k < 3 && !lost; ++k) {
+      const std::uint32_t u = tr[k], w = tr[(k + 1) % 3];
+      // Each interior edge is measured once, from its triangle with u < w; border edges and
+      // edges against a NODATA triangle have no data triangle on the other side.
+      const bool measure = u < w || on_border(u, w) || nodata_beyond(u, w);
+      if (!measure && where[w] != kUnknown) continue;
+      if (where[u] < 0) {
+        // u has no data triangle: walk from any triangle that contains it.
+        if (!locate(u)) lost = true;
+        if (lost) break;
+      }
+      const std::uint32_t from = where[u] >= 0 ? static_cast<std::uint32_t>(where[u]) : located_in;
+      const std::int64_t end = walk(u, w, from, measure);
+      if (end < 0) {
+        lost = true;
+        break;
+      }
+      if (where[w] == kUnknown) settle(w, static_cast<std::uint32_t>(end));
+    }
+    if (lost) break;
+  }
+  hint = located_in;
+  if (lost) {
+    // Not reached on valid tiles; measured by brute force instead so that the bound stays honest.
+    std::fill(where.begin(), where.end(), kUnknown);
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      for (std::uint32_t i = 0; i < c.t.size(); ++i) {
+        if (c.contains(i, f.p[v])) {
+          settle(v, i);
+          break;
+        }
+      }
+    }
+    for (const auto& tr : fine.triangles) {
+      if (nodata_tri(tr)) continue;
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t u = tr[k], w = tr[(k + 1) % 3];
+        for (std::uint32_t i = 0; i < c.t.size(); ++i) {
+          if (c.contains(i, f.p[u])) {
+            walk(u, w, i, true);
+            break;
+          }
+        }
+      }
+    }
+  }
+
+  // Vertices: the maximum, and the RMS with each vertex weighted by a third of the area of its
+  // data triangles.
+  for (const auto& tr : fine.triangles) {
+    if (nodata_tri(tr)) continue;
+    const kernel::XY &a = f.p[tr[0]], &b = f.p[tr[1]], &q = f.p[tr[2]];
+    const double third = std::abs((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x)) / 6.0;
+    for (auto v : tr) {
+      if (where[v] < 0) continue;
+      d.max_abs = std::max(d.max_abs, std::abs(dv[v]));
+      d.sum_sq_area += third * dv[v] * dv[v];
+      d.area += third;
+    }
+  }
 }
 
 }  // namespace
@@ -144,76 +363,34 @@ Plane plane_of(const FlatTriangle& t) {
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
                                      std::span<const tile::TinTile* const> fines) {
   SurfaceDifference d;
-  std::vector<FlatTriangle> ct;
-  // NODATA triangles (incident to a NODATA corner, z = 0 by convention) are not surface on either
-  // side: the error is measured where both surfaces have data (see error.hpp).
-  detail::append_triangles(coarse, true, ct);
-  TriangleGrid grid(std::move(ct), coarse.id.bounds());
-  std::vector<Plane> planes;
-  planes.reserve(grid.triangles().size());
-  for (const FlatTriangle& t : grid.triangles()) planes.push_back(plane_of(t));
-  std::vector<FlatTriangle> ft;
-  std::vector<std::uint32_t> candidates;
-  std::int64_t hint = -1;  // the coarse triangle that held the previous fine triangle
+  if (coarse.triangles.empty()) return d;
+  const WalkMesh c(coarse);
+  std::uint32_t hint = 0;
   for (const tile::TinTile* fine : fines) {
-    ft.clear();
+    std::vector<std::uint8_t> matched(c.p.size(), 0);
+    difference_one(c, *fine, d, hint, matched);
+    // Coarse vertices that are not fine vertices (never the case for parents and reduced tiles,
+    // whose vertices are a subset of the fine ones) are overlay vertices too: the fine surface
+    // is evaluated there directly.
+    const geo::MercatorRect fr = fine->id.bounds();
+    std::vector<std::uint32_t> extra;
+    for (std::uint32_t v = 0; v < c.p.size(); ++v) {
+      const kernel::XY& q = c.p[v];
+      if (!matched[v] && c.vertex_data[v] && q.x >= fr.min_x && q.x <= fr.max_x &&
+          q.y >= fr.min_y && q.y <= fr.max_y) {
+        extra.push_back(v);
+      }
+    }
+    if (extra.empty()) continue;
+    std::vector<FlatTriangle> ft;
     detail::append_triangles(*fine, true, ft);
-    sort_spatially(ft, coarse.id.bounds());
-    for (const FlatTriangle& f0 : ft) {
-      const P2 o = f0.p[0];
-      const FlatTriangle f = translated(f0, o);
-      const Plane fp = plane_of(f);
-      // Fast path: most fine triangles lie inside one coarse triangle (the overlay cell is the
-      // fine triangle itself; the other candidates meet it at most on their boundary, adding
-      // no area and the same values there). Decided with exact orientation tests.
-      std::int64_t inside = -1;
-      if (hint >= 0 && contains(grid.triangles()[static_cast<std::size_t>(hint)], f0)) {
-        inside = hint;
-      } else {
-        candidates.clear();
-        grid.for_each_overlapping(f0.min_x, f0.min_y, f0.max_x, f0.max_y,
-                                  [&](std::uint32_t ci) { candidates.push_back(ci); });
-        for (std::uint32_t ci : candidates) {
-          if (contains(grid.triangles()[ci], f0)) {
-            inside = ci;
-            break;
-          }
-        }
-        if (inside < 0) {
-          for (std::uint32_t ci : candidates) {
-            const FlatTriangle c = translated(grid.triangles()[ci], o);
-            const Plane& cp = planes[ci];
-            std::array<P2, 12> a, b;  // not zeroed: only the first n entries are read
-            a[0] = f.p[0], a[1] = f.p[1], a[2] = f.p[2];
-            int n = 3;
-            n = clip(a, n, c.p[0], c.p[1], b);
-            if (n == 0) continue;
-            n = clip(b, n, c.p[1], c.p[2], a);
-            if (n == 0) continue;
-            n = clip(a, n, c.p[2], c.p[0], b);
-            if (n == 0) continue;
-            std::array<double, 12> v;
-            for (int k = 0; k < n; ++k) {
-              const P2 q = b[static_cast<std::size_t>(k)];
-              v[static_cast<std::size_t>(k)] =
-                  cp.at(q.x - c.p[0].x, q.y - c.p[0].y) - fp.at(q.x, q.y);
-            }
-            accumulate(d, b, v, n);
-          }
-          continue;
-        }
-      }
-      hint = inside;
-      const FlatTriangle& c = grid.triangles()[static_cast<std::size_t>(inside)];
-      const Plane& cp = planes[static_cast<std::size_t>(inside)];
-      const P2 co{c.p[0].x - o.x, c.p[0].y - o.y};  // the coarse corner relative to o
-      std::array<P2, 12> q;
-      std::array<double, 12> v;
-      for (std::size_t k = 0; k < 3; ++k) {
-        q[k] = f.p[k];
-        v[k] = cp.at(q[k].x - co.x, q[k].y - co.y) - f.z[k];
-      }
-      accumulate(d, q, v, 3);
+    TriangleGrid grid(std::move(ft), fr);
+    for (std::uint32_t v : extra) {
+      double w;
+      const std::int64_t i = grid.locate(c.p[v].x, c.p[v].y, &w);
+      if (i < 0 || w < -1e-9) continue;
+      const double zf = plane_at(grid.triangles()[static_cast<std::size_t>(i)], c.p[v].x, c.p[v].y);
+      d.max_abs = std::max(d.max_abs, std::abs(c.z[v] - zf));
     }
   }
   return d;

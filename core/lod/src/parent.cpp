@@ -128,7 +128,7 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
     total.max_abs = std::max(total.max_abs, d.max_abs);
     total.sum_sq_area += d.sum_sq_area;
     total.area += d.area;
-    total.polygons += d.polygons;
+    total.crossings += d.crossings;
     child_max = std::max(child_max, c->geometric_error);
     child_sq_area += d.area * c->rms_error * c->rms_error;
     child_area += d.area;

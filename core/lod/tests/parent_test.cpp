@@ -143,6 +143,84 @@ TEST(Watertight, DetectsADifferentSharedPoint) {
   EXPECT_FALSE(check_level_watertight(level).ok());
 }
 
+// The largest |coarse − fine| by brute force, independent of the library: the difference of two
+// piecewise-linear surfaces peaks at a vertex of either mesh or where a coarse edge crosses a
+// fine edge; both surfaces are evaluated there by brute-force barycentrics (NODATA triangles
+// skipped on both sides). *crossings receives the number of proper edge crossings found.
+double brute_max_difference(const TinTile& coarse, const std::vector<const TinTile*>& fines,
+                            std::size_t* crossings = nullptr) {
+  double brute = 0;
+  auto probe = [&](double x, double y) {
+    const auto zc = testing::brute_height(coarse, x, y, true);
+    for (const TinTile* fine : fines) {
+      const geo::MercatorRect fr = fine->id.bounds();
+      if (x < fr.min_x || x > fr.max_x || y < fr.min_y || y > fr.max_y) continue;
+      const auto zf = testing::brute_height(*fine, x, y, true);
+      if (zc && zf) brute = std::max(brute, std::abs(*zc - *zf));
+    }
+  };
+  auto data_edges = [](const TinTile& t) {
+    std::vector<std::pair<tile::Vertex, tile::Vertex>> e;
+    const auto v = t.vertices();
+    for (const auto& tr : t.triangles) {
+      bool nodata = false;
+      for (auto i : tr) nodata = nodata || (i < 4 && t.corner_nodata[i]);
+      if (nodata) continue;
+      for (int k = 0; k < 3; ++k) e.emplace_back(v[tr[k]], v[tr[(k + 1) % 3]]);
+    }
+    return e;
+  };
+  for (const auto& p : coarse.vertices()) probe(p.x, p.y);
+  std::size_t found = 0;
+  for (const TinTile* fine : fines) {
+    for (const auto& p : fine->vertices()) probe(p.x, p.y);
+    for (const auto& [a, b] : data_edges(coarse)) {
+      for (const auto& [c, e] : data_edges(*fine)) {
+        const double den = (b.x - a.x) * (e.y - c.y) - (b.y - a.y) * (e.x - c.x);
+        if (den == 0) continue;
+        const double s = ((c.x - a.x) * (e.y - c.y) - (c.y - a.y) * (e.x - c.x)) / den;
+        const double u = ((c.x - a.x) * (b.y - a.y) - (c.y - a.y) * (b.x - a.x)) / den;
+        if (s <= 0 || s >= 1 || u <= 0 || u >= 1) continue;
+        ++found;
+        probe(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y));
+      }
+    }
+  }
+  if (crossings) *crossings = found;
+  return brute;
+}
+
+// A tile over `id` from random points of `f` (corners, a few points on each side, the rest
+// inside), triangulated with every point kept.
+TinTile random_tile(const geo::TileId& id, int n, std::uint32_t seed, const testing::Surface& f) {
+  const geo::MercatorRect r = id.bounds();
+  std::uint64_t state = seed * 2654435761u + 1;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(state >> 11) * 0x1p-53;
+  };
+  auto v = [&](double x, double y) { return tile::Vertex{x, y, f(x, y), 0}; };
+  ThinInput in;
+  in.id = id;
+  in.corners = {v(r.min_x, r.max_y), v(r.max_x, r.max_y), v(r.min_x, r.min_y), v(r.max_x, r.min_y)};
+  for (int i = 1; i <= 3; ++i) {
+    const double t = i / 4.0 + (uniform() - 0.5) * 0.1;
+    in.north.push_back(v(r.min_x + t * r.width(), r.max_y));
+    in.south.push_back(v(r.min_x + t * r.width(), r.min_y));
+    in.east.push_back(v(r.max_x, r.max_y - t * r.height()));
+    in.west.push_back(v(r.min_x, r.max_y - t * r.height()));
+  }
+  for (int i = 0; i < n; ++i) {
+    in.interior.push_back(v(r.min_x + (0.001 + 0.998 * uniform()) * r.width(),
+                            r.min_y + (0.001 + 0.998 * uniform()) * r.height()));
+  }
+  auto t = thin_tile(in, testing::keep_everything());
+  EXPECT_TRUE(t.ok()) << (t.ok() ? "" : t.error().message);
+  return t.ok() ? *t : TinTile{};
+}
+
+double valley(double x, double y) { return 300.0 + 40.0 * std::cos(x * 2100.0 - y * 1300.0); }
+
 TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
   // Fine: a ridge along the diagonal NW–SE (values only at vertices, so the maximum of the
   // difference to a flat coarse tile on the *other* diagonal's crossing is at the centre).
@@ -159,7 +237,7 @@ TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
   const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
   // At the centre: coarse 0 (on its SW–NE diagonal), fine 10 (on its NW–SE ridge).
   EXPECT_NEAR(d.max_abs, 10.0, 1e-9);
-  EXPECT_GT(d.rms(), 0.0);
+  EXPECT_GT(d.crossings, 0u);
   EXPECT_NEAR(d.area, r.width() * r.height(), 1e-12 * r.width() * r.height() + 1e-30);
   // Vertex sampling alone misses it.
   auto m = measured_max_error(coarse, {fine});
@@ -183,34 +261,8 @@ TEST(SurfaceDifference, MaximumAndAreaMatchABruteForceOverlay) {
   ASSERT_TRUE(reduce_finest_tile(coarse, o).ok());
   ASSERT_LT(coarse.vertex_count(), fine.vertex_count());
 
-  double brute = 0;
-  auto probe = [&](double x, double y) {
-    const auto zc = testing::brute_height(coarse, x, y, true);
-    const auto zf = testing::brute_height(fine, x, y, true);
-    if (zc && zf) brute = std::max(brute, std::abs(*zc - *zf));
-  };
-  for (const auto& p : fine.vertices()) probe(p.x, p.y);
-  for (const auto& p : coarse.vertices()) probe(p.x, p.y);
-  auto edges = [](const TinTile& t) {
-    std::vector<std::pair<tile::Vertex, tile::Vertex>> e;
-    const auto v = t.vertices();
-    for (const auto& tr : t.triangles) {
-      for (int k = 0; k < 3; ++k) e.emplace_back(v[tr[k]], v[tr[(k + 1) % 3]]);
-    }
-    return e;
-  };
   std::size_t crossings = 0;
-  for (const auto& [a, b] : edges(coarse)) {
-    for (const auto& [c, e] : edges(fine)) {
-      const double den = (b.x - a.x) * (e.y - c.y) - (b.y - a.y) * (e.x - c.x);
-      if (den == 0) continue;
-      const double s = ((c.x - a.x) * (e.y - c.y) - (c.y - a.y) * (e.x - c.x)) / den;
-      const double u = ((c.x - a.x) * (b.y - a.y) - (c.y - a.y) * (b.x - a.x)) / den;
-      if (s <= 0 || s >= 1 || u <= 0 || u >= 1) continue;
-      ++crossings;
-      probe(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y));
-    }
-  }
+  const double brute = brute_max_difference(coarse, {&fine}, &crossings);
   ASSERT_GT(crossings, 0u);
 
   const TinTile* f = &fine;
@@ -219,7 +271,24 @@ TEST(SurfaceDifference, MaximumAndAreaMatchABruteForceOverlay) {
   EXPECT_NEAR(d.max_abs, brute, 1e-9 * (1 + brute));
   const geo::MercatorRect r = id.bounds();
   EXPECT_NEAR(d.area, r.width() * r.height(), 1e-9 * r.width() * r.height());
-  // The RMS lies between 0 and the maximum, and near a dense sample's RMS.
+  // The RMS is the fine vertices' RMS, each weighted by a third of the area of its triangles
+  // (error.hpp), computed here by brute force; on this dense lattice it is close to the area
+  // RMS of the difference, estimated by dense sampling.
+  {
+    const auto v = fine.vertices();
+    std::vector<double> weight(v.size(), 0.0);
+    for (const auto& tr : fine.triangles) {
+      const auto &a = v[tr[0]], &b = v[tr[1]], &c = v[tr[2]];
+      const double area = std::abs((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)) / 2;
+      for (auto i : tr) weight[i] += area / 3;
+    }
+    double wsum = 0, wsq = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const double diff = *testing::brute_height(coarse, v[i].x, v[i].y, true) - v[i].z;
+      wsum += weight[i], wsq += weight[i] * diff * diff;
+    }
+    EXPECT_NEAR(d.rms(), std::sqrt(wsq / wsum), 1e-9 * std::sqrt(wsq / wsum));
+  }
   double sum_sq = 0;
   int n = 0;
   for (int j = 0; j < 200; ++j) {
@@ -232,7 +301,86 @@ TEST(SurfaceDifference, MaximumAndAreaMatchABruteForceOverlay) {
       ++n;
     }
   }
-  EXPECT_NEAR(d.rms(), std::sqrt(sum_sq / n), 0.02 * std::sqrt(sum_sq / n));
+  EXPECT_NEAR(d.rms(), std::sqrt(sum_sq / n), 0.05 * std::sqrt(sum_sq / n));
+}
+
+TEST(SurfaceDifference, MaximumMatchesABruteForceOverlayOnScatteredPoints) {
+  // Scattered points (no lattice alignment) thinned hard: most fine edges cross coarse edges.
+  const geo::TileId id{12, 2100, 1400};
+  const TinTile fine = random_tile(id, 400, 7, hills);
+  TinTile coarse = fine;
+  LodOptions o;
+  o.max_points = 30;
+  o.border_points_per_side = 2;
+  ASSERT_TRUE(reduce_finest_tile(coarse, o).ok());
+  ASSERT_EQ(coarse.vertex_count(), 30u);
+  std::size_t crossings = 0;
+  const double brute = brute_max_difference(coarse, {&fine}, &crossings);
+  ASSERT_GT(crossings, 100u);
+  const TinTile* f = &fine;
+  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
+  EXPECT_GT(brute, 1.0);
+  EXPECT_NEAR(d.max_abs, brute, 1e-9 * (1 + brute));
+}
+
+TEST(SurfaceDifference, MaximumMatchesABruteForceOverlayWhenCoarseVerticesAreNotFineVertices) {
+  // Two unrelated triangulations of two surfaces over one tile: coarse vertices lie inside fine
+  // triangles and on fine edges, where only evaluating the fine surface at them finds the peak.
+  const geo::TileId id{12, 2100, 1400};
+  const TinTile fine = grid_tile(id, 8, valley);
+  // Rough heights: the coarse surface peaks at its own vertices, inside fine triangles.
+  const TinTile coarse = random_tile(
+      id, 60, 11, [](double x, double y) { return 300.0 + 50.0 * std::sin(1e7 * x + 3e7 * y); });
+  const double brute = brute_max_difference(coarse, {&fine});
+  const TinTile* f = &fine;
+  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
+  EXPECT_GT(brute, 1.0);
+  EXPECT_NEAR(d.max_abs, brute, 1e-9 * (1 + brute));
+  // And the other way round.
+  const TinTile* c = &coarse;
+  const auto e = surface_difference(fine, std::span<const TinTile* const>(&c, 1));
+  EXPECT_NEAR(e.max_abs, brute_max_difference(fine, {&coarse}), 1e-9 * (1 + brute));
+}
+
+TEST(SurfaceDifference, NodataTrianglesAreSkippedOnBothSides) {
+  // Two tiles with a NODATA corner (z = 0 there): the steep fans down to z = 0 are not surface;
+  // the maximum is taken where both have data, as the brute force does. The fans differ (other
+  // points), so fine data lies under coarse NODATA triangles and the other way round.
+  const geo::TileId id{12, 2100, 1400};
+  TinTile fine = random_tile(id, 300, 5, hills);
+  TinTile coarse = random_tile(id, 12, 9, hills);
+  for (TinTile* t : {&fine, &coarse}) {
+    t->corner_nodata[1] = true;
+    t->corners[1].z = 0;
+  }
+  const double brute = brute_max_difference(coarse, {&fine});
+  const TinTile* f = &fine;
+  const auto d = surface_difference(coarse, std::span<const TinTile* const>(&f, 1));
+  EXPECT_GT(brute, 0.1);
+  EXPECT_LT(brute, 400.0);  // the slope to the NODATA corner (≈ 500 m) is not measured
+  EXPECT_NEAR(d.max_abs, brute, 1e-9 * (1 + brute));
+}
+
+TEST(SurfaceDifference, ParentAgainstItsFourChildrenMatchesABruteForceOverlay) {
+  // The parent's walks cross the children's shared borders; every child is measured.
+  const geo::TileId pid{11, 1050, 700};
+  std::array<std::optional<TinTile>, 4> kids;
+  std::vector<TinTile> copies;
+  for (std::size_t i = 0; i < 4; ++i) {
+    kids[i] = grid_tile(pid.children()[i], 16, hills);
+    copies.push_back(*kids[i]);
+  }
+  LodOptions o;
+  o.max_points = 60;
+  auto p = build_parent(pid, kids, o);
+  ASSERT_TRUE(p.ok()) << p.error().message;
+  std::vector<const TinTile*> fines;
+  for (const auto& c : copies) fines.push_back(&c);
+  const double brute = brute_max_difference(*p, fines);
+  EXPECT_GT(brute, 1.0);
+  // Stored error = overlay maximum + children's error (0 for these grid tiles) + allowance.
+  EXPECT_GE(p->geometric_error, brute);
+  EXPECT_NEAR(p->geometric_error, brute, 1e-6 + 1e-8 * brute + error_rounding_allowance(*p));
 }
 
 }  // namespace

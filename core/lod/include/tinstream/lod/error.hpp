@@ -3,11 +3,17 @@
 //
 // Both surfaces are piecewise linear, so their difference is linear on every cell of the overlay
 // of the two triangulations, and its maximum is reached at an overlay vertex: a vertex of either
-// mesh or a point where a coarse edge crosses a fine edge. surface_difference() clips every fine
-// triangle against the coarse triangles it overlaps (Sutherland–Hodgman) and evaluates both
-// planes at the vertices of each clipped polygon, so it visits every overlay vertex: the maximum
-// is exact up to rounding, and the RMS is the exact area integral (a linear function's square
-// integrates in closed form over each polygon's fan).
+// mesh or a point where a coarse edge crosses a fine edge. surface_difference() visits all of
+// them without building the overlay: it walks every fine edge through the coarse mesh (exact
+// orientation tests decide which coarse triangle holds each fine vertex and which coarse edges a
+// fine edge crosses), evaluates the difference at each fine vertex and at each crossing, and
+// evaluates the fine surface at any coarse vertex that is not also a fine vertex. The maximum is
+// therefore exact up to the rounding of those evaluations (error_rounding_allowance). Cost:
+// O(fine vertices + crossings), with short walks since consecutive fine triangles are near.
+//
+// RMS: the root mean square of the difference at the fine vertices, each weighted by a third of
+// the area of its data triangles (the fine surface's samples, area-weighted; for evenly spread
+// samples this is their plain RMS, and it approximates the area RMS of the difference).
 //
 // NODATA: triangles incident to a NODATA corner (z = 0 by convention, no data there) are not
 // surface, at any level and on both sides: the error is measured where both surfaces have data.
@@ -29,14 +35,15 @@
 namespace tinstream::lod {
 
 struct SurfaceDifference {
-  double max_abs = 0;        // max |coarse − fine| over the measured area
-  double sum_sq_area = 0;    // ∫ (coarse − fine)² dA over the measured area
-  double area = 0;           // measured area (normalised Mercator units²)
-  std::size_t polygons = 0;  // clipped overlay cells visited
+  double max_abs = 0;         // max |coarse − fine| over the measured area
+  double sum_sq_area = 0;     // Σ (coarse − fine)² × vertex area (a third of its triangles')
+  double area = 0;            // measured area (normalised Mercator units²)
+  std::size_t crossings = 0;  // coarse-edge / fine-edge crossings evaluated
   double rms() const;
 };
 
-// Requires: every fine tile lies inside `coarse`'s rectangle.
+// Requires: every fine tile lies inside `coarse`'s rectangle, and each is a valid triangulation
+// covering its own rectangle (tile::check_structure); `coarse` covers its rectangle.
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
                                      std::span<const tile::TinTile* const> fines);
 
