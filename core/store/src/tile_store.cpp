@@ -755,9 +755,10 @@ Status LayerWriter::put(const tile::TinTile& t) {
   }
   PendingTile p;
   p.id = t.id;
-  // zlib level 1: on LiDAR tiles (mostly f64 coordinates) it is 2.6× faster than level 6 for
-  // 1.3 % more bytes (measured on a 1e6-point sample's 190 tiles: ratio 0.559 vs 0.552).
-  p.compressed = tile::compress(tile::encode(t), 1);
+  // libdeflate level 2: on LiDAR tiles (mostly f64 coordinates) 1.8× the speed of zlib's level 1
+  // with 1.6 % fewer bytes, and inflated 2.5× faster (3.3 MB of tiles of a 2e6-point sample:
+  // ratio 0.547 vs 0.556; zlib's level 6 gave 0.550 at 0.43× level 1's speed).
+  p.compressed = tile::compress(tile::encode(t), 2);
   p.etag = make_etag(p.compressed);
   p.min_z = t.min_z;
   p.max_z = t.max_z;

@@ -1,13 +1,15 @@
 // The native tile blob; docs/tile-format.md is the specification this file implements.
 #include "tinstream/tile/codec.hpp"
 
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <string>
 
 namespace tinstream::tile {
@@ -226,74 +228,76 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes) {
   return tile;
 }
 
+namespace {
+
+// libdeflate (de)compressors are not thread-safe but cheap to keep: one per thread and level.
+struct DeflateCompressor {
+  libdeflate_compressor* c = nullptr;
+  int level = -1;
+  ~DeflateCompressor() { libdeflate_free_compressor(c); }
+};
+struct DeflateDecompressor {
+  libdeflate_decompressor* d = libdeflate_alloc_decompressor();
+  ~DeflateDecompressor() { libdeflate_free_decompressor(d); }
+};
+
+}  // namespace
+
 std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level) {
-  uLongf bound = compressBound(static_cast<uLong>(bytes.size()));
-  std::vector<std::uint8_t> out(bound);
-  const int rc = compress2(out.data(), &bound, bytes.data(), static_cast<uLong>(bytes.size()),
-                           std::clamp(level, 0, 9));
-  assert(rc == Z_OK);  // only fails on a too-small buffer or out of memory
-  (void)rc;
-  out.resize(bound);
+  thread_local DeflateCompressor state;
+  level = std::clamp(level, 0, 12);
+  if (state.level != level) {
+    libdeflate_free_compressor(state.c);
+    state.c = libdeflate_alloc_compressor(level);
+    state.level = level;
+  }
+  if (state.c == nullptr) throw std::bad_alloc();
+  std::vector<std::uint8_t> out(libdeflate_zlib_compress_bound(state.c, bytes.size()));
+  const std::size_t n =
+      libdeflate_zlib_compress(state.c, bytes.data(), bytes.size(), out.data(), out.size());
+  assert(n > 0);  // the bound always suffices
+  out.resize(n);
   return out;
 }
 
 Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes,
                                              std::size_t max_output) {
-  z_stream stream{};
-  if (inflateInit(&stream) != Z_OK) return Error(ErrorCode::internal, "zlib: inflateInit failed");
-  struct End {
-    z_stream* s;
-    ~End() { inflateEnd(s); }
-  } end{&stream};
-
+  thread_local DeflateDecompressor state;
+  if (state.d == nullptr) return Error(ErrorCode::internal, "zlib: out of memory");
+  // The inflated size is not stored: start from 4× the input (tiles inflate ~2×) and double up to
+  // the limit. One byte past the limit tells "exactly at the limit" from "over it".
+  const std::size_t ceiling = max_output == std::numeric_limits<std::size_t>::max()
+                                  ? max_output
+                                  : max_output + 1;
+  std::size_t capacity =
+      std::min(ceiling, std::max<std::size_t>(4 * bytes.size() + 1024, std::size_t{1} << 12));
   std::vector<std::uint8_t> out;
-  std::size_t input_used = 0;
-  constexpr std::size_t kChunk = 1u << 16;
-  constexpr std::size_t kMaxAvail = std::numeric_limits<uInt>::max();
-  int rc = Z_OK;
-  while (rc != Z_STREAM_END) {
-    if (stream.avail_in == 0 && input_used < bytes.size()) {
-      const std::size_t n = std::min(bytes.size() - input_used, kMaxAvail);
-      stream.next_in = const_cast<Bytef*>(bytes.data() + input_used);  // zlib's API is not const
-      stream.avail_in = static_cast<uInt>(n);
-      input_used += n;
-    }
-    if (out.size() == max_output) {
-      // Full: only acceptable if the stream ends right here; probe with a one-byte buffer.
-      std::uint8_t probe = 0;
-      stream.next_out = &probe;
-      stream.avail_out = 1;
-      rc = inflate(&stream, Z_NO_FLUSH);
-      if (rc == Z_STREAM_END && stream.avail_out == 1) break;
-      if (rc == Z_BUF_ERROR && stream.avail_in == 0 && input_used == bytes.size()) {
-        return corrupt_data("zlib: truncated stream");
+  for (;;) {
+    out.resize(capacity);
+    std::size_t used_in = 0, produced = 0;
+    const libdeflate_result rc = libdeflate_zlib_decompress_ex(
+        state.d, bytes.data(), bytes.size(), out.data(), out.size(), &used_in, &produced);
+    if (rc == LIBDEFLATE_SUCCESS) {
+      if (produced > max_output) {
+        return corrupt_data("zlib: inflated data exceed the limit of " +
+                            std::to_string(max_output) + " bytes");
       }
-      return corrupt_data("zlib: inflated data exceed the limit of " + std::to_string(max_output) +
-                          " bytes");
-    }
-    const std::size_t old = out.size();
-    const std::size_t grow = std::min(std::max(kChunk, old), max_output - old);
-    out.resize(old + grow);
-    stream.next_out = out.data() + old;
-    stream.avail_out = static_cast<uInt>(std::min(grow, kMaxAvail));
-    rc = inflate(&stream, Z_NO_FLUSH);
-    out.resize(old + (std::min(grow, kMaxAvail) - stream.avail_out));
-    if (rc == Z_STREAM_END || rc == Z_OK) continue;
-    if (rc == Z_BUF_ERROR) {
-      // No progress was possible: out of input (output space was available).
-      if (stream.avail_in == 0 && input_used == bytes.size()) {
-        return corrupt_data("zlib: truncated stream");
+      if (used_in != bytes.size()) {
+        return corrupt_data("zlib: trailing bytes after the end of the stream");
       }
+      out.resize(produced);
+      return out;
+    }
+    if (rc == LIBDEFLATE_INSUFFICIENT_SPACE) {
+      if (capacity >= ceiling) {
+        return corrupt_data("zlib: inflated data exceed the limit of " +
+                            std::to_string(max_output) + " bytes");
+      }
+      capacity = capacity > ceiling / 2 ? ceiling : 2 * capacity;
       continue;
     }
-    if (rc == Z_MEM_ERROR) return Error(ErrorCode::internal, "zlib: out of memory");
-    return corrupt_data(std::string("zlib: ") +
-                        (stream.msg != nullptr ? stream.msg : "corrupt stream"));
+    return corrupt_data("zlib: corrupt or truncated stream");
   }
-  if (stream.avail_in != 0 || input_used != bytes.size()) {
-    return corrupt_data("zlib: trailing bytes after the end of the stream");
-  }
-  return out;
 }
 
 }  // namespace tinstream::tile

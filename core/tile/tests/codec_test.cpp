@@ -1,6 +1,7 @@
 #include "tinstream/tile/codec.hpp"
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cstring>
 #include <filesystem>
@@ -241,6 +242,28 @@ TEST(Zlib, RoundTrips) {
   const auto empty = decompress(compress({}));
   ASSERT_TRUE(empty.ok());
   EXPECT_TRUE(empty->empty());
+}
+
+TEST(Zlib, StreamsAreInterchangeableWithZlib) {
+  // Blobs are served as-is with `Content-Encoding: deflate` and stores written by earlier
+  // versions hold zlib's own streams: zlib must inflate ours, and we must inflate zlib's.
+  std::mt19937_64 rng(23);
+  for (int i = 0; i < 20; ++i) {
+    const auto raw = encode(random_tile(rng));
+    const auto ours = compress(raw, 2);
+    std::vector<std::uint8_t> back(raw.size() + 16);
+    uLongf n = back.size();
+    ASSERT_EQ(uncompress(back.data(), &n, ours.data(), ours.size()), Z_OK);
+    back.resize(n);
+    EXPECT_EQ(back, raw);
+    std::vector<std::uint8_t> theirs(compressBound(raw.size()));
+    uLongf m = theirs.size();
+    ASSERT_EQ(compress2(theirs.data(), &m, raw.data(), raw.size(), 6), Z_OK);
+    theirs.resize(m);
+    const auto inflated = decompress(theirs);
+    ASSERT_TRUE(inflated.ok()) << inflated.error().message;
+    EXPECT_EQ(*inflated, raw);
+  }
 }
 
 TEST(Zlib, LargeOutputAcrossManyChunks) {

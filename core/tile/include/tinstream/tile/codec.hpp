@@ -19,7 +19,8 @@ namespace tinstream::tile {
 std::vector<std::uint8_t> encode(const TinTile& tile);
 Result<TinTile> decode(std::span<const std::uint8_t> bytes);
 
-// zlib (RFC 1950) wrappers. decompress() refuses to inflate past max_output bytes.
+// zlib (RFC 1950) streams, made and read with libdeflate (levels 0–12; 2–3× zlib's speed, any
+// zlib reader inflates them). decompress() refuses to inflate past max_output bytes.
 std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level = 6);
 Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes,
                                              std::size_t max_output = 256u << 20);
