@@ -266,9 +266,8 @@ Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes
   if (state.d == nullptr) return Error(ErrorCode::internal, "zlib: out of memory");
   // The inflated size is not stored: start from 4× the input (tiles inflate ~2×) and double up to
   // the limit. One byte past the limit tells "exactly at the limit" from "over it".
-  const std::size_t ceiling = max_output == std::numeric_limits<std::size_t>::max()
-                                  ? max_output
-                                  : max_output + 1;
+  const std::size_t ceiling =
+      max_output == std::numeric_limits<std::size_t>::max() ? max_output : max_output + 1;
   std::size_t capacity =
       std::min(ceiling, std::max<std::size_t>(4 * bytes.size() + 1024, std::size_t{1} << 12));
   std::vector<std::uint8_t> out;
