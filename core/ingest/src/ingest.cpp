@@ -165,6 +165,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   transform::TransformOptions topt;
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
+  topt.threads = threads;
   auto pass1 = transform::transform_sources(options.inputs, topt, progress);
   if (!pass1) return pass1.error();
   summary.inputs = pass1->inputs;

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <queue>
 #include <string>
+#include <thread>
 
 namespace tinstream::subdivide {
 namespace {
@@ -33,13 +34,19 @@ std::uint32_t compact_bits(std::uint64_t x) {
   return static_cast<std::uint32_t>(x);
 }
 
-bool record_less(const SortedPoint& a, const SortedPoint& b) {
-  if (a.key != b.key) return a.key < b.key;
-  if (a.x != b.x) return a.x < b.x;
-  if (a.y != b.y) return a.y < b.y;
-  if (a.z != b.z) return a.z < b.z;
-  return a.weight > b.weight;
-}
+// The run order: (key, x, y), then the lowest z (and on equal z the highest weight) first, so
+// that the first of a run of duplicates is the one kept. A function object, so that std::sort
+// inlines it (through a function pointer it was a call per comparison).
+struct RecordLess {
+  bool operator()(const SortedPoint& a, const SortedPoint& b) const {
+    if (a.key != b.key) return a.key < b.key;
+    if (a.x != b.x) return a.x < b.x;
+    if (a.y != b.y) return a.y < b.y;
+    if (a.z != b.z) return a.z < b.z;
+    return a.weight > b.weight;
+  }
+};
+constexpr RecordLess record_less{};
 
 bool same_xy(const SortedPoint& a, const SortedPoint& b) {
   return a.key == b.key && a.x == b.x && a.y == b.y;
@@ -241,10 +248,11 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
   std::filesystem::create_directories(options.tmp_dir, ec);
   if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
 
-  // Half the budget sorts, the other half buffers the merge.
+  // Half the budget sorts (two buffers: one is sorted and written on a second thread while the
+  // other fills), the other half buffers the merge.
   const std::size_t budget_records =
       std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
-  const std::size_t sort_capacity = budget_records / 2;
+  const std::size_t sort_capacity = budget_records / 4;
   const std::size_t fan_in = 64;
   const std::size_t merge_buffer = std::max<std::size_t>(budget_records / 2 / (fan_in + 1), 256);
 
@@ -259,28 +267,54 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
   };
 
   SortedRun result;
-  std::vector<SortedPoint> buffer;
+  std::vector<SortedPoint> buffer, spilling;
   buffer.reserve(sort_capacity);
   std::vector<InputPoint> batch;
   std::vector<std::filesystem::path> runs;
 
-  auto spill = [&]() -> Status {
-    std::sort(buffer.begin(), buffer.end(), record_less);
-    auto path = temp_path();
+  // Sorts `chunk` and writes it as a run at `path`, dropping exact duplicates; runs on the spill
+  // thread (touches nothing else shared).
+  auto write_run = [](std::vector<SortedPoint>& chunk, const std::filesystem::path& path,
+                      std::uint64_t& duplicates) -> Status {
+    std::sort(chunk.begin(), chunk.end(), record_less);
     auto w = RunWriter::create(path, 1 << 15);
     if (!w) return w.error();
-    for (std::size_t i = 0; i < buffer.size(); ++i) {
-      if (i > 0 && same_xy(buffer[i - 1], buffer[i])) {
-        ++result.duplicates_merged;
+    for (std::size_t i = 0; i < chunk.size(); ++i) {
+      if (i > 0 && same_xy(chunk[i - 1], chunk[i])) {
+        ++duplicates;
         continue;
       }
-      if (Status s = w->push(buffer[i]); !s) return s;
+      if (Status s = w->push(chunk[i]); !s) return s;
     }
-    if (Status s = w->close(); !s) return s;
-    runs.push_back(path);
+    return w->close();
+  };
+  std::thread spill_thread;
+  Status spill_status;
+  std::uint64_t spill_duplicates = 0;
+  auto join_spill = [&]() -> Status {
+    if (spill_thread.joinable()) spill_thread.join();
+    result.duplicates_merged += std::exchange(spill_duplicates, 0);
+    return std::exchange(spill_status, Status{});
+  };
+  // Hands the full buffer to the spill thread (after the previous spill finished) and continues
+  // with the other buffer.
+  auto spill = [&]() -> Status {
+    if (Status s = join_spill(); !s) return s;
+    std::swap(buffer, spilling);
     buffer.clear();
+    buffer.reserve(sort_capacity);
+    auto path = temp_path();
+    runs.push_back(path);
+    spill_thread =
+        std::thread([&, path] { spill_status = write_run(spilling, path, spill_duplicates); });
     return {};
   };
+  struct JoinOnExit {
+    std::thread& t;
+    ~JoinOnExit() {
+      if (t.joinable()) t.join();
+    }
+  } join_on_exit{spill_thread};
 
   // Phase 1: read, key, sort in memory-sized chunks.
   for (;;) {
@@ -309,7 +343,9 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
   if (!buffer.empty() || runs.empty()) {
     if (Status s = spill(); !s) return s.error();
   }
+  if (Status s = join_spill(); !s) return s.error();
   std::vector<SortedPoint>().swap(buffer);
+  std::vector<SortedPoint>().swap(spilling);
 
   // Phase 2: merge down to one run (multi-pass when there are more runs than the fan-in).
   auto tick = [&](std::uint64_t done) {

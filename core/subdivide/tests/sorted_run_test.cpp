@@ -142,7 +142,7 @@ TEST(Subdivide, TinyMemoryBudgetForcesMultiPassMergeWithSameResult) {
   const auto pts = clustered_points(300000, 2);
   SubdivideOptions opt;
   opt.max_points = 5000;
-  opt.memory_bytes = 4096 * sizeof(SortedPoint);  // 2048-record chunks → ~146 runs > fan-in 64
+  opt.memory_bytes = 4096 * sizeof(SortedPoint);  // 1024-record chunks → ~293 runs > fan-in 64
   opt.tmp_dir = tmp.path();
   int merge_reports = 0;
   auto run = subdivide(feed_of(pts, 777), opt, [&](const Progress& p) {

@@ -1,8 +1,11 @@
 #include "tinstream/transform/pass1.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <optional>
+#include <thread>
 
 namespace tinstream::transform {
 namespace {
@@ -42,6 +45,57 @@ std::uint64_t total_records(std::span<const InputSpec> inputs) {
   return total;
 }
 
+// What transforming one batch needs besides the reprojector (shared, read-only).
+struct BatchContext {
+  const geo::NormalisedMercator* mercator;
+  const std::string& path;
+  float weight;
+  std::uint16_t input_tag;
+  bool skip_invalid;
+};
+
+// One batch of source points and what became of it.
+struct BatchWork {
+  std::vector<sources::SourcePoint> batch;
+  std::vector<GeoPoint> geo_points;
+  std::vector<RunPoint> run_points;
+  std::vector<geo::LonLat> lonlat;
+  std::uint64_t outside_mercator = 0;
+  Status status;
+};
+
+// Reprojects a batch and maps it to normalised Mercator. Touches only `w` and the reprojector,
+// so two batches with two reprojectors may run on two threads.
+void transform_batch(const BatchContext& c, Reprojector& reprojector, BatchWork& w) {
+  w.run_points.clear();
+  w.lonlat.clear();
+  w.outside_mercator = 0;
+  w.status = {};
+  if (auto st = reprojector.transform(w.batch, w.geo_points); !st.ok()) {
+    w.status = st;
+    return;
+  }
+  for (std::size_t i = 0; i < w.batch.size(); ++i) {
+    const GeoPoint& g = w.geo_points[i];
+    auto m = c.mercator->forward_checked(geo::LonLat{g.lon, g.lat});
+    if (!m.ok() || !std::isfinite(g.h)) {
+      if (c.skip_invalid) {
+        ++w.outside_mercator;
+        continue;
+      }
+      w.status = Error(ErrorCode::corrupt_data,
+                       c.path + ": record " + std::to_string(w.batch[i].record) + ": lon " +
+                           std::to_string(g.lon) + ", lat " + std::to_string(g.lat) +
+                           " is outside the normalised Mercator square (|lat| ≤ " +
+                           std::to_string(c.mercator->max_latitude()) + "°)");
+      return;
+    }
+    w.run_points.push_back(
+        RunPoint{m->x, m->y, g.h, c.weight, c.input_tag, w.batch[i].classification});
+    w.lonlat.push_back(geo::LonLat{g.lon, g.lat});
+  }
+}
+
 }  // namespace
 
 Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
@@ -60,11 +114,11 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
   RunSummary summary;
   summary.run_file = options.output;
   std::uint64_t done_before = 0;  // records of the inputs already finished
-  std::vector<sources::SourcePoint> batch;
-  std::vector<GeoPoint> geo_points;
-  std::vector<RunPoint> run_points;
-  std::vector<geo::LonLat> lonlat;
-  batch.reserve(options.batch_size);
+  // Two batch slots: with a helper thread, the helper transforms slot 0 while this thread reads
+  // and transforms slot 1; both are then appended in record order.
+  std::array<BatchWork, 2> slot;
+  for (auto& w : slot) w.batch.reserve(options.batch_size);
+  const bool helper = options.threads > 1;
 
   for (std::size_t index = 0; index < inputs.size(); ++index) {
     const InputSpec& in = inputs[index];
@@ -73,42 +127,53 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
     sources::PointSource& src = **source;
     auto reprojector = Reprojector::create(src.info(), in.reproject);
     if (!reprojector.ok()) return reprojector.error();
+    std::optional<Reprojector> helper_reprojector;
+    if (helper) {
+      auto r = Reprojector::create(src.info(), in.reproject);
+      if (!r.ok()) return r.error();
+      helper_reprojector.emplace(std::move(*r));
+    }
 
     InputSummary s;
     s.path = src.info().path;
     s.format = src.info().format;
     s.plan = reprojector->plan();
-    const auto input_tag = static_cast<std::uint16_t>(std::min<std::size_t>(index, 65535));
-    const bool skip_invalid = in.source.invalid == sources::InvalidPolicy::skip;
+    const BatchContext context{&mercator, s.path, in.weight,
+                               static_cast<std::uint16_t>(std::min<std::size_t>(index, 65535)),
+                               in.source.invalid == sources::InvalidPolicy::skip};
 
-    while (true) {
-      batch.clear();
-      auto got = src.read(batch, options.batch_size);
+    // Appends one transformed batch (or returns the first error of its records).
+    auto append = [&](BatchWork& w) -> Status {
+      if (!w.status.ok()) return w.status;
+      s.outside_mercator += w.outside_mercator;
+      if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
+      s.points_written += w.run_points.size();
+      return {};
+    };
+    bool more = true;
+    while (more) {
+      slot[0].batch.clear();
+      auto got = src.read(slot[0].batch, options.batch_size);
       if (!got.ok()) return got.error();
       if (*got == 0) break;
-      if (auto st = reprojector->transform(batch, geo_points); !st.ok()) return st.error();
-      run_points.clear();
-      lonlat.clear();
-      for (std::size_t i = 0; i < batch.size(); ++i) {
-        const GeoPoint& g = geo_points[i];
-        auto m = mercator.forward_checked(geo::LonLat{g.lon, g.lat});
-        if (!m.ok() || !std::isfinite(g.h)) {
-          if (skip_invalid) {
-            ++s.outside_mercator;
-            continue;
-          }
-          return Error(ErrorCode::corrupt_data,
-                       s.path + ": record " + std::to_string(batch[i].record) + ": lon " +
-                           std::to_string(g.lon) + ", lat " + std::to_string(g.lat) +
-                           " is outside the normalised Mercator square (|lat| ≤ " +
-                           std::to_string(mercator.max_latitude()) + "°)");
+      if (!helper) {
+        transform_batch(context, *reprojector, slot[0]);
+        if (Status st = append(slot[0]); !st.ok()) return st.error();
+      } else {
+        std::thread t([&] { transform_batch(context, *helper_reprojector, slot[0]); });
+        slot[1].batch.clear();
+        auto got1 = src.read(slot[1].batch, options.batch_size);
+        if (got1.ok() && *got1 > 0) transform_batch(context, *reprojector, slot[1]);
+        t.join();
+        // Record order decides which error is reported: the helper's batch came first.
+        if (Status st = append(slot[0]); !st.ok()) return st.error();
+        if (!got1.ok()) return got1.error();
+        if (*got1 == 0) {
+          more = false;
+        } else if (Status st = append(slot[1]); !st.ok()) {
+          return st.error();
         }
-        run_points.push_back(
-            RunPoint{m->x, m->y, g.h, in.weight, input_tag, batch[i].classification});
-        lonlat.push_back(geo::LonLat{g.lon, g.lat});
       }
-      if (auto st = writer->append(run_points, lonlat); !st.ok()) return st.error();
-      s.points_written += run_points.size();
       if (!throttle.report(done_before + src.counters().records_read, total, false)) {
         return Error(ErrorCode::cancelled, "transform cancelled while reading " + s.path);
       }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -322,6 +323,72 @@ TEST(Pass1, LatitudeOutsideTheMercatorSquareNamesTheRecord) {
   EXPECT_EQ(skipped->inputs[0].outside_mercator, 1u);
   EXPECT_EQ(skipped->inputs[0].counters.rejected_invalid, 1u);
   EXPECT_EQ(skipped->header.projection, geo::Projection::ellipsoidal);
+  std::filesystem::remove_all(dir);
+}
+
+// Points in UTM 32N around (500 km, 5 000 km); `bad` lines get a northing far beyond the pole's
+// latitude limit (outside the Mercator square).
+std::filesystem::path utm_points(const std::filesystem::path& dir, int n,
+                                 const std::vector<int>& bad = {}) {
+  const auto path = dir / "utm.xyz";
+  std::ofstream out(path);
+  for (int i = 1; i <= n; ++i) {
+    const bool is_bad = std::find(bad.begin(), bad.end(), i) != bad.end();
+    out << 500000.0 + (i * 7919 % 1000) * 0.37 << ' '
+        << (is_bad ? 9'600'000.0 : 5'000'000.0 + (i * 104729 % 1000) * 0.41) << ' '
+        << 100.0 + i * 0.001 << '\n';
+  }
+  return path;
+}
+
+TEST(Pass1, HelperThreadWritesTheSameRunFile) {
+  auto dir = scratch("helper");
+  std::vector<InputSpec> inputs(2);
+  inputs[0].path = utm_points(dir, 10'007);
+  inputs[0].reproject.crs = "EPSG:32632";
+  inputs[1] = inputs[0];  // a second input: the helper's reprojector is made per input
+  inputs[1].weight = 3;
+  TransformOptions opt;
+  opt.batch_size = 1000;  // 11 batches per input: an odd one out at the end
+  opt.output = dir / "one.run";
+  auto one = transform_sources(inputs, opt);
+  ASSERT_TRUE(one.ok()) << one.error().message;
+  opt.output = dir / "two.run";
+  opt.threads = 2;
+  auto two = transform_sources(inputs, opt);
+  ASSERT_TRUE(two.ok()) << two.error().message;
+  EXPECT_EQ(two->header.point_count, 20'014u);
+  EXPECT_EQ(slurp(dir / "one.run"), slurp(dir / "two.run"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Pass1, HelperThreadReportsTheFirstBadRecordInFileOrder) {
+  auto dir = scratch("helper_bad");
+  std::vector<InputSpec> inputs(1);
+  inputs[0].reproject.crs = "EPSG:32632";
+  TransformOptions opt;
+  opt.batch_size = 1000;
+  opt.threads = 2;
+  opt.output = dir / "out.run";
+  // Record 1500 is in the batch this thread transforms, record 700 in the helper's (earlier).
+  inputs[0].path = utm_points(dir, 3000, {700, 1500});
+  auto both = transform_sources(inputs, opt);
+  ASSERT_FALSE(both.ok());
+  EXPECT_NE(both.error().message.find("record 700:"), std::string::npos) << both.error().message;
+  // Only a bad record in this thread's batch.
+  inputs[0].path = utm_points(dir, 3000, {1500});
+  auto second = transform_sources(inputs, opt);
+  ASSERT_FALSE(second.ok());
+  EXPECT_NE(second.error().message.find("record 1500:"), std::string::npos)
+      << second.error().message;
+  EXPECT_FALSE(std::filesystem::exists(opt.output));
+  // Skipped instead, both are counted.
+  inputs[0].path = utm_points(dir, 3000, {700, 1500, 2999});
+  inputs[0].source.invalid = sources::InvalidPolicy::skip;
+  auto skipped = transform_sources(inputs, opt);
+  ASSERT_TRUE(skipped.ok()) << skipped.error().message;
+  EXPECT_EQ(skipped->inputs[0].outside_mercator, 3u);
+  EXPECT_EQ(skipped->header.point_count, 2997u);
   std::filesystem::remove_all(dir);
 }
 

@@ -16,7 +16,7 @@
 //   the sum of the inputs' record counts when all are known in advance (LAS, rasters), else 0.
 //   The sink is called from the calling thread, at most about 5 times a second, and once at the
 //   end. Returning false cancels (ErrorCode::cancelled).
-// Threads: runs on the calling thread.
+// Threads: runs on the calling thread, plus one helper thread when TransformOptions::threads > 1.
 #pragma once
 
 #include <cstdint>
@@ -45,6 +45,10 @@ struct TransformOptions {
   std::filesystem::path output;  // the run file
   geo::Projection projection = geo::Projection::spherical;
   std::size_t batch_size = 65536;  // points per batch; Requires: > 0
+  // > 1: a second thread (with its own Reprojector) transforms every other batch while this
+  // thread reads and transforms the next; the run file is the same (batches are appended in
+  // record order, and the first error in record order is the one reported).
+  unsigned threads = 1;
 };
 
 struct InputSummary {
