@@ -70,6 +70,15 @@ void vertex_arrays(const tile::TinTile& tile, std::vector<kernel::XY>& p, std::v
 //      t[k+1] ────── t[k+2]
 //               n[k]
 struct WalkMesh {
+  // What a walk step reads of a triangle, in one cache line: corner positions, neighbours, and
+  // whether it has data (the walks are latency-bound on a mesh numbered in insertion order).
+  struct alignas(64) Cell {
+    kernel::XY q[3];
+    std::int32_t n[3];
+    std::uint32_t data;
+  };
+  static_assert(sizeof(Cell) == 64);
+  std::vector<Cell> cell;
   std::vector<kernel::XY> p;
   std::vector<double> z;
   std::vector<tile::Triangle> t;
@@ -86,16 +95,38 @@ struct WalkMesh {
     data.resize(t.size());
     vertex_data.assign(nv, 0);
     plane.resize(t.size());
-    // Triangles around each vertex (CSR, entries 4 × triangle + the vertex's corner index), then
-    // each edge's twin among the triangles around its end; a twin found links both ways.
-    std::vector<std::uint32_t> start(nv + 1, 0), around(3 * t.size());
+    // Neighbour links: every edge is filed under its lower vertex (a counting sort) with its
+    // higher vertex and its place (4 × triangle + the corner opposite it); the two sides of an
+    // edge then meet in one short bucket, scanned sequentially.
+    struct Side {
+      std::uint32_t other;  // the edge's higher vertex
+      std::uint32_t place;  // 4 × triangle + the corner opposite the edge
+    };
+    std::vector<std::uint32_t> start(nv + 1, 0);
     for (const auto& tr : t) {
-      for (auto v : tr) ++start[v + 1];
+      for (int k = 0; k < 3; ++k) ++start[std::min(tr[(k + 1) % 3], tr[(k + 2) % 3]) + 1];
     }
     for (std::size_t i = 1; i <= nv; ++i) start[i] += start[i - 1];
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    for (std::uint32_t i = 0; i < t.size(); ++i) {
-      for (std::uint32_t k = 0; k < 3; ++k) around[fill[t[i][k]]++] = 4 * i + k;
+    std::vector<Side> sides(3 * t.size());
+    {
+      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+      for (std::uint32_t i = 0; i < t.size(); ++i) {
+        for (std::uint32_t k = 0; k < 3; ++k) {
+          const std::uint32_t a = t[i][(k + 1) % 3], b = t[i][(k + 2) % 3];
+          sides[fill[std::min(a, b)]++] = {std::max(a, b), 4 * i + k};
+        }
+      }
+    }
+    for (std::size_t v = 0; v < nv; ++v) {
+      for (std::uint32_t s = start[v]; s < start[v + 1]; ++s) {
+        for (std::uint32_t u = s + 1; u < start[v + 1]; ++u) {
+          if (sides[u].other != sides[s].other) continue;
+          const std::uint32_t i = sides[s].place >> 2, j = sides[u].place >> 2;
+          n[i][sides[s].place & 3] = static_cast<std::int32_t>(j);
+          n[j][sides[u].place & 3] = static_cast<std::int32_t>(i);
+          break;
+        }
+      }
     }
     for (std::uint32_t i = 0; i < t.size(); ++i) {
       const auto& tr = t[i];
@@ -106,23 +137,15 @@ struct WalkMesh {
         for (auto v : tr) vertex_data[v] = 1;
       }
       plane[i] = plane_of(p[tr[0]], z[tr[0]], p[tr[1]], z[tr[1]], p[tr[2]], z[tr[2]]);
-      for (int k = 0; k < 3; ++k) {
-        if (n[i][k] >= 0) continue;
-        const std::uint32_t a = tr[(k + 1) % 3], b = tr[(k + 2) % 3];
-        // The twin is the edge b → a: a triangle j with b at corner m and a at corner m + 1.
-        for (std::uint32_t s = start[b]; s < start[b + 1]; ++s) {
-          const std::uint32_t j = around[s] >> 2, m = around[s] & 3;
-          if (t[j][(m + 1) % 3] == a) {
-            n[i][k] = static_cast<std::int32_t>(j);
-            n[j][(m + 2) % 3] = static_cast<std::int32_t>(i);
-            break;
-          }
-        }
-      }
+    }
+    cell.resize(t.size());
+    for (std::uint32_t i = 0; i < t.size(); ++i) {
+      for (int k = 0; k < 3; ++k) cell[i].q[k] = p[t[i][k]], cell[i].n[k] = n[i][k];
+      cell[i].data = data[i];
     }
   }
 
-  const kernel::XY& corner(std::uint32_t i, int k) const { return p[t[i][k]]; }
+  const kernel::XY& corner(std::uint32_t i, int k) const { return cell[i].q[k]; }
 
   bool contains(std::uint32_t i, const kernel::XY& q) const {
     for (int k = 0; k < 3; ++k) {
@@ -147,8 +170,8 @@ struct WalkMesh {
         }
       }
       if (out < 0) return i;
-      if (n[i][out] < 0) return -1;
-      i = static_cast<std::uint32_t>(n[i][out]);
+      if (cell[i].n[out] < 0) return -1;
+      i = static_cast<std::uint32_t>(cell[i].n[out]);
       r = (r + 1) % 3;
     }
     return -1;
@@ -224,10 +247,13 @@ void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDiffere
            (pa.y == pb.y && (pa.y == fr.min_y || pa.y == fr.max_y));
   };
 
-  // Locates vertex v in triangle i (containing it) and evaluates the difference there.
+  // Locates vertex v in triangle i (containing it) and evaluates the difference there: inside[v]
+  // is i, where[v] a data triangle containing v (or -1).
+  std::vector<std::uint32_t> inside(nv, 0);
   std::uint32_t located_in = hint;
   auto settle = [&](std::uint32_t v, std::uint32_t i) {
     located_in = i;
+    inside[v] = i;
     const kernel::XY& q = f.p[v];
     for (int k = 0; k < 3; ++k) {
       if (c.corner(i, k).x == q.x && c.corner(i, k).y == q.y) coarse_matched[c.t[i][k]] = 1;
@@ -236,13 +262,6 @@ void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDiffere
     where[v] = di;
     if (di >= 0) dv[v] = c.plane[static_cast<std::size_t>(di)].at(q.x, q.y) - f.z[v];
   };
-  auto locate = [&](std::uint32_t v) -> bool {
-    const std::int64_t i = c.locate(located_in, f.p[v]);
-    if (i < 0) return false;
-    settle(v, static_cast<std::uint32_t>(i));
-    return true;
-  };
-
   // Walks the fine edge u → w through the coarse mesh from `from` (a triangle containing u),
   // evaluating the difference where it crosses coarse edges when `measure`; returns the triangle
   // where the walk ends (it contains w), or -1.
@@ -261,9 +280,9 @@ void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDiffere
         if (kernel::orient2d(pu, pw, a) <= 0 && kernel::orient2d(pu, pw, b) >= 0) exit = k;
       }
       if (exit < 0) return static_cast<std::int64_t>(i);  // w is in triangle i
-      const std::int32_t next = c.n[i][exit];
-      const std::uint32_t ia = c.t[i][(exit + 1) % 3], ib = c.t[i][(exit + 2) % 3];
-      if (measure && (c.data[i] || (next >= 0 && c.data[static_cast<std::size_t>(next)]))) {
+      const std::int32_t next = c.cell[i].n[exit];
+      if (measure && (c.cell[i].data || (next >= 0 && c.data[static_cast<std::size_t>(next)]))) {
+        const std::uint32_t ia = c.t[i][(exit + 1) % 3], ib = c.t[i][(exit + 2) % 3];
         // The crossing point, as a fraction s along the coarse edge a → b and a fraction r along
         // the fine edge u → w (floating point: error_rounding_allowance covers the rounding).
         const kernel::XY &a = c.p[ia], &b = c.p[ib];
@@ -282,40 +301,47 @@ void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDiffere
       }
       if (next < 0) return std::int64_t{-1};
       const auto j = static_cast<std::uint32_t>(next);
-      const auto& tj = c.t[j];
-      entry = tj[0] != ia && tj[0] != ib ? 0 : (tj[1] != ia && tj[1] != ib ? 1 : 2);
+      const auto& nj = c.cell[j].n;
+      entry = nj[0] == static_cast<std::int32_t>(i)
+                  ? 0
+                  : (nj[1] == static_cast<std::int32_t>(i) ? 1 : 2);
       i = j;
     }
     return std::int64_t{-1};
   };
 
+  // Every vertex of a data triangle is located first, in vertex order: tiles number their
+  // interior points in Morton order (and parents keep their children's order), so each walk
+  // starts from the previous vertex's triangle and is short. Then every fine edge is walked from
+  // its first vertex's triangle.
   bool lost = false;  // a walk failed (not a valid covering triangulation): whole-tile fallback
+  std::vector<std::uint8_t> used(nv, 0);
   for (const auto& tr : fine.triangles) {
-    if (nodata_tri(tr)) continue;
-    if (where[tr[0]] == kUnknown && !locate(tr[0])) {
+    if (!nodata_tri(tr)) used[tr[0]] = used[tr[1]] = used[tr[2]] = 1;
+  }
+  for (std::uint32_t v = 0; v < nv && !lost; ++v) {
+    if (!used[v]) continue;
+    const std::int64_t i = c.locate(located_in, f.p[v]);
+    if (i < 0) {
       lost = true;
-      break;
+    } else {
+      settle(v, static_cast<std::uint32_t>(i));
     }
-    for (int k = 0; k < 3 && !lost; ++k) {
+  }
+  for (const auto& tr : fine.triangles) {
+    if (lost) break;
+    if (nodata_tri(tr)) continue;
+    for (int k = 0; k < 3; ++k) {
       const std::uint32_t u = tr[k], w = tr[(k + 1) % 3];
       // Each interior edge is measured once, from its triangle with u < w; border edges and
       // edges against a NODATA triangle have no data triangle on the other side.
-      const bool measure = u < w || on_border(u, w) || nodata_beyond(u, w);
-      if (!measure && where[w] != kUnknown) continue;
-      if (where[u] < 0) {
-        // u has no data triangle: walk from any triangle that contains it.
-        if (!locate(u)) lost = true;
-        if (lost) break;
-      }
-      const std::uint32_t from = where[u] >= 0 ? static_cast<std::uint32_t>(where[u]) : located_in;
-      const std::int64_t end = walk(u, w, from, measure);
-      if (end < 0) {
+      if (!(u < w || on_border(u, w) || nodata_beyond(u, w))) continue;
+      const std::uint32_t from = where[u] >= 0 ? static_cast<std::uint32_t>(where[u]) : inside[u];
+      if (walk(u, w, from, true) < 0) {
         lost = true;
         break;
       }
-      if (where[w] == kUnknown) settle(w, static_cast<std::uint32_t>(end));
     }
-    if (lost) break;
   }
   hint = located_in;
   if (lost) {
@@ -360,13 +386,15 @@ void difference_one(const WalkMesh& c, const tile::TinTile& fine, SurfaceDiffere
 
 }  // namespace
 
-SurfaceDifference surface_difference(const tile::TinTile& coarse,
-                                     std::span<const tile::TinTile* const> fines) {
-  SurfaceDifference d;
-  if (coarse.triangles.empty()) return d;
+std::vector<SurfaceDifference> surface_differences(const tile::TinTile& coarse,
+                                                   std::span<const tile::TinTile* const> fines) {
+  std::vector<SurfaceDifference> out(fines.size());
+  if (coarse.triangles.empty()) return out;
   const WalkMesh c(coarse);
   std::uint32_t hint = 0;
-  for (const tile::TinTile* fine : fines) {
+  for (std::size_t f = 0; f < fines.size(); ++f) {
+    const tile::TinTile* fine = fines[f];
+    SurfaceDifference& d = out[f];
     std::vector<std::uint8_t> matched(c.p.size(), 0);
     difference_one(c, *fine, d, hint, matched);
     // Coarse vertices that are not fine vertices (never the case for parents and reduced tiles,
@@ -393,7 +421,19 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
       d.max_abs = std::max(d.max_abs, std::abs(c.z[v] - zf));
     }
   }
-  return d;
+  return out;
+}
+
+SurfaceDifference surface_difference(const tile::TinTile& coarse,
+                                     std::span<const tile::TinTile* const> fines) {
+  SurfaceDifference total;
+  for (const SurfaceDifference& d : surface_differences(coarse, fines)) {
+    total.max_abs = std::max(total.max_abs, d.max_abs);
+    total.sum_sq_area += d.sum_sq_area;
+    total.area += d.area;
+    total.crossings += d.crossings;
+  }
+  return total;
 }
 
 Status check_level_watertight(const std::vector<tile::TinTile>& tiles) {

@@ -119,20 +119,24 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
   TinTile out = std::move(*thinned);
 
   // Error against the finest surface (parent.hpp).
+  std::vector<const TinTile*> present;
+  for (const auto& c : ch) {
+    if (c) present.push_back(&*c);
+  }
+  const std::vector<SurfaceDifference> diffs = surface_differences(out, present);
   SurfaceDifference total;
   double child_max = 0, child_sq_area = 0, child_area = 0;
-  for (const auto& c : ch) {
-    if (!c) continue;
-    const TinTile* p = &*c;
-    const SurfaceDifference d = surface_difference(out, std::span<const TinTile* const>(&p, 1));
+  for (std::size_t i = 0; i < present.size(); ++i) {
+    const TinTile& c = *present[i];
+    const SurfaceDifference& d = diffs[i];
     total.max_abs = std::max(total.max_abs, d.max_abs);
     total.sum_sq_area += d.sum_sq_area;
     total.area += d.area;
     total.crossings += d.crossings;
-    child_max = std::max(child_max, c->geometric_error);
-    child_sq_area += d.area * c->rms_error * c->rms_error;
+    child_max = std::max(child_max, c.geometric_error);
+    child_sq_area += d.area * c.rms_error * c.rms_error;
     child_area += d.area;
-    out.source_points += c->source_points;
+    out.source_points += c.source_points;
   }
   out.geometric_error = total.max_abs + child_max + error_rounding_allowance(out);
   const double child_rms = child_area > 0 ? std::sqrt(child_sq_area / child_area) : 0.0;

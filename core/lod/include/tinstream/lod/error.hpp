@@ -46,6 +46,9 @@ struct SurfaceDifference {
 // covering its own rectangle (tile::check_structure); `coarse` covers its rectangle.
 SurfaceDifference surface_difference(const tile::TinTile& coarse,
                                      std::span<const tile::TinTile* const> fines);
+// The same, one result per fine tile (in order), the coarse mesh prepared once.
+std::vector<SurfaceDifference> surface_differences(const tile::TinTile& coarse,
+                                                   std::span<const tile::TinTile* const> fines);
 
 // Rounding allowance added to every stored bound (metres): the overlay is evaluated in floating
 // point, so the exact maximum may exceed the computed one by a few ulps of the heights involved.
