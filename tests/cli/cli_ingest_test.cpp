@@ -187,6 +187,17 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   const Outcome v = verify("autzen");
   EXPECT_EQ(v.status, 0) << v.out << v.err;
   EXPECT_EQ(nlohmann::json::parse(v.out)["ok"], true);
+  // Every level's stored error bounds the finest surface, also when every finest tile is sampled.
+  const Outcome all = run({kTinstream.string(), "verify", "--store", store_.string(), "--layer",
+                           "autzen", "-q", "--error-samples", "all"});
+  ASSERT_EQ(all.status, 0) << all.out << all.err;
+  const auto all_report = nlohmann::json::parse(all.out);
+  EXPECT_GT(all_report["error_checks"], 0);
+  EXPECT_LE(all_report["worst_error_ratio"], 1.0);
+  const Outcome typo = run({kTinstream.string(), "verify", "--store", store_.string(), "--layer",
+                            "autzen", "--error-samples", "lots"});
+  EXPECT_EQ(typo.status, 2);
+  EXPECT_NE(typo.err.find("--error-samples"), std::string::npos) << typo.err;
 
   const Outcome info =
       run({kTinstream.string(), "info", "--store", store_.string(), "--layer", "autzen"});

@@ -1,7 +1,9 @@
 // `tinstream verify`: checks every tile of a layer; non-zero exit on any failure.
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "command.hpp"
 #include "progress_printer.hpp"
@@ -12,6 +14,7 @@ namespace {
 
 struct VerifyArgs {
   std::string store, layer;
+  std::string error_samples = "4";
   bool no_delaunay = false, quiet = false;
 };
 
@@ -24,6 +27,19 @@ int run(const VerifyArgs& a) {
   ProgressPrinter printer(a.quiet);
   ingest::VerifyOptions options;
   options.delaunay = !a.no_delaunay;
+  if (a.error_samples == "all") {
+    options.error_samples = SIZE_MAX;
+  } else {
+    try {
+      std::size_t used = 0;
+      options.error_samples = std::stoul(a.error_samples, &used);
+      if (used != a.error_samples.size()) throw std::invalid_argument("trailing characters");
+    } catch (const std::exception&) {
+      std::cerr << "tinstream verify: --error-samples wants a count or 'all', not '"
+                << a.error_samples << "'\n";
+      return 2;
+    }
+  }
   auto report = ingest::verify_layer(*store, a.layer, options, printer.sink());
   printer.finish();
   if (!report) {
@@ -34,6 +50,8 @@ int run(const VerifyArgs& a) {
                    {"tiles", report->tiles},
                    {"triangles", report->triangles},
                    {"shared_borders", report->shared_borders},
+                   {"error_checks", report->error_checks},
+                   {"worst_error_ratio", report->worst_error_ratio},
                    {"problems", report->problems},
                    {"messages", report->messages},
                    {"ok", report->ok()}};
@@ -51,6 +69,11 @@ const CommandRegistration kRegistration{
           ->check(CLI::ExistingFile);
       sub.add_option("--layer", a->layer, "Layer name")->required();
       sub.add_flag("--no-delaunay", a->no_delaunay, "Skip the empty-circle check (faster)");
+      sub.add_option("--error-samples", a->error_samples,
+                     "Finest tiles sampled under each coarser tile to check that its stored "
+                     "geometric error bounds the finest surface: a count (0 = no check) or "
+                     "'all' (exhaustive)")
+          ->default_str("4");
       sub.add_flag("-q,--quiet", a->quiet, "No progress display");
       return [a] { return run(*a); };
     }};

@@ -5,6 +5,9 @@
 #include <unordered_map>
 
 #include "tinstream/kernel/predicates.hpp"
+#ifdef TINSTREAM_HAVE_LOD
+#include "tinstream/lod/error.hpp"
+#endif
 
 namespace tinstream::ingest {
 namespace {
@@ -66,7 +69,8 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
   Problems problems(report, options.max_problems);
   const std::uint32_t finest = info->max_level;
 
-  // Small cache of decoded tiles: neighbours are read again when their turn comes.
+  // Small cache of decoded tiles: neighbours are read again when their turn comes. Emptied only
+  // between tiles, so the pointers load() hands out stay valid while one tile is checked.
   std::map<geo::TileId, tile::TinTile> cache;
   auto load = [&](const geo::TileId& id) -> const tile::TinTile* {
     if (auto it = cache.find(id); it != cache.end()) return &it->second;
@@ -76,16 +80,62 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
       return nullptr;
     }
     if (!t->has_value()) return nullptr;
-    if (cache.size() > 4096) cache.clear();
     return &cache.emplace(id, std::move(**t)).first->second;
   };
   std::map<geo::TileId, bool> present;
   for (const auto& id : *ids) present[id] = true;
 
+  // The finest tiles in Morton order: a tile's descendants are one contiguous range of them.
+  std::vector<std::pair<std::uint64_t, geo::TileId>> finest_morton;
+  for (const auto& id : *ids) {
+    if (id.z == finest) finest_morton.emplace_back(id.morton(), id);
+  }
+  std::sort(finest_morton.begin(), finest_morton.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  // Stored geometric error ≥ the error measured on a sample of the finest tiles under the tile.
+  auto check_error = [&](const geo::TileId& id, const tile::TinTile& t, const std::string& name) {
+#ifdef TINSTREAM_HAVE_LOD
+    if (options.error_samples == 0) return;
+    const std::uint32_t shift = 2 * (finest - id.z);
+    const std::uint64_t first = id.morton() << shift, last = (id.morton() + 1) << shift;
+    auto below = [](const std::pair<std::uint64_t, geo::TileId>& e, std::uint64_t m) {
+      return e.first < m;
+    };
+    const auto lo = std::lower_bound(finest_morton.begin(), finest_morton.end(), first, below);
+    const auto hi = std::lower_bound(lo, finest_morton.end(), last, below);
+    const auto count = static_cast<std::size_t>(hi - lo);
+    if (count == 0) return;
+    const std::size_t take = std::min(count, options.error_samples);
+    std::vector<tile::TinTile> sample;
+    for (std::size_t k = 0; k < take; ++k) {
+      const geo::TileId fid = (lo + static_cast<std::ptrdiff_t>(k * count / take))->second;
+      if (const tile::TinTile* f = load(fid)) sample.push_back(*f);
+    }
+    if (sample.empty()) return;
+    auto measured = lod::measured_max_error(t, sample);
+    if (!measured) {
+      problems.add(name + ": error check: " + measured.error().message);
+      return;
+    }
+    ++report.error_checks;
+    if (t.geometric_error > 0) {
+      report.worst_error_ratio = std::max(report.worst_error_ratio, *measured / t.geometric_error);
+    }
+    if (*measured > t.geometric_error) {
+      problems.add(name + ": stored geometric error " + std::to_string(t.geometric_error) +
+                   " m is below the error measured against the finest surface, " +
+                   std::to_string(*measured) + " m");
+    }
+#else
+    (void)id, (void)t, (void)name;
+#endif
+  };
+
   std::uint64_t finest_source_points = 0;
   std::map<std::uint32_t, std::uint64_t> per_level;
   std::uint64_t done = 0;
   for (const auto& id : *ids) {
+    if (cache.size() > 4096) cache.clear();
     const tile::TinTile* t = load(id);
     if (!t) continue;
     const std::string name = "tile " + id.quadkey() + " (" + id.to_string() + ")";
@@ -123,10 +173,11 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
                      " source points");
       }
     } else {
-      if (t->vertex_count() > std::max<std::size_t>(info->max_points, 4) + 4 * 1024) {
+      if (t->vertex_count() > std::max<std::size_t>(info->max_points, 4)) {
         problems.add(name + ": " + std::to_string(t->vertex_count()) +
-                     " vertices, far over the budget of " + std::to_string(info->max_points));
+                     " vertices, over the budget of " + std::to_string(info->max_points));
       }
+      check_error(id, *t, name);
       bool has_child = false;
       for (const auto& c : id.children()) {
         if (!present.count(c)) continue;

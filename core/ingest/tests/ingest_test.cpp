@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
 #include "tinstream/ingest/verify.hpp"
@@ -172,6 +173,86 @@ TEST_F(IngestTest, VerifyDetectsATamperedBorder) {
   bool mentions = false;
   for (const auto& m : report->messages) mentions |= m.find("not watertight") != std::string::npos;
   EXPECT_TRUE(mentions);
+}
+
+// Re-publishes layer `name` with `edit` applied to every tile (and `edit_info` to the layer).
+void republish(store::TileStore& store, const std::string& name,
+               const std::function<void(tile::TinTile&)>& edit,
+               const std::function<void(store::LayerInfo&)>& edit_info = {}) {
+  auto info = *store.layer(name);
+  const auto ids = store.tile_ids(name);
+  ASSERT_TRUE(ids.ok());
+  if (edit_info) edit_info(info);
+  auto writer = store.begin_layer(info);
+  ASSERT_TRUE(writer.ok());
+  for (const auto& id : *ids) {
+    auto t = **store.read_tile(name, id);
+    edit(t);
+    ASSERT_TRUE((*writer)->put(t).ok());
+  }
+  ASSERT_TRUE((*writer)->publish(info).ok());
+}
+
+bool mentions(const VerifyReport& r, const std::string& what) {
+  for (const auto& m : r.messages) {
+    if (m.find(what) != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST_F(IngestTest, VerifyChecksStoredErrorsAgainstTheFinestSurface) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("e.xyz", 8000, 7)}, "e")).ok());
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
+  ASSERT_TRUE(store.ok());
+  const auto info = *store->layer("e");
+  ASSERT_GT(info.max_level, info.min_level + 1);
+  auto good = verify_layer(*store, "e");
+  ASSERT_TRUE(good.ok());
+  EXPECT_TRUE(good->ok()) << (good->messages.empty() ? "" : good->messages.front());
+  EXPECT_GT(good->error_checks, 0u);
+  EXPECT_GT(good->worst_error_ratio, 0.0);
+  EXPECT_LE(good->worst_error_ratio, 1.0);
+  // Understate the error of the parents of the finest level (their children's errors are 0, so
+  // the monotonicity check cannot see it; only measuring against the finest surface does).
+  republish(*store, "e", [&](tile::TinTile& t) {
+    if (t.id.z + 1 == info.max_level) t.geometric_error *= 0.25;
+  });
+  auto bad = verify_layer(*store, "e");
+  ASSERT_TRUE(bad.ok());
+  EXPECT_FALSE(bad->ok());
+  EXPECT_TRUE(mentions(*bad, "below the error measured against the finest surface"));
+  EXPECT_GT(bad->worst_error_ratio, 1.0);
+  VerifyOptions off;
+  off.error_samples = 0;
+  auto skipped = verify_layer(*store, "e", off);
+  ASSERT_TRUE(skipped.ok());
+  EXPECT_TRUE(skipped->ok());
+  EXPECT_EQ(skipped->error_checks, 0u);
+}
+
+TEST_F(IngestTest, VerifyChecksThePointBudget) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("b.xyz", 8000, 8)}, "b")).ok());
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
+  ASSERT_TRUE(store.ok());
+  std::size_t largest_coarse = 0;
+  const auto info = *store->layer("b");
+  const auto ids = store->tile_ids("b");
+  ASSERT_TRUE(ids.ok());
+  for (const auto& id : *ids) {
+    if (id.z < info.max_level) {
+      largest_coarse = std::max(largest_coarse, (**store->read_tile("b", id)).vertex_count());
+    }
+  }
+  ASSERT_GT(largest_coarse, 4u);
+  ASSERT_LE(largest_coarse, info.max_points);
+  // A layer that claims one point less than its fullest coarse tile holds is over budget.
+  republish(
+      *store, "b", [](tile::TinTile&) {},
+      [&](store::LayerInfo& i) { i.max_points = static_cast<std::uint32_t>(largest_coarse - 1); });
+  auto report = verify_layer(*store, "b");
+  ASSERT_TRUE(report.ok());
+  EXPECT_FALSE(report->ok());
+  EXPECT_TRUE(mentions(*report, "over the budget of " + std::to_string(largest_coarse - 1)));
 }
 
 }  // namespace

@@ -3,11 +3,13 @@
 // Checks (DESIGN.md §8): every tile decodes and passes tile::check_structure (exact
 // orientation, border geometry); every tile is Delaunay across each interior edge (exact
 // incircle; the tile border is the only constraint); same-level neighbours share bit-identical
-// borders (watertight); every tile above the finest level has all its present children's data
-// covered (its children exist only under it) and a geometric error ≥ each child's (monotone);
-// the per-tile point budget holds above the finest level; the finest level's tiles account for
-// every distinct input point (Σ source points = the layer's point count, and each tile holds at
-// least as many interior vertices as... see verify.cpp).
+// borders (watertight); every tile above the finest level has children under it, a geometric
+// error ≥ each child's (monotone), at most the layer's max_points vertices (the budget), and a
+// stored geometric error ≥ the error measured against the finest surface by sampling: the
+// vertices of up to `error_samples` finest tiles under it (spread evenly over its descendants in
+// Morton order) located in it, and its vertices located in them (lod::measured_max_error); the
+// finest level's tiles account for every distinct input point (Σ source points = the layer's
+// point count, and no finest tile holds more interior vertices than source points).
 // Threads: call from one thread; it owns its TileStore reads.
 #pragma once
 
@@ -22,7 +24,10 @@
 namespace tinstream::ingest {
 
 struct VerifyOptions {
-  bool delaunay = true;           // the O(triangles) empty-circle check
+  bool delaunay = true;  // the O(triangles) empty-circle check
+  // Finest tiles sampled under each coarser tile for the geometric-error check; 0 = no check,
+  // SIZE_MAX = all of them (exhaustive: every level then reads the whole finest level).
+  std::size_t error_samples = 4;
   std::size_t max_problems = 50;  // stop listing after this many (counting goes on)
 };
 
@@ -30,6 +35,8 @@ struct VerifyReport {
   std::uint64_t tiles = 0;
   std::uint64_t triangles = 0;
   std::uint64_t shared_borders = 0;  // neighbour pairs compared
+  std::uint64_t error_checks = 0;    // coarse tiles whose stored error was checked by sampling
+  double worst_error_ratio = 0;      // largest measured / stored geometric error seen (≤ 1 ok)
   std::uint64_t problems = 0;
   std::vector<std::string> messages;  // the first max_problems problems, each naming the tile
   bool ok() const { return problems == 0; }
