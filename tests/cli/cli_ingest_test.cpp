@@ -107,6 +107,20 @@ class Cli : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return run(args);
   }
+  // Starts `tinstream ingest` of `input` into layer `layer` in the background (stderr to `err`).
+  pid_t spawn_ingest(const std::string& layer, const fs::path& input, const fs::path& err) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      std::freopen("/dev/null", "w", stdout);
+      std::freopen(err.c_str(), "w", stderr);
+      const std::string s = store_.string(), t = (dir_ / "tmp").string(), b = input.string();
+      ::execl(kTinstream.c_str(), kTinstream.c_str(), "ingest", "--store", s.c_str(), "--layer",
+              layer.c_str(), "--crs", "EPSG:4326", "--max-points", "2000", "--threads", "1",
+              "--tmp", t.c_str(), b.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    return pid;
+  }
   Outcome verify(const std::string& layer) {
     return run({kTinstream.string(), "verify", "--store", store_.string(), "--layer", layer, "-q"});
   }
@@ -394,6 +408,16 @@ TEST_F(Cli, BadInputsGiveClearErrorsAndLeaveTheStoreUnchanged) {
   EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
 }
 
+// Temporary directories of ingests (`tinstream-ingest-*`) under `tmp`.
+std::size_t scratch_dirs(const fs::path& tmp) {
+  std::size_t n = 0;
+  std::error_code ec;
+  for (fs::directory_iterator it(tmp, ec), end; !ec && it != end; it.increment(ec)) {
+    n += it->path().filename().string().rfind("tinstream-ingest-", 0) == 0 ? 1 : 0;
+  }
+  return n;
+}
+
 TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   const fs::path small = dir_ / "small.xyz";
   write_xyz(small, 2000, 2);
@@ -411,16 +435,7 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   const fs::path big = dir_ / "big.xyz";
   write_xyz(big, 400000, 3);
   // Start a replacing ingest and kill it once it has started writing tiles.
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    std::freopen("/dev/null", "w", stdout);
-    std::freopen((dir_ / "killed.err").c_str(), "w", stderr);
-    const std::string s = store_.string(), t = (dir_ / "tmp").string(), b = big.string();
-    ::execl(kTinstream.c_str(), kTinstream.c_str(), "ingest", "--store", s.c_str(), "--layer", "k",
-            "--crs", "EPSG:4326", "--max-points", "2000", "--threads", "1", "--tmp", t.c_str(),
-            b.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
+  const pid_t pid = spawn_ingest("k", big, dir_ / "killed.err");
   // Wait until the new version is being built (a 'building' row; tiles of it once a batch is
   // flushed), then SIGKILL the ingest.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
@@ -462,12 +477,51 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
     EXPECT_EQ((*t)->compressed, before_bytes[i]);
   }
   EXPECT_EQ(verify("k").status, 0);
+  // The killed ingest could not remove its temporary directory.
+  EXPECT_EQ(scratch_dirs(dir_ / "tmp"), 1u);
 
-  // Re-running the ingest succeeds and replaces the layer.
+  // Re-running the ingest succeeds, replaces the layer, and removes the abandoned directory.
   const Outcome rerun =
       ingest("k", {"-q", "--crs", "EPSG:4326", "--max-points", "2000", small.string()});
   EXPECT_EQ(rerun.status, 0) << rerun.err;
   EXPECT_EQ(verify("k").status, 0);
+  EXPECT_EQ(scratch_dirs(dir_ / "tmp"), 0u);
+}
+
+TEST_F(Cli, InterruptedIngestCancelsCleanly) {
+  const fs::path big = dir_ / "big.xyz";
+  write_xyz(big, 400000, 4);
+  const pid_t pid = spawn_ingest("i", big, dir_ / "interrupted.err");
+  // Interrupt once the ingest has its temporary directory and files in it.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  bool interrupted = false;
+  int wstatus = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (::waitpid(pid, &wstatus, WNOHANG) == pid) break;
+    std::size_t files = 0;
+    std::error_code ec;
+    for (fs::recursive_directory_iterator it(dir_ / "tmp", ec), end; !ec && it != end;
+         it.increment(ec)) {
+      files += it->is_regular_file(ec) && it->path().filename() != ".lock" ? 1 : 0;
+    }
+    if (files > 0) {
+      ::kill(pid, SIGINT);
+      ::waitpid(pid, &wstatus, 0);
+      interrupted = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(interrupted) << "the ingest finished before it could be interrupted";
+  // A clean exit with 128 + SIGINT, a message, nothing published, nothing left behind.
+  ASSERT_TRUE(WIFEXITED(wstatus)) << "killed by the signal instead of cancelling";
+  EXPECT_EQ(WEXITSTATUS(wstatus), 128 + SIGINT);
+  std::ifstream err(dir_ / "interrupted.err");
+  const std::string message((std::istreambuf_iterator<char>(err)), {});
+  EXPECT_NE(message.find("stopped by signal"), std::string::npos) << message;
+  EXPECT_EQ(scratch_dirs(dir_ / "tmp"), 0u);
+  EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
+  EXPECT_EQ(sql_value(store_, "SELECT count(*) FROM layers WHERE name = 'i'"), "0");
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 // `tinstream ingest`: sources → constrained TIN tile pyramid in an SQLite store.
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -139,6 +141,36 @@ nlohmann::json summary_json(const ingest::IngestSummary& s) {
           {"inputs", inputs}};
 }
 
+// SIGINT/SIGTERM ask the ingest to stop at its next progress report: it then removes its
+// temporary files, publishes nothing and exits 128 + the signal. A second signal kills at once
+// (the handlers reset themselves).
+std::atomic<int> g_stop_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free);
+
+extern "C" void request_stop(int signo) { g_stop_signal.store(signo); }
+
+class StopOnSignals {
+ public:
+  StopOnSignals() {
+    struct sigaction sa {};
+    sa.sa_handler = request_stop;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;
+    sigaction(SIGINT, &sa, &old_int_);
+    sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~StopOnSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {
+  }, old_term_{};
+};
+
 int run(const IngestArgs& args) {
   auto options = to_options(args);
   if (!options) {
@@ -146,9 +178,18 @@ int run(const IngestArgs& args) {
     return 2;
   }
   ProgressPrinter printer(args.quiet);
-  auto summary = ingest::run_ingest(*options, printer.sink());
+  StopOnSignals stop_on_signals;
+  ProgressSink sink = [inner = printer.sink()](const Progress& p) {
+    return g_stop_signal.load() == 0 && inner(p);
+  };
+  auto summary = ingest::run_ingest(*options, sink);
   printer.finish();
   if (!summary) {
+    if (const int signo = g_stop_signal.load(); signo != 0) {
+      std::cerr << "tinstream ingest: stopped by signal " << signo
+                << "; nothing was published, the store is unchanged, temporary files removed\n";
+      return 128 + signo;
+    }
     std::cerr << "tinstream ingest: " << summary.error().message << "\n";
     std::cerr << "(nothing was published; the store is unchanged)\n";
     return 1;

@@ -4,10 +4,14 @@
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -36,35 +40,75 @@ void bound_heap_retention() {
 #endif
 }
 
-// A private temporary directory, removed with everything in it when the ingest ends.
+// A private temporary directory, removed with everything in it when the ingest ends. While the
+// ingest runs it holds an exclusive flock on `.lock` inside; the next ingest with the same
+// temporary parent removes directories whose lock nobody holds any more (left by an ingest that
+// was killed or crashed — SIGINT and SIGTERM cancel cleanly — which can hold gigabytes of runs).
 class ScratchDir {
  public:
+  static constexpr const char* kPrefix = "tinstream-ingest-";
   static Result<ScratchDir> create(const fs::path& parent, const std::string& layer) {
     std::error_code ec;
     const fs::path base = parent.empty() ? fs::temp_directory_path(ec) : parent;
     if (ec) return io_error("no temporary directory: " + ec.message());
+    remove_abandoned(base);
+    // Built under a name no cleaner looks at, locked, then renamed: a directory under the final
+    // name is always locked while its ingest lives (the lock belongs to the open file, which the
+    // rename keeps).
+    const std::string unique =
+        layer + "-" + std::to_string(::getpid()) + "-" +
+        std::to_string(std::chrono::steady_clock::now().time_since_epoch().count());
+    const fs::path making = base / (".making-" + std::string(kPrefix) + unique);
+    fs::create_directories(making, ec);
+    if (ec) {
+      return io_error("cannot create temporary directory " + making.string() + ": " + ec.message());
+    }
     ScratchDir d;
-    d.path_ = base / ("tinstream-ingest-" + layer + "-" + std::to_string(::getpid()) + "-" +
-                      std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
-    fs::create_directories(d.path_, ec);
-    if (ec)
-      return io_error("cannot create temporary directory " + d.path_.string() + ": " +
+    d.path_ = making;
+    d.lock_ = ::open((making / ".lock").c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
+    if (d.lock_ < 0 || ::flock(d.lock_, LOCK_EX | LOCK_NB) != 0) {
+      return io_error("cannot lock temporary directory " + making.string() + ": " +
+                      std::strerror(errno));
+    }
+    const fs::path final_path = base / (kPrefix + unique);
+    fs::rename(making, final_path, ec);
+    if (ec) {
+      return io_error("cannot create temporary directory " + final_path.string() + ": " +
                       ec.message());
+    }
+    d.path_ = final_path;
     return d;
   }
-  ScratchDir(ScratchDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
+  ScratchDir(ScratchDir&& o) noexcept
+      : path_(std::exchange(o.path_, {})), lock_(std::exchange(o.lock_, -1)) {}
   ScratchDir& operator=(ScratchDir&&) = delete;
   ~ScratchDir() {
     if (!path_.empty()) {
       std::error_code ec;
       fs::remove_all(path_, ec);
     }
+    if (lock_ >= 0) ::close(lock_);
   }
   const fs::path& path() const { return path_; }
+
+  // Removes scratch directories under `base` whose lock is free (their ingest is gone).
+  static void remove_abandoned(const fs::path& base) {
+    std::error_code ec;
+    for (fs::directory_iterator it(base, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (name.rfind(kPrefix, 0) != 0 || !it->is_directory(ec)) continue;
+      const int fd = ::open((it->path() / ".lock").c_str(), O_RDWR | O_CLOEXEC);
+      if (fd < 0) continue;  // not ours (or from a version without locks): left alone
+      if (::flock(fd, LOCK_EX | LOCK_NB) == 0) fs::remove_all(it->path(), ec);
+      ::close(fd);
+      ec.clear();
+    }
+  }
 
  private:
   ScratchDir() = default;
   fs::path path_;
+  int lock_ = -1;
 };
 
 Status cancelled(const std::string& where) {
