@@ -488,6 +488,25 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   EXPECT_EQ(scratch_dirs(dir_ / "tmp"), 0u);
 }
 
+TEST_F(Cli, StoredErrorsBoundTheFinestSurfaceAtTheDataEdge) {
+  // The demo's sparse sample: coarse tiles' NODATA fans reach over data that finer levels
+  // triangulate (the NODATA band, lod/parent.hpp); their stored errors must still bound the
+  // finest surface there, as verify measures it. (Before the band term, levels 0-2 stored
+  // 34.2 m where 40.8 m was measured.)
+  const fs::path las = dir_ / "sparse.las";
+  ASSERT_EQ(run({kTinstream.string(), "sample", "--out", las.string(), "--points", "300000",
+                 "--density", "0.05"})
+                .status,
+            0);
+  const Outcome in = ingest("edge", {"-q", "--epsilon", "0.5", las.string()});
+  ASSERT_EQ(in.status, 0) << in.err;
+  const Outcome v = verify("edge");
+  EXPECT_EQ(v.status, 0) << v.out;
+  const auto report = nlohmann::json::parse(v.out);
+  EXPECT_GT(report["error_checks"], 10);
+  EXPECT_LE(report["worst_error_ratio"], 1.0);
+}
+
 TEST_F(Cli, InterruptedIngestCancelsCleanly) {
   const fs::path big = dir_ / "big.xyz";
   write_xyz(big, 400000, 4);

@@ -40,8 +40,27 @@ void append(std::vector<Vertex>& out, const std::vector<Vertex>& in) {
 
 }  // namespace
 
+double nodata_band_bound(const TinTile& tile, const HeightRange& finest) {
+  if (!finest.known() || !(tile.min_z <= tile.max_z)) return 0.0;
+  return std::max({0.0, tile.max_z - finest.min, finest.max - tile.min_z});
+}
+
+namespace {
+
+bool has_nodata_triangles(const TinTile& t) {
+  for (const auto& tr : t.triangles) {
+    for (auto v : tr) {
+      if (v < 4 && t.corner_nodata[v]) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional<TinTile>, 4> ch,
-                             const LodOptions& options, ThinStats* stats) {
+                             const LodOptions& options, ThinStats* stats,
+                             const HeightRange& finest) {
   if (!parent.valid() || parent.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) {
     return invalid_argument("lod: invalid parent tile " + parent.to_string());
   }
@@ -139,6 +158,13 @@ Result<TinTile> build_parent(const geo::TileId& parent, std::array<std::optional
     out.source_points += c.source_points;
   }
   out.geometric_error = total.max_abs + child_max + error_rounding_allowance(out);
+  for (const TinTile* c : present) {
+    if (has_nodata_triangles(*c)) {
+      out.geometric_error = std::max(
+          out.geometric_error, nodata_band_bound(out, finest) + error_rounding_allowance(out));
+      break;
+    }
+  }
   const double child_rms = child_area > 0 ? std::sqrt(child_sq_area / child_area) : 0.0;
   out.rms_error = total.rms() + child_rms;
   return out;

@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "tinstream/lod/error.hpp"
 #include "tinstream/lod/parent.hpp"
 
 namespace tinstream::lod {
@@ -191,8 +192,19 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
           if (!t.ok()) return t.error();
           if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
           auto shared = std::make_shared<TinTile>(std::move(**t));
-          return TilePool::Job([shared, lod]() -> Result<TinTile> {
+          const HeightRange heights = opts.finest_heights;
+          return TilePool::Job([shared, lod, heights]() -> Result<TinTile> {
+            bool nodata = false;
+            for (const auto& tr : shared->triangles) {
+              for (auto v : tr) nodata = nodata || (v < 4 && shared->corner_nodata[v]);
+            }
             if (Status st = reduce_finest_tile(*shared, lod); !st.ok()) return st.error();
+            if (nodata) {
+              // The reduced tile's NODATA fan may reach over the original's data (parent.hpp).
+              shared->geometric_error =
+                  std::max(shared->geometric_error,
+                           nodata_band_bound(*shared, heights) + error_rounding_allowance(*shared));
+            }
             return std::move(*shared);
           });
         },
@@ -234,8 +246,10 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
               (*kids)[i] = std::move(**t);
             }
           }
-          return TilePool::Job(
-              [kids, pid, lod]() { return build_parent(pid, std::move(*kids), lod); });
+          const HeightRange heights = opts.finest_heights;
+          return TilePool::Job([kids, pid, lod, heights]() {
+            return build_parent(pid, std::move(*kids), lod, nullptr, heights);
+          });
         },
         [&](TinTile&& t) -> Status {
           if (Status st = writer.put(t); !st.ok()) return st;

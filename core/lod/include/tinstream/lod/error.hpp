@@ -19,8 +19,9 @@
 // surface, at any level and on both sides: the error is measured where both surfaces have data.
 // (Measuring the coarse tile's NODATA triangles — slopes down to z = 0 at the data's edge — made
 // the bound grow by the terrain's full height at every level and meant nothing to a client.) The
-// bound is exact (up to rounding) where every level of the subtree has data; in the thin band at
-// the data's outer edge where a child has NODATA triangles over finest data, it may underestimate.
+// overlay is exact (up to rounding) where both have data; in the thin band at the data's outer
+// edge where a finer tile has NODATA triangles over finest data it sees nothing, which
+// build_parent covers with its NODATA-band term (parent.hpp).
 // Areas without fine tiles (missing children) are not measured.
 //
 // Threads: pure functions on values.

@@ -17,6 +17,7 @@
 
 #include "tinstream/base/progress.hpp"
 #include "tinstream/base/result.hpp"
+#include "tinstream/lod/parent.hpp"
 #include "tinstream/lod/thinning.hpp"
 #include "tinstream/store/tile_store.hpp"
 
@@ -28,6 +29,8 @@ struct PyramidOptions {
   // Thin the finest tiles first (reduce_finest_tile with lod.epsilon / lod.max_points) and
   // rewrite them: the "reduced TIN" for gridded input.
   bool reduce_finest = false;
+  // Heights of the finest surface (the input's z range), for the NODATA-band term (parent.hpp).
+  HeightRange finest_heights;
 };
 
 struct PyramidSummary {
