@@ -3,6 +3,7 @@
 // victims, so that instruction counts and benchmark times describe the same work.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -75,13 +76,28 @@ inline std::vector<Point3> autzen() {
   return out;
 }
 
+// A square lattice of about n points in random order: every lattice cell is cocircular, so every
+// removal resolves ties (removal_driver only; it checks that changes keep the tie resolution).
+inline std::vector<Point3> lattice(std::size_t n) {
+  const auto side = static_cast<std::size_t>(std::sqrt(double(n)));
+  std::vector<Point3> p;
+  p.reserve(side * side);
+  for (std::size_t i = 0; i < side; ++i) {
+    for (std::size_t j = 0; j < side; ++j) p.push_back({double(i), double(j), double(i + j), 0.0});
+  }
+  std::shuffle(p.begin(), p.end(), std::mt19937_64(11));
+  return p;
+}
+
 inline const std::vector<Point3>& dataset(int kind, std::size_t n) {
   static std::map<std::pair<int, std::size_t>, std::vector<Point3>> cache;
   auto& v = cache[{kind, n}];
-  if (v.empty()) v = kind == 0 ? uniform(n) : kind == 1 ? lidar_like(n) : autzen();
+  if (v.empty()) {
+    v = kind == 0 ? uniform(n) : kind == 1 ? lidar_like(n) : kind == 2 ? autzen() : lattice(n);
+  }
   return v;
 }
-inline const char* const kKind[] = {"uniform", "lidar_like", "autzen"};
+inline const char* const kKind[] = {"uniform", "lidar_like", "autzen", "lattice"};
 
 // Both sides remove the same points (a fixed random half of the input, by input index) in the
 // same order (input order: random for the uniform set, scan order for the LiDAR-like ones).

@@ -3,9 +3,9 @@
 // for A/B timing of two builds, and for checking that a change keeps the triangulations.
 //
 //   removal_driver KIND N [MODE] [REPS]
-//     KIND 0 uniform, 1 LiDAR-like, 2 autzen (N ignored); MODE:
-//     remove   (default) build, remove the victims in input order; prints the removal CPU time
-//              and a hash of the final triangulation
+//     KIND 0 uniform, 1 LiDAR-like, 2 autzen (N ignored), 3 lattice (all ties); MODE:
+//     remove   (default) build, remove the victims in input order; prints the removal CPU time,
+//              a hash of the final triangulation and one of the whole mesh state (slots, links)
 //     preview  the same, calling removal_preview(v) before each removal: also hashes every
 //              preview, i.e. the exact triangles each removal creates (and tie resolution)
 //     build    insert_bulk only; prints its CPU time and the triangulation's hash
@@ -35,6 +35,19 @@ double cpu_ms() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
+// Anonymous memory backed by transparent huge pages, from /proc/self/smaps_rollup (Linux), in MiB.
+long huge_mib() {
+  std::FILE* f = std::fopen("/proc/self/smaps_rollup", "r");
+  if (!f) return -1;
+  char line[256];
+  long kb = -1;
+  while (std::fgets(line, sizeof line, f)) {
+    if (std::sscanf(line, "AnonHugePages: %ld kB", &kb) == 1) break;
+  }
+  std::fclose(f);
+  return kb < 0 ? -1 : kb / 1024;
+}
+
 std::uint64_t mix(std::uint64_t h, std::uint64_t x) {
   h ^= x + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
   h *= 0xBF58476D1CE4E5B9ull;
@@ -48,6 +61,20 @@ std::uint64_t hash_triangles(std::vector<VertexTriple> tris) {
   std::sort(tris.begin(), tris.end());
   std::uint64_t h = tris.size();
   for (const auto& t : tris) h = mix(mix(mix(h, t[0]), t[1]), t[2]);
+  return h;
+}
+
+// The whole mesh as stored: every triangle slot (vertices and neighbours, in slot order) and every
+// vertex's triangle. Equal hashes mean the same state, not only the same triangles: the same
+// output order of finite_triangles() and the same starting points for later edits.
+std::uint64_t hash_state(const Triangulation& t) {
+  const auto& m = t.mesh();
+  std::uint64_t h = m.triangle_slots();
+  for (tinstream::kernel::TriangleId i = 0; i < m.triangle_slots(); ++i) {
+    const auto& T = m.tri(i);
+    for (int j = 0; j < 3; ++j) h = mix(mix(h, T.v[j]), T.n[j]);
+  }
+  for (VertexId v = 0; v < m.vertex_slots(); ++v) h = mix(h, m.vertex_triangle(v));
   return h;
 }
 
@@ -100,9 +127,12 @@ int main(int argc, char** argv) {
     }
     CALLGRIND_STOP_INSTRUMENTATION;
     const double ms = cpu_ms() - t0;
-    std::printf("remove kind %d n %zu: %zu removals, %.1f ms cpu (%.0f ns each), hash %016llx",
-                kind, pts.size(), handles.size(), ms, ms * 1e6 / double(handles.size()),
-                static_cast<unsigned long long>(hash_triangles(t.finite_triangles())));
+    std::printf(
+        "remove kind %d n %zu: %zu removals, %.1f ms cpu (%.0f ns each), %ld MiB THP, "
+        "hash %016llx",
+        kind, pts.size(), handles.size(), ms, ms * 1e6 / double(handles.size()), huge_mib(),
+        static_cast<unsigned long long>(hash_triangles(t.finite_triangles())));
+    std::printf(", state %016llx", static_cast<unsigned long long>(hash_state(t)));
     if (preview) std::printf(", previews %016llx", static_cast<unsigned long long>(preview_hash));
     std::printf("\n");
   }
