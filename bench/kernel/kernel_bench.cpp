@@ -23,10 +23,14 @@
 #include <string>
 #include <vector>
 
+#include "datasets.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 
 namespace {
 
+using tinstream::bench::dataset;
+using tinstream::bench::kKind;
+using tinstream::bench::removal_victims;
 using tinstream::kernel::Point3;
 using tinstream::kernel::Rect;
 using tinstream::kernel::Triangulation;
@@ -34,72 +38,6 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using CgalDt = CGAL::Delaunay_triangulation_2<K>;
 using CgalCdt =
     CGAL::Constrained_Delaunay_triangulation_2<K, CGAL::Default, CGAL::Exact_predicates_tag>;
-
-// ---- data sets
-// -----------------------------------------------------------------------------------
-std::vector<Point3> uniform(std::size_t n) {
-  std::mt19937_64 rng(42);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<Point3> p(n);
-  for (auto& q : p) q = {u(rng), u(rng), u(rng), 0.0};
-  return p;
-}
-
-// LiDAR-like: parallel scan lines with along-track spacing, jitter and density changes, coordinates
-// quantised to 1 cm like LAS integers (many exactly collinear / cocircular configurations), in
-// metres within a few km, normalised to [0, 1] the way tiles are.
-std::vector<Point3> lidar_like(std::size_t n) {
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::normal_distribution<double> g(0.0, 0.05);
-  const double side = std::sqrt(double(n)) * 0.5;  // ~4 points per m^2
-  std::vector<Point3> p;
-  p.reserve(n);
-  double y = 0.0;
-  while (p.size() < n) {
-    const double step = 0.4 + 0.2 * std::sin(y * 0.01);
-    for (double x = u(rng) * step; x < side && p.size() < n; x += step) {
-      const double px = std::round((x + g(rng)) * 100.0) / 100.0;
-      const double py = std::round((y + g(rng) + 0.02 * x) * 100.0) / 100.0;
-      p.push_back({px / side, py / side, 100.0 + 10.0 * std::sin(px * 0.05) + g(rng), 0.0});
-    }
-    y += 0.5;
-    if (y > side) y = u(rng) * 0.5;  // second pass over the area (overlapping flight lines)
-  }
-  return p;
-}
-
-std::vector<Point3> autzen() {
-  std::vector<Point3> out;
-  std::ifstream f(std::string(TINSTREAM_SHARED_DATA) + "/autzen_trim.las", std::ios::binary);
-  if (!f) return out;
-  char h[227];
-  if (!f.read(h, 227)) return out;
-  std::uint32_t off, count;
-  std::uint16_t len;
-  double s[3], o[3];
-  std::memcpy(&off, h + 96, 4);
-  std::memcpy(&len, h + 105, 2);
-  std::memcpy(&count, h + 107, 4);
-  std::memcpy(s, h + 131, 24);
-  std::memcpy(o, h + 155, 24);
-  f.seekg(off);
-  std::vector<char> rec(len);
-  for (std::uint32_t i = 0; i < count && f.read(rec.data(), len); ++i) {
-    std::int32_t X[3];
-    std::memcpy(X, rec.data(), 12);
-    out.push_back({X[0] * s[0] + o[0], X[1] * s[1] + o[1], X[2] * s[2] + o[2], 0.0});
-  }
-  return out;
-}
-
-const std::vector<Point3>& dataset(int kind, std::size_t n) {
-  static std::map<std::pair<int, std::size_t>, std::vector<Point3>> cache;
-  auto& v = cache[{kind, n}];
-  if (v.empty()) v = kind == 0 ? uniform(n) : kind == 1 ? lidar_like(n) : autzen();
-  return v;
-}
-const char* kKind[] = {"uniform", "lidar_like", "autzen"};
 
 std::vector<K::Point_2> cgal_points(const std::vector<Point3>& p) {
   std::vector<K::Point_2> v;
@@ -200,8 +138,6 @@ void BM_constrain_cgal(benchmark::State& st) {
   st.SetLabel("uniform + border + 1e4 segments");
 }
 
-std::vector<std::size_t> removal_victims(std::size_t n);
-
 void BM_remove_half_ours(benchmark::State& st) {
   const auto& pts = dataset(static_cast<int>(st.range(0)), static_cast<std::size_t>(st.range(1)));
   const auto victims = removal_victims(pts.size());
@@ -223,17 +159,6 @@ void BM_remove_half_ours(benchmark::State& st) {
     st.ResumeTiming();
   }
   st.SetLabel(kKind[st.range(0)]);
-}
-
-// Both sides remove the same points (a fixed random half of the input, by input index) in the
-// same order (input order: random for the uniform set, scan order for the LiDAR-like ones).
-std::vector<std::size_t> removal_victims(std::size_t n) {
-  std::vector<std::size_t> v;
-  std::mt19937 rng(5);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (rng() % 2) v.push_back(i);
-  }
-  return v;
 }
 
 void BM_remove_half_cgal(benchmark::State& st) {

@@ -207,8 +207,7 @@ std::size_t scale_short(std::size_t n, const double* e, double b, double* h) {
 
 // h = e + f by merging the components in order of magnitude and summing them in one pass
 // (Shewchuk's Fast-Expansion-Sum with zero elimination; Two-Sum at every step). Returns h's length.
-std::size_t sum_short(std::size_t en, const double* e, std::size_t fn, const double* f,
-                      double* h) {
+std::size_t sum_short(std::size_t en, const double* e, std::size_t fn, const double* f, double* h) {
   std::size_t i = 0, j = 0, k = 0;
   auto next = [&]() {
     if (j >= fn || (i < en && std::abs(e[i]) <= std::abs(f[j]))) return e[i++];

@@ -30,6 +30,7 @@ void Triangulation::Hole::clear() {
   join_a = join_b = kNone;
   degenerate = false;
   hull = false;
+  apexes = false;
 }
 
 // Adds local triangle (a, b, c) whose edges opposite a, b, c have owner codes oa, ob, oc; a
@@ -224,7 +225,78 @@ bool Triangulation::Hole::clip_delaunay_ears(const Mesh& mesh, const XY& pv) {
   return true;
 }
 
-Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
+// The hole's Delaunay triangulation built from ring edge 0 inwards: the triangle on the inner
+// side of a known edge a->b (a ring edge or a diagonal found before) is a Delaunay triangle of
+// the ring's points, so its apex is the candidate c strictly left of a->b whose circle through a
+// and b contains no other such candidate (every triangle of the hole has an empty circle among
+// S \ {v}, which includes the ring). The candidates are the polygon vertices between b and a;
+// each is compared with the best so far by one exact incircle test. When no test is a tie
+// (incircle == 0), every apex is the unique minimum, so this hole is the only constrained
+// Delaunay triangulation of the star polygon, the one any other exact method finds; on a tie
+// the hole is left for the ear queue, which decides ties as before. Returns false then.
+bool Triangulation::Hole::delaunay_apexes(const Mesh& mesh) {
+  const std::size_t k = degree;
+  constexpr std::size_t kMax = kApexMax;
+  if (k > kMax) return false;
+  while (tris.size() < k) grow();
+  // Ring positions 0..k, position k being ring[0] again: a sub-polygon is a range b..a of
+  // positions with 1 <= b < a <= k, closed by the edge a -> b.
+  std::array<XY, kMax + 1> P;
+  for (std::size_t m = 0; m < k; ++m) P[m] = mesh.xy(ring[m]);
+  P[k] = P[0];
+  struct Item {
+    int a, b, owner;  // base edge a -> b (ring positions), the code of its other side
+  };
+  std::array<Item, kMax> todo;
+  std::size_t ntodo = 0;
+  todo[ntodo++] = {static_cast<int>(k), 1, -1};  // ring edge 0
+  auto id = [&](int pos) {
+    return ring[static_cast<std::size_t>(pos) == k ? 0 : static_cast<std::size_t>(pos)];
+  };
+  while (ntodo > 0) {
+    const Item it = todo[--ntodo];
+    const XY &pa = P[static_cast<std::size_t>(it.a)], &pb = P[static_cast<std::size_t>(it.b)];
+    int best = it.b + 1;
+    if (best + 1 < it.a) {  // more than one candidate
+      // The first candidate strictly left of a -> b, then incircle tests alone: a candidate on
+      // the right or on the line never enters the circle through a, b and a left candidate
+      // whose circle is at least the apex's, and the apex's circle is empty.
+      while (best < it.a && orient2d(pa, pb, P[static_cast<std::size_t>(best)]) <= 0.0) ++best;
+      if (best == it.a) return false;
+      for (int c = best + 1; c < it.a; ++c) {
+        const double s =
+            incircle(pa, pb, P[static_cast<std::size_t>(best)], P[static_cast<std::size_t>(c)]);
+        if (s == 0.0) return false;
+        if (s > 0.0) best = c;
+      }
+    }
+    // Triangle (a, b, best): edge 0 = (b, best), edge 1 = (best, a), edge 2 = the base.
+    const auto L = static_cast<int>(ntri++);
+    const auto uL = static_cast<std::size_t>(L);
+    tris[uL] = {id(it.a), id(it.b), id(best)};
+    adj[uL] = {best == it.b + 1 ? -it.b - 1 : kUnset, best + 1 == it.a ? -best - 1 : kUnset,
+               it.owner};
+    fixed[uL] = 0;
+    if (it.owner >= 0) {
+      adj[static_cast<unsigned>(it.owner) / 3u][static_cast<unsigned>(it.owner) % 3u] = L * 3 + 2;
+    }
+    if (best != it.b + 1) {
+      todo[ntodo++] = {best, it.b, L * 3 + 0};
+    } else {
+      ring_tri[static_cast<std::size_t>(it.b)] = L * 3 + 0;
+    }
+    if (best + 1 != it.a) {
+      todo[ntodo++] = {it.a, best, L * 3 + 1};
+    } else {
+      ring_tri[static_cast<std::size_t>(best)] = L * 3 + 1;
+    }
+  }
+  ring_tri[0] = 2;  // the first triangle's base
+  apexes = true;
+  return true;
+}
+
+Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole, bool any_order) const {
   auto name = [v] { return "vertex " + std::to_string(v); };
   if (cut_) return unsupported(name() + ": the mesh was cut, it no longer accepts edits");
   // v's coordinates are read only after the star walk (a chain of misses): load them meanwhile.
@@ -401,6 +473,10 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole) const {
     // convex corner at c and v strictly left of p->n lies inside the two star triangles at c,
     // so it contains no other vertex and the rest stays star-shaped around v.
     const XY pv = mesh_.xy(v);
+    if (any_order && k > 4) {
+      if (hole.delaunay_apexes(mesh_)) return true;
+      hole.ntri = 0;
+    }
     if (k == 4) {
       hole.start_ring();
       if (hole.triangulate_quad(mesh_)) return true;  // chosen exactly: nothing to flip
@@ -660,6 +736,50 @@ TriangleId Triangulation::write_hole(Hole& hole) {
   return slot[0];
 }
 
+// Writes a hole from delaunay_apexes (interior, no constraints): each new triangle takes the slot
+// of the star triangle across one of its ring edges, so that outer triangle keeps its link; the
+// triangles without a ring edge take the slots left over, and the last two are freed.
+TriangleId Triangulation::write_apex_hole(Hole& hole) {
+  constexpr std::size_t kMax = Hole::kApexMax;
+  const std::size_t k = hole.degree, nnew = hole.ntri;
+  const TriangleId* star = hole.star.data();
+  const TriangleId* outer = hole.outer.data();
+  const VertexId* ring = hole.ring.data();
+  std::array<TriangleId, kMax> slot;  // mesh id of new triangle L
+  std::array<TriangleId, kMax> spare;
+  std::array<int, kMax> at;  // by ring edge: where its outer triangle points back, or -1 (kept)
+  std::size_t nspare = 0;
+  for (std::size_t L = 0; L < nnew; ++L) slot[L] = kNone;
+  for (std::size_t r = 0; r < k; ++r) {
+    const auto L = static_cast<unsigned>(hole.ring_tri[r]) / 3u;
+    if (slot[L] == kNone) {
+      slot[L] = star[r];
+      at[r] = -1;
+    } else {
+      spare[nspare++] = star[r];
+      at[r] = outer[r] == kNone ? -1 : mesh_.index_of_neighbour(outer[r], star[r]);
+    }
+  }
+  for (std::size_t L = 0; L < nnew; ++L) {
+    if (slot[L] == kNone) slot[L] = spare[--nspare];
+  }
+  for (std::size_t i = 0; i < nspare; ++i) mesh_.free_triangle(spare[i]);
+  for (std::size_t L = 0; L < nnew; ++L) {
+    Triangle T{hole.tris[L], {}};
+    for (std::size_t e = 0; e < 3; ++e) {
+      const int o = hole.adj[L][e];
+      T.n[e] = o >= 0 ? slot[static_cast<unsigned>(o) / 3u] : outer[static_cast<unsigned>(-o - 1)];
+    }
+    mesh_.set_finite_triangle(slot[L], T);
+  }
+  for (std::size_t r = 0; r < k; ++r) {
+    const TriangleId id = slot[static_cast<unsigned>(hole.ring_tri[r]) / 3u];
+    if (at[r] >= 0) mesh_.set_neighbour(outer[r], at[r], id);
+    mesh_.set_vertex_triangle(ring[r], id);
+  }
+  return slot[0];
+}
+
 Status Triangulation::remove_vertex(VertexId v) {
   if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
       mesh_.vertex_triangle(v) == kPendingTriangle) {
@@ -673,7 +793,7 @@ Status Triangulation::remove_vertex(VertexId v) {
   const bool planned_already = planned_vertex_ == v && planned_revision_ == revision_;
   planned_vertex_ = kNone;
   if (!planned_already) {
-    Result<bool> planned = plan_removal(v, hole);
+    Result<bool> planned = plan_removal(v, hole, true);
     if (!planned.ok()) return planned.error();
   }
   ++revision_;
@@ -682,7 +802,9 @@ Status Triangulation::remove_vertex(VertexId v) {
     --live_vertices_;
     return {};
   }
-  const TriangleId first = has_constraints_ ? write_hole_general(hole) : write_hole(hole);
+  const TriangleId first = has_constraints_ ? write_hole_general(hole)
+                           : hole.apexes    ? write_apex_hole(hole)
+                                            : write_hole(hole);
   mesh_.set_vertex_triangle(v, kNone);
   --live_vertices_;
   hint_ = first;

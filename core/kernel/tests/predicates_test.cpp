@@ -163,8 +163,11 @@ TEST(Predicates, ExactStagesOnLatticesMatchGmp) {
   struct Lattice {
     double ox, oy, step;
   };
-  const Lattice lattices[] = {{0.3, -0.2, 0x1p-30}, {0.0, 0.0, 1.0}, {1e6, -3e5, 0.25},
-                              {-0.75, 0.5, 0x1p-40}, {12345.0, 678.0, 3.0}};
+  const Lattice lattices[] = {{0.3, -0.2, 0x1p-30},
+                              {0.0, 0.0, 1.0},
+                              {1e6, -3e5, 0.25},
+                              {-0.75, 0.5, 0x1p-40},
+                              {12345.0, 678.0, 3.0}};
   int cocircular = 0, collinear = 0;
   for (const auto& l : lattices) {
     for (int k = 0; k < 6000; ++k) {

@@ -234,6 +234,50 @@ TEST_P(RemovalProperty, RemovingAllPointsInRandomOrderKeepsTheStructureValid) {
 INSTANTIATE_TEST_SUITE_P(Fixtures, RemovalProperty, ::testing::ValuesIn(kGenerators),
                          [](const auto& p) { return std::string(p.param.name); });
 
+// remove_vertex without a preceding preview builds the hole from its edges inwards with exact
+// incircle tests and leaves it to the ear queue on a tie; removal_preview(v) + remove_vertex(v)
+// always takes the ear queue. Both must create the same triangles, ties included (the lattice
+// and the scan lines are full of cocircular quadruples), and since they leave every vertex the
+// same starting triangle, later previews (the LOD's path) must be equal element by element.
+TEST(Removal, DirectRemovalCreatesThePreviewedTrianglesTiesIncluded) {
+  const std::pair<const char*, std::vector<Point3>> inputs[] = {
+      {"lattice", test::lattice_points(16)},
+      {"scan_lines", quantised_scan_lines(400, 49)},
+      {"circle", test::circle_points(40)},
+      {"uniform", test::uniform_points(300, 50)},
+  };
+  for (const auto& [name, pts] : inputs) {
+    SCOPED_TRACE(name);
+    Triangulation direct;
+    direct.insert_bulk(pts);
+    Triangulation previewed = direct;
+    std::vector<VertexId> order;
+    for (VertexId v = 1; v < direct.vertex_id_bound(); ++v) {
+      if (direct.is_vertex(v)) order.push_back(v);
+    }
+    std::shuffle(order.begin(), order.end(), std::mt19937(51));
+    std::size_t compared = 0;
+    for (std::size_t i = 0; i + 1 < order.size() && direct.dimension() == 2; ++i) {
+      const VertexId v = order[i];
+      const auto want = previewed.removal_preview(v);
+      const auto got = direct.removal_preview(v);
+      ASSERT_TRUE(want.ok() && got.ok());
+      compared += !direct.is_on_hull(v) && got->size() >= 3 ? 1 : 0;  // degree 5 or more
+      ASSERT_EQ(*got, *want) << "preview of vertex " << v << " after " << i << " removals";
+      // Another vertex's preview, so that the next remove_vertex(v) plans v afresh.
+      ASSERT_TRUE(direct.removal_preview(order[i + 1]).ok());
+      ASSERT_TRUE(previewed.remove_vertex(v).ok());
+      ASSERT_TRUE(direct.remove_vertex(v).ok());
+      ASSERT_EQ(triangle_set(direct), triangle_set(previewed)) << "after removing vertex " << v;
+      if (i % 50 == 0) {
+        ASSERT_NO_FATAL_FAILURE(expect_valid(direct));
+      }
+    }
+    EXPECT_GE(compared, 10u);
+    expect_valid(direct);
+  }
+}
+
 // The benchmark's pattern: half of a quantised scan-line set removed in scan order (each
 // removal next to the previous one's new triangles), exact validity checked along the way.
 TEST(Removal, HalfOfQuantisedScanLinesInScanOrderStaysDelaunay) {

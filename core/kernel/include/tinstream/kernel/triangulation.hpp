@@ -198,6 +198,11 @@ class Triangulation {
     VertexId join_a = kNone, join_b = kNone;
     bool degenerate = false;
     bool hull = false;  // the ghost vertex is in the link
+    // Set by delaunay_apexes (stars of at most kApexMax triangles): the hole was built from ring
+    // edge 0 inwards, and ring_tri[r] = local tri * 3 + edge of ring edge r.
+    static constexpr std::size_t kApexMax = 32;
+    bool apexes = false;
+    std::array<int, kApexMax> ring_tri{};
     void clear();
     int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
     void grow();
@@ -209,9 +214,11 @@ class Triangulation {
     void close_ring(int c);  // adds the last triangle (prv[c], c, nxt[c])
     bool triangulate_quad(const Mesh& mesh);
     bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
+    bool delaunay_apexes(const Mesh& mesh);
   };
-  Result<bool> plan_removal(VertexId v, Hole& hole) const;
+  Result<bool> plan_removal(VertexId v, Hole& hole, bool any_order = false) const;
   TriangleId write_hole(Hole& hole);
+  TriangleId write_apex_hole(Hole& hole);
   TriangleId write_hole_general(Hole& hole);
   void demote_to_collinear(VertexId removed);
   TriangleId find_edge(VertexId a, VertexId b, int* index) const;
