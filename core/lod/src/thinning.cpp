@@ -23,6 +23,7 @@
 #include "indexed_heap.hpp"
 #include "lattice.hpp"
 #include "plane.hpp"
+#include "removal_bound.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
 
@@ -81,7 +82,7 @@ class InteriorThinner {
       : tri_(tri),
         candidate_(std::move(candidate)),
         heap_(candidate_.size()),
-        exact_(candidate_.size(), 0),
+        level_(candidate_.size(), kPreviewBound),
         orph_(std::move(orphans)),
         bound_(candidate_.size()),
         lattice_(lattice) {
@@ -108,9 +109,13 @@ class InteriorThinner {
       const std::uint32_t v = heap_.top();
       const double error = heap_.key(v);
       if (tri_.num_vertices() <= max_points && error >= epsilon) break;
-      if (!exact_[v]) {  // a lower bound on top: replace it by the exact error, look again
+      if (level_[v] == kRingBound) {  // the ring's bound on top: the preview's, look again
+        push_previewed(v);
+        continue;
+      }
+      if (level_[v] == kPreviewBound) {  // the preview's bound on top: the exact error
         heap_.set(v, exact_error(v));
-        exact_[v] = 1;
+        level_[v] = kExact;
         continue;
       }
       heap_.pop();
@@ -264,18 +269,31 @@ class InteriorThinner {
     return err + tri_.weight(v);
   }
 
-  // Keys v by a lower bound of its effective error (evaluate()): run() makes a key exact when it
-  // reaches the top, so the order of removals is the one of exact keys throughout (an exact key
-  // on top is at most every other vertex's exact error), and the cells and orphans of the
-  // vertices that never get near the top are never visited.
+  // Keys v by a lower bound of its effective error, the cheapest first: from its ring alone
+  // (removal_bound.hpp), else from its removal preview (evaluate()). run() tightens a key that
+  // reaches the top of the heap, one level at a time up to the exact error, so the order of
+  // removals is the one of exact keys throughout (an exact key on top is at most every other
+  // vertex's exact error), and the vertices that never get near the top are never previewed
+  // (on bigtujunga at 50k vertices: 39k kernel previews instead of 134k) and their cells and
+  // orphans never visited.
   void evaluate_and_push(VertexId v) {
+    if (const auto b = detail::removal_error_bound(tri_, v)) {
+      level_[v] = kRingBound;
+      heap_.set(v, *b + tri_.weight(v));
+      return;
+    }
+    push_previewed(v);
+  }
+
+  // Keys v by evaluate(): its preview's bound (or exact error), or drops it when v cannot go.
+  void push_previewed(VertexId v) {
     bool is_exact = false;
     const auto e = evaluate(v, &is_exact);
     if (!e) {
       heap_.erase(v);
       return;
     }
-    exact_[v] = is_exact;
+    level_[v] = is_exact ? kExact : kPreviewBound;
     heap_.set(v, *e);
   }
 
@@ -350,9 +368,11 @@ class InteriorThinner {
   Triangulation& tri_;
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
   IndexedHeap heap_;                     // candidates by (effective error, vertex id)
-  std::vector<std::uint8_t> exact_;      // by vertex: its key is its error, not a lower bound
-  FiledPoints orph_;                     // the orphans, by triangle slot
-  mutable std::vector<Plane> planes_;    // scratch of surface_at
+  // By vertex: what its key is (removal_bound.hpp's bound, its preview's bound, exact).
+  enum Level : std::uint8_t { kRingBound, kPreviewBound, kExact };
+  std::vector<std::uint8_t> level_;
+  FiledPoints orph_;                   // the orphans, by triangle slot
+  mutable std::vector<Plane> planes_;  // scratch of surface_at
   // The removal preview of the last evaluate() that had one (of preview_of_ on the current
   // mesh; kNone once a removal changed it).
   mutable VertexId preview_of_ = kNone;

@@ -5,7 +5,10 @@
 #include <cmath>
 #include <random>
 
+#include "../src/plane.hpp"
+#include "../src/removal_bound.hpp"
 #include "lod_test_support.hpp"
+#include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
 
 namespace tinstream::lod {
@@ -175,6 +178,116 @@ TEST(Thinning, OrphansFeedTheError) {
   auto with = thin_tile(in, o);
   ASSERT_TRUE(with.ok());
   EXPECT_EQ(with->interior.size(), 1u);
+}
+
+// The drop stage's first key (removal_bound.hpp) must never exceed the error at the vertex that
+// the kernel's removal preview gives, evaluated as thinning.cpp does (the first replacement
+// triangle whose smallest barycentric weight is ≥ 0, else the largest): otherwise a vertex
+// could be removed out of turn. Random points, lattices full of cocircular ties (the kernel
+// picks one of several triangulations), jittered lattices, and tile-sized coordinates
+// (normalised Mercator, points 1e-8 apart) with heights in the thousands.
+TEST(RemovalBound, NeverAboveTheErrorTheRemovalMakesAndTightWithoutTies) {
+  struct Case {
+    const char* name;
+    std::vector<kernel::Point3> pts;
+    kernel::Rect domain;
+    bool generic;  // no cocircular ties: the bound is the error less its margin
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Case> cases;
+  {
+    Case c{"random", {}, {0, 0, 1, 1}, true};
+    for (int i = 0; i < 3000; ++i) c.pts.push_back({u(rng), u(rng), 3000 + 50 * u(rng), 0});
+    cases.push_back(std::move(c));
+  }
+  for (double jitter : {0.0, 1e-3}) {
+    Case c{jitter == 0 ? "lattice" : "jittered lattice", {}, {-1, -1, 41, 41}, jitter != 0};
+    for (int j = 0; j < 40; ++j) {
+      for (int i = 0; i < 40; ++i) {
+        c.pts.push_back({i + jitter * u(rng), j + jitter * u(rng), 3000 + 50 * u(rng), 0});
+      }
+    }
+    cases.push_back(std::move(c));
+  }
+  {
+    // Exactly cocircular rings in rounded arithmetic: around each centre c, the points c ± (a, b)
+    // and c ± (−b, a), and the vertex near c (coordinates multiples of 2⁻⁴⁸ below 32: the sums
+    // are exact, the products are not). The kernel splits each quad by one diagonal (an exact
+    // tie, which the bound's rounding cannot see): the bound must cover both.
+    Case c{"exact ties", {}, {0, 0, 48, 48}, false};
+    std::uniform_int_distribution<std::int64_t> mant(std::int64_t{1} << 44, std::int64_t{1} << 46);
+    auto dyadic = [&](double scale) {
+      return scale * std::ldexp(static_cast<double>(mant(rng)), -48);
+    };
+    for (int cy = 0; cy < 10; ++cy) {
+      for (int cx = 0; cx < 10; ++cx) {
+        const double ox = 16 + 1.5 * cx, oy = 16 + 1.5 * cy;
+        const double a = dyadic(1), b = dyadic(1);
+        c.pts.push_back({ox + dyadic(0.125), oy - dyadic(0.125), 100 + 50 * u(rng), 0});
+        for (const auto& [dx, dy] : {std::pair{a, b}, {-b, a}, {-a, -b}, {b, -a}}) {
+          c.pts.push_back({ox + dx, oy + dy, 100 + 50 * u(rng), 0});
+        }
+      }
+    }
+    for (int i = 0; i <= 8; ++i) {  // a frame, so that every vertex near a centre is interior
+      for (double e : {1.0, 47.0}) {
+        c.pts.push_back({e, 1 + 5.75 * i, 100, 0});
+        c.pts.push_back({1 + 5.75 * i, e, 100, 0});
+      }
+    }
+    cases.push_back(std::move(c));
+  }
+  for (double jitter : {0.0, 1e-8}) {
+    // Decimal steps are not exact in binary: the lattice's quads are cocircular only up to
+    // rounding, which the kernel's exact predicates resolve and the bound's arithmetic cannot.
+    Case c{jitter == 0 ? "tile coordinates" : "jittered tile coordinates",
+           {},
+           {0.53, 0.61, 0.53 + 5e-6, 0.61 + 5e-6},
+           false};
+    for (int j = 0; j < 40; ++j) {
+      for (int i = 0; i < 40; ++i) {
+        const double x = 0.53 + 1e-7 * i + (i % 3 == 0 ? jitter * u(rng) : 0.0);
+        c.pts.push_back({x, 0.61 + 1e-7 * j, 2000 + 5 * u(rng), 0});
+      }
+    }
+    cases.push_back(std::move(c));
+  }
+  for (const Case& c : cases) {
+    kernel::Triangulation tri(c.domain);
+    tri.insert_bulk(c.pts);
+    ASSERT_EQ(tri.dimension(), 2) << c.name;
+    std::size_t bounded = 0, tight = 0, interior = 0;
+    for (kernel::VertexId v = 0; v < tri.vertex_id_bound(); ++v) {
+      if (!tri.is_vertex(v) || tri.is_on_hull(v)) continue;
+      ++interior;
+      const auto bound = detail::removal_error_bound(tri, v);
+      if (!bound) continue;
+      ++bounded;
+      const auto preview = tri.removal_preview(v);
+      ASSERT_TRUE(preview.ok()) << c.name;
+      const kernel::XY p = tri.xy(v);
+      double best_w = -std::numeric_limits<double>::infinity(), surface = 0;
+      for (const auto& t : *preview) {
+        const detail::Plane pl(tri.xy(t[0]), tri.xy(t[1]), tri.xy(t[2]), tri.z(t[0]), tri.z(t[1]),
+                               tri.z(t[2]));
+        double w;
+        const double z = pl.at(p.x, p.y, &w);
+        if (w > best_w) best_w = w, surface = z;
+        if (w >= 0) break;
+      }
+      const double error = std::abs(tri.z(v) - surface);
+      ASSERT_GE(*bound, 0.0) << c.name;
+      ASSERT_LE(*bound, error) << c.name << ": vertex " << v;
+      tight += *bound >= error - 0.05;
+    }
+    // Nearly every interior vertex gets a bound; in general position it is the error itself but
+    // for the margin (wide in slivers, e.g. along the jittered lattice's hull).
+    EXPECT_GE(bounded, interior * 95 / 100) << c.name;
+    if (c.generic) {
+      EXPECT_GE(tight, bounded * 97 / 100) << c.name;
+    }
+  }
 }
 
 TEST(Thinning, RejectsTooSmallBudget) {
