@@ -34,6 +34,7 @@
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <cassert>
 #include <charconv>
 #include <chrono>
 #include <limits>
@@ -504,6 +505,8 @@ class Session : public std::enable_shared_from_this<Session> {
     std::call_once(block.keep_alive_once, [&] {
       format_head(block.keep_alive_head, res, content_length);
       block.keep_alive_length = content_length;
+      // The terrain cache charges at most this for the head (HeaderBlock::memory_bytes).
+      assert(block.keep_alive_head.size() <= block.wire.size() + HeaderBlock::kKeepAliveExtra);
     });
     return block.keep_alive_length == content_length ? &block.keep_alive_head : nullptr;
   }

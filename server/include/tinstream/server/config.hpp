@@ -26,10 +26,10 @@ struct ServerConfig {
   std::uint32_t max_header_bytes = 8192;
   std::uint64_t max_body_bytes = 1u << 20;  // non-upload request bodies
   std::uint32_t max_connections = 1024;
-  std::uint32_t read_timeout_ms = 30000;          // per request header (then body), idle time included
-  std::uint32_t write_timeout_ms = 30000;         // per response write
-  std::uint32_t cache_max_age_s = 86400;          // Cache-Control max-age for tiles
-  std::string cors_allow_origin = "*";            // empty: no CORS headers
+  std::uint32_t read_timeout_ms = 30000;   // per request header (then body), idle time included
+  std::uint32_t write_timeout_ms = 30000;  // per response write
+  std::uint32_t cache_max_age_s = 86400;   // Cache-Control max-age for tiles
+  std::string cors_allow_origin = "*";     // empty: no CORS headers
   std::uint64_t terrain_cache_bytes = 64u << 20;  // LRU of encoded .terrain tiles; 0: off
   std::uint32_t max_queued_jobs = 8;              // ingest jobs waiting or running
   std::uint32_t shutdown_grace_ms = 10000;        // in-flight responses get this long on SIGTERM

@@ -60,14 +60,25 @@ struct CachedBody {
 
 // A bounded LRU of encoded (gzip) quantized-mesh tiles and layer.json documents, keyed by layer
 // *version*, tile and extensions — a new version of a layer never hits old entries.
-// Thread-safe (one mutex).
+//
+// Budget: an entry costs its bytes, ETag, key, shared header block (HeaderBlock::memory_bytes)
+// and the bookkeeping around them (nodes, control blocks); bytes() ≤ max_bytes always. An entry
+// larger than its partition's budget is not stored.
+//
+// Thread-safe. Entries are spread by key over `partitions()` independent LRUs, each with its own
+// mutex and an equal share of the budget (one partition, an exact LRU, below 16 MiB), so that io
+// threads fetching different tiles neither wait for one lock nor pass one list head between
+// their cores on every hit.
 class TerrainCache {
  public:
   explicit TerrainCache(std::uint64_t max_bytes);
   ~TerrainCache();
-  std::shared_ptr<const CachedBody> get(const std::string& key);
-  void put(const std::string& key, std::shared_ptr<const CachedBody> value);
+  std::shared_ptr<const CachedBody> get(std::string_view key);
+  void put(std::string_view key, std::shared_ptr<const CachedBody> value);
   std::uint64_t bytes() const;
+  std::size_t partitions() const;
+  // What put() charges for `value` under `key`.
+  static std::uint64_t cost(std::string_view key, const CachedBody& value);
 
  private:
   struct Impl;

@@ -37,8 +37,14 @@ struct HeaderBlock {
   mutable std::once_flag keep_alive_once;
   mutable std::string keep_alive_head;
   mutable std::size_t keep_alive_length = 0;
+  // keep_alive_head is `wire` and at most this many bytes more (status line, Server,
+  // Content-Length, blank line).
+  static constexpr std::size_t kKeepAliveExtra = 96;
 
   explicit HeaderBlock(std::vector<std::pair<std::string, std::string>> f);
+  // Memory this block holds once its keep-alive head is formatted (an upper bound), for cache
+  // budgets: the object, its fields, `wire` and the head.
+  std::size_t memory_bytes() const;
 };
 
 struct Response {
