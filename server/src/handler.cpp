@@ -179,14 +179,16 @@ Result<store::TileStore*> get_store(Context& ctx) {
 
 // The layer row, through the layer cache when there is one (the store is opened only on a miss).
 Result<std::shared_ptr<const store::LayerInfo>> layer_info(Context& ctx, const std::string& name) {
+  std::uint64_t generation = 0;
   if (ctx.layer_cache) {
     if (auto hit = ctx.layer_cache->get(name)) return hit;
+    generation = ctx.layer_cache->generation();  // before the read: see LayerCache
   }
   auto st = get_store(ctx);
   if (!st) return st.error();
   auto info = (*st)->layer(name);
   if (!info) return info.error();
-  if (ctx.layer_cache) ctx.layer_cache->put(*info);
+  if (ctx.layer_cache) ctx.layer_cache->put(*info, generation);
   return std::make_shared<const store::LayerInfo>(std::move(*info));
 }
 
@@ -790,10 +792,11 @@ std::size_t TerrainCache::partitions() const { return impl_->n_partitions; }
 
 struct LayerCache::Impl {
   std::chrono::milliseconds ttl;
-  std::mutex mutex;  // guards entries
+  mutable std::mutex mutex;  // guards entries and generation
   std::unordered_map<std::string, std::pair<std::shared_ptr<const store::LayerInfo>,
                                             std::chrono::steady_clock::time_point>>
       entries;
+  std::uint64_t generation = 0;
 };
 
 LayerCache::LayerCache(std::uint32_t ttl_ms) : impl_(std::make_unique<Impl>()) {
@@ -812,8 +815,14 @@ std::shared_ptr<const store::LayerInfo> LayerCache::get(const std::string& name)
   return it->second.first;
 }
 
-void LayerCache::put(const store::LayerInfo& info) {
+std::uint64_t LayerCache::generation() const {
   std::lock_guard lock(impl_->mutex);
+  return impl_->generation;
+}
+
+void LayerCache::put(const store::LayerInfo& info, std::uint64_t generation) {
+  std::lock_guard lock(impl_->mutex);
+  if (generation != impl_->generation) return;  // read before a clear(): maybe stale already
   if (impl_->entries.size() > 10000) impl_->entries.clear();
   impl_->entries[info.name] = {std::make_shared<const store::LayerInfo>(info),
                                std::chrono::steady_clock::now()};
@@ -821,6 +830,7 @@ void LayerCache::put(const store::LayerInfo& info) {
 
 void LayerCache::clear() {
   std::lock_guard lock(impl_->mutex);
+  ++impl_->generation;
   impl_->entries.clear();
 }
 

@@ -1,4 +1,5 @@
 // tinstream-server — serves a tinstream SQLite store over HTTP. Thin: options, logging, run.
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -37,6 +38,9 @@ int main(int argc, char** argv) {
   if (!address.empty()) config.address = address;
   if (threads >= 0) config.threads = static_cast<unsigned>(threads);
 
+  // Logs go to stderr: stdout carries only the machine-readable "listening on" line below (spdlog's
+  // default logger would write to stdout).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("tinstream-server"));
   spdlog::set_level(spdlog::level::from_str(config.log_level));
   spdlog::set_pattern("[%Y-%m-%dT%H:%M:%S.%e] [%l] %v");
 

@@ -91,5 +91,27 @@ TEST(TerrainCache, PartitionsStayWithinTheBudget) {
   EXPECT_LE(cache.bytes(), budget);
 }
 
+// A layer row read before an ingest published (or a delete committed) and put after the clear()
+// that followed must not be served for the next ttl: put() drops rows of an older generation.
+TEST(LayerCache, RowReadBeforeAClearIsNotCachedAfterIt) {
+  LayerCache cache(60000);
+  store::LayerInfo old_row;
+  old_row.name = "lux";
+  old_row.version = 5;
+  const std::uint64_t before = cache.generation();  // a reader starts reading the row
+  cache.clear();                                    // the ingest publishes version 6
+  cache.put(old_row, before);                       // the reader caches what it read
+  EXPECT_EQ(cache.get("lux"), nullptr);
+
+  store::LayerInfo new_row = old_row;
+  new_row.version = 6;
+  cache.put(new_row, cache.generation());
+  const auto hit = cache.get("lux");
+  ASSERT_NE(hit, nullptr);
+  EXPECT_EQ(hit->version, 6);
+  cache.clear();
+  EXPECT_EQ(cache.get("lux"), nullptr);
+}
+
 }  // namespace
 }  // namespace tinstream::server

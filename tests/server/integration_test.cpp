@@ -33,11 +33,16 @@ const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
 const std::map<std::string, std::string> kAdmin = {{"Authorization", "Bearer tok"},
                                                    {"Content-Type", "application/json"}};
 
-// What the test ingest runner saw, and a gate to hold a job in the running state.
+// What the test ingest runner saw, and gates to hold a job in the running state: before it
+// writes anything (`open`), or after it has written and flushed `pause_after_tiles` tiles of the
+// new version (`mid_write_open`; `paused` while it waits there).
 struct RunnerState {
   std::mutex mutex;
   std::condition_variable cv;
   bool open = true;
+  int pause_after_tiles = -1;
+  bool mid_write_open = true;
+  bool paused = false;
   std::vector<std::uintmax_t> source_sizes;
   int runs = 0;
 };
@@ -63,12 +68,21 @@ IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
     info.bounds = ids.back().lonlat_bounds(geo::NormalisedMercator());
     auto writer = st->begin_layer(info);
     if (!writer) return writer.error();
+    int written = 0;
     for (const auto& id : ids) {
       if (id.z != 12) continue;
       if (Status s = (*writer)->put(testing::make_grid_tile(id, 9, testing::synthetic_height)); !s)
         return s;
       if (!progress({"triangulate", 2, 3, "steps"}))
         return Error(ErrorCode::cancelled, "cancelled");
+      if (++written == state->pause_after_tiles) {
+        if (Status s = (*writer)->flush(); !s) return s;
+        std::unique_lock lock(state->mutex);
+        state->paused = true;
+        state->cv.notify_all();
+        state->cv.wait(lock, [&] { return state->mid_write_open; });
+        state->paused = false;
+      }
     }
     info.tile_count = 16;
     return (*writer)->publish(info);
@@ -108,7 +122,7 @@ class ServerTest : public ::testing::Test {
     c.log_level = "warn";
     c.access_log = false;
     if (tweak) tweak(c);
-    auto s = Server::create(c, make_runner(runner_));
+    auto s = Server::create(c, runner_override_ ? runner_override_ : make_runner(runner_));
     ASSERT_TRUE(s.ok()) << s.error().message;
     server_ = std::move(*s);
     port_ = server_->port();
@@ -120,6 +134,7 @@ class ServerTest : public ::testing::Test {
     {
       std::lock_guard lock(runner_->mutex);
       runner_->open = true;
+      runner_->mid_write_open = true;
     }
     runner_->cv.notify_all();
     if (server_) server_->stop();
@@ -140,9 +155,17 @@ class ServerTest : public ::testing::Test {
     return j;
   }
 
+  // A job's state through the admin API once it is no longer queued or running.
+  json wait_for_submitted(const testing::HttpResponse& submitted) {
+    EXPECT_EQ(submitted.status, 202) << submitted.body;
+    if (submitted.status != 202) return json::object();
+    return wait_for_job(json::parse(submitted.body)["job"].get<std::string>());
+  }
+
   TempDir dir_{"server"};
   std::filesystem::path store_path_;
   std::shared_ptr<RunnerState> runner_ = std::make_shared<RunnerState>();
+  IngestRunner runner_override_;  // used by start() instead of make_runner(runner_) when set
   std::unique_ptr<Server> server_;
   std::thread thread_;
   std::uint16_t port_ = 0;
@@ -261,8 +284,8 @@ TEST_F(ServerTest, KeepAliveAndPipelining) {
   EXPECT_EQ(c.request("GET", "/healthz").status, 200);
 }
 
-std::string terrain_target(const geo::TileId& id) {
-  return "/tiles/lux/" + std::to_string(id.z) + "/" + std::to_string(id.x) + "/" +
+std::string terrain_target(const geo::TileId& id, const std::string& layer = "lux") {
+  return "/tiles/" + layer + "/" + std::to_string(id.z) + "/" + std::to_string(id.x) + "/" +
          std::to_string(id.tms_row()) + ".terrain";
 }
 
@@ -507,6 +530,53 @@ TEST_F(ServerTest, SlowLorisIsCutOffAtTheReadDeadline) {
   EXPECT_LT(elapsed, std::chrono::seconds(3));
   EXPECT_EQ(slow.read_response().status, 0);
   EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+}
+
+// A client that sends requests but never reads the answers holds the server in a response write.
+// Once write_timeout_ms has passed the server closes that connection — never before, and no other
+// one — and keeps serving.
+TEST_F(ServerTest, WriteTimeoutClosesAConnectionThatNeverReads) {
+  stop();
+  testing::write_test_layer(store_path_, "dense", geo::Projection::spherical, 129);
+  start([](ServerConfig& c) { c.write_timeout_ms = 300; });
+  using clock = std::chrono::steady_clock;
+  const std::string target = "/tiles/dense/" + kTile.quadkey();
+  const auto ref = http_get(port_, target);  // identity: the raw tile
+  ASSERT_EQ(ref.status, 200);
+  ASSERT_GT(ref.body.size(), 32u * 1024u);
+  HttpConnection watcher(port_);  // one keep-alive connection that reads /metrics
+  const auto open_connections = [&] {
+    const auto m = watcher.request("GET", "/metrics");
+    const auto at = m.body.find("\ntinstream_http_open_connections ");
+    return at == std::string::npos ? -1 : std::stoi(m.body.substr(at + 33));
+  };
+  // 12 MiB of answers: far more than the client's and the server's socket buffers hold (a
+  // send buffer grows to 4 MiB at most: net.ipv4.tcp_wmem).
+  const std::size_t requests = (12u << 20) / ref.body.size() + 1;
+  std::string burst;
+  for (std::size_t i = 0; i < requests; ++i)
+    burst += "GET " + target + " HTTP/1.1\r\nHost: x\r\n\r\n";
+  HttpConnection stuck(port_, /*receive_buffer=*/2048);
+  const auto t0 = clock::now();
+  ASSERT_TRUE(stuck.send_raw(burst));
+  // Other clients are served while that write is stuck.
+  EXPECT_EQ(http_get(port_, "/healthz").status, 200);
+  EXPECT_EQ(http_get(port_, terrain_target(kTile), {{"Accept-Encoding", "gzip"}}).status, 200);
+  // The stuck connection goes away: only the watcher's is left.
+  int open = -1;
+  while (clock::now() - t0 < std::chrono::seconds(5) && (open = open_connections()) != 1) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const auto closed_after = clock::now() - t0;
+  EXPECT_EQ(open, 1) << "the connection that never reads is still open";
+  EXPECT_GE(closed_after, std::chrono::milliseconds(300));
+  // Reading now gets the answers the socket buffers held, then the end: never all of them.
+  std::size_t answers = 0;
+  while (answers < requests && stuck.read_response().status == 200) ++answers;
+  EXPECT_LT(answers, requests);
+  EXPECT_TRUE(stuck.closed_by_peer());
+  EXPECT_EQ(http_get(port_, target).body.size(), ref.body.size());
+  EXPECT_EQ(watcher.request("GET", "/healthz").status, 200);
 }
 
 // Responses far larger than one write (native tiles of a dense layer, several hundred KiB,
@@ -764,6 +834,284 @@ TEST_F(ServerTest, IngestThroughTheAdminApiWhileServing) {
   EXPECT_EQ(http_get(port_, "/tiles/fresh/" + kTile.quadkey()).status, 404);
   EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/fresh", kAdmin).status, 404);
   EXPECT_EQ(http_get(port_, "/admin/jobs/999", kAdmin).status, 404);
+}
+
+std::string error_of(const testing::HttpResponse& r) {
+  const json j = json::parse(r.body, nullptr, false);
+  return j.is_object() && j.contains("error") ? j["error"].get<std::string>() : std::string();
+}
+
+std::string job_error(const json& status) {
+  return status.contains("errors") && !status["errors"].empty()
+             ? status["errors"][0].get<std::string>()
+             : std::string();
+}
+
+#ifdef TINSTREAM_SERVER_WITH_INGEST
+constexpr bool kRealIngest = true;
+#else
+constexpr bool kRealIngest = false;
+#endif
+
+// The executable's runner (the real ingest pipeline), held at the same gate as make_runner's.
+IngestRunner gated_real_runner(std::shared_ptr<RunnerState> state) {
+  return [state, real = default_ingest_runner()](const IngestJobSpec& job,
+                                                 const ProgressSink& progress) -> Status {
+    {
+      std::unique_lock lock(state->mutex);
+      ++state->runs;
+      state->cv.wait(lock, [&] { return state->open; });
+    }
+    return real(job, progress);
+  };
+}
+
+// Jobs that the real pipeline cannot finish — a malformed source, a source gone by the time the
+// job runs — end `failed` with an error naming the file (and the line); nothing is published, the
+// layer they were to replace stays as it was, and tiles are served throughout. A source missing
+// at submission is refused at once, naming it, and queues no job.
+TEST_F(ServerTest, FailedIngestNamesTheBadSourceAndKeepsThePreviousLayer) {
+  if (!kRealIngest) GTEST_SKIP() << "built without core/ingest: the runner fails every job";
+  stop();
+  runner_override_ = gated_real_runner(runner_);
+  start({});
+  const auto data = dir_.path / "data";
+  std::ofstream(data / "bad.xyz") << "6.10 49.60 300\n6.11 49.61 abc\n6.12 49.62 310\n";
+  std::ofstream(data / "gone.xyz") << "6.10 49.60 300\n6.11 49.61 305\n6.12 49.62 310\n";
+  const std::map<std::string, std::string> gzip = {{"Accept-Encoding", "gzip"}};
+  const std::vector<std::string> targets = {"/tiles/lux/" + kTile.quadkey(),
+                                            "/tiles/lux/layer.json", terrain_target(kTile)};
+  std::vector<testing::HttpResponse> before;
+  for (const auto& t : targets) before.push_back(http_get(port_, t, gzip));
+  const json lux_before = json::parse(http_get(port_, "/layers/lux").body);
+  const auto ingest = [&](const std::string& source) {
+    return http_request(port_, "POST", "/admin/ingest", kAdmin,
+                        json{{"layer", "lux"},
+                             {"sources", {source}},
+                             {"options", {{"crs", "EPSG:4326"}, {"max_points", 100}}}}
+                            .dump());
+  };
+
+  const auto missing = ingest("nowhere.xyz");
+  EXPECT_EQ(missing.status, 404);
+  EXPECT_NE(error_of(missing).find("nowhere.xyz"), std::string::npos) << missing.body;
+  EXPECT_TRUE(json::parse(http_get(port_, "/admin/jobs", kAdmin).body)["jobs"].empty());
+
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = false;  // hold the jobs until gone.xyz is gone
+  }
+  const auto bad = ingest("bad.xyz");
+  const auto vanished = ingest("gone.xyz");
+  ASSERT_EQ(bad.status, 202) << bad.body;
+  ASSERT_EQ(vanished.status, 202) << vanished.body;
+  std::filesystem::remove(data / "gone.xyz");
+  for (const auto& t : targets) EXPECT_EQ(http_get(port_, t, gzip).status, 200) << t;
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = true;
+  }
+  runner_->cv.notify_all();
+
+  const json bad_status = wait_for_submitted(bad);
+  EXPECT_EQ(bad_status["state"], "failed") << bad_status.dump();
+  const std::string bad_error = job_error(bad_status);
+  EXPECT_NE(bad_error.find("bad.xyz"), std::string::npos) << bad_error;
+  EXPECT_NE(bad_error.find("line 2"), std::string::npos) << bad_error;
+  EXPECT_NE(bad_error.find("abc"), std::string::npos) << bad_error;
+  const json gone_status = wait_for_submitted(vanished);
+  EXPECT_EQ(gone_status["state"], "failed") << gone_status.dump();
+  EXPECT_NE(job_error(gone_status).find("gone.xyz"), std::string::npos) << gone_status.dump();
+  EXPECT_NE(http_get(port_, "/metrics").body.find("tinstream_ingest_jobs{state=\"failed\"} 2"),
+            std::string::npos);
+
+  // Nothing published: the same layer version, the same bytes and tags on every route.
+  const json lux_after = json::parse(http_get(port_, "/layers/lux").body);
+  EXPECT_EQ(lux_after["version"], lux_before["version"]);
+  EXPECT_EQ(lux_after["tile_count"], lux_before["tile_count"]);
+  EXPECT_EQ(json::parse(http_get(port_, "/layers").body)["layers"].size(), 1u);
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    const auto after = http_get(port_, targets[i], gzip);
+    EXPECT_EQ(after.status, 200) << targets[i];
+    EXPECT_EQ(after.header("ETag"), before[i].header("ETag")) << targets[i];
+    EXPECT_TRUE(after.body == before[i].body) << targets[i];
+  }
+}
+
+// While an admin job writes another layer (paused half-way with tiles of the new version in the
+// file, then writing the rest and publishing), layer.json and .terrain of the published layer
+// keep answering 200 from the store (terrain cache off: every request reads SQLite).
+TEST_F(ServerTest, CesiumRoutesKeepAnsweringWhileAnotherLayerIsIngested) {
+  stop();
+  start([](ServerConfig& c) { c.terrain_cache_bytes = 0; });
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->pause_after_tiles = 8;
+    runner_->mid_write_open = false;
+  }
+  const auto ids = testing::test_tile_ids();
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0}, failures{0};
+  std::mutex failure_mutex;
+  std::string first_failure;
+  const auto read_terrain = [&](std::size_t offset) {
+    HttpConnection c(port_);
+    for (std::size_t i = offset; i < 20000 && !done; ++i) {
+      const bool lj = i % 4 == 0;
+      const std::string target = lj ? "/tiles/lux/layer.json" : terrain_target(ids[i % ids.size()]);
+      const auto r = c.request("GET", target, {{"Accept-Encoding", "gzip"}});
+      if (r.status != 200) {
+        if (failures++ == 0) {
+          std::lock_guard lock(failure_mutex);
+          first_failure = target + ": " + std::to_string(r.status) + " " + r.body;
+        }
+        if (r.status == 0) return;  // connection gone
+      }
+      ++answered;
+    }
+  };
+  std::thread reader_a(read_terrain, 0), reader_b(read_terrain, 1);
+  struct JoinReaders {  // also when an assertion returns early
+    std::atomic<bool>& done;
+    std::thread &a, &b;
+    ~JoinReaders() {
+      done = true;
+      if (a.joinable()) a.join();
+      if (b.joinable()) b.join();
+    }
+  } join_readers{done, reader_a, reader_b};
+  const auto submitted =
+      http_request(port_, "POST", "/admin/ingest", kAdmin,
+                   json{{"layer", "fresh"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(submitted.status, 202) << submitted.body;
+  {
+    std::unique_lock lock(runner_->mutex);
+    ASSERT_TRUE(
+        runner_->cv.wait_for(lock, std::chrono::seconds(10), [&] { return runner_->paused; }));
+  }
+  const json running = json::parse(
+      http_get(port_, "/admin/jobs/" + json::parse(submitted.body)["job"].get<std::string>(),
+               kAdmin)
+          .body);
+  EXPECT_EQ(running["state"], "running");
+  // Answers while the half-written version sits in the file.
+  const int at_pause = answered;
+  for (int i = 0; i < 1000 && answered < at_pause + 40; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_GE(answered, at_pause + 40);
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->mid_write_open = true;
+  }
+  runner_->cv.notify_all();
+  const json finished = wait_for_submitted(submitted);
+  const int at_publish = answered;
+  for (int i = 0; i < 1000 && answered < at_publish + 20; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  done = true;
+  reader_a.join();
+  reader_b.join();
+  EXPECT_EQ(finished["state"], "succeeded") << finished.dump();
+  EXPECT_EQ(failures, 0) << first_failure;
+  EXPECT_GE(answered, at_publish + 20);
+  EXPECT_EQ(http_get(port_, "/tiles/fresh/layer.json").status, 200);
+  EXPECT_EQ(http_get(port_, terrain_target(kTile, "fresh")).status, 200);
+}
+
+// layer.json and .terrain carry ETags like native tiles: a matching If-None-Match (in a list,
+// weak or not) is a 304 with the ETag and CORS headers and no body. Once the layer is replaced
+// through the admin API the old tags no longer match: the new content comes with new tags.
+TEST_F(ServerTest, CesiumETagsGive304UntilTheLayerIsReplaced) {
+  const std::vector<std::string> targets = {"/tiles/lux/layer.json", terrain_target(kTile),
+                                            "/tiles/lux/0/0/0.terrain"};
+  std::vector<std::string> etags;
+  for (const auto& target : targets) {
+    const auto first = http_get(port_, target, {{"Accept-Encoding", "gzip"}});
+    ASSERT_EQ(first.status, 200) << target;
+    const std::string etag = first.header("ETag");
+    ASSERT_FALSE(etag.empty()) << target;
+    for (const std::string& inm : {etag, "\"other\", W/" + etag}) {
+      HttpConnection c(port_);
+      const auto r =
+          c.request("GET", target, {{"Accept-Encoding", "gzip"}, {"If-None-Match", inm}});
+      EXPECT_EQ(r.status, 304) << target << " " << inm;
+      EXPECT_EQ(r.header("ETag"), etag) << target;
+      EXPECT_EQ(r.header("Access-Control-Allow-Origin"), "*") << target;
+      EXPECT_EQ(r.header("Content-Length"), "") << target;
+      EXPECT_TRUE(r.body.empty()) << target;
+      EXPECT_EQ(c.request("GET", "/healthz").status, 200);  // framing intact after the 304
+    }
+    EXPECT_EQ(http_get(port_, target, {{"If-None-Match", "\"other\""}}).status, 200) << target;
+    etags.push_back(etag);
+  }
+
+  const auto replaced =
+      http_request(port_, "POST", "/admin/ingest", kAdmin,
+                   json{{"layer", "lux"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(wait_for_submitted(replaced)["state"], "succeeded");
+  for (std::size_t i = 0; i < 2; ++i) {  // layer.json and the stored tile: new content
+    const auto r =
+        http_get(port_, targets[i], {{"Accept-Encoding", "gzip"}, {"If-None-Match", etags[i]}});
+    EXPECT_EQ(r.status, 200) << targets[i];
+    EXPECT_NE(r.header("ETag"), etags[i]) << targets[i];
+    EXPECT_EQ(http_get(port_, targets[i], {{"If-None-Match", r.header("ETag")}}).status, 304)
+        << targets[i];
+  }
+  const auto terrain = http_get(port_, targets[1], {{"Accept-Encoding", "gzip"}});
+  EXPECT_EQ(testing::decode_quantized_mesh(testing::gunzip(terrain.body)).u.size(), 9u * 9u);
+}
+
+// The admin routes over the wire: an existing job's status and DELETE need the token (401
+// without one, 403 with a wrong one; the layer stays served). With it, every route of the
+// deleted layer answers 404 at once — its layer.json and terrain tiles were cached — and
+// If-None-Match with an old tag gets no 304; the other layer keeps serving.
+TEST_F(ServerTest, DeletedLayerIsGoneFromEveryRouteWhileOthersServe) {
+  stop();
+  testing::write_test_layer(store_path_, "gone");
+  start({});
+  const auto job = http_request(port_, "POST", "/admin/ingest", kAdmin,
+                                json{{"layer", "other"}, {"sources", {"sub/points.xyz"}}}.dump());
+  const std::string status_url = "/admin/jobs/" + json::parse(job.body)["job"].get<std::string>();
+  EXPECT_EQ(wait_for_submitted(job)["state"], "succeeded");
+  for (const auto& [headers, expected] :
+       std::vector<std::pair<std::map<std::string, std::string>, int>>{
+           {{}, 401},
+           {{{"Authorization", "Bearer tok2"}}, 403},
+           {{{"Authorization", "tok"}}, 401}}) {
+    const auto r = http_get(port_, status_url, headers);
+    EXPECT_EQ(r.status, expected);
+    EXPECT_EQ(r.body.find("succeeded"), std::string::npos) << r.body;
+    EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/gone", headers).status, expected);
+  }
+
+  const std::map<std::string, std::string> gzip = {{"Accept-Encoding", "gzip"}};
+  const auto routes = [](const std::string& layer) {
+    return std::vector<std::string>{
+        "/layers/" + layer, "/tiles/" + layer + "/layer.json", terrain_target(kTile, layer),
+        "/tiles/" + layer + "/0/0/0.terrain", "/tiles/" + layer + "/" + kTile.quadkey()};
+  };
+  std::vector<std::string> etags;
+  for (const auto& t : routes("gone")) {
+    const auto r = http_get(port_, t, gzip);  // fills the terrain and layer caches
+    EXPECT_EQ(r.status, 200) << t;
+    etags.push_back(r.header("ETag"));
+  }
+  const auto deleted = http_request(port_, "DELETE", "/admin/layers/gone", kAdmin);
+  EXPECT_EQ(deleted.status, 200) << deleted.body;
+  const auto gone = routes("gone");
+  for (std::size_t i = 0; i < gone.size(); ++i) {
+    auto headers = gzip;
+    if (!etags[i].empty()) headers["If-None-Match"] = etags[i];
+    const auto r = http_get(port_, gone[i], headers);
+    EXPECT_EQ(r.status, 404) << gone[i];
+    const json j = json::parse(r.body, nullptr, false);
+    EXPECT_TRUE(j.is_object() && j.value("status", 0) == 404) << gone[i] << ": " << r.body;
+  }
+  for (const auto& t : routes("lux")) EXPECT_EQ(http_get(port_, t, gzip).status, 200) << t;
+  const json layers = json::parse(http_get(port_, "/layers").body)["layers"];
+  ASSERT_EQ(layers.size(), 2u);
+  for (const auto& l : layers) EXPECT_NE(l["name"], "gone");
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/gone", kAdmin).status, 404);
 }
 
 TEST_F(ServerTest, UploadIngestIsStreamedToDiskAndLimited) {

@@ -1,12 +1,15 @@
 // The real tinstream-server executable: start on port 0, serve, stop on SIGTERM.
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <thread>
 #include <utility>
 
 #include "grid_tile.hpp"
@@ -21,14 +24,19 @@ using testing::TempDir;
 
 const std::string kBinary = std::string(TINSTREAM_BINARY_DIR) + "/bin/tinstream-server";
 
-// A child process with its stdout; killed and reaped by the destructor if the test did not wait
-// for it (a failed assertion never leaves a server running).
+// A child process with its stdout (and, when asked for, the read end of its stderr); killed and
+// reaped by the destructor if the test did not wait for it (a failed assertion never leaves a
+// server running).
 struct Child {
   pid_t pid = -1;
   FILE* out = nullptr;
+  int err = -1;
   Child() = default;
-  Child(pid_t p, FILE* f) : pid(p), out(f) {}
-  Child(Child&& o) noexcept : pid(std::exchange(o.pid, -1)), out(std::exchange(o.out, nullptr)) {}
+  Child(pid_t p, FILE* f, int e = -1) : pid(p), out(f), err(e) {}
+  Child(Child&& o) noexcept
+      : pid(std::exchange(o.pid, -1)),
+        out(std::exchange(o.out, nullptr)),
+        err(std::exchange(o.err, -1)) {}
   Child& operator=(Child&&) = delete;
   ~Child() {
     if (pid > 0) {
@@ -37,17 +45,25 @@ struct Child {
       ::waitpid(pid, &status, 0);
     }
     if (out) std::fclose(out);
+    if (err >= 0) ::close(err);
   }
 };
 
-Child spawn(const std::vector<std::string>& args) {
+Child spawn(const std::vector<std::string>& args, bool capture_stderr = false) {
   int fds[2];
+  int err_fds[2] = {-1, -1};
   if (::pipe(fds) != 0) return {};
+  if (capture_stderr && ::pipe(err_fds) != 0) return {};
   const pid_t pid = ::fork();
   if (pid == 0) {
     ::dup2(fds[1], 1);
     ::close(fds[0]);
     ::close(fds[1]);
+    if (capture_stderr) {
+      ::dup2(err_fds[1], 2);
+      ::close(err_fds[0]);
+      ::close(err_fds[1]);
+    }
     std::vector<char*> argv;
     argv.push_back(const_cast<char*>(kBinary.c_str()));
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -56,7 +72,24 @@ Child spawn(const std::vector<std::string>& args) {
     ::_exit(127);
   }
   ::close(fds[1]);
-  return Child{pid, ::fdopen(fds[0], "r")};
+  if (capture_stderr) ::close(err_fds[1]);
+  return Child{pid, ::fdopen(fds[0], "r"), err_fds[0]};
+}
+
+// The port of the child's first line on stdout, "listening on 127.0.0.1:PORT"; 0 (and a test
+// failure) when that line does not come.
+std::uint16_t listening_port(Child& child) {
+  char line[256] = {0};
+  if (!std::fgets(line, sizeof line, child.out)) {
+    ADD_FAILURE() << "tinstream-server printed no line";
+    return 0;
+  }
+  const std::string text = line;
+  if (text.rfind("listening on 127.0.0.1:", 0) != 0) {
+    ADD_FAILURE() << "not the \"listening on\" line: " << text;
+    return 0;
+  }
+  return static_cast<std::uint16_t>(std::stoi(text.substr(text.rfind(':') + 1)));
 }
 
 int wait_exit(Child& child) {
@@ -75,11 +108,8 @@ TEST(ServerProcess, ServesAndStopsOnSigterm) {
   Child c = spawn({"--config", config.string(), "--store", store.string(), "--port", "0",
                    "--address", "127.0.0.1", "--threads", "2"});
   ASSERT_GT(c.pid, 0);
-  char line[256] = {0};
-  ASSERT_NE(std::fgets(line, sizeof line, c.out), nullptr);
-  const std::string text = line;
-  ASSERT_EQ(text.rfind("listening on 127.0.0.1:", 0), 0u) << text;
-  const auto port = static_cast<std::uint16_t>(std::stoi(text.substr(text.rfind(':') + 1)));
+  const std::uint16_t port = listening_port(c);
+  ASSERT_NE(port, 0);
   EXPECT_EQ(testing::http_get(port, "/healthz").status, 200);
   const auto tile = *geo::TileId::from_zxy(12, 2121, 1401);
   EXPECT_EQ(testing::http_get(port, "/tiles/lux/" + tile.quadkey()).status, 200);
@@ -94,6 +124,110 @@ TEST(ServerProcess, ServesAndStopsOnSigterm) {
   ::kill(c.pid, SIGTERM);
   EXPECT_EQ(wait_exit(c), 0);
   EXPECT_TRUE(idle.closed_by_peer());
+}
+
+// The exit status of `child` once it exits within `limit`; -1 (and the child left to the
+// destructor's SIGKILL) when it does not.
+int wait_exit_within(Child& child, std::chrono::milliseconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    int status = 0;
+    if (::waitpid(child.pid, &status, WNOHANG) == child.pid) {
+      child.pid = -1;
+      return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return -1;
+}
+
+// Reads the child's stderr until it contains `text` or `limit` has passed; returns what was read.
+std::string read_stderr_until(Child& child, const std::string& text,
+                              std::chrono::milliseconds limit) {
+  std::string got;
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (got.find(text) == std::string::npos) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        until - std::chrono::steady_clock::now());
+    if (left.count() <= 0) break;
+    pollfd p{child.err, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) break;
+    char buf[4096];
+    const ssize_t n = ::read(child.err, buf, sizeof buf);
+    if (n <= 0) break;
+    got.append(buf, static_cast<std::size_t>(n));
+  }
+  return got;
+}
+
+// SIGINT, like SIGTERM: the server stops accepting, finishes the answers in flight — a pipelined
+// burst it is still writing, a request whose header was not complete yet — each connection's
+// last one with `Connection: close`, then exits 0. Logs go to stderr; stdout has only the
+// "listening on" line.
+TEST(ServerProcess, SigintFinishesInFlightResponsesAndExitsZero) {
+  TempDir dir("sigint");
+  const auto store = dir.path / "store.db";
+  testing::write_test_layer(store, "lux", geo::Projection::spherical, 65);  // tens of KiB a tile
+  const auto config = dir.path / "server.json";
+  std::ofstream(config) << R"({"log_level": "info", "access_log": false})";
+  Child c = spawn({"--config", config.string(), "--store", store.string(), "--port", "0",
+                   "--address", "127.0.0.1", "--threads", "2"},
+                  /*capture_stderr=*/true);
+  ASSERT_GT(c.pid, 0);
+  const std::uint16_t port = listening_port(c);
+  ASSERT_NE(port, 0);
+  const auto tile = *geo::TileId::from_zxy(12, 2121, 1401);
+  const std::string native = "/tiles/lux/" + tile.quadkey();
+  const auto ref = testing::http_get(port, native);
+  ASSERT_EQ(ref.status, 200);
+
+  // A burst of answers that the client does not read yet, 8 MiB, more than the socket buffers
+  // hold (net.ipv4.tcp_wmem: 4 MiB at most): the server is writing when the signal comes.
+  testing::HttpConnection burst(port, /*receive_buffer=*/2048);
+  const std::size_t requests = (8u << 20) / ref.body.size() + 1;
+  std::string bytes;
+  for (std::size_t i = 0; i < requests; ++i)
+    bytes += "GET " + native + " HTTP/1.1\r\nHost: x\r\n\r\n";
+  ASSERT_TRUE(burst.send_raw(bytes));
+  // Half a request header (after a first request, so the connection is surely accepted).
+  testing::HttpConnection partial(port);
+  ASSERT_EQ(partial.request("GET", "/healthz").status, 200);
+  ASSERT_TRUE(partial.send_raw("GET " + native + " HTTP/1.1\r\nHost: x\r\n"));
+  testing::HttpConnection idle(port);
+  ASSERT_EQ(idle.request("GET", "/healthz").status, 200);
+
+  ::kill(c.pid, SIGINT);
+  const std::string log = read_stderr_until(c, "shutting down", std::chrono::seconds(10));
+  ASSERT_NE(log.find("shutting down"), std::string::npos) << log;
+  EXPECT_TRUE(idle.closed_by_peer());
+
+  ASSERT_TRUE(partial.send_raw("\r\n"));
+  const auto late = partial.read_response();
+  EXPECT_EQ(late.status, 200);
+  EXPECT_EQ(late.header("Connection"), "close");
+  EXPECT_TRUE(late.body == ref.body);
+  EXPECT_TRUE(partial.closed_by_peer());
+
+  // Every answer of the burst that comes is whole; the last says `Connection: close`.
+  std::size_t answers = 0;
+  std::string last_connection;
+  for (; answers < requests; ++answers) {
+    const auto r = burst.read_response();
+    if (r.status == 0) break;
+    EXPECT_EQ(r.status, 200) << answers;
+    EXPECT_TRUE(r.body == ref.body) << answers;
+    last_connection = r.header("Connection");
+  }
+  EXPECT_GT(answers, 0u);
+  EXPECT_EQ(last_connection, "close") << answers << " of " << requests << " answers";
+  EXPECT_TRUE(burst.closed_by_peer());
+
+  EXPECT_EQ(wait_exit_within(c, std::chrono::seconds(10)), 0);
+  EXPECT_EQ(testing::http_get(port, "/healthz").status, 0);
+  std::string rest;
+  char line[256];
+  while (std::fgets(line, sizeof line, c.out)) rest += line;
+  EXPECT_EQ(rest, "") << "stdout is for the \"listening on\" line only";
 }
 
 TEST(ServerProcess, HelpAndBadConfig) {
@@ -253,10 +387,8 @@ TEST(ServerProcess, RealIngestThroughTheAdminApiAndWatertightTerrain) {
   Child c = spawn({"--config", config.string(), "--store", (dir.path / "store.db").string(),
                    "--port", "0", "--address", "127.0.0.1", "--threads", "2"});
   ::unsetenv("TINSTREAM_TEST_ADMIN_TOKEN");
-  char line[256] = {0};
-  ASSERT_NE(std::fgets(line, sizeof line, c.out), nullptr);
-  const std::string text = line;
-  const auto port = static_cast<std::uint16_t>(std::stoi(text.substr(text.rfind(':') + 1)));
+  const std::uint16_t port = listening_port(c);
+  ASSERT_NE(port, 0);
   const std::map<std::string, std::string> admin = {{"Authorization", "Bearer real-token"},
                                                     {"Content-Type", "application/json"}};
   auto r = testing::http_request(port, "POST", "/admin/ingest", admin,

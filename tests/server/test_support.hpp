@@ -37,7 +37,9 @@ struct HttpResponse {
 
 class HttpConnection {
  public:
-  explicit HttpConnection(std::uint16_t port);
+  // receive_buffer > 0: the socket's SO_RCVBUF, set before connecting (the kernel's minimum for
+  // small values), so that answers the client leaves unread back up into the server's buffers.
+  explicit HttpConnection(std::uint16_t port, int receive_buffer = 0);
   ~HttpConnection();
   HttpConnection(const HttpConnection&) = delete;
   HttpConnection& operator=(const HttpConnection&) = delete;

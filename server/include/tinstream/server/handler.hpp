@@ -88,12 +88,18 @@ class TerrainCache {
 // Layer metadata for the terrain hot path, so that a cached .terrain answer needs no SQLite
 // query. Entries live at most `ttl_ms`; clear() (after an admin ingest or delete) drops them at
 // once. A layer changed by another process is seen after at most ttl_ms. Thread-safe.
+//
+// A row read from the store just before an ingest publishes (or a delete commits) must not be
+// cached after the clear() that follows it: readers take generation() before reading the row
+// and hand it to put(), which drops the row when a clear() came in between.
 class LayerCache {
  public:
   explicit LayerCache(std::uint32_t ttl_ms = 1000);
   ~LayerCache();
   std::shared_ptr<const store::LayerInfo> get(const std::string& name);  // null: absent or stale
-  void put(const store::LayerInfo& info);
+  std::uint64_t generation() const;                                      // clear() calls so far
+  // Caches `info` unless clear() was called since generation() returned `generation`.
+  void put(const store::LayerInfo& info, std::uint64_t generation);
   void clear();
 
  private:
