@@ -160,7 +160,7 @@ class Mesh {
   }
   // A slot for a new triangle, taken as new_triangle takes it (last freed first); the caller
   // writes all of it and keeps the ghost count.
-  TriangleId take_slot() {
+  [[gnu::always_inline]] TriangleId take_slot() {
     if (!free_.empty()) {
       const TriangleId t = free_.back();
       free_.pop_back();
