@@ -85,33 +85,43 @@ Triangulation::Location Triangulation::locate(const XY& p, TriangleId hint) cons
 }
 
 // Lawson flips from the new vertex p: every edge opposite p is tested against the triangle on
-// its other side and flipped when p lies in its circle.
-void Triangulation::legalize(VertexId p) {
+// its other side and flipped when p lies in its circle. Stack entries (t, i) have p == v[i] of t.
+// A flip of (t, i) would push (t, 0) and then (v2, 2), which is popped at once: the inner loop
+// goes on with (v2, 2) directly, so the order of the tests is that of the plain stack.
+void Triangulation::legalize(VertexId p, std::size_t top) {
   const XY pp = mesh_.xy(p);
-  while (!stack_.empty()) {
-    const auto [t, i] = stack_.back();
-    stack_.pop_back();
-    if (has_constraints_ && mesh_.constrained(t, i)) continue;
-    const Triangle& T = mesh_.tri(t);
-    const TriangleId nb = T.n[i];
-    if (nb == kNone) continue;
-    const Triangle& N = mesh_.tri(nb);
-    const int j = N.n[0] == t ? 0 : N.n[1] == t ? 1 : 2;
-    const VertexId q = N.v[j];
-    if (q == kInfiniteVertex) continue;  // across a hull edge from inside: never in conflict
-    const VertexId w = N.v[next3(j)], u = N.v[prev3(j)];  // N = (q, w, u)
-    bool conflict;
-    if (w == kInfiniteVertex) {
-      conflict = orient2d(mesh_.xy(u), mesh_.xy(q), pp) > 0.0;  // ghost (u, q, 0)
-    } else if (u == kInfiniteVertex) {
-      conflict = orient2d(mesh_.xy(q), mesh_.xy(w), pp) > 0.0;  // ghost (q, w, 0)
-    } else {
-      conflict = incircle(mesh_.xy(q), mesh_.xy(w), mesh_.xy(u), pp) > 0.0;
+  // A local pointer (refreshed only when the buffer grows) and size keep the vector's own
+  // bookkeeping out of the loop.
+  std::pair<TriangleId, int>* stack = stack_.data();
+  while (top != 0) {
+    auto [t, i] = stack[--top];
+    for (;;) {
+      if (has_constraints_ && mesh_.constrained(t, i)) break;
+      const TriangleId nb = mesh_.tri(t).n[i];
+      if (nb == kNone) break;
+      const Triangle& N = mesh_.tri(nb);
+      const int j = mesh_.index_of_neighbour(nb, t);
+      const VertexId q = N.v[j];
+      if (q == kInfiniteVertex) break;  // across a hull edge from inside: never in conflict
+      const VertexId w = N.v[next3(j)], u = N.v[prev3(j)];  // N = (q, w, u)
+      bool conflict;
+      if (w == kInfiniteVertex) {
+        conflict = orient2d(mesh_.xy(u), mesh_.xy(q), pp) > 0.0;  // ghost (u, q, 0)
+      } else if (u == kInfiniteVertex) {
+        conflict = orient2d(mesh_.xy(q), mesh_.xy(w), pp) > 0.0;  // ghost (q, w, 0)
+      } else {
+        conflict = incircle(mesh_.xy(q), mesh_.xy(w), mesh_.xy(u), pp) > 0.0;
+      }
+      if (!conflict) break;
+      const TriangleId v2 = mesh_.flip(t, i, j);
+      if (top == stack_.size()) {
+        stack_.resize(2 * top);
+        stack = stack_.data();
+      }
+      stack[top++] = {t, 0};
+      t = v2;
+      i = 2;
     }
-    if (!conflict) continue;
-    const TriangleId v2 = mesh_.flip(t, i, j);
-    stack_.emplace_back(t, 0);
-    stack_.emplace_back(v2, 2);
   }
 }
 
@@ -127,18 +137,19 @@ InsertResult Triangulation::insert_at(VertexId v, const Location& loc) {
     case Where::outside_hull: {
       if (loc.t == kNone) return {InsertOutcome::rejected, kNone};
       const auto ts = mesh_.split_triangle(loc.t, v);
-      stack_.emplace_back(ts[0], 2);
-      stack_.emplace_back(ts[1], 2);
-      stack_.emplace_back(ts[2], 2);
+      stack_[0] = {ts[0], 2};
+      stack_[1] = {ts[1], 2};
+      stack_[2] = {ts[2], 2};
+      legalize(v, 3);
       break;
     }
     case Where::on_edge: {
       const auto s = mesh_.split_edge(loc.t, loc.index, v);
-      for (int k = 0; k < 4; ++k) stack_.emplace_back(s.t[k], s.p_index[k]);
+      for (int k = 0; k < 4; ++k) stack_[k] = {s.t[k], s.p_index[k]};
+      legalize(v, 4);
       break;
     }
   }
-  legalize(v);
   hint_ = mesh_.vertex_triangle(v);
   return {InsertOutcome::inserted, v};
 }

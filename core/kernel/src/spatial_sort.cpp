@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <memory>
 
 namespace tinstream::kernel::detail {
 namespace {
@@ -99,31 +100,43 @@ std::vector<std::uint32_t> brio_hilbert_order(std::span<const Point3> points,
   // radix sort orders them. (Ratio 1/2 made twice as many rounds, each a sweep over the whole
   // mesh: the 4e6-point build was 25 % slower; 1/8 measured the same as 1/4.)
   const int last_round = std::max(0, (static_cast<int>(std::bit_width(n)) - 6) / 2);
+  const int key_bits =
+      2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));
+  // Two passes of an LSD radix sort (stable, so the same order as any stable sort of the keys):
+  // both histograms are counted while the keys are made, the low digit scatters (key, index)
+  // pairs, the high digit scatters only the indices into the result. (Three 11-bit passes and a
+  // copy before.) At most 28 key bits: digits of at most 14 bits, 64 KiB of counts each.
+  const int low_bits = (key_bits + 1) / 2;
+  const std::uint32_t low_mask = (1u << low_bits) - 1u;
+  const std::size_t buckets = std::size_t{1} << low_bits;
   struct Keyed {
     std::uint32_t key;
     std::uint32_t index;
   };
-  std::vector<Keyed> keyed(n), tmp(n);
+  // Every element is written before it is read: no value-initialisation pass.
+  const auto keyed = std::make_unique_for_overwrite<Keyed[]>(n);
+  const auto sorted_low = std::make_unique_for_overwrite<Keyed[]>(n);
+  std::vector<std::uint32_t> count_low(buckets + 1, 0), count_high(buckets + 1, 0);
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint32_t i = indices[k];
     const auto gx = std::min(static_cast<std::uint32_t>((points[i].x - xmin) * scale), max_cell);
     const auto gy = std::min(static_cast<std::uint32_t>((points[i].y - ymin) * scale), max_cell);
     const int tz = std::countr_zero(mix(i) | (1ull << 62));
     const auto round = static_cast<std::uint32_t>(std::max(0, last_round - tz / 2));
-    keyed[k] = {(round << (2 * bits)) | hilbert_index(gx, gy, bits, table), i};
+    const std::uint32_t key = (round << (2 * bits)) | hilbert_index(gx, gy, bits, table);
+    keyed[k] = {key, i};
+    ++count_low[(key & low_mask) + 1];
+    ++count_high[(key >> low_bits) + 1];
   }
-  const int key_bits =
-      2 * bits + static_cast<int>(std::bit_width(static_cast<unsigned>(last_round)));
-  constexpr int kDigit = 11;
-  for (int shift = 0; shift < key_bits; shift += kDigit) {
-    std::vector<std::uint32_t> count((1u << kDigit) + 1, 0);
-    for (const Keyed& e : keyed) ++count[((e.key >> shift) & ((1u << kDigit) - 1)) + 1];
-    for (std::size_t b = 0; b + 1 < count.size(); ++b) count[b + 1] += count[b];
-    for (const Keyed& e : keyed) tmp[count[(e.key >> shift) & ((1u << kDigit) - 1)]++] = e;
-    keyed.swap(tmp);
+  for (std::size_t b = 0; b < buckets; ++b) {
+    count_low[b + 1] += count_low[b];
+    count_high[b + 1] += count_high[b];
   }
+  for (std::size_t k = 0; k < n; ++k) sorted_low[count_low[keyed[k].key & low_mask]++] = keyed[k];
   std::vector<std::uint32_t> order(n);
-  for (std::size_t k = 0; k < n; ++k) order[k] = keyed[k].index;
+  for (std::size_t k = 0; k < n; ++k) {
+    order[count_high[sorted_low[k].key >> low_bits]++] = sorted_low[k].index;
+  }
   return order;
 }
 

@@ -165,7 +165,8 @@ class Triangulation {
   Location locate(const XY& p, TriangleId hint) const;
   InsertResult insert_vertex(VertexId v, TriangleId hint);
   InsertResult insert_at(VertexId v, const Location& loc);
-  void legalize(VertexId p);
+  // Lawson flips from p; the first `top` entries of stack_ are the edges opposite p to test.
+  void legalize(VertexId p, std::size_t top);
   void raise_dimension(VertexId off_line);
   bool pending_contains(const XY& p, VertexId* found) const;
   TriangleId start_triangle(TriangleId hint) const;
@@ -228,7 +229,9 @@ class Triangulation {
   std::optional<Rect> domain_;
   std::vector<VertexId> pending_;  // vertices while dimension < 2
   std::vector<std::array<VertexId, 2>> segments_;
-  std::vector<std::pair<TriangleId, int>> stack_;  // flip stack, kept to avoid reallocations
+  // Flip stack storage: its size is its capacity (grown by legalize, never shrunk); how much of
+  // it is in use is legalize's local `top`.
+  std::vector<std::pair<TriangleId, int>> stack_ = std::vector<std::pair<TriangleId, int>>(64);
   mutable Hole hole_;
   // Every edit bumps revision_; a removal_preview(v) leaves its plan in hole_ so that
   // remove_vertex(v) with no edit in between does not compute it again.
