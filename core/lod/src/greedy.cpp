@@ -86,6 +86,7 @@ struct PointSet {
   std::vector<std::uint8_t> state;  // by point
   std::size_t candidates = 0;
   const Lattice* lattice = nullptr;  // when the candidates form one: they are scanned, not filed
+  bool weighted = false;             // some point has a weight other than 0
   // With a lattice: by cell, its z while it is a candidate, NaN once it is not (a NaN error never
   // wins the scan's comparison, so the scan needs no look-up of the state).
   std::vector<double> candidate_z;
@@ -98,6 +99,7 @@ class GreedyInserter {
         pts_(points.pts),
         state_(points.state),
         lattice_(points.lattice),
+        weighted_(points.weighted),
         candidate_z_(points.candidate_z),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
@@ -169,8 +171,7 @@ class GreedyInserter {
       const std::uint32_t t = where[i - filed_from_];
       if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {p.x,      p.y, p.z, p.weight, static_cast<std::uint32_t>(i),
-                                        state_[i]};
+      pool_[begin_[t] + count_[t]++] = {p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i]};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -276,10 +277,10 @@ class GreedyInserter {
  private:
   enum class Outcome { inserted, duplicate, on_wall };
 
-  // A point filed under a triangle: a copy of its data, so that scanning a bucket reads memory
-  // in order.
+  // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
+  // memory in order (32 bytes: its weight, usually 0, is looked up by id when there are any).
   struct Filed {
-    double x, y, z, weight;
+    double x, y, z;
     std::uint32_t id;   // index into pts_
     std::uint8_t kind;  // State
   };
@@ -289,8 +290,9 @@ class GreedyInserter {
     return Plane(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
   }
 
-  static double effective_error(const Filed& f, double surface) {
-    return std::abs(f.z - surface) + f.weight;
+  double effective_error(const Filed& f, double surface) const {
+    const double e = std::abs(f.z - surface);
+    return weighted_ ? e + pts_[f.id].weight : e;  // (|…| + 0 is |…|, bit for bit)
   }
 
   // Recomputes t's best candidate from its bucket (compacting away points that left) and its
@@ -696,6 +698,7 @@ class GreedyInserter {
   PointList pts_;
   std::vector<std::uint8_t>& state_;
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
+  bool weighted_;                     // PointSet::weighted
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
@@ -731,6 +734,9 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;
   points.pts = {candidates, extra};
+  for (std::size_t i = 0; i < points.pts.size() && !points.weighted; ++i) {
+    points.weighted = points.pts[i].weight != 0;
+  }
   points.state.assign(points.pts.size(), kExtra);
   std::fill(points.state.begin(),
             points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()), kCandidate);
