@@ -86,7 +86,6 @@ struct PointSet {
   std::vector<std::uint8_t> state;  // by point
   std::size_t candidates = 0;
   const Lattice* lattice = nullptr;  // when the candidates form one: they are scanned, not filed
-  bool weighted = false;             // some point has a weight other than 0
   // With a lattice: by cell, its z while it is a candidate, NaN once it is not (a NaN error never
   // wins the scan's comparison, so the scan needs no look-up of the state).
   std::vector<double> candidate_z;
@@ -99,7 +98,6 @@ class GreedyInserter {
         pts_(points.pts),
         state_(points.state),
         lattice_(points.lattice),
-        weighted_(points.weighted),
         candidate_z_(points.candidate_z),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
@@ -171,7 +169,8 @@ class GreedyInserter {
       const std::uint32_t t = where[i - filed_from_];
       if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i]};
+      pool_[begin_[t] + count_[t]++] = {p.x,       p.y,          p.z, static_cast<std::uint32_t>(i),
+                                        state_[i], p.weight != 0};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -278,11 +277,12 @@ class GreedyInserter {
   enum class Outcome { inserted, duplicate, on_wall };
 
   // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
-  // memory in order (32 bytes: its weight, usually 0, is looked up by id when there are any).
+  // memory in order (32 bytes: its weight, usually 0, is looked up by id when it is not).
   struct Filed {
     double x, y, z;
     std::uint32_t id;   // index into pts_
     std::uint8_t kind;  // State
+    bool weighted;      // its weight is not 0
   };
 
   Plane plane(std::uint32_t t) const {
@@ -292,7 +292,13 @@ class GreedyInserter {
 
   double effective_error(const Filed& f, double surface) const {
     const double e = std::abs(f.z - surface);
-    return weighted_ ? e + pts_[f.id].weight : e;  // (|…| + 0 is |…|, bit for bit)
+    if (!f.weighted) return e;  // (|…| + 0 is |…|, bit for bit)
+    return plus_weight(e, f.id);
+  }
+  // Out of line, so that the compiler cannot turn the branch above into a conditional move that
+  // reads the point's weight (a random access) for every point.
+  [[gnu::noinline]] double plus_weight(double e, std::uint32_t id) const {
+    return e + pts_[id].weight;
   }
 
   // Recomputes t's best candidate from its bucket (compacting away points that left) and its
@@ -630,10 +636,8 @@ class GreedyInserter {
     const std::size_t n = planes_.size();
     const XY& c = xy_.back();
     const double a = pseudo_angle(x - c.x, y - c.y);
-    const auto it = std::upper_bound(sector_start_.begin(), sector_start_.end(), a);
-    const std::size_t at = it == sector_start_.begin()
-                               ? n - 1
-                               : static_cast<std::size_t>(it - sector_start_.begin()) - 1;
+    const std::size_t after = first_sector_after(a);
+    const std::size_t at = after == 0 ? n - 1 : after - 1;
     double best_w = -std::numeric_limits<double>::infinity(), w;
     std::uint32_t k = 0;
     for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
@@ -672,6 +676,31 @@ class GreedyInserter {
               [&](std::uint32_t a, std::uint32_t b) { return angle_[a] < angle_[b]; });
     sector_start_.resize(n);
     for (std::size_t s = 0; s < n; ++s) sector_start_[s] = angle_[sector_[s]];
+    // A guess table for first_sector_after: 2n cells over [0, 4), each with the number of
+    // sector starts below its lower end.
+    const std::size_t cells = 2 * n;
+    sector_cells_per_unit_ = static_cast<double>(cells) / 4.0;
+    sector_guess_.resize(cells + 1);
+    std::size_t k = 0;
+    for (std::size_t i = 0; i <= cells; ++i) {
+      const double lo = static_cast<double>(i) / sector_cells_per_unit_;
+      while (k < n && sector_start_[k] < lo) ++k;
+      sector_guess_[i] = static_cast<std::uint32_t>(k);
+    }
+  }
+
+  // std::upper_bound(sector_start_, a) as an index: a guess from the table, then corrected in
+  // both directions, so the table's rounding only costs steps, never changes the answer.
+  std::size_t first_sector_after(double a) const {
+    const std::size_t n = sector_start_.size();
+    const double* const start = sector_start_.data();
+    if (!(a >= 0 && a < 4)) {  // (NaN: no guess; upper_bound's answer is n)
+      return static_cast<std::size_t>(std::upper_bound(start, start + n, a) - start);
+    }
+    std::size_t i = sector_guess_[static_cast<std::size_t>(a * sector_cells_per_unit_)];
+    while (i > 0 && a < start[i - 1]) --i;
+    while (i < n && !(a < start[i])) ++i;
+    return i;
   }
 
   // Drops the pool's abandoned buckets (a refile appends, it never reuses).
@@ -698,7 +727,6 @@ class GreedyInserter {
   PointList pts_;
   std::vector<std::uint8_t>& state_;
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
-  bool weighted_;                     // PointSet::weighted
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
@@ -721,6 +749,8 @@ class GreedyInserter {
   std::vector<double> star_error_;
   std::vector<std::uint32_t> sector_;
   std::vector<double> angle_, sector_start_;
+  std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
+  double sector_cells_per_unit_ = 0;
   std::vector<Plane> planes_;
 };
 
@@ -734,9 +764,6 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;
   points.pts = {candidates, extra};
-  for (std::size_t i = 0; i < points.pts.size() && !points.weighted; ++i) {
-    points.weighted = points.pts[i].weight != 0;
-  }
   points.state.assign(points.pts.size(), kExtra);
   std::fill(points.state.begin(),
             points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()), kCandidate);
