@@ -3,7 +3,9 @@
 //   thin_ab grid    <dem.tif> <N> [reps]
 //       thin_tile on the whole grid as one tile in its own metres (as lod_vs_greedy does),
 //       max_points N: lattice path. Prints wall and CPU seconds per run, vertices, and a hash of
-//       the result (vertices and triangles).
+//       the result (vertices and triangles). LOD_LATTICE_SCAN=0 turns LodOptions::lattice_scan
+//       off: the same grid on the general path (every point filed under its triangle), which
+//       exercises the greedy stage's re-filing with a lattice's ties (points on edges).
 //   thin_ab parents <store> <layer> <child level> [max parents] [reps]
 //       build_parent (default LodOptions) for the parents of the stored tiles at <child level>,
 //       from the stored children: the general path a LiDAR ingest takes. Prints time, a hash of
@@ -18,6 +20,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <map>
 #include <optional>
@@ -84,6 +87,7 @@ int grid(const char* path, std::size_t n, int reps) {
   }
   tinstream::lod::LodOptions o;
   o.max_points = n;
+  if (const char* l = std::getenv("LOD_LATTICE_SCAN")) o.lattice_scan = std::string(l) != "0";
   for (int rep = 0; rep < reps; ++rep) {
     const Clock clock;
     tinstream::lod::ThinStats st;

@@ -169,8 +169,8 @@ class GreedyInserter {
       const std::uint32_t t = where[i - filed_from_];
       if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {
-          p.x, p.y, p.z, p.weight, static_cast<std::uint32_t>(i), state_[i]};
+      pool_[begin_[t] + count_[t]++] = {p.x,       p.y,          p.z, static_cast<std::uint32_t>(i),
+                                        state_[i], p.weight != 0};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -276,12 +276,13 @@ class GreedyInserter {
  private:
   enum class Outcome { inserted, duplicate, on_wall };
 
-  // A point filed under a triangle: a copy of its data, so that scanning a bucket reads memory
-  // in order.
+  // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
+  // memory in order (32 bytes: its weight, usually 0, is looked up by id when it is not).
   struct Filed {
-    double x, y, z, weight;
+    double x, y, z;
     std::uint32_t id;   // index into pts_
     std::uint8_t kind;  // State
+    bool weighted;      // its weight is not 0
   };
 
   Plane plane(std::uint32_t t) const {
@@ -289,8 +290,15 @@ class GreedyInserter {
     return Plane(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
   }
 
-  static double effective_error(const Filed& f, double surface) {
-    return std::abs(f.z - surface) + f.weight;
+  double effective_error(const Filed& f, double surface) const {
+    const double e = std::abs(f.z - surface);
+    if (!f.weighted) return e;  // (|…| + 0 is |…|, bit for bit)
+    return plus_weight(e, f.id);
+  }
+  // Out of line, so that the compiler cannot turn the branch above into a conditional move that
+  // reads the point's weight (a random access) for every point.
+  [[gnu::noinline]] double plus_weight(double e, std::uint32_t id) const {
+    return e + pts_[id].weight;
   }
 
   // Recomputes t's best candidate from its bucket (compacting away points that left) and its
@@ -528,8 +536,11 @@ class GreedyInserter {
     }
   }
 
-  // Files the gathered points into the star (largest smallest barycentric weight), each star
-  // triangle's bucket appended at the pool's end, and re-ranks the star.
+  // Files the gathered points into the star, each star triangle's bucket appended at the pool's
+  // end, and re-ranks the star. A point goes under the first star triangle (in star_ order, or
+  // for a big star the one of its angle and then that one's two neighbours) whose smallest
+  // barycentric weight is ≥ 0, and when rounding puts it in none, under the one where that
+  // weight is largest.
   void refile() {
     const std::size_t n = star_.size();
     std::size_t entries = 0;
@@ -540,72 +551,53 @@ class GreedyInserter {
     }
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
-    star_count_.assign(n, 0);
-    slot_.resize(entries);
-    surface_.resize(entries);
+    star_best_.assign(n, kNone);  // the index in its scratch bucket, then in the pool
+    star_error_.assign(n, -1.0);
+    if (scratch_.size() < n) scratch_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) scratch_[k].clear();
     const bool by_angle = n > kSmallStar;
     if (by_angle) sort_star_by_angle();
-    const XY& c = xy_.back();
-    std::size_t g = 0, moved = 0;
+    // (The loops work on raw pointers: through the vectors, every store made the compiler reload
+    // their bounds.)
+    std::vector<Filed>* const scratch = scratch_.data();
+    std::uint32_t* const star_best = star_best_.data();
+    double* const star_error = star_error_.data();
+    const Plane* const planes = planes_.data();
+    std::uint32_t moved = 0;
+    // Each point into the scratch bucket of its star triangle (in gather order, as before).
     for (const auto& [b, cnt] : taken_) {
-      for (std::uint32_t e = b; e < b + cnt; ++e, ++g) {
-        const Filed& f = pool_[e];
-        if (f.kind != kCandidate && f.kind != kExtra) {
-          slot_[g] = kNone;
-          continue;
-        }
-        double best_w = -std::numeric_limits<double>::infinity(), w;
+      const Filed* const bucket = pool_.data() + b;
+      for (std::uint32_t e = 0; e < cnt; ++e) {
+        const Filed& f = bucket[e];
+        if (f.kind != kCandidate && f.kind != kExtra) continue;
+        double surface;
         std::uint32_t k = 0;
         if (by_angle) {
-          // The sector of the pseudo-angle, then its neighbours if rounding put q outside it.
-          const double a = pseudo_angle(f.x - c.x, f.y - c.y);
-          const auto it = std::upper_bound(sector_start_.begin(), sector_start_.end(), a);
-          const std::size_t at = it == sector_start_.begin()
-                                     ? n - 1
-                                     : static_cast<std::size_t>(it - sector_start_.begin()) - 1;
-          for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
-            const std::uint32_t s = sector_[(at + d) % n];
-            w = planes_[s].min_weight(f.x, f.y);
-            if (w > best_w) best_w = w, k = s;
-            if (w >= 0) break;
-          }
+          k = locate_by_angle(f.x, f.y, &surface);
+        } else {
+          while (k < n && !planes[k].contains(f.x, f.y, &surface)) ++k;
+          if (k == n) k = locate_in_order(f.x, f.y, &surface);
         }
-        if (!(best_w >= 0)) {
-          for (std::size_t s = 0; s < n; ++s) {
-            w = planes_[s].min_weight(f.x, f.y);
-            if (w > best_w) best_w = w, k = static_cast<std::uint32_t>(s);
-            if (w >= 0) break;
-          }
-        }
-        slot_[g] = k;
-        surface_[g] = planes_[k].at(f.x, f.y, &w);
-        ++star_count_[k];
+        std::vector<Filed>& to = scratch[k];
+        to.push_back(f);
         ++moved;
+        if (f.kind != kCandidate) continue;
+        const double err = effective_error(f, surface);
+        if (err > star_error[k]) {
+          star_error[k] = err, star_best[k] = static_cast<std::uint32_t>(to.size() - 1);
+        }
       }
     }
-    // The new buckets go after everything (the taken ones included), so reading and writing
-    // never overlap; positions are indices, valid across the resize.
-    auto at = static_cast<std::uint32_t>(pool_.size());
-    pool_.resize(pool_.size() + moved);
-    star_best_.assign(n, kNone);
-    star_error_.assign(n, -1.0);
+    // The new buckets go after everything (the taken ones included); positions are indices,
+    // valid across the growth (which insert() keeps within the capacity).
     for (std::size_t k = 0; k < n; ++k) {
-      begin_[star_[k]] = at;
-      count_[star_[k]] = 0;
-      at += star_count_[k];
-    }
-    g = 0;
-    for (const auto& [b, cnt] : taken_) {
-      for (std::uint32_t e = b; e < b + cnt; ++e, ++g) {
-        if (slot_[g] == kNone) continue;
-        const std::size_t k = slot_[g];
-        const std::uint32_t t = star_[k];
-        const std::uint32_t pos = begin_[t] + count_[t]++;
-        pool_[pos] = pool_[e];
-        if (pool_[pos].kind != kCandidate) continue;
-        const double err = effective_error(pool_[pos], surface_[g]);
-        if (err > star_error_[k]) star_error_[k] = err, star_best_[k] = pos;
-      }
+      const std::uint32_t t = star_[k];
+      const auto at = static_cast<std::uint32_t>(pool_.size());
+      const std::vector<Filed>& from = scratch[k];
+      begin_[t] = at;
+      count_[t] = static_cast<std::uint32_t>(from.size());
+      pool_.insert(pool_.end(), from.begin(), from.end());
+      if (star_best[k] != kNone) star_best[k] += at;
     }
     live_ += moved;
     for (std::size_t k = 0; k < n; ++k) {
@@ -615,6 +607,49 @@ class GreedyInserter {
         set_best(star_[k], star_best_[k], star_error_[k]);
       }
     }
+  }
+
+  // The star index to file (x, y) under, *surface the star's height there: the first star
+  // triangle that contains it up to rounding (Plane::contains: min_weight ≥ 0, evaluated only as
+  // far as the first negative weight), else the first of largest min_weight after the ones
+  // already tried (`best_w`, `k`: by locate_by_angle). (refile() runs the first loop inline.)
+  std::uint32_t locate_in_order(double x, double y, double* surface,
+                                double best_w = -std::numeric_limits<double>::infinity(),
+                                std::uint32_t k = 0) const {
+    const std::size_t n = planes_.size();
+    const Plane* const planes = planes_.data();
+    for (std::size_t s = 0; s < n; ++s) {
+      if (planes[s].contains(x, y, surface)) return static_cast<std::uint32_t>(s);
+    }
+    for (std::size_t s = 0; s < n; ++s) {
+      const double w = planes[s].min_weight(x, y);
+      if (w > best_w) best_w = w, k = static_cast<std::uint32_t>(s);
+    }
+    double w;
+    *surface = planes_[k].at(x, y, &w);
+    return k;
+  }
+
+  // For a big star: the sector of the pseudo-angle of (x, y) around the new vertex, then its
+  // neighbours if rounding put the point outside it, then locate_in_order.
+  std::uint32_t locate_by_angle(double x, double y, double* surface) const {
+    const std::size_t n = planes_.size();
+    const XY& c = xy_.back();
+    const double a = pseudo_angle(x - c.x, y - c.y);
+    const std::size_t after = first_sector_after(a);
+    const std::size_t at = after == 0 ? n - 1 : after - 1;
+    double best_w = -std::numeric_limits<double>::infinity(), w;
+    std::uint32_t k = 0;
+    for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
+      const std::uint32_t s = sector_[(at + d) % n];
+      w = planes_[s].min_weight(x, y);
+      if (w > best_w) best_w = w, k = s;
+      if (w >= 0) {
+        *surface = planes_[k].at(x, y, &w);
+        return k;
+      }
+    }
+    return locate_in_order(x, y, surface, best_w, k);
   }
 
   // A number in [0, 4) increasing with the angle of (dx, dy) from the +x axis (no atan2).
@@ -641,17 +676,49 @@ class GreedyInserter {
               [&](std::uint32_t a, std::uint32_t b) { return angle_[a] < angle_[b]; });
     sector_start_.resize(n);
     for (std::size_t s = 0; s < n; ++s) sector_start_[s] = angle_[sector_[s]];
+    // A guess table for first_sector_after: 2n cells over [0, 4), each with the number of
+    // sector starts below its lower end.
+    const std::size_t cells = 2 * n;
+    sector_cells_per_unit_ = static_cast<double>(cells) / 4.0;
+    sector_guess_.resize(cells + 1);
+    std::size_t k = 0;
+    for (std::size_t i = 0; i <= cells; ++i) {
+      const double lo = static_cast<double>(i) / sector_cells_per_unit_;
+      while (k < n && sector_start_[k] < lo) ++k;
+      sector_guess_[i] = static_cast<std::uint32_t>(k);
+    }
+  }
+
+  // std::upper_bound(sector_start_, a) as an index: a guess from the table, then corrected in
+  // both directions, so the table's rounding only costs steps, never changes the answer.
+  std::size_t first_sector_after(double a) const {
+    const std::size_t n = sector_start_.size();
+    const double* const start = sector_start_.data();
+    if (!(a >= 0 && a < 4)) {  // (NaN: no guess; upper_bound's answer is n)
+      return static_cast<std::size_t>(std::upper_bound(start, start + n, a) - start);
+    }
+    std::size_t i = sector_guess_[static_cast<std::size_t>(a * sector_cells_per_unit_)];
+    while (i > 0 && a < start[i - 1]) --i;
+    while (i < n && !(a < start[i])) ++i;
+    return i;
   }
 
   // Drops the pool's abandoned buckets (a refile appends, it never reuses).
   // (Into the spare buffer, swapped: both keep their capacity, no page faults.)
   void compact() {
     spare_.clear();
-    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+    const auto triangles = static_cast<std::uint32_t>(tris_.size());
+    for (std::uint32_t t = 0; t < triangles; ++t) {
       const auto nb = static_cast<std::uint32_t>(spare_.size());
-      spare_.insert(spare_.end(), pool_.begin() + begin_[t], pool_.begin() + begin_[t] + count_[t]);
-      if (best_[t] != kNone && !lattice_) best_[t] = nb + (best_[t] - begin_[t]);
+      const std::uint32_t b = begin_[t], n = count_[t];
       begin_[t] = nb;
+      if (n == 0) continue;  // (most buckets, late in the run: no library call for them)
+      if (n <= 4) {
+        for (std::uint32_t k = b; k < b + n; ++k) spare_.push_back(pool_[k]);
+      } else {
+        spare_.insert(spare_.end(), pool_.begin() + b, pool_.begin() + b + n);
+      }
+      if (best_[t] != kNone && !lattice_) best_[t] = nb + (best_[t] - b);
     }
     pool_.swap(spare_);
   }
@@ -676,12 +743,14 @@ class GreedyInserter {
   std::vector<std::uint32_t> best_;  // by triangle: pool index of its candidate of largest error
   IndexedHeap heap_;                 // triangles by −(largest effective error), then id
   // Scratch of one insertion.
-  std::vector<std::uint32_t> star_, stack_, star_best_, star_count_;
+  std::vector<std::uint32_t> star_, stack_, star_best_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
-  std::vector<std::uint32_t> slot_;
-  std::vector<double> star_error_, surface_;
+  std::vector<std::vector<Filed>> scratch_;  // by star index: its points, in gather order
+  std::vector<double> star_error_;
   std::vector<std::uint32_t> sector_;
   std::vector<double> angle_, sector_start_;
+  std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
+  double sector_cells_per_unit_ = 0;
   std::vector<Plane> planes_;
 };
 

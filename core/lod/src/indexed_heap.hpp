@@ -2,6 +2,7 @@
 // stages of the thinning (greedy.cpp, thinning.cpp).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -13,9 +14,12 @@ namespace tinstream::lod::detail {
 class IndexedHeap {
  public:
   explicit IndexedHeap(std::size_t ids) : pos_(ids, kAbsent), key_(ids, 0.0) {}
-  // Makes room for ids < `ids` (never shrinks).
+  // Makes room for ids < `ids` (never shrinks; at least doubles, so that growing by one id at a
+  // time is amortised).
   void grow(std::size_t ids) {
-    if (ids > pos_.size()) pos_.resize(ids, kAbsent), key_.resize(ids, 0.0);
+    if (ids <= pos_.size()) return;
+    ids = std::max(ids, 2 * pos_.size());
+    pos_.resize(ids, kAbsent), key_.resize(ids, 0.0);
   }
   std::size_t size() const { return heap_.size(); }
   bool empty() const { return heap_.empty(); }

@@ -27,6 +27,19 @@ struct Plane {
     const double wc = (bx * qy - by * qx) * inv_det;
     return std::min(std::min(wb, wc), 1.0 - wb - wc);
   }
+  // Whether min_weight(x, y) ≥ 0 (the same arithmetic, stopping at the first negative weight);
+  // if so, *z = the height at (x, y), as at() gives it.
+  bool contains(double x, double y, double* z) const {
+    const double qx = x - ax, qy = y - ay;
+    const double wb = (qx * cy - qy * cx) * inv_det;
+    if (!(wb >= 0)) return false;  // then min(min(wb, wc), …) < 0 or NaN
+    const double wc = (bx * qy - by * qx) * inv_det;
+    const double m = std::min(wb, wc);
+    if (!(m >= 0)) return false;
+    if (!(std::min(m, 1.0 - wb - wc) >= 0)) return false;
+    *z = az + wb * dzb + wc * dzc;
+    return true;
+  }
   // Height at (x, y); *min_weight (≥ 0 inside up to rounding) the smallest barycentric weight.
   double at(double x, double y, double* min_weight) const {
     const double qx = x - ax, qy = y - ay;
