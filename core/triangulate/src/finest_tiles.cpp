@@ -67,6 +67,17 @@ bool bbox_meets(const XY& a, const XY& b, const XY& c, const geo::MercatorRect& 
          std::max({a.y, b.y, c.y}) >= r.min_y && std::min({a.y, b.y, c.y}) <= r.max_y;
 }
 
+// Conservative: true whenever triangle abc may meet the border ∂R of the closed rectangle — its
+// bounding box meets R and does not lie in R's open interior. (A triangle meeting R with a vertex
+// on or outside ∂R meets ∂R, since it is convex; one with all vertices strictly inside R does not.)
+bool bbox_meets_border(const XY& a, const XY& b, const XY& c, const geo::MercatorRect& r) {
+  if (!bbox_meets(a, b, c, r)) return false;
+  const bool strictly_inside =
+      std::min({a.x, b.x, c.x}) > r.min_x && std::max({a.x, b.x, c.x}) < r.max_x &&
+      std::min({a.y, b.y, c.y}) > r.min_y && std::max({a.y, b.y, c.y}) < r.max_y;
+  return !strictly_inside;
+}
+
 geo::MercatorRect cell_rect(std::uint32_t level, std::uint32_t cx, std::uint32_t cy) {
   return geo::TileId{level, cx, cy}.bounds();
 }
@@ -163,20 +174,20 @@ std::vector<XY> convex_hull(std::vector<XY> points) {
 }
 
 // Whether a point lies in the (perturbed) circumcircle of some triangle of a canonical Delaunay
-// mesh that touches the rectangle R — the halo's question, answered per point: locate the point
-// by a visibility walk (from the previous answer's triangle), then search its conflict region,
-// the triangles whose circle holds it. That region is connected (Bowyer–Watson's cavity; for a
-// point outside the hull it hangs off the hull edges the point sees), so a breadth-first search
-// through conflicting triangles finds all of it. Cost: the walk plus the region, instead of one
-// test per (circle, point) pair — which a dense, slightly curved line of points (thousands of
-// slivers whose huge circles sweep along the whole halo band) makes quadratic.
+// mesh that meets the border ∂R of the rectangle R — the halo's question, answered per point:
+// locate the point by a visibility walk (from the previous answer's triangle), then search its
+// conflict region, the triangles whose circle holds it. That region is connected (Bowyer–Watson's
+// cavity; for a point outside the hull it hangs off the hull edges the point sees), so a
+// breadth-first search through conflicting triangles finds all of it. Cost: the walk plus the
+// region, instead of one test per (circle, point) pair — which a dense, slightly curved line of
+// points (thousands of slivers whose huge circles sweep along the whole halo band) makes quadratic.
 class ConflictSearch {
  public:
   ConflictSearch(const std::vector<XY>& v, const detail::DelaunayMesh& mesh,
                  const geo::MercatorRect& r)
       : v_(v), tri_(mesh.triangles), nb_(mesh.neighbours), r_(r), mark_(tri_.size(), 0) {}
 
-  // True when p is inside the circle of a triangle touching R (conservatively true if the walk
+  // True when p is inside the circle of a triangle meeting ∂R (conservatively true if the walk
   // made no progress, which cannot happen on a Delaunay mesh). `tests` counts in-circle tests.
   bool conflicts_near_r(const XY& p, std::uint64_t& tests) {
     if (tri_.empty()) return false;
@@ -220,7 +231,7 @@ class ConflictSearch {
       const std::uint32_t q = queue_[head];
       ++tests;
       if (detail::perturbed_incircle(at(q, 0), at(q, 1), at(q, 2), p) <= 0) continue;
-      if (bbox_meets(at(q, 0), at(q, 1), at(q, 2), r_)) return true;
+      if (bbox_meets_border(at(q, 0), at(q, 1), at(q, 2), r_)) return true;
       for (std::uint32_t n : nb_[q]) {
         if (n != detail::kNoNeighbour) push(n);
       }
@@ -408,7 +419,8 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     }
   };
   // Gathers what the current local triangulation says is missing: points inside the circumcircle
-  // of a triangle touching R, or beyond a local hull edge touching R (both only within B).
+  // of a triangle meeting R's border ∂R, or beyond a local hull edge touching R (both only within
+  // B).
   auto grow_halo = [&](const std::vector<XY>& v, const detail::DelaunayMesh& mesh) {
     const auto& tri = mesh.triangles;
     if (tri.empty()) {
@@ -469,7 +481,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     // While the local hull still moves near R, the circles of its slivers are meaningless (and
     // huge): settle the hull first.
     if (!pending.empty()) return;
-    // The triangles touching R whose circle reaches beyond `inner` (only there can a point not
+    // The triangles meeting ∂R whose circle reaches beyond `inner` (only there can a point not
     // yet gathered lie inside it). Small circles: test the points of the few cells each meets.
     // Many large ones (a dense, slightly curved line of points gives thousands of slivers whose
     // circles sweep along all of B): ask per point instead (ConflictSearch), once for the cells
@@ -496,7 +508,26 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     for (std::size_t ti = 0; ti < tri.size(); ++ti) {
       const auto& t = tri[ti];
       const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
-      if (!bbox_meets(a, b, c, R)) continue;
+      // Only triangles meeting the border ∂R are asked, not all triangles meeting R: the tile's
+      // output depends only on the global triangles meeting ∂R (edge points, corners) and on the
+      // own points, and those triangles are right once no missing point lies in the circle of a
+      // local triangle meeting ∂R (with the hull test below, which is unchanged):
+      //  - A local triangle t′ meeting ∂R with circumradius ≤ rmax has its circle inside B; if no
+      //    point of B outside S lies in it, it is empty of all points, so it is global.
+      //  - A global triangle t (circumradius ≤ rmax) meeting ∂R at x with a vertex missing from S
+      //    (cavity argument): let S' = S ∪ vertices(t); t ∈ DT(S'), since its circle is empty.
+      //    If x is inside conv(S), the triangles of DT(S) containing x cover a neighbourhood of x;
+      //    were all of them still in DT(S'), t would overlap one of them and equal it, so t would
+      //    be in DT(S). Hence inserting S' \ S (Bowyer–Watson, under the same perturbation)
+      //    destroys one of them, t′, and the point whose insertion first does is in t′'s circle;
+      //    it lies in t's circle ⊂ B, outside S, and t′ contains x ∈ ∂R. On conv(S)'s boundary
+      //    the same holds unless t lies beyond the hull edge through x near x; outside conv(S)
+      //    the segment from x to an own point (every tile has one, and R is convex) leaves
+      //    conv(S) through a hull edge meeting R. Either way a vertex of t lies beyond a local
+      //    hull edge meeting R, and the hull search below finds a missing point there.
+      // So checking triangles strictly inside R only added work (and most of it: the slivers of
+      // the data's hull where it runs through R, whose circles are huge).
+      if (!bbox_meets_border(a, b, c, R)) continue;
       const Circle circle = circumcircle(a, b, c);
       // Circles inside R grown by one cell lie in cells gathered from the start (own + ring).
       if (!circle.unbounded) {
