@@ -9,8 +9,10 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <thread>
 #include <tuple>
+#include <type_traits>
 #include <unordered_set>
 
 #include "delaunay.hpp"
@@ -342,9 +344,41 @@ std::pair<std::uint64_t, std::uint64_t> PointCells::cell_range(std::uint32_t cx,
 
 // ── One tile ───────────────────────────────────────────────────────────────────────────────────
 
-Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
-                                        subdivide::SortedRunReader& reader,
-                                        const FinestTileOptions& options, FinestTileStats* stats) {
+namespace {
+
+// The working memory of one tile, kept by a worker from tile to tile so that its capacity is
+// reused (contents never carry over: build_tile clears each before use). One per thread.
+struct TileBuffers {
+  std::unordered_set<std::uint64_t> have;  // cells in S or pending
+  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
+  std::vector<SortedPoint> pts;    // S, in gathering order
+  std::vector<SortedPoint> own;    // the tile's own records, read at once
+  std::vector<SortedPoint> chunk;  // one cell's records
+  // Points of candidate cells (peek_pool[first, first + count) per cell key).
+  std::unordered_map<std::uint64_t, std::pair<std::size_t, std::size_t>> peeked;
+  std::vector<XY> peek_pool;
+  std::vector<XY> xy;
+  std::vector<detail::IndexTriangle> tris;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;   // grow_halo's local hull edges
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // edges crossing the border lines
+
+  // Gives back what one unusual tile (a huge halo) grew, so a worker's memory between tiles stays
+  // that of a typical tile.
+  void release_oversized() {
+    constexpr std::size_t kKeepBytes = std::size_t{16} << 20;
+    auto release = [](auto& v) {
+      if (v.capacity() * sizeof(v[0]) > kKeepBytes) std::decay_t<decltype(v)>().swap(v);
+    };
+    release(pts), release(own), release(chunk), release(peek_pool), release(xy), release(tris);
+    release(hull), release(edges), release(pending);
+  }
+};
+
+Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
+                                 subdivide::SortedRunReader& reader,
+                                 const FinestTileOptions& options, FinestTileStats* stats,
+                                 TileBuffers& buffers) {
   if (id.z != cells.level()) {
     return invalid_argument("tile " + id.to_string() + " is not at the finest level " +
                             std::to_string(cells.level()));
@@ -354,9 +388,12 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   const std::uint32_t n = 1u << cells.sub_shift();
   const std::int64_t cells_per_side = std::int64_t{1} << cell_level;
 
-  std::unordered_set<std::uint64_t> have;  // cells in S or pending
-  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
+  auto& have = buffers.have;
+  auto& in_s = buffers.in_s;
+  auto& pending = buffers.pending;
+  have.clear();
+  in_s.clear();
+  pending.clear();
   auto want = [&](std::int64_t cx, std::int64_t cy) {
     if (cx < 0 || cy < 0 || cx >= cells_per_side || cy >= cells_per_side) return;
     const auto ux = static_cast<std::uint32_t>(cx), uy = static_cast<std::uint32_t>(cy);
@@ -368,22 +405,28 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   }
 
   std::uint64_t circle_tests = 0;
-  std::vector<SortedPoint> pts, chunk;
+  auto& pts = buffers.pts;
+  auto& chunk = buffers.chunk;
+  pts.clear();
   // Points of candidate cells, read once per tile and tested exactly before a cell joins.
-  std::unordered_map<std::uint64_t, std::vector<XY>> peeked;
+  auto& peeked = buffers.peeked;
+  auto& peek_pool = buffers.peek_pool;
+  peeked.clear();
+  peek_pool.clear();
   Status peek_error;
-  auto peek = [&](std::uint32_t cx, std::uint32_t cy) -> const std::vector<XY>& {
+  // The span stays valid until the next peek (the pool may grow).
+  auto peek = [&](std::uint32_t cx, std::uint32_t cy) -> std::span<const XY> {
     auto [it, fresh] = peeked.try_emplace(pack(cx, cy));
     if (fresh) {
       const auto [first, count] = cells.cell_range(cx, cy);
+      it->second = {peek_pool.size(), 0};
       if (count > 0) {
-        std::vector<SortedPoint> raw;
-        if (Status st = reader.read(first, count, raw); !st) peek_error = st;
-        it->second.reserve(raw.size());
-        for (const auto& p : raw) it->second.push_back({p.x, p.y});
+        if (Status st = reader.read(first, count, chunk); !st) peek_error = st;
+        for (const auto& p : chunk) peek_pool.push_back({p.x, p.y});
+        it->second.second = chunk.size();
       }
     }
-    return it->second;
+    return {peek_pool.data() + it->second.first, it->second.second};
   };
   // The initial gather (own cells + a ring of one cell) covers R grown by one cell width.
   const double cell_width = R.width() / n;
@@ -411,7 +454,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
         for (std::uint32_t cy = ty * n; cy < (ty + 1) * n; ++cy) {
           for (std::uint32_t cx = tx * n; cx < (tx + 1) * n; ++cx) {
             if (in_s.count(pack(cx, cy)) || !touches(cell_rect(cell_level, cx, cy))) continue;
-            const auto& cell_points = peek(cx, cy);
+            const std::span<const XY> cell_points = peek(cx, cy);
             if (!cell_points.empty()) visit(cx, cy, cell_points);
           }
         }
@@ -428,12 +471,13 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       // at the data's edge): no triangle to ask, so everything in B may matter — gather it.
       scan_cells(
           B, [](const geo::MercatorRect&) { return true; },
-          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>&) { want(cx, cy); });
+          [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY>) { want(cx, cy); });
       return;
     }
     // The local hull's edges, directed counter-clockwise (no triangle beyond them), visited in
     // (from, to) order so that the cells are gathered in the same order on every run.
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;
+    auto& hull = buffers.hull;
+    hull.clear();
     for (std::size_t t = 0; t < tri.size(); ++t) {
       for (std::size_t k = 0; k < 3; ++k) {
         if (mesh.neighbours[t][k] == detail::kNoNeighbour)
@@ -465,7 +509,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
         const geo::MercatorRect near{std::min(a.x, b.x) - d, std::min(a.y, b.y) - d,
                                      std::max(a.x, b.x) + d, std::max(a.y, b.y) + d};
         scan_cells(
-            near, beyond, [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+            near, beyond, [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
               if (std::any_of(points.begin(), points.end(),
                               [&](const XY& p) { return kernel::orient2d(a, b, p) < 0.0; })) {
                 want(cx, cy);
@@ -496,7 +540,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       }
       scan_cells(
           box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
-          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+          [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
             if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
                   ++circle_tests;
                   return detail::perturbed_incircle(a, b, c, p) > 0;
@@ -565,7 +609,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     ConflictSearch search(v, mesh, R);
     scan_cells(
         cover, [](const geo::MercatorRect&) { return true; },
-        [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+        [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
           for (const XY& p : points) {
             if (search.conflicts_near_r(p, circle_tests)) {
               want(cx, cy);
@@ -574,8 +618,22 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
           }
         });
   };
-  std::vector<XY> xy;
-  std::vector<detail::IndexTriangle> tris;
+  auto& xy = buffers.xy;
+  auto& tris = buffers.tris;
+  // The own cells' records come from one read of the whole tile (cells are contiguous ranges of
+  // it), not one read per cell; they are appended in the same (gathering) order as before.
+  const std::ptrdiff_t own = cells.tile_index(id);
+  auto& own_points = buffers.own;
+  own_points.clear();
+  std::uint64_t own_first = 0;
+  if (own >= 0) {
+    const auto& range = cells.tiles()[static_cast<std::size_t>(own)];
+    own_first = range.first;
+    if (Status s = reader.read(range.first, range.count, own_points); !s) return s.error();
+  }
+  auto is_own_cell = [&](std::uint32_t cx, std::uint32_t cy) {
+    return own >= 0 && cx >= x0 && cx < x0 + n && cy >= y0 && cy < y0 + n;
+  };
   int round = 0;
   for (;; ++round) {
     if (round >= options.max_rounds) {
@@ -586,6 +644,11 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       in_s.insert(pack(cx, cy));
       const auto [first, count] = cells.cell_range(cx, cy);
       if (count == 0) continue;
+      if (is_own_cell(cx, cy)) {
+        const auto begin = own_points.begin() + static_cast<std::ptrdiff_t>(first - own_first);
+        pts.insert(pts.end(), begin, begin + static_cast<std::ptrdiff_t>(count));
+        continue;
+      }
       if (Status s = reader.read(first, count, chunk); !s) return s.error();
       pts.insert(pts.end(), chunk.begin(), chunk.end());
     }
@@ -621,7 +684,6 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       {R.min_x, R.max_y}, {R.max_x, R.max_y}, {R.min_x, R.min_y}, {R.max_x, R.min_y}};
   bool corner_found[4] = {false, false, false, false};
   std::vector<tile::Vertex> north, east, south, west;
-  const std::ptrdiff_t own = cells.tile_index(id);
   out.source_points = own >= 0 ? cells.tiles()[static_cast<std::size_t>(own)].count : 0;
   for (const SortedPoint& p : pts) {
     const bool in_x = p.x > R.min_x && p.x < R.max_x;
@@ -652,8 +714,8 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   });
   // Edges crossing the four border lines: every undirected edge once (hull edges included — the
   // data's outer boundary may run through R).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
-  edges.reserve(tris.size() * 3);
+  auto& edges = buffers.edges;
+  edges.clear();
   for (const auto& t : tris) {
     for (std::size_t k = 0; k < 3; ++k) {
       const std::uint32_t ia = t[k], ib = t[(k + 1) % 3];
@@ -725,6 +787,15 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   return out;
 }
 
+}  // namespace
+
+Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
+                                        subdivide::SortedRunReader& reader,
+                                        const FinestTileOptions& options, FinestTileStats* stats) {
+  TileBuffers buffers;
+  return build_tile(id, cells, reader, options, stats, buffers);
+}
+
 // ── All tiles, in parallel ─────────────────────────────────────────────────────────────────────
 
 Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, unsigned threads,
@@ -751,6 +822,7 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
 
   auto worker = [&] {
     auto reader = subdivide::SortedRunReader::open(cells->run_path());
+    TileBuffers buffers;  // this worker's, reused from tile to tile
     for (;;) {
       const std::size_t i = next.fetch_add(1);
       if (i >= total || stop.load()) return;
@@ -758,7 +830,9 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
       if (!reader) {
         done.tile = reader.error();
       } else {
-        done.tile = build_finest_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats);
+        done.tile =
+            build_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats, buffers);
+        buffers.release_oversized();
       }
       std::unique_lock lock(mutex);
       space.wait(lock, [&] { return queue.size() < capacity || stop.load(); });
