@@ -708,9 +708,13 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
     }
   }
   // Only triangles with circumradius ≤ rmax are part of the surface (larger ones span data gaps
-  // or hug the data's outer boundary; both neighbours decide this identically).
+  // or hug the data's outer boundary; both neighbours decide this identically). Of those, only
+  // the ones that may meet ∂R matter below: an edge crossing a border segment strictly inside it
+  // and a triangle holding a corner both meet ∂R, so the rest (most of them, inside R) go first,
+  // before their circumradius is computed.
   std::erase_if(tris, [&](const detail::IndexTriangle& t) {
-    return !(canonical_circumradius2(xy[t[0]], xy[t[1]], xy[t[2]]) <= rmax2);
+    return !bbox_meets_border(xy[t[0]], xy[t[1]], xy[t[2]], R) ||
+           !(canonical_circumradius2(xy[t[0]], xy[t[1]], xy[t[2]]) <= rmax2);
   });
   // Edges crossing the four border lines: every undirected edge once (hull edges included — the
   // data's outer boundary may run through R).
