@@ -9,8 +9,10 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <thread>
 #include <tuple>
+#include <type_traits>
 #include <unordered_set>
 
 #include "delaunay.hpp"
@@ -65,6 +67,17 @@ bool circle_meets(const Circle& c, const geo::MercatorRect& r) {
 bool bbox_meets(const XY& a, const XY& b, const XY& c, const geo::MercatorRect& r) {
   return std::max({a.x, b.x, c.x}) >= r.min_x && std::min({a.x, b.x, c.x}) <= r.max_x &&
          std::max({a.y, b.y, c.y}) >= r.min_y && std::min({a.y, b.y, c.y}) <= r.max_y;
+}
+
+// Conservative: true whenever triangle abc may meet the border ∂R of the closed rectangle — its
+// bounding box meets R and does not lie in R's open interior. (A triangle meeting R with a vertex
+// on or outside ∂R meets ∂R, since it is convex; one with all vertices strictly inside R does not.)
+bool bbox_meets_border(const XY& a, const XY& b, const XY& c, const geo::MercatorRect& r) {
+  if (!bbox_meets(a, b, c, r)) return false;
+  const bool strictly_inside =
+      std::min({a.x, b.x, c.x}) > r.min_x && std::max({a.x, b.x, c.x}) < r.max_x &&
+      std::min({a.y, b.y, c.y}) > r.min_y && std::max({a.y, b.y, c.y}) < r.max_y;
+  return !strictly_inside;
 }
 
 geo::MercatorRect cell_rect(std::uint32_t level, std::uint32_t cx, std::uint32_t cy) {
@@ -163,20 +176,20 @@ std::vector<XY> convex_hull(std::vector<XY> points) {
 }
 
 // Whether a point lies in the (perturbed) circumcircle of some triangle of a canonical Delaunay
-// mesh that touches the rectangle R — the halo's question, answered per point: locate the point
-// by a visibility walk (from the previous answer's triangle), then search its conflict region,
-// the triangles whose circle holds it. That region is connected (Bowyer–Watson's cavity; for a
-// point outside the hull it hangs off the hull edges the point sees), so a breadth-first search
-// through conflicting triangles finds all of it. Cost: the walk plus the region, instead of one
-// test per (circle, point) pair — which a dense, slightly curved line of points (thousands of
-// slivers whose huge circles sweep along the whole halo band) makes quadratic.
+// mesh that meets the border ∂R of the rectangle R — the halo's question, answered per point:
+// locate the point by a visibility walk (from the previous answer's triangle), then search its
+// conflict region, the triangles whose circle holds it. That region is connected (Bowyer–Watson's
+// cavity; for a point outside the hull it hangs off the hull edges the point sees), so a
+// breadth-first search through conflicting triangles finds all of it. Cost: the walk plus the
+// region, instead of one test per (circle, point) pair — which a dense, slightly curved line of
+// points (thousands of slivers whose huge circles sweep along the whole halo band) makes quadratic.
 class ConflictSearch {
  public:
   ConflictSearch(const std::vector<XY>& v, const detail::DelaunayMesh& mesh,
                  const geo::MercatorRect& r)
       : v_(v), tri_(mesh.triangles), nb_(mesh.neighbours), r_(r), mark_(tri_.size(), 0) {}
 
-  // True when p is inside the circle of a triangle touching R (conservatively true if the walk
+  // True when p is inside the circle of a triangle meeting ∂R (conservatively true if the walk
   // made no progress, which cannot happen on a Delaunay mesh). `tests` counts in-circle tests.
   bool conflicts_near_r(const XY& p, std::uint64_t& tests) {
     if (tri_.empty()) return false;
@@ -220,7 +233,7 @@ class ConflictSearch {
       const std::uint32_t q = queue_[head];
       ++tests;
       if (detail::perturbed_incircle(at(q, 0), at(q, 1), at(q, 2), p) <= 0) continue;
-      if (bbox_meets(at(q, 0), at(q, 1), at(q, 2), r_)) return true;
+      if (bbox_meets_border(at(q, 0), at(q, 1), at(q, 2), r_)) return true;
       for (std::uint32_t n : nb_[q]) {
         if (n != detail::kNoNeighbour) push(n);
       }
@@ -331,9 +344,41 @@ std::pair<std::uint64_t, std::uint64_t> PointCells::cell_range(std::uint32_t cx,
 
 // ── One tile ───────────────────────────────────────────────────────────────────────────────────
 
-Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
-                                        subdivide::SortedRunReader& reader,
-                                        const FinestTileOptions& options, FinestTileStats* stats) {
+namespace {
+
+// The working memory of one tile, kept by a worker from tile to tile so that its capacity is
+// reused (contents never carry over: build_tile clears each before use). One per thread.
+struct TileBuffers {
+  std::unordered_set<std::uint64_t> have;  // cells in S or pending
+  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
+  std::vector<SortedPoint> pts;    // S, in gathering order
+  std::vector<SortedPoint> own;    // the tile's own records, read at once
+  std::vector<SortedPoint> chunk;  // one cell's records
+  // Points of candidate cells (peek_pool[first, first + count) per cell key).
+  std::unordered_map<std::uint64_t, std::pair<std::size_t, std::size_t>> peeked;
+  std::vector<XY> peek_pool;
+  std::vector<XY> xy;
+  std::vector<detail::IndexTriangle> tris;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;   // grow_halo's local hull edges
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // edges crossing the border lines
+
+  // Gives back what one unusual tile (a huge halo) grew, so a worker's memory between tiles stays
+  // that of a typical tile.
+  void release_oversized() {
+    constexpr std::size_t kKeepBytes = std::size_t{16} << 20;
+    auto release = [](auto& v) {
+      if (v.capacity() * sizeof(v[0]) > kKeepBytes) std::decay_t<decltype(v)>().swap(v);
+    };
+    release(pts), release(own), release(chunk), release(peek_pool), release(xy), release(tris);
+    release(hull), release(edges), release(pending);
+  }
+};
+
+Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
+                                 subdivide::SortedRunReader& reader,
+                                 const FinestTileOptions& options, FinestTileStats* stats,
+                                 TileBuffers& buffers) {
   if (id.z != cells.level()) {
     return invalid_argument("tile " + id.to_string() + " is not at the finest level " +
                             std::to_string(cells.level()));
@@ -343,9 +388,12 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   const std::uint32_t n = 1u << cells.sub_shift();
   const std::int64_t cells_per_side = std::int64_t{1} << cell_level;
 
-  std::unordered_set<std::uint64_t> have;  // cells in S or pending
-  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
+  auto& have = buffers.have;
+  auto& in_s = buffers.in_s;
+  auto& pending = buffers.pending;
+  have.clear();
+  in_s.clear();
+  pending.clear();
   auto want = [&](std::int64_t cx, std::int64_t cy) {
     if (cx < 0 || cy < 0 || cx >= cells_per_side || cy >= cells_per_side) return;
     const auto ux = static_cast<std::uint32_t>(cx), uy = static_cast<std::uint32_t>(cy);
@@ -357,22 +405,28 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   }
 
   std::uint64_t circle_tests = 0;
-  std::vector<SortedPoint> pts, chunk;
+  auto& pts = buffers.pts;
+  auto& chunk = buffers.chunk;
+  pts.clear();
   // Points of candidate cells, read once per tile and tested exactly before a cell joins.
-  std::unordered_map<std::uint64_t, std::vector<XY>> peeked;
+  auto& peeked = buffers.peeked;
+  auto& peek_pool = buffers.peek_pool;
+  peeked.clear();
+  peek_pool.clear();
   Status peek_error;
-  auto peek = [&](std::uint32_t cx, std::uint32_t cy) -> const std::vector<XY>& {
+  // The span stays valid until the next peek (the pool may grow).
+  auto peek = [&](std::uint32_t cx, std::uint32_t cy) -> std::span<const XY> {
     auto [it, fresh] = peeked.try_emplace(pack(cx, cy));
     if (fresh) {
       const auto [first, count] = cells.cell_range(cx, cy);
+      it->second = {peek_pool.size(), 0};
       if (count > 0) {
-        std::vector<SortedPoint> raw;
-        if (Status st = reader.read(first, count, raw); !st) peek_error = st;
-        it->second.reserve(raw.size());
-        for (const auto& p : raw) it->second.push_back({p.x, p.y});
+        if (Status st = reader.read(first, count, chunk); !st) peek_error = st;
+        for (const auto& p : chunk) peek_pool.push_back({p.x, p.y});
+        it->second.second = chunk.size();
       }
     }
-    return it->second;
+    return {peek_pool.data() + it->second.first, it->second.second};
   };
   // The initial gather (own cells + a ring of one cell) covers R grown by one cell width.
   const double cell_width = R.width() / n;
@@ -400,7 +454,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
         for (std::uint32_t cy = ty * n; cy < (ty + 1) * n; ++cy) {
           for (std::uint32_t cx = tx * n; cx < (tx + 1) * n; ++cx) {
             if (in_s.count(pack(cx, cy)) || !touches(cell_rect(cell_level, cx, cy))) continue;
-            const auto& cell_points = peek(cx, cy);
+            const std::span<const XY> cell_points = peek(cx, cy);
             if (!cell_points.empty()) visit(cx, cy, cell_points);
           }
         }
@@ -408,7 +462,8 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     }
   };
   // Gathers what the current local triangulation says is missing: points inside the circumcircle
-  // of a triangle touching R, or beyond a local hull edge touching R (both only within B).
+  // of a triangle meeting R's border ∂R, or beyond a local hull edge touching R (both only within
+  // B).
   auto grow_halo = [&](const std::vector<XY>& v, const detail::DelaunayMesh& mesh) {
     const auto& tri = mesh.triangles;
     if (tri.empty()) {
@@ -416,12 +471,13 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       // at the data's edge): no triangle to ask, so everything in B may matter — gather it.
       scan_cells(
           B, [](const geo::MercatorRect&) { return true; },
-          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>&) { want(cx, cy); });
+          [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY>) { want(cx, cy); });
       return;
     }
     // The local hull's edges, directed counter-clockwise (no triangle beyond them), visited in
     // (from, to) order so that the cells are gathered in the same order on every run.
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;
+    auto& hull = buffers.hull;
+    hull.clear();
     for (std::size_t t = 0; t < tri.size(); ++t) {
       for (std::size_t k = 0; k < 3; ++k) {
         if (mesh.neighbours[t][k] == detail::kNoNeighbour)
@@ -453,7 +509,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
         const geo::MercatorRect near{std::min(a.x, b.x) - d, std::min(a.y, b.y) - d,
                                      std::max(a.x, b.x) + d, std::max(a.y, b.y) + d};
         scan_cells(
-            near, beyond, [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+            near, beyond, [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
               if (std::any_of(points.begin(), points.end(),
                               [&](const XY& p) { return kernel::orient2d(a, b, p) < 0.0; })) {
                 want(cx, cy);
@@ -469,7 +525,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     // While the local hull still moves near R, the circles of its slivers are meaningless (and
     // huge): settle the hull first.
     if (!pending.empty()) return;
-    // The triangles touching R whose circle reaches beyond `inner` (only there can a point not
+    // The triangles meeting ∂R whose circle reaches beyond `inner` (only there can a point not
     // yet gathered lie inside it). Small circles: test the points of the few cells each meets.
     // Many large ones (a dense, slightly curved line of points gives thousands of slivers whose
     // circles sweep along all of B): ask per point instead (ConflictSearch), once for the cells
@@ -484,7 +540,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       }
       scan_cells(
           box, [&](const geo::MercatorRect& rect) { return circle_meets(circle, rect); },
-          [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+          [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
             if (std::any_of(points.begin(), points.end(), [&](const XY& p) {
                   ++circle_tests;
                   return detail::perturbed_incircle(a, b, c, p) > 0;
@@ -496,7 +552,26 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     for (std::size_t ti = 0; ti < tri.size(); ++ti) {
       const auto& t = tri[ti];
       const XY &a = v[t[0]], &b = v[t[1]], &c = v[t[2]];
-      if (!bbox_meets(a, b, c, R)) continue;
+      // Only triangles meeting the border ∂R are asked, not all triangles meeting R: the tile's
+      // output depends only on the global triangles meeting ∂R (edge points, corners) and on the
+      // own points, and those triangles are right once no missing point lies in the circle of a
+      // local triangle meeting ∂R (with the hull test below, which is unchanged):
+      //  - A local triangle t′ meeting ∂R with circumradius ≤ rmax has its circle inside B; if no
+      //    point of B outside S lies in it, it is empty of all points, so it is global.
+      //  - A global triangle t (circumradius ≤ rmax) meeting ∂R at x with a vertex missing from S
+      //    (cavity argument): let S' = S ∪ vertices(t); t ∈ DT(S'), since its circle is empty.
+      //    If x is inside conv(S), the triangles of DT(S) containing x cover a neighbourhood of x;
+      //    were all of them still in DT(S'), t would overlap one of them and equal it, so t would
+      //    be in DT(S). Hence inserting S' \ S (Bowyer–Watson, under the same perturbation)
+      //    destroys one of them, t′, and the point whose insertion first does is in t′'s circle;
+      //    it lies in t's circle ⊂ B, outside S, and t′ contains x ∈ ∂R. On conv(S)'s boundary
+      //    the same holds unless t lies beyond the hull edge through x near x; outside conv(S)
+      //    the segment from x to an own point (every tile has one, and R is convex) leaves
+      //    conv(S) through a hull edge meeting R. Either way a vertex of t lies beyond a local
+      //    hull edge meeting R, and the hull search below finds a missing point there.
+      // So checking triangles strictly inside R only added work (and most of it: the slivers of
+      // the data's hull where it runs through R, whose circles are huge).
+      if (!bbox_meets_border(a, b, c, R)) continue;
       const Circle circle = circumcircle(a, b, c);
       // Circles inside R grown by one cell lie in cells gathered from the start (own + ring).
       if (!circle.unbounded) {
@@ -534,7 +609,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     ConflictSearch search(v, mesh, R);
     scan_cells(
         cover, [](const geo::MercatorRect&) { return true; },
-        [&](std::uint32_t cx, std::uint32_t cy, const std::vector<XY>& points) {
+        [&](std::uint32_t cx, std::uint32_t cy, std::span<const XY> points) {
           for (const XY& p : points) {
             if (search.conflicts_near_r(p, circle_tests)) {
               want(cx, cy);
@@ -543,8 +618,22 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
           }
         });
   };
-  std::vector<XY> xy;
-  std::vector<detail::IndexTriangle> tris;
+  auto& xy = buffers.xy;
+  auto& tris = buffers.tris;
+  // The own cells' records come from one read of the whole tile (cells are contiguous ranges of
+  // it), not one read per cell; they are appended in the same (gathering) order as before.
+  const std::ptrdiff_t own = cells.tile_index(id);
+  auto& own_points = buffers.own;
+  own_points.clear();
+  std::uint64_t own_first = 0;
+  if (own >= 0) {
+    const auto& range = cells.tiles()[static_cast<std::size_t>(own)];
+    own_first = range.first;
+    if (Status s = reader.read(range.first, range.count, own_points); !s) return s.error();
+  }
+  auto is_own_cell = [&](std::uint32_t cx, std::uint32_t cy) {
+    return own >= 0 && cx >= x0 && cx < x0 + n && cy >= y0 && cy < y0 + n;
+  };
   int round = 0;
   for (;; ++round) {
     if (round >= options.max_rounds) {
@@ -555,6 +644,11 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       in_s.insert(pack(cx, cy));
       const auto [first, count] = cells.cell_range(cx, cy);
       if (count == 0) continue;
+      if (is_own_cell(cx, cy)) {
+        const auto begin = own_points.begin() + static_cast<std::ptrdiff_t>(first - own_first);
+        pts.insert(pts.end(), begin, begin + static_cast<std::ptrdiff_t>(count));
+        continue;
+      }
       if (Status s = reader.read(first, count, chunk); !s) return s.error();
       pts.insert(pts.end(), chunk.begin(), chunk.end());
     }
@@ -590,7 +684,6 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
       {R.min_x, R.max_y}, {R.max_x, R.max_y}, {R.min_x, R.min_y}, {R.max_x, R.min_y}};
   bool corner_found[4] = {false, false, false, false};
   std::vector<tile::Vertex> north, east, south, west;
-  const std::ptrdiff_t own = cells.tile_index(id);
   out.source_points = own >= 0 ? cells.tiles()[static_cast<std::size_t>(own)].count : 0;
   for (const SortedPoint& p : pts) {
     const bool in_x = p.x > R.min_x && p.x < R.max_x;
@@ -615,14 +708,18 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
     }
   }
   // Only triangles with circumradius ≤ rmax are part of the surface (larger ones span data gaps
-  // or hug the data's outer boundary; both neighbours decide this identically).
+  // or hug the data's outer boundary; both neighbours decide this identically). Of those, only
+  // the ones that may meet ∂R matter below: an edge crossing a border segment strictly inside it
+  // and a triangle holding a corner both meet ∂R, so the rest (most of them, inside R) go first,
+  // before their circumradius is computed.
   std::erase_if(tris, [&](const detail::IndexTriangle& t) {
-    return !(canonical_circumradius2(xy[t[0]], xy[t[1]], xy[t[2]]) <= rmax2);
+    return !bbox_meets_border(xy[t[0]], xy[t[1]], xy[t[2]], R) ||
+           !(canonical_circumradius2(xy[t[0]], xy[t[1]], xy[t[2]]) <= rmax2);
   });
   // Edges crossing the four border lines: every undirected edge once (hull edges included — the
   // data's outer boundary may run through R).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
-  edges.reserve(tris.size() * 3);
+  auto& edges = buffers.edges;
+  edges.clear();
   for (const auto& t : tris) {
     for (std::size_t k = 0; k < 3; ++k) {
       const std::uint32_t ia = t[k], ib = t[(k + 1) % 3];
@@ -694,6 +791,15 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
   return out;
 }
 
+}  // namespace
+
+Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells& cells,
+                                        subdivide::SortedRunReader& reader,
+                                        const FinestTileOptions& options, FinestTileStats* stats) {
+  TileBuffers buffers;
+  return build_tile(id, cells, reader, options, stats, buffers);
+}
+
 // ── All tiles, in parallel ─────────────────────────────────────────────────────────────────────
 
 Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, unsigned threads,
@@ -720,6 +826,7 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
 
   auto worker = [&] {
     auto reader = subdivide::SortedRunReader::open(cells->run_path());
+    TileBuffers buffers;  // this worker's, reused from tile to tile
     for (;;) {
       const std::size_t i = next.fetch_add(1);
       if (i >= total || stop.load()) return;
@@ -727,7 +834,9 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
       if (!reader) {
         done.tile = reader.error();
       } else {
-        done.tile = build_finest_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats);
+        done.tile =
+            build_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats, buffers);
+        buffers.release_oversized();
       }
       std::unique_lock lock(mutex);
       space.wait(lock, [&] { return queue.size() < capacity || stop.load(); });

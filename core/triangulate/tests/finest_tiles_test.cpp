@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <map>
+#include <numbers>
 #include <random>
 #include <set>
 
@@ -128,7 +129,7 @@ void expect_delaunay_tiles(const Fixture& f) {
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 
 // Edge points must be exactly the crossings of the GLOBAL Delaunay triangulation's edges with the
-// tile borders (computed here from CGAL's triangulation of all points).
+// tile borders, on all four sides (computed here from CGAL's triangulation of all points).
 void expect_edge_points_match_global(const Fixture& f, const std::vector<InputPoint>& pts) {
   CGAL::Delaunay_triangulation_2<K> dt;
   std::map<std::pair<double, double>, double> z_of;
@@ -150,26 +151,77 @@ void expect_edge_points_match_global(const Fixture& f, const std::vector<InputPo
       return canonical_circumradius2({p0.x(), p0.y()}, {p1.x(), p1.y()}, {p2.x(), p2.y()}) <=
              rmax * rmax;
     };
-    std::set<std::pair<double, double>> expected_north, got_north;
-    for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
-      if (!kept(e->first) && !kept(e->first->neighbor(e->second))) continue;
-      const auto& pa = e->first->vertex(e->first->cw(e->second))->point();
-      const auto& pb = e->first->vertex(e->first->ccw(e->second))->point();
-      if ((pa.y() < r.max_y && pb.y() > r.max_y) || (pa.y() > r.max_y && pb.y() < r.max_y)) {
+    // Per side: (coordinate along the border, z) of every crossing and every point on it.
+    struct Side {
+      const char* name;
+      const std::vector<tile::Vertex>& edge_points;  // corners excluded
+      bool horizontal;  // north/south: the line y = at; east/west: x = at
+      double at;
+    };
+    const Side sides[4] = {{"north", t.north, true, r.max_y},
+                           {"south", t.south, true, r.min_y},
+                           {"west", t.west, false, r.min_x},
+                           {"east", t.east, false, r.max_x}};
+    for (const Side& side : sides) {
+      const double lo = side.horizontal ? r.min_x : r.min_y;
+      const double hi = side.horizontal ? r.max_x : r.max_y;
+      // (across, along) of a point for this side.
+      auto split = [&](double x, double y) {
+        return side.horizontal ? std::make_pair(y, x) : std::make_pair(x, y);
+      };
+      std::set<std::pair<double, double>> expected, got;
+      for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
+        if (!kept(e->first) && !kept(e->first->neighbor(e->second))) continue;
+        const auto& pa = e->first->vertex(e->first->cw(e->second))->point();
+        const auto& pb = e->first->vertex(e->first->ccw(e->second))->point();
         const bool a_first = pa.x() < pb.x() || (pa.x() == pb.x() && pa.y() < pb.y());
         const auto& p = a_first ? pa : pb;
         const auto& q = a_first ? pb : pa;
-        const double s = (r.max_y - p.y()) / (q.y() - p.y());
-        const double x = p.x() + s * (q.x() - p.x());
-        const double zp = z_of.at({p.x(), p.y()}), zq = z_of.at({q.x(), q.y()});
-        if (x > r.min_x && x < r.max_x) expected_north.emplace(x, zp + s * (zq - zp));
+        const auto [p_across, p_along] = split(p.x(), p.y());
+        const auto [q_across, q_along] = split(q.x(), q.y());
+        if ((p_across < side.at && q_across > side.at) ||
+            (p_across > side.at && q_across < side.at)) {
+          const double s = (side.at - p_across) / (q_across - p_across);
+          const double along = p_along + s * (q_along - p_along);
+          const double zp = z_of.at({p.x(), p.y()}), zq = z_of.at({q.x(), q.y()});
+          if (along > lo && along < hi) expected.emplace(along, zp + s * (zq - zp));
+        }
       }
+      for (const auto& p : pts) {
+        const auto [across, along] = split(p.x, p.y);
+        if (across == side.at && along > lo && along < hi) expected.emplace(along, p.z);
+      }
+      for (const auto& v : side.edge_points) got.emplace(split(v.x, v.y).second, v.z);
+      EXPECT_EQ(got, expected) << t.id.quadkey() << " " << side.name;
     }
-    for (const auto& p : pts) {
-      if (p.y == r.max_y && p.x > r.min_x && p.x < r.max_x) expected_north.emplace(p.x, p.z);
+    // Corners: NODATA exactly when no kept global triangle holds them, else on its plane (only
+    // corners strictly inside a global triangle or outside the hull: no tie to break here).
+    const kernel::XY corner_xy[4] = {
+        {r.min_x, r.max_y}, {r.max_x, r.max_y}, {r.min_x, r.min_y}, {r.max_x, r.min_y}};
+    for (std::size_t k = 0; k < 4; ++k) {
+      using DT = CGAL::Delaunay_triangulation_2<K>;
+      DT::Locate_type lt;
+      int li = 0;
+      const auto face = dt.locate(K::Point_2(corner_xy[k].x, corner_xy[k].y), lt, li);
+      if (lt == DT::EDGE || lt == DT::VERTEX) continue;
+      if (lt != DT::FACE || !kept(face)) {
+        EXPECT_TRUE(t.corner_nodata[k]) << t.id.quadkey() << " corner " << k;
+        continue;
+      }
+      ASSERT_FALSE(t.corner_nodata[k]) << t.id.quadkey() << " corner " << k;
+      double x[3], y[3], z[3];
+      for (int i = 0; i < 3; ++i) {
+        x[i] = face->vertex(i)->point().x();
+        y[i] = face->vertex(i)->point().y();
+        z[i] = z_of.at({x[i], y[i]});
+      }
+      const double det = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0]);
+      const double px = corner_xy[k].x - x[0], py = corner_xy[k].y - y[0];
+      const double u = (px * (y[2] - y[0]) - py * (x[2] - x[0])) / det;
+      const double w = ((x[1] - x[0]) * py - (y[1] - y[0]) * px) / det;
+      EXPECT_NEAR(t.corners[k].z, z[0] + u * (z[1] - z[0]) + w * (z[2] - z[0]), 1e-6)
+          << t.id.quadkey() << " corner " << k;
     }
-    for (const auto& v : t.north) got_north.emplace(v.x, v.z);
-    EXPECT_EQ(got_north, expected_north) << t.id.quadkey();
   }
 }
 
@@ -256,6 +308,45 @@ TEST(FinestTiles, DenseSlightlyCurvedLineStaysGlobalAndCheap) {
   expect_global_tiles(f, pts);
   // Work: a few dozen in-circle tests per point (was thousands).
   EXPECT_LT(f.summary.circle_tests, 100 * pts.size()) << f.summary.circle_tests;
+}
+
+TEST(FinestTiles, CurvedConcaveHullWithClustersMatchesGlobalOnEveryBorder) {
+  // The halo asks only the local triangles that meet a tile's border (the others cannot change
+  // its edge points or corners). Inputs where that matters: a crescent (curved, concave data hull
+  // running through tiles, with long slivers and huge circles along it, some only touching a tile
+  // at a corner), dense clusters (very uneven density: sparse tiles whose triangles span corners)
+  // and a dense, slightly curved line across the crescent's opening. Every side and corner of
+  // every tile must be the global triangulation's.
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double cx = 0.10015, cy = 0.20015;
+  auto height = [](double x, double y) {
+    return 100.0 + 50.0 * std::sin(x * 3e4) + 30.0 * std::cos(y * 2e4);
+  };
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 4000; ++i) {
+    const double rad = std::sqrt(0.36e-8 + u(rng) * (1.44e-8 - 0.36e-8));  // 0.6e-4 .. 1.2e-4
+    const double a = 1.4 * std::numbers::pi * u(rng);
+    const double x = cx + rad * std::cos(a), y = cy + rad * std::sin(a);
+    pts.push_back({x, y, height(x, y)});
+  }
+  for (int k = 0; k < 3; ++k) {
+    const double a = 0.3 + 0.9 * k;
+    const double mx = cx + 0.9e-4 * std::cos(a), my = cy + 0.9e-4 * std::sin(a);
+    for (int i = 0; i < 500; ++i) {
+      const double x = mx + 4e-6 * gauss(rng), y = my + 4e-6 * gauss(rng);
+      pts.push_back({x, y, height(x, y)});
+    }
+  }
+  for (int i = 0; i < 1500; ++i) {  // an arc of radius 1e-3 under the opening
+    const double t = -0.08 + 0.16 * (i + 0.5) / 1500;
+    const double x = cx + 0.6e-4 + 1e-3 * std::sin(t), y = cy - 1e-3 + 1e-3 * std::cos(t) - 0.3e-4;
+    pts.push_back({x, y, height(x, y)});
+  }
+  const Fixture f = build(pts, 150, 2, "crescent");
+  ASSERT_GT(f.tiles.size(), 30u);
+  expect_global_tiles(f, pts);
 }
 
 TEST(FinestTiles, PlanarSurfaceInterpolatesEdgeAndCornerPointsOnThePlane) {

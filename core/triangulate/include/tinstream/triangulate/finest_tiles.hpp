@@ -8,9 +8,10 @@
 //
 // Halo method (beyond the paper): a tile is computed from its own points plus the points of the
 // neighbouring *sub-cells* (quadtree cells 2^sub_shift times finer than the tile) that hold a point
-// inside the circumcircle of a triangle touching R (or beyond a local hull edge touching R). The
-// local triangulation is grown until no such point is missing — then those triangles are globally
-// Delaunay (no point outside the gathered cells lies in their circles), so the tile is the global
+// inside the circumcircle of a triangle meeting R's border ∂R (or beyond a local hull edge touching
+// R). The local triangulation is grown until no such point is missing — then the triangles meeting
+// ∂R are globally Delaunay (no point outside the gathered cells lies in their circles), and they,
+// with the tile's own points, are all the tile's output depends on, so the tile is the global
 // triangulation restricted to R. To bound the work near data gaps and the data's outer boundary,
 // only triangles with circumradius ≤ rmax count as surface (see canonical_circumradius2), so only
 // points within R ⊕ 2·rmax are ever examined. Tiles are independent: any thread or machine can
