@@ -570,7 +570,7 @@ class GreedyInserter {
       for (std::uint32_t e = 0; e < cnt; ++e) {
         const Filed& f = bucket[e];
         if (f.kind != kCandidate && f.kind != kExtra) continue;
-        double surface;
+        double surface = 0.0;  // always set by the locate calls below (GCC -O3 cannot see it)
         std::uint32_t k = 0;
         if (by_angle) {
           k = locate_by_angle(f.x, f.y, &surface);
