@@ -109,6 +109,19 @@ bool etag_matches(std::string_view if_none_match, std::string_view etag) {
   });
 }
 
+// The ETag of one encoding of a resource. A strong ETag names one representation (RFC 9110
+// §8.8.3), and the gzip, deflate and identity bodies of a tile are different representations:
+// the canonical encoding keeps the stored tag, another gets a suffix inside the quotes
+// ("abc" -> "abc-gz"), so a cache revalidating its gzip copy never gets a 304 for an identity
+// request.
+std::string representation_etag(std::string_view etag, std::string_view suffix) {
+  std::string tag(etag);
+  if (suffix.empty()) return tag;
+  const bool quoted = tag.size() >= 2 && tag.back() == '"';
+  tag.insert(quoted ? tag.size() - 1 : tag.size(), std::string("-").append(suffix));
+  return tag;
+}
+
 int http_status(ErrorCode code) {
   switch (code) {
     case ErrorCode::invalid_argument:
@@ -211,18 +224,20 @@ Response handle_native_tile(const Request& req, Context& ctx, const NativeTileRo
                                r.layer + "\"");
   }
   const store::StoredTile& tile = **t;
+  const double q_deflate = accept_quality(req.accept_encoding, "deflate");
+  const double q_gzip = accept_quality(req.accept_encoding, "gzip");
+  const bool deflate = q_deflate > 0 && q_deflate >= q_gzip;
+  const std::string etag = representation_etag(tile.etag, deflate ? "" : q_gzip > 0 ? "gz" : "id");
   Response res;
-  res.set("ETag", tile.etag);
+  res.set("ETag", etag);
   res.set("Cache-Control", cache_control(ctx.config));
   res.set("Vary", "Accept-Encoding");
-  if (etag_matches(req.if_none_match, tile.etag)) {
+  if (etag_matches(req.if_none_match, etag)) {
     res.status = 304;
     return res;
   }
   res.set("Content-Type", "application/vnd.tinstream.tile");
-  const double q_deflate = accept_quality(req.accept_encoding, "deflate");
-  const double q_gzip = accept_quality(req.accept_encoding, "gzip");
-  if (q_deflate > 0 && q_deflate >= q_gzip) {
+  if (deflate) {
     res.set("Content-Encoding", "deflate");
     res.body.assign(tile.compressed.begin(), tile.compressed.end());
   } else if (q_gzip > 0) {
@@ -262,11 +277,13 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
   const store::LayerInfo* info = found->get();
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
   const std::string etag = "\"lj-" + std::to_string(info->version) + "\"";
+  const std::string sent_etag =
+      representation_etag(etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
   Response res;
-  res.set("ETag", etag);
+  res.set("ETag", sent_etag);
   res.set("Cache-Control", "no-cache");
   res.set("Vary", "Accept-Encoding");
-  if (etag_matches(req.if_none_match, etag)) {
+  if (etag_matches(req.if_none_match, sent_etag)) {
     res.status = 304;
     return res;
   }
@@ -337,9 +354,11 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
       synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info.version) : (**stored).etag;
   base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
   const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
-  if (etag_matches(req.if_none_match, etag)) {
+  const std::string sent_etag =
+      representation_etag(etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
+  if (etag_matches(req.if_none_match, sent_etag)) {
     Response res;
-    set_terrain_headers(res, ctx.config, etag, normals, false);
+    set_terrain_headers(res, ctx.config, sent_etag, normals, false);
     res.status = 304;
     return res;
   }
@@ -386,18 +405,25 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
   }
   Response res;
-  if (etag_matches(req.if_none_match, body->etag)) {
-    set_terrain_headers(res, ctx.config, body->etag, normals, false);
-    res.status = 304;
-    return res;
-  }
   if (accept_quality(req.accept_encoding, "gzip") > 0) {
+    if (etag_matches(req.if_none_match, body->etag)) {
+      set_terrain_headers(res, ctx.config, body->etag, normals, false);
+      res.status = 304;
+      return res;
+    }
     res.prebuilt = body->gzip_head;
     res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
     return res;
   }
-  set_terrain_headers(res, ctx.config, body->etag, normals, true);
-  send_maybe_gzip(req, res, body);  // the client takes no gzip: inflated
+  // The client takes no gzip: the inflated body is another representation with its own tag.
+  const std::string etag = representation_etag(body->etag, "id");
+  if (etag_matches(req.if_none_match, etag)) {
+    set_terrain_headers(res, ctx.config, etag, normals, false);
+    res.status = 304;
+    return res;
+  }
+  set_terrain_headers(res, ctx.config, etag, normals, true);
+  send_maybe_gzip(req, res, body);
   return res;
 }
 

@@ -96,6 +96,30 @@ TEST_F(HandlerTest, ETagGives304) {
   EXPECT_EQ(get("/tiles/lux/" + kTile.quadkey(), "deflate", "\"other\"").status, 200);
 }
 
+// The deflate, gzip and identity bodies of a tile are three representations: three strong tags,
+// and a tag revalidates only its own encoding (a cache holding the gzip copy must not get a 304
+// for a client that takes no gzip).
+TEST_F(HandlerTest, EachContentEncodingHasItsOwnETag) {
+  const std::string target = "/tiles/lux/" + kTile.quadkey();
+  const Response deflate = get(target, "deflate");
+  const Response gzip = get(target, "gzip");
+  const Response identity = get(target, "");
+  ASSERT_EQ(*gzip.header("Content-Encoding"), "gzip");
+  ASSERT_EQ(identity.header("Content-Encoding"), nullptr);
+  const std::string tags[3] = {*deflate.header("ETag"), *gzip.header("ETag"),
+                               *identity.header("ETag")};
+  EXPECT_NE(tags[0], tags[1]);
+  EXPECT_NE(tags[0], tags[2]);
+  EXPECT_NE(tags[1], tags[2]);
+  const char* encodings[3] = {"deflate", "gzip", ""};
+  for (int e = 0; e < 3; ++e) {
+    for (int t = 0; t < 3; ++t) {
+      EXPECT_EQ(get(target, encodings[e], tags[t]).status, e == t ? 304 : 200)
+          << "Accept-Encoding '" << encodings[e] << "', If-None-Match " << tags[t];
+    }
+  }
+}
+
 TEST_F(HandlerTest, AbsentTilesAndLayersAre404) {
   const Response r = get("/tiles/lux/" + geo::TileId::from_zxy(12, 0, 0)->quadkey());
   EXPECT_EQ(r.status, 404);
@@ -151,7 +175,12 @@ TEST_F(HandlerTest, LayerJsonListsAvailability) {
   // Without gzip in Accept-Encoding, plain JSON.
   const Response plain = get("/tiles/lux/layer.json");
   EXPECT_EQ(json::parse(plain.body)["name"], "lux");
-  EXPECT_EQ(get("/tiles/lux/layer.json", "", *r.header("ETag")).status, 304);
+  // The plain body is another representation: its own strong tag; the gzip tag does not match it.
+  ASSERT_NE(plain.header("ETag"), nullptr);
+  EXPECT_NE(*plain.header("ETag"), *r.header("ETag"));
+  EXPECT_EQ(get("/tiles/lux/layer.json", "", *r.header("ETag")).status, 200);
+  EXPECT_EQ(get("/tiles/lux/layer.json", "", *plain.header("ETag")).status, 304);
+  EXPECT_EQ(get("/tiles/lux/layer.json", "gzip", *r.header("ETag")).status, 304);
 }
 
 TEST_F(HandlerTest, TerrainTileDecodesAndNormalsFollowAccept) {
