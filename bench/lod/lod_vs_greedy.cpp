@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "grid_input.hpp"
 #include "tinstream/lod/thinning.hpp"
 
 namespace {
@@ -125,20 +126,9 @@ Errors evaluate(const Grid& g, const PixelMesh& m) {
 }
 
 tinstream::lod::ThinInput grid_input(const Grid& g) {
-  using tinstream::tile::Vertex;
-  tinstream::lod::ThinInput in;
-  auto v = [&](int c, int r) { return Vertex{g.x(c), g.y(r), g.at(c, r), 0.0}; };
-  const int W = g.w - 1, H = g.h - 1;
-  in.rect = tinstream::geo::MercatorRect{g.x(0), g.y(H), g.x(W), g.y(0)};
-  in.corners = {v(0, 0), v(W, 0), v(0, H), v(W, H)};
-  for (int c = 1; c < W; ++c) in.north.push_back(v(c, 0));
-  for (int r = 1; r < H; ++r) in.east.push_back(v(W, r));
-  for (int c = 1; c < W; ++c) in.south.push_back(v(c, H));
-  for (int r = 1; r < H; ++r) in.west.push_back(v(0, r));
-  for (int r = 1; r < H; ++r) {
-    for (int c = 1; c < W; ++c) in.interior.push_back(v(c, r));
-  }
-  return in;
+  return tinstream::bench::grid_thin_input(g.w, g.h, [&](int c, int r) {
+    return tinstream::tile::Vertex{g.x(c), g.y(r), g.at(c, r), 0.0};
+  });
 }
 
 PixelMesh to_pixels(const Grid& g, const tinstream::tile::TinTile& t) {

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "grid_input.hpp"
 #include "tinstream/lod/parent.hpp"
 #include "tinstream/lod/thinning.hpp"
 #include "tinstream/store/tile_store.hpp"
@@ -74,17 +75,7 @@ int grid(const char* path, std::size_t n, int reps) {
         0.0};
   };
   // The same input as lod_vs_greedy's grid_input.
-  tinstream::lod::ThinInput in;
-  const int W = w - 1, H = h - 1;
-  in.rect = tinstream::geo::MercatorRect{v(0, H).x, v(0, H).y, v(W, 0).x, v(W, 0).y};
-  in.corners = {v(0, 0), v(W, 0), v(0, H), v(W, H)};
-  for (int c = 1; c < W; ++c) in.north.push_back(v(c, 0));
-  for (int r = 1; r < H; ++r) in.east.push_back(v(W, r));
-  for (int c = 1; c < W; ++c) in.south.push_back(v(c, H));
-  for (int r = 1; r < H; ++r) in.west.push_back(v(0, r));
-  for (int r = 1; r < H; ++r) {
-    for (int c = 1; c < W; ++c) in.interior.push_back(v(c, r));
-  }
+  const tinstream::lod::ThinInput in = tinstream::bench::grid_thin_input(w, h, v);
   tinstream::lod::LodOptions o;
   o.max_points = n;
   if (const char* l = std::getenv("LOD_LATTICE_SCAN")) o.lattice_scan = std::string(l) != "0";
