@@ -7,6 +7,7 @@
 #include <list>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <system_error>
 #include <unordered_map>
 #include <variant>
@@ -328,6 +329,16 @@ void set_terrain_headers(Response& res, const ServerConfig& config, const std::s
                                   : "application/vnd.quantized-mesh");
 }
 
+// The 304 of a terrain request whose If-None-Match names `etag`, if it does.
+std::optional<Response> terrain_not_modified(const Request& req, const ServerConfig& config,
+                                             const std::string& etag, bool normals) {
+  if (!etag_matches(req.if_none_match, etag)) return std::nullopt;
+  Response res;
+  set_terrain_headers(res, config, etag, normals, false);
+  res.status = 304;
+  return res;
+}
+
 // Cache key of an encoded terrain tile: layer version, tile and extensions; written into `key`
 // (a buffer the caller reuses: no allocation per request).
 void terrain_key(std::string& key, const TerrainRoute& r, std::int64_t version, bool normals) {
@@ -356,11 +367,8 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
   const std::string sent_etag =
       representation_etag(etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
-  if (etag_matches(req.if_none_match, sent_etag)) {
-    Response res;
-    set_terrain_headers(res, ctx.config, sent_etag, normals, false);
-    res.status = 304;
-    return res;
+  if (auto not_modified = terrain_not_modified(req, ctx.config, sent_etag, normals)) {
+    return std::move(*not_modified);
   }
   tile::TinTile tin;
   if (synthetic) {
@@ -406,10 +414,8 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
   }
   Response res;
   if (accept_quality(req.accept_encoding, "gzip") > 0) {
-    if (etag_matches(req.if_none_match, body->etag)) {
-      set_terrain_headers(res, ctx.config, body->etag, normals, false);
-      res.status = 304;
-      return res;
+    if (auto not_modified = terrain_not_modified(req, ctx.config, body->etag, normals)) {
+      return std::move(*not_modified);
     }
     res.prebuilt = body->gzip_head;
     res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
@@ -417,10 +423,8 @@ Response handle_terrain(const Request& req, Context& ctx, const TerrainRoute& r)
   }
   // The client takes no gzip: the inflated body is another representation with its own tag.
   const std::string etag = representation_etag(body->etag, "id");
-  if (etag_matches(req.if_none_match, etag)) {
-    set_terrain_headers(res, ctx.config, etag, normals, false);
-    res.status = 304;
-    return res;
+  if (auto not_modified = terrain_not_modified(req, ctx.config, etag, normals)) {
+    return std::move(*not_modified);
   }
   set_terrain_headers(res, ctx.config, etag, normals, true);
   send_maybe_gzip(req, res, body);
