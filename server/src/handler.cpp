@@ -364,7 +364,7 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   std::string base_tag =
       synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info.version) : (**stored).etag;
   base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
-  const std::string etag = "\"qm-" + base_tag + (normals ? "-n" : "") + "\"";
+  const std::string etag = "\"qm2-" + base_tag + (normals ? "-n" : "") + "\"";
   const std::string sent_etag =
       representation_etag(etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
   if (auto not_modified = terrain_not_modified(req, ctx.config, sent_etag, normals)) {

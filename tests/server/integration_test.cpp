@@ -314,7 +314,7 @@ TEST_F(ServerTest, PipelinedBurstOfCachedUncachedAnd304AnsweredInOrder) {
     ASSERT_TRUE(stored.ok() && stored->has_value());
     std::string tag = (**stored).etag;
     tag.erase(std::remove(tag.begin(), tag.end(), '"'), tag.end());
-    c_etag = "\"qm-" + tag + "-n\"";
+    c_etag = "\"qm2-" + tag + "-n\"";
   }
   // b is cached (and its ETag known) before the burst.
   HttpConnection warm(port_);

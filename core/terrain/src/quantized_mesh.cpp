@@ -1,6 +1,7 @@
 #include "tinstream/terrain/quantized_mesh.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -53,6 +54,126 @@ class Writer {
  private:
   std::vector<std::uint8_t> out_;
 };
+
+// Interleaves the low 16 bits of x with zeros (bit i → bit 2i): half of a Morton code.
+std::uint32_t spread_bits(std::uint32_t x) {
+  x &= 0xffffu;
+  x = (x | (x << 8)) & 0x00ff00ffu;
+  x = (x | (x << 4)) & 0x0f0f0f0fu;
+  x = (x | (x << 2)) & 0x33333333u;
+  x = (x | (x << 1)) & 0x55555555u;
+  return x;
+}
+
+// The order the triangles are written in, chosen for the compressor. Vertices are numbered by
+// first use and delta-coded, indices are high-water-mark codes, and gzip runs over both; all three
+// do best when each triangle shares an edge with the one before it. So: a depth-first walk across
+// shared edges, moving to the first unvisited neighbour and backing up the walk's stack when there
+// is none; walk starts and ties follow the Morton order of the quantised centroids, then the
+// vertex indices. Each triangle is then rotated (orientation kept) to start at its vertex written
+// earliest (an unwritten one counts as latest). The result depends only on the set of triangles
+// (their stored order and rotation do not matter), so a tile always encodes to the same bytes.
+// Measured on the 833 tiles of an SRTM layer (bench/server): 42.0 MB of gzip tiles in the stored
+// order, 29.7 MB in Morton order alone, 20.8 MB in this order.
+std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& triangles,
+                                           const std::vector<std::uint16_t>& qu,
+                                           const std::vector<std::uint16_t>& qv,
+                                           std::size_t vertices) {
+  constexpr std::uint32_t kNo = std::numeric_limits<std::uint32_t>::max();
+  const std::size_t m = triangles.size();
+  // Canonical rotation (smallest index first), then the walk's base order.
+  std::vector<tile::Triangle> rotated(m);
+  std::vector<std::uint32_t> morton(m), rank(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    tile::Triangle t = triangles[i];
+    while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
+    rotated[i] = t;
+    const std::uint32_t cu = (std::uint32_t{qu[t[0]]} + qu[t[1]] + qu[t[2]]) / 3;
+    const std::uint32_t cv = (std::uint32_t{qv[t[0]]} + qv[t[1]] + qv[t[2]]) / 3;
+    morton[i] = spread_bits(cu) | (spread_bits(cv) << 1);
+    rank[i] = static_cast<std::uint32_t>(i);
+  }
+  std::sort(rank.begin(), rank.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return morton[a] != morton[b] ? morton[a] < morton[b] : rotated[a] < rotated[b];
+  });
+  std::vector<tile::Triangle> base(m);
+  for (std::size_t k = 0; k < m; ++k) base[k] = rotated[rank[k]];
+
+  // Neighbours: the triangle holding the reverse of each directed edge.
+  struct Edge {
+    std::uint64_t key;  // from << 32 | to
+    std::uint32_t triangle;
+  };
+  std::vector<Edge> edges;
+  edges.reserve(3 * m);
+  auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t{a} << 32) | b; };
+  for (std::size_t k = 0; k < m; ++k) {
+    const auto& t = base[k];
+    for (int e = 0; e < 3; ++e) {
+      edges.push_back({key(t[e], t[(e + 1) % 3]), static_cast<std::uint32_t>(k)});
+    }
+  }
+  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
+    return a.key != b.key ? a.key < b.key : a.triangle < b.triangle;
+  });
+  std::vector<std::array<std::uint32_t, 3>> across(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    const auto& t = base[k];
+    for (int e = 0; e < 3; ++e) {
+      const std::uint64_t want = key(t[(e + 1) % 3], t[e]);
+      const auto it = std::lower_bound(edges.begin(), edges.end(), want,
+                                       [](const Edge& a, std::uint64_t k2) { return a.key < k2; });
+      across[k][static_cast<std::size_t>(e)] =
+          it != edges.end() && it->key == want ? it->triangle : kNo;
+    }
+  }
+
+  std::vector<std::uint8_t> visited(m, 0);
+  auto next_of = [&](std::uint32_t t) {
+    std::uint32_t best = kNo;
+    for (std::uint32_t j : across[t]) {
+      if (j != kNo && !visited[j]) best = std::min(best, j);
+    }
+    return best;
+  };
+  std::vector<std::uint32_t> walk, stack;
+  walk.reserve(m);
+  for (std::uint32_t start = 0; start < m; ++start) {
+    std::uint32_t cur = visited[start] ? kNo : start;
+    while (cur != kNo) {
+      visited[cur] = 1;
+      walk.push_back(cur);
+      stack.push_back(cur);
+      cur = next_of(cur);
+      while (cur == kNo && !stack.empty()) {
+        cur = next_of(stack.back());
+        if (cur == kNo) stack.pop_back();
+      }
+    }
+  }
+
+  // Rotation: the smallest tuple of first uses (kNo for a vertex not written yet).
+  std::vector<std::uint32_t> first_use(vertices, kNo);
+  std::uint32_t used = 0;
+  std::vector<tile::Triangle> out;
+  out.reserve(m);
+  for (std::uint32_t k : walk) {
+    const tile::Triangle& t = base[k];
+    tile::Triangle best = t;
+    auto uses = [&](const tile::Triangle& r) {
+      return std::array<std::uint32_t, 3>{first_use[r[0]], first_use[r[1]], first_use[r[2]]};
+    };
+    for (const tile::Triangle& r :
+         {tile::Triangle{t[1], t[2], t[0]}, tile::Triangle{t[2], t[0], t[1]}}) {
+      if (uses(r) < uses(best)) best = r;
+    }
+    for (std::uint32_t v : best) {
+      if (first_use[v] == kNo) first_use[v] = used++;
+    }
+    out.push_back(best);
+  }
+  return out;
+}
 
 std::uint16_t zigzag(int v) {
   return static_cast<std::uint16_t>((static_cast<unsigned>(v) << 1) ^
@@ -254,6 +375,8 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
         (static_cast<double>(qv0[t[1]]) - qv0[t[0]]) * (static_cast<double>(qu0[t[2]]) - qu0[t[0]]);
     if (cross >= 0) triangles.push_back(t);
   }
+
+  triangles = locality_order(triangles, qu0, qv0, n);
 
   // Renumber by first use in the triangle list (high-water mark needs it); unused vertices last.
   constexpr std::uint32_t kUnset = std::numeric_limits<std::uint32_t>::max();

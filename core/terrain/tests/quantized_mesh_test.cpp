@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -237,6 +238,53 @@ TEST(QuantizedMesh, ThirtyTwoBitIndicesAbove65536Vertices) {
   EXPECT_EQ(d.mesh.indices.size(), t.triangles.size() * 3);
   for (std::uint32_t i : d.mesh.indices) ASSERT_LT(i, d.mesh.u.size());
   EXPECT_EQ(d.mesh.west.size(), 258u);
+}
+
+// The grid tile with its triangles shuffled and each one rotated (orientation kept): the same
+// surface as a tile store could hold it after any re-triangulation.
+tile::TinTile shuffled(tile::TinTile t, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::shuffle(t.triangles.begin(), t.triangles.end(), rng);
+  for (auto& tr : t.triangles) {
+    for (auto r = rng() % 3; r > 0; --r) tr = {tr[1], tr[2], tr[0]};
+  }
+  return t;
+}
+
+TEST(QuantizedMesh, StoredTriangleOrderAndRotationDoNotChangeTheBytes) {
+  const auto grid = make_grid_tile(kTile, 40, synthetic_height);
+  const auto a = encode_quantized_mesh(shuffled(grid, 1), geo::Projection::spherical, {true});
+  const auto b = encode_quantized_mesh(shuffled(grid, 2), geo::Projection::spherical, {true});
+  const auto c = encode_quantized_mesh(grid, geo::Projection::spherical, {true});
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  EXPECT_EQ(*a, *b);
+  EXPECT_EQ(*a, *c);
+}
+
+// The written order is a walk across shared edges (what makes the high-water-mark codes and the
+// vertex deltas small and gzip effective), whatever order the tile stores.
+TEST(QuantizedMesh, TrianglesAreWrittenAsAWalkAcrossSharedEdges) {
+  const auto t = shuffled(make_grid_tile(kTile, 64, synthetic_height), 7);
+  const Decoded d = encode_decode(t);
+  const auto& ix = d.mesh.indices;
+  const std::size_t m = ix.size() / 3;
+  ASSERT_EQ(m, t.triangles.size());
+  std::size_t sharing = 0;
+  for (std::size_t k = 0; k < m; ++k) {
+    const std::uint32_t* tr = &ix[3 * k];
+    if (k > 0) {
+      const std::uint32_t* prev = &ix[3 * (k - 1)];
+      int common = 0;
+      for (int i = 0; i < 3; ++i) common += std::count(prev, prev + 3, tr[i]) > 0;
+      sharing += common == 2;
+    }
+    // Each triangle starts at its vertex written earliest (indices are numbered by first use).
+    EXPECT_TRUE(tr[0] < tr[1] && tr[0] < tr[2])
+        << "triangle " << k << ": " << tr[0] << " " << tr[1] << " " << tr[2];
+  }
+  // A depth-first walk only leaves the last triangle's neighbourhood when it backs up.
+  EXPECT_GE(static_cast<double>(sharing) / static_cast<double>(m - 1), 0.9)
+      << sharing << " of " << m - 1 << " consecutive pairs share an edge";
 }
 
 // Regression (real-data test, level-2 tile over Luxembourg): a sliver that is counter-clockwise in
