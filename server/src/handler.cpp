@@ -14,6 +14,7 @@
 
 #include "tinstream/server/ingest_paths.hpp"
 #include "tinstream/server/routes.hpp"
+#include "tinstream/store/etag.hpp"
 #include "tinstream/terrain/gzip.hpp"
 #include "tinstream/terrain/layer_json.hpp"
 #include "tinstream/terrain/quantized_mesh.hpp"
@@ -272,22 +273,15 @@ void send_maybe_gzip(const Request& req, Response& res,
   res.body.assign(raw->begin(), raw->end());
 }
 
+// layer.json's ETag is derived from its bytes (like a stored tile's), not from the layer's
+// version alone: a store rebuilt from scratch starts its versions again at 1, and a client (or a
+// CDN in front of several servers) revalidating an old copy must not get a 304 for a different
+// tile set. Answered from the cached body, so a 304 costs no store read once cached.
 Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRoute& r) {
   auto found = layer_info(ctx, r.layer);
   if (!found) return error_response(found.error());
   const store::LayerInfo* info = found->get();
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
-  const std::string etag = "\"lj-" + std::to_string(info->version) + "\"";
-  const std::string sent_etag =
-      representation_etag(etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
-  Response res;
-  res.set("ETag", sent_etag);
-  res.set("Cache-Control", "no-cache");
-  res.set("Vary", "Accept-Encoding");
-  if (etag_matches(req.if_none_match, sent_etag)) {
-    res.status = 304;
-    return res;
-  }
   const std::string key = "layer.json|" + r.layer + "|" + std::to_string(info->version);
   std::shared_ptr<const CachedBody> body =
       ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
@@ -306,11 +300,24 @@ Response handle_layer_json(const Request& req, Context& ctx, const LayerJsonRout
     in.max_level = info->max_level;
     in.tile_ids = std::move(*ids);
     const std::string text = terrain::layer_json(in);
-    auto bytes = terrain::gzip_compress(
-        std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+    const std::span<const std::uint8_t> raw(reinterpret_cast<const std::uint8_t*>(text.data()),
+                                            text.size());
+    std::string etag = store::make_etag(raw);  // "\"<hash>-<length>\""
+    etag.insert(1, "lj-");
+    auto bytes = terrain::gzip_compress(raw);
     body = std::make_shared<const CachedBody>(
-        CachedBody{etag, std::string(bytes.begin(), bytes.end()), nullptr});
+        CachedBody{std::move(etag), std::string(bytes.begin(), bytes.end()), nullptr});
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);
+  }
+  const std::string sent_etag =
+      representation_etag(body->etag, accept_quality(req.accept_encoding, "gzip") > 0 ? "" : "id");
+  Response res;
+  res.set("ETag", sent_etag);
+  res.set("Cache-Control", "no-cache");
+  res.set("Vary", "Accept-Encoding");
+  if (etag_matches(req.if_none_match, sent_etag)) {
+    res.status = 304;
+    return res;
   }
   res.set("Content-Type", "application/json");
   send_maybe_gzip(req, res, body);

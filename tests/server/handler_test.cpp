@@ -183,6 +183,60 @@ TEST_F(HandlerTest, LayerJsonListsAvailability) {
   EXPECT_EQ(get("/tiles/lux/layer.json", "gzip", *r.header("ETag")).status, 304);
 }
 
+// Two stores each holding a layer "lux" at version 1, with different tiles (a store rebuilt from
+// scratch): their layer.json differ, so must their ETags — a revalidating client of the first
+// gets the second's document, not a 304.
+TEST_F(HandlerTest, LayerJsonETagFollowsTheDocumentNotTheVersion) {
+  const auto other = dir_.path / "other.db";
+  {
+    auto st = store::TileStore::open(other, store::TileStore::Mode::read_write);
+    ASSERT_TRUE(st.ok());
+    store::LayerInfo info;
+    info.name = "lux";
+    info.min_level = 12;
+    info.max_level = 12;
+    info.max_points = 1000;
+    info.mercator_bounds = kTile.bounds();
+    info.bounds = kTile.lonlat_bounds(geo::NormalisedMercator());
+    info.level_max_error = std::vector<double>(13, 0.0);
+    auto writer = st->begin_layer(info);
+    ASSERT_TRUE(writer.ok());
+    const auto t = testing::make_grid_tile(kTile, 9, testing::synthetic_height);
+    ASSERT_TRUE((*writer)->put(t).ok());
+    info.tile_count = 1;
+    info.min_z = t.min_z;
+    info.max_z = t.max_z;
+    ASSERT_TRUE((*writer)->publish(info).ok());
+  }
+  auto st = store::TileStore::open(other, store::TileStore::Mode::read_only);
+  ASSERT_TRUE(st.ok());
+  auto a = store_->layer("lux");
+  auto b = st->layer("lux");
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a->version, b->version);  // the case the old version-only tag got wrong
+
+  const Response first = get("/tiles/lux/layer.json", "gzip");
+  ASSERT_EQ(first.status, 200);
+  const std::string tag = *first.header("ETag");
+  EXPECT_EQ(get("/tiles/lux/layer.json", "gzip", tag).status, 304);
+
+  Context other_ctx = ctx_;
+  store::TileStore other_store = std::move(*st);
+  other_ctx.store = [&]() -> Result<store::TileStore*> { return &other_store; };
+  TerrainCache other_cache{1 << 20};
+  other_ctx.terrain_cache = &other_cache;
+  Request r;
+  r.method = "GET";
+  r.target = "/tiles/lux/layer.json";
+  r.accept_encoding = "gzip";
+  r.if_none_match = tag;
+  const Response second = handle(r, other_ctx);
+  ASSERT_EQ(second.status, 200) << "a 304 for another store's layer.json";
+  EXPECT_NE(*second.header("ETag"), tag);
+  const auto raw = testing::gunzip(std::string(second.payload()));
+  EXPECT_EQ(json::parse(std::string(raw.begin(), raw.end()))["available"].size(), 13u);
+}
+
 TEST_F(HandlerTest, TerrainTileDecodesAndNormalsFollowAccept) {
   const std::string target = "/tiles/lux/12/2121/" + std::to_string(kTile.tms_row()) + ".terrain";
   const Response plain = get(target, "gzip");

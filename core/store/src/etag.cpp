@@ -1,4 +1,4 @@
-#include "etag.hpp"
+#include "tinstream/store/etag.hpp"
 
 #include <cstdio>
 

@@ -24,8 +24,8 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "etag.hpp"
 #include "schema.hpp"
+#include "tinstream/store/etag.hpp"
 #include "tinstream/tile/codec.hpp"
 #include "writer_test_access.hpp"
 

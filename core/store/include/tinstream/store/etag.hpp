@@ -1,4 +1,4 @@
-// etag.hpp — content-derived strong ETags for stored tiles (private to core/store).
+// tinstream/store/etag.hpp — content-derived strong ETags (stored tiles; the server's layer.json).
 #pragma once
 
 #include <cstdint>
