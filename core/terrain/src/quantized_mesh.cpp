@@ -99,32 +99,34 @@ std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& tr
   std::vector<tile::Triangle> base(m);
   for (std::size_t k = 0; k < m; ++k) base[k] = rotated[rank[k]];
 
-  // Neighbours: the triangle holding the reverse of each directed edge.
-  struct Edge {
-    std::uint64_t key;  // from << 32 | to
-    std::uint32_t triangle;
-  };
-  std::vector<Edge> edges;
-  edges.reserve(3 * m);
-  auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t{a} << 32) | b; };
+  // Neighbours: the triangle holding the reverse of each directed edge, found among the edges
+  // leaving the edge's end vertex (compressed rows by start vertex).
+  std::vector<std::uint32_t> row(vertices + 1, 0);
+  for (const auto& t : base) {
+    for (std::uint32_t v : t) ++row[v + 1];
+  }
+  for (std::size_t v = 0; v < vertices; ++v) row[v + 1] += row[v];
+  std::vector<std::uint32_t> fill(row.begin(), row.end() - 1);
+  std::vector<std::uint32_t> edge_to(3 * m), edge_triangle(3 * m);  // by row position
   for (std::size_t k = 0; k < m; ++k) {
     const auto& t = base[k];
     for (int e = 0; e < 3; ++e) {
-      edges.push_back({key(t[e], t[(e + 1) % 3]), static_cast<std::uint32_t>(k)});
+      const std::uint32_t at = fill[t[static_cast<std::size_t>(e)]]++;
+      edge_to[at] = t[static_cast<std::size_t>((e + 1) % 3)];
+      edge_triangle[at] = static_cast<std::uint32_t>(k);
     }
   }
-  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
-    return a.key != b.key ? a.key < b.key : a.triangle < b.triangle;
-  });
   std::vector<std::array<std::uint32_t, 3>> across(m);
   for (std::size_t k = 0; k < m; ++k) {
     const auto& t = base[k];
     for (int e = 0; e < 3; ++e) {
-      const std::uint64_t want = key(t[(e + 1) % 3], t[e]);
-      const auto it = std::lower_bound(edges.begin(), edges.end(), want,
-                                       [](const Edge& a, std::uint64_t k2) { return a.key < k2; });
-      across[k][static_cast<std::size_t>(e)] =
-          it != edges.end() && it->key == want ? it->triangle : kNo;
+      const std::uint32_t from = t[static_cast<std::size_t>((e + 1) % 3)];
+      const std::uint32_t to = t[static_cast<std::size_t>(e)];
+      std::uint32_t found = kNo;
+      for (std::uint32_t at = row[from]; at < row[from + 1]; ++at) {
+        if (edge_to[at] == to) found = std::min(found, edge_triangle[at]);
+      }
+      across[k][static_cast<std::size_t>(e)] = found;
     }
   }
 
