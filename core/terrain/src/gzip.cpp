@@ -5,28 +5,12 @@
 #include <climits>
 #include <string>
 
+#include "tinstream/tile/codec.hpp"
+
 namespace tinstream::terrain {
 namespace {
 
 // windowBits: 15 = zlib, 15 + 16 = gzip, -15 = raw deflate.
-std::vector<std::uint8_t> deflate_with(std::span<const std::uint8_t> bytes, int level,
-                                       int window_bits) {
-  z_stream zs{};
-  if (deflateInit2(&zs, level, Z_DEFLATED, window_bits, 8, Z_DEFAULT_STRATEGY) != Z_OK) {
-    return {};
-  }
-  std::vector<std::uint8_t> out(deflateBound(&zs, static_cast<uLong>(bytes.size())) + 32);
-  zs.next_in = const_cast<Bytef*>(bytes.data());
-  zs.avail_in = static_cast<uInt>(bytes.size());
-  zs.next_out = out.data();
-  zs.avail_out = static_cast<uInt>(out.size());
-  const int rc = deflate(&zs, Z_FINISH);
-  out.resize(zs.total_out);
-  deflateEnd(&zs);
-  if (rc != Z_STREAM_END) return {};
-  return out;
-}
-
 Result<std::vector<std::uint8_t>> inflate_with(std::span<const std::uint8_t> bytes,
                                                std::size_t max_output, int window_bits,
                                                const char* what) {
@@ -64,7 +48,7 @@ Result<std::vector<std::uint8_t>> inflate_with(std::span<const std::uint8_t> byt
 }  // namespace
 
 std::vector<std::uint8_t> gzip_compress(std::span<const std::uint8_t> bytes, int level) {
-  return deflate_with(bytes, level, 15 + 16);
+  return tile::compress_gzip(bytes, level);  // libdeflate: ~2x zlib's speed, a little smaller
 }
 
 Result<std::vector<std::uint8_t>> gzip_decompress(std::span<const std::uint8_t> bytes,

@@ -243,7 +243,10 @@ struct DeflateDecompressor {
 
 }  // namespace
 
-std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level) {
+namespace {
+
+// This thread's compressor at `level` (0–12), kept from call to call.
+libdeflate_compressor* compressor(int level) {
   thread_local DeflateCompressor state;
   level = std::clamp(level, 0, 12);
   if (state.level != level) {
@@ -252,10 +255,27 @@ std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int leve
     state.level = level;
   }
   if (state.c == nullptr) throw std::bad_alloc();
-  std::vector<std::uint8_t> out(libdeflate_zlib_compress_bound(state.c, bytes.size()));
+  return state.c;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level) {
+  libdeflate_compressor* c = compressor(level);
+  std::vector<std::uint8_t> out(libdeflate_zlib_compress_bound(c, bytes.size()));
   const std::size_t n =
-      libdeflate_zlib_compress(state.c, bytes.data(), bytes.size(), out.data(), out.size());
+      libdeflate_zlib_compress(c, bytes.data(), bytes.size(), out.data(), out.size());
   assert(n > 0);  // the bound always suffices
+  out.resize(n);
+  return out;
+}
+
+std::vector<std::uint8_t> compress_gzip(std::span<const std::uint8_t> bytes, int level) {
+  libdeflate_compressor* c = compressor(level);
+  std::vector<std::uint8_t> out(libdeflate_gzip_compress_bound(c, bytes.size()));
+  const std::size_t n =
+      libdeflate_gzip_compress(c, bytes.data(), bytes.size(), out.data(), out.size());
+  assert(n > 0);
   out.resize(n);
   return out;
 }

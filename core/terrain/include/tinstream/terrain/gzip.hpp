@@ -10,6 +10,7 @@
 
 namespace tinstream::terrain {
 
+// Compressed with libdeflate (tile::compress_gzip; levels 0–12).
 std::vector<std::uint8_t> gzip_compress(std::span<const std::uint8_t> bytes, int level = 6);
 // Inflates gzip data; refuses to produce more than max_output bytes.
 Result<std::vector<std::uint8_t>> gzip_decompress(std::span<const std::uint8_t> bytes,

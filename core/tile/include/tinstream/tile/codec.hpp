@@ -22,6 +22,8 @@ Result<TinTile> decode(std::span<const std::uint8_t> bytes);
 // zlib (RFC 1950) streams, made and read with libdeflate (levels 0–12; 2–3× zlib's speed, any
 // zlib reader inflates them). decompress() refuses to inflate past max_output bytes.
 std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level = 6);
+// The same compressor with a gzip (RFC 1952) wrapper: the served Cesium terrain.
+std::vector<std::uint8_t> compress_gzip(std::span<const std::uint8_t> bytes, int level = 6);
 Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes,
                                              std::size_t max_output = 256u << 20);
 
