@@ -11,13 +11,23 @@ function setup(thread)
   counter = counter + 1
 end
 
+-- The request strings are formatted once per thread, in init() (wrk has set the Host header by
+-- then), not per request: formatting in request() made the single-threaded load generator pay for
+-- a Lua table and string building on every request, which in the pinned configuration (wrk alone
+-- on one core) capped both servers alike (bench/server/RESULTS.md, 2026-11-25 11:00).
+local reqs = {}
+function init(args)
+  for k, p in ipairs(paths) do
+    reqs[k] = wrk.format("GET", p, {
+      ["Accept-Encoding"] = "gzip",
+      ["Accept"] = "application/vnd.quantized-mesh;extensions=octvertexnormals,application/octet-stream;q=0.9"})
+  end
+end
+
 local i = 0
 function request()
   i = i + 1
-  local path = paths[((i + (offset or 0)) % #paths) + 1]
-  return wrk.format("GET", path, {
-    ["Accept-Encoding"] = "gzip",
-    ["Accept"] = "application/vnd.quantized-mesh;extensions=octvertexnormals,application/octet-stream;q=0.9"})
+  return reqs[((i + (offset or 0)) % #reqs) + 1]
 end
 
 function done(summary, latency, requests)

@@ -169,6 +169,7 @@ class RequestParser final : public http::basic_parser<true> {
 
   unsigned version() const { return version_; }
   bool expect_continue() const { return expect_continue_; }
+  unsigned host_fields() const { return hosts_; }
   std::uint64_t body_bytes() const { return body_bytes_; }
   void write_body_to(beast::file& file) { file_ = &file; }
 
@@ -199,6 +200,9 @@ class RequestParser final : public http::basic_parser<true> {
         return first(req_.authorization, 8u);
       case http::field::content_type:
         return first(req_.content_type, 16u);
+      case http::field::host:
+        ++hosts_;
+        return;
       case http::field::expect:
         if (seen_ & 32u) return;
         seen_ |= 32u;
@@ -234,7 +238,8 @@ class RequestParser final : public http::basic_parser<true> {
   beast::file* file_ = nullptr;
   std::uint64_t body_bytes_ = 0;
   unsigned version_ = 11;
-  unsigned seen_ = 0;  // bits of the fields already stored
+  unsigned seen_ = 0;   // bits of the fields already stored
+  unsigned hosts_ = 0;  // Host field lines
   bool expect_continue_ = false;
 };
 
@@ -390,6 +395,13 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     if (ec == http::error::body_limit) return send(json_error(413, "request body too large"), true);
     if (ec) return send(json_error(400, "malformed request: " + ec.message()), true);
+    // RFC 9112 §3.2: an HTTP/1.1 request without Host, or any with more than one, is a 400.
+    if (parser_->host_fields() > 1) {
+      return send(json_error(400, "malformed request: more than one Host header"), true);
+    }
+    if (parser_->host_fields() == 0 && parser_->version() >= 11) {
+      return send(json_error(400, "malformed request: HTTP/1.1 without a Host header"), true);
+    }
 
     keep_alive_ = parser_->keep_alive();
     version_ = parser_->version();

@@ -716,6 +716,20 @@ TEST_F(ServerTest, OversizedHeadersBodiesAndGarbageAre4xxAndServingContinues) {
     auto r = c.read_response();
     EXPECT_EQ(r.status, 400) << garbage;
   }
+  // Host (RFC 9112 §3.2): required in HTTP/1.1, at most one; HTTP/1.0 may leave it out.
+  for (const std::string request :
+       {"GET /healthz HTTP/1.1\r\n\r\n", "GET /healthz HTTP/1.1\r\nHost: a\r\nHost: b\r\n\r\n"}) {
+    HttpConnection c(port_);
+    c.send_raw(request);
+    auto r = c.read_response();
+    EXPECT_EQ(r.status, 400) << request;
+    EXPECT_NE(r.body.find("Host"), std::string::npos) << r.body;
+  }
+  {
+    HttpConnection c(port_);
+    c.send_raw("GET /healthz HTTP/1.0\r\n\r\n");
+    EXPECT_EQ(c.read_response().status, 200);
+  }
   EXPECT_EQ(http_get(port_, "/healthz").status, 200);
   EXPECT_EQ(http_get(port_, "/tiles/lux/" + kTile.quadkey()).status, 200);
 }
