@@ -360,6 +360,8 @@ struct TileBuffers {
   std::vector<XY> peek_pool;
   std::vector<XY> xy;
   std::vector<detail::IndexTriangle> tris;
+  // The halo rounds' triangulation (extended round by round), then the final one.
+  detail::DelaunayBuilder delaunay;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;   // grow_halo's local hull edges
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // edges crossing the border lines
 
@@ -372,6 +374,7 @@ struct TileBuffers {
     };
     release(pts), release(own), release(chunk), release(peek_pool), release(xy), release(tris);
     release(hull), release(edges), release(pending);
+    if (delaunay.memory_bytes() > kKeepBytes) delaunay = detail::DelaunayBuilder();
   }
 };
 
@@ -620,6 +623,9 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   };
   auto& xy = buffers.xy;
   auto& tris = buffers.tris;
+  auto& delaunay = buffers.delaunay;
+  xy.clear();
+  delaunay.clear();
   // The own cells' records come from one read of the whole tile (cells are contiguous ranges of
   // it), not one read per cell; they are appended in the same (gathering) order as before.
   const std::ptrdiff_t own = cells.tile_index(id);
@@ -659,11 +665,12 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
                        std::to_string(options.max_gathered_points) +
                        " points (very uneven density); raise max_gathered_points");
     }
-    xy.resize(pts.size());
-    for (std::size_t i = 0; i < pts.size(); ++i) xy[i] = {pts[i].x, pts[i].y};
-    detail::DelaunayMesh mesh = detail::delaunay_mesh(xy);
-    grow_halo(xy, mesh);
-    tris = std::move(mesh.triangles);
+    // Each round inserts only its new cells' points into the same triangulation: the canonical
+    // triangulation is unique, so it holds the triangles a fresh one of all points would (in
+    // another order, which changes nothing: the cells a round asks for are a set, see grow_halo).
+    for (std::size_t i = xy.size(); i < pts.size(); ++i) xy.push_back({pts[i].x, pts[i].y});
+    delaunay.extend(xy);
+    grow_halo(xy, delaunay.mesh());
     if (!peek_error.ok()) return peek_error.error();
     // Only cells that hold points matter.
     std::erase_if(pending, [&](const auto& cell) {
@@ -671,6 +678,7 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
     });
     if (pending.empty()) break;
   }
+  tris = delaunay.mesh().triangles;
   if (stats) {
     stats->gathered_points = pts.size();
     stats->rounds = round + 1;
@@ -785,7 +793,9 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   const std::vector<tile::Vertex> vertices = out.vertices();
   xy.resize(vertices.size());
   for (std::size_t i = 0; i < vertices.size(); ++i) xy[i] = {vertices[i].x, vertices[i].y};
-  const auto final_tris = detail::delaunay(xy);
+  delaunay.clear();  // a cleared builder triangulates exactly as a new one (same order)
+  delaunay.extend(xy);
+  const auto& final_tris = delaunay.mesh().triangles;
   out.triangles.assign(final_tris.begin(), final_tris.end());
   out.update_z_range();
   return out;
