@@ -165,6 +165,20 @@ bool Triangulation::pending_contains(const XY& p, VertexId* found) const {
   return false;
 }
 
+void Triangulation::clear() {
+  mesh_.clear();
+  pending_.clear();
+  segments_.clear();
+  ++revision_;  // no removal plan survives
+  planned_vertex_ = kNone;
+  hint_ = kNone;
+  randomize_walk_ = false;
+  has_constraints_ = false;
+  rng_ = kRngSeed;
+  live_vertices_ = 0;
+  cut_ = false;
+}
+
 InsertResult Triangulation::insert(const Point3& p) {
   ++revision_;
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || cut_) return {InsertOutcome::rejected, kNone};

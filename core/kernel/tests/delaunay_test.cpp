@@ -230,5 +230,56 @@ TEST(Delaunay, LargeBulkInsertionIsValid) {
   EXPECT_EQ(t.num_vertices(), pts.size());
 }
 
+// The same mesh, slot by slot: vertex coordinates and every triangle's vertices and neighbours.
+void expect_same_mesh(const Triangulation& a, const Triangulation& b) {
+  ASSERT_EQ(a.vertex_id_bound(), b.vertex_id_bound());
+  for (VertexId v = 1; v < a.vertex_id_bound(); ++v) {
+    ASSERT_EQ(a.xy(v).x, b.xy(v).x) << v;
+    ASSERT_EQ(a.xy(v).y, b.xy(v).y) << v;
+  }
+  ASSERT_EQ(a.mesh().triangle_slots(), b.mesh().triangle_slots());
+  for (TriangleId t = 0; t < a.mesh().triangle_slots(); ++t) {
+    ASSERT_EQ(a.mesh().tri(t).v, b.mesh().tri(t).v) << t;
+    ASSERT_EQ(a.mesh().tri(t).n, b.mesh().tri(t).n) << t;
+  }
+}
+
+TEST(Delaunay, ClearedTriangulationRebuildsExactlyAsANewOne) {
+  // clear() must leave no state behind (constraints, randomized walks, the cut flag, the hint):
+  // a reused triangulation gives the same ids and triangles as a new one, ties included (a
+  // lattice: cocircular squares, resolved by insertion order), and keeps its memory.
+  Triangulation reused;
+  reused.insert_bulk(test::uniform_points(3000, 31));
+  ASSERT_TRUE(reused.insert_constraint({0.1, 0.1, 0, 0}, {0.9, 0.8, 0, 0}).ok());
+  ASSERT_TRUE(reused.remove_vertex(5).ok());
+  reused.remove_triangles_outside({0.2, 0.2, 0.8, 0.8});
+  ASSERT_TRUE(reused.is_cut());
+  const std::size_t memory = reused.memory_bytes();
+  reused.clear();
+  EXPECT_EQ(reused.num_vertices(), 0u);
+  EXPECT_EQ(reused.dimension(), -1);
+  EXPECT_FALSE(reused.is_cut());
+  EXPECT_EQ(reused.memory_bytes(), memory);
+  expect_valid(reused);
+
+  auto pts = test::lattice_points(40, 0.25);
+  const auto more = test::uniform_points(500, 37, 0.0, 9.75);
+  pts.insert(pts.end(), more.begin(), more.end());
+  Triangulation fresh;
+  const auto rf = fresh.insert_bulk(pts);
+  const auto rr = reused.insert_bulk(pts);
+  ASSERT_EQ(rf.size(), rr.size());
+  for (std::size_t i = 0; i < rf.size(); ++i) {
+    ASSERT_EQ(rf[i].outcome, rr[i].outcome) << i;
+    ASSERT_EQ(rf[i].vertex, rr[i].vertex) << i;
+  }
+  ASSERT_TRUE(fresh.insert_constraint(rf[3].vertex, rf[1500].vertex).ok());
+  ASSERT_TRUE(reused.insert_constraint(rr[3].vertex, rr[1500].vertex).ok());
+  ASSERT_TRUE(fresh.remove_vertex(rf[700].vertex).ok());
+  ASSERT_TRUE(reused.remove_vertex(rr[700].vertex).ok());
+  expect_same_mesh(fresh, reused);
+  expect_valid(reused);
+}
+
 }  // namespace
 }  // namespace tinstream::kernel

@@ -11,54 +11,51 @@ using kernel::XY;
 
 bool lex_greater(const XY& p, const XY& q) { return p.x > q.x || (p.x == q.x && p.y > q.y); }
 
-// A compact copy of the kernel's finite triangles with neighbour links (n[i] across the edge
-// opposite v[i]; kNoTri on the hull), on which cocircular ties are flipped to the canonical
-// diagonal by Lawson flips under the perturbed predicate. Only ties can flip (the kernel's result
-// is already Delaunay), so the work is proportional to the number of ties.
+// The kernel's finite triangles are copied into a compact DelaunayMesh (neighbours[t][i] across
+// the edge opposite triangles[t][i]; kNoTri on the hull), on which cocircular ties are flipped to
+// the canonical diagonal by Lawson flips under the perturbed predicate. Only ties can flip (the
+// kernel's result is already Delaunay), so the work is proportional to the number of ties.
 constexpr std::uint32_t kNoTri = kNoNeighbour;
 
-struct FlipMesh {
-  std::vector<IndexTriangle> v;  // input indices
-  std::vector<std::array<std::uint32_t, 3>> n;
-};
-
-void canonicalize(const std::vector<XY>& p, FlipMesh& m) {
+void canonicalize(const std::vector<XY>& p, DelaunayMesh& mesh,
+                  std::vector<std::pair<std::uint32_t, int>>& stack) {
+  auto& tv = mesh.triangles;
+  auto& tn = mesh.neighbours;
   auto index_in = [&](std::uint32_t t, std::uint32_t of) {
     for (int i = 0; i < 3; ++i) {
-      if (m.n[t][static_cast<std::size_t>(i)] == of) return i;
+      if (tn[t][static_cast<std::size_t>(i)] == of) return i;
     }
     return -1;
   };
-  std::vector<std::pair<std::uint32_t, int>> stack;
-  stack.reserve(m.v.size() * 3);
-  for (std::uint32_t t = 0; t < m.v.size(); ++t) {
+  stack.clear();
+  for (std::uint32_t t = 0; t < tv.size(); ++t) {
     for (int i = 0; i < 3; ++i) {
-      if (m.n[t][static_cast<std::size_t>(i)] != kNoTri && m.n[t][static_cast<std::size_t>(i)] > t)
+      if (tn[t][static_cast<std::size_t>(i)] != kNoTri && tn[t][static_cast<std::size_t>(i)] > t)
         stack.emplace_back(t, i);
     }
   }
   while (!stack.empty()) {
     const auto [t1, i1] = stack.back();
     stack.pop_back();
-    const std::uint32_t t2 = m.n[t1][static_cast<std::size_t>(i1)];
+    const std::uint32_t t2 = tn[t1][static_cast<std::size_t>(i1)];
     if (t2 == kNoTri) continue;
     const int i2 = index_in(t2, t1);
     if (i2 < 0) continue;
     const auto at = [](int i) { return static_cast<std::size_t>(i % 3); };
     // t1 = (c, a, b) from position i1; t2 = (d, b, a) from position i2.
-    const std::uint32_t c = m.v[t1][at(i1)], a = m.v[t1][at(i1 + 1)], b = m.v[t1][at(i1 + 2)];
-    const std::uint32_t d = m.v[t2][at(i2)];
+    const std::uint32_t c = tv[t1][at(i1)], a = tv[t1][at(i1 + 1)], b = tv[t1][at(i1 + 2)];
+    const std::uint32_t d = tv[t2][at(i2)];
     if (kernel::incircle(p[c], p[a], p[b], p[d]) != 0.0) continue;  // not a tie: already right
     if (perturbed_incircle(p[c], p[a], p[b], p[d]) < 0) continue;
-    const std::uint32_t x_bc = m.n[t1][at(i1 + 1)], x_ca = m.n[t1][at(i1 + 2)];
-    const std::uint32_t x_ad = m.n[t2][at(i2 + 1)], x_db = m.n[t2][at(i2 + 2)];
+    const std::uint32_t x_bc = tn[t1][at(i1 + 1)], x_ca = tn[t1][at(i1 + 2)];
+    const std::uint32_t x_ad = tn[t2][at(i2 + 1)], x_db = tn[t2][at(i2 + 2)];
     // (c, a, d) and (d, b, c): the diagonal c-d replaces a-b.
-    m.v[t1] = {c, a, d};
-    m.n[t1] = {x_ad, t2, x_ca};
-    m.v[t2] = {d, b, c};
-    m.n[t2] = {x_bc, t1, x_db};
-    if (x_ad != kNoTri) m.n[x_ad][static_cast<std::size_t>(index_in(x_ad, t2))] = t1;
-    if (x_bc != kNoTri) m.n[x_bc][static_cast<std::size_t>(index_in(x_bc, t1))] = t2;
+    tv[t1] = {c, a, d};
+    tn[t1] = {x_ad, t2, x_ca};
+    tv[t2] = {d, b, c};
+    tn[t2] = {x_bc, t1, x_db};
+    if (x_ad != kNoTri) tn[x_ad][static_cast<std::size_t>(index_in(x_ad, t2))] = t1;
+    if (x_bc != kNoTri) tn[x_bc][static_cast<std::size_t>(index_in(x_bc, t1))] = t2;
     stack.emplace_back(t1, 0);
     stack.emplace_back(t1, 2);
     stack.emplace_back(t2, 0);
@@ -98,37 +95,62 @@ std::vector<IndexTriangle> delaunay(const std::vector<XY>& points) {
 }
 
 DelaunayMesh delaunay_mesh(const std::vector<XY>& points) {
-  std::vector<kernel::Point3> in(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) in[i] = {points[i].x, points[i].y, 0.0, 0.0};
-  kernel::Triangulation dt;
-  const auto results = dt.insert_bulk(in);
+  DelaunayBuilder builder;
+  builder.extend(points);
+  return builder.mesh();
+}
+
+void DelaunayBuilder::clear() {
+  dt_.clear();
+  index_of_.clear();
+  added_ = 0;
+  mesh_.triangles.clear();
+  mesh_.neighbours.clear();
+}
+
+std::size_t DelaunayBuilder::memory_bytes() const {
+  return dt_.memory_bytes() + batch_.capacity() * sizeof(kernel::Point3) +
+         (index_of_.capacity() + compact_.capacity()) * sizeof(std::uint32_t) +
+         flips_.capacity() * sizeof(flips_[0]) +
+         mesh_.triangles.capacity() * sizeof(IndexTriangle) +
+         mesh_.neighbours.capacity() * sizeof(mesh_.neighbours[0]);
+}
+
+void DelaunayBuilder::extend(const std::vector<XY>& points) {
+  batch_.resize(points.size() - added_);
+  for (std::size_t i = 0; i < batch_.size(); ++i) {
+    batch_[i] = {points[added_ + i].x, points[added_ + i].y, 0.0, 0.0};
+  }
+  const auto results = dt_.insert_bulk(batch_);
   // Vertex id → input index (the kernel numbers vertices in its own insertion order).
-  std::vector<std::uint32_t> index_of(dt.vertex_id_bound(), 0);
+  index_of_.resize(dt_.vertex_id_bound(), 0);
   for (std::size_t i = 0; i < results.size(); ++i) {
     if (results[i].outcome == kernel::InsertOutcome::inserted) {
-      index_of[results[i].vertex] = static_cast<std::uint32_t>(i);
+      index_of_[results[i].vertex] = static_cast<std::uint32_t>(added_ + i);
     }
   }
-  const kernel::Mesh& mesh = dt.mesh();
-  std::vector<std::uint32_t> compact(mesh.triangle_slots(), kNoTri);
-  FlipMesh m;
-  m.v.reserve(2 * points.size());
+  added_ = points.size();
+  // The compact copy of all finite triangles, in kernel slot order, then its ties made canonical.
+  const kernel::Mesh& mesh = dt_.mesh();
+  compact_.assign(mesh.triangle_slots(), kNoTri);
+  auto& tv = mesh_.triangles;
+  auto& tn = mesh_.neighbours;
+  tv.clear();
   for (kernel::TriangleId t = 0; t < mesh.triangle_slots(); ++t) {
     if (!mesh.is_live(t) || mesh.is_ghost(t)) continue;
-    compact[t] = static_cast<std::uint32_t>(m.v.size());
+    compact_[t] = static_cast<std::uint32_t>(tv.size());
     const auto& tri = mesh.tri(t);
-    m.v.push_back({index_of[tri.v[0]], index_of[tri.v[1]], index_of[tri.v[2]]});
+    tv.push_back({index_of_[tri.v[0]], index_of_[tri.v[1]], index_of_[tri.v[2]]});
   }
-  m.n.resize(m.v.size());
+  tn.resize(tv.size());
   for (kernel::TriangleId t = 0; t < mesh.triangle_slots(); ++t) {
-    if (compact[t] == kNoTri) continue;
+    if (compact_[t] == kNoTri) continue;
     const auto& tri = mesh.tri(t);
     for (std::size_t i = 0; i < 3; ++i) {
-      m.n[compact[t]][i] = tri.n[i] < compact.size() ? compact[tri.n[i]] : kNoTri;
+      tn[compact_[t]][i] = tri.n[i] < compact_.size() ? compact_[tri.n[i]] : kNoTri;
     }
   }
-  canonicalize(points, m);
-  return {std::move(m.v), std::move(m.n)};
+  canonicalize(points, mesh_, flips_);
 }
 
 }  // namespace tinstream::triangulate::detail

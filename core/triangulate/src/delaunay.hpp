@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "tinstream/kernel/predicates.hpp"
+#include "tinstream/kernel/triangulation.hpp"
 
 namespace tinstream::triangulate::detail {
 
@@ -40,5 +41,32 @@ struct DelaunayMesh {
   std::vector<std::array<std::uint32_t, 3>> neighbours;
 };
 DelaunayMesh delaunay_mesh(const std::vector<kernel::XY>& points);
+
+// The canonical triangulation of a growing point set, kept in one kernel triangulation: each
+// extend() inserts only the points appended since the previous call (a halo round's new cells)
+// instead of triangulating all of them again. mesh() holds the same triangles as
+// delaunay_mesh(points) — the canonical triangulation is unique — but not in the same order.
+// After clear() the next extend() gives exactly delaunay_mesh(points), triangle order included.
+// The buffers (kernel mesh included) keep their capacity across clear(): one builder per thread,
+// reused from tile to tile.
+class DelaunayBuilder {
+ public:
+  void clear();
+  // Inserts points[added(), points.size()). Requires: points[0, added()) are the points of the
+  // previous calls, unchanged; all points pairwise distinct.
+  void extend(const std::vector<kernel::XY>& points);
+  std::size_t added() const { return added_; }
+  const DelaunayMesh& mesh() const { return mesh_; }
+  std::size_t memory_bytes() const;
+
+ private:
+  kernel::Triangulation dt_;
+  std::vector<kernel::Point3> batch_;
+  std::vector<std::uint32_t> index_of_;  // kernel vertex id → index into the points
+  std::vector<std::uint32_t> compact_;  // kernel triangle id → index into mesh_ (or kNoNeighbour)
+  std::vector<std::pair<std::uint32_t, int>> flips_;  // canonicalize's stack
+  std::size_t added_ = 0;
+  DelaunayMesh mesh_;
+};
 
 }  // namespace tinstream::triangulate::detail

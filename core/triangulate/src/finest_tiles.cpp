@@ -350,7 +350,8 @@ namespace {
 // reused (contents never carry over: build_tile clears each before use). One per thread.
 struct TileBuffers {
   std::unordered_set<std::uint64_t> have;  // cells in S or pending
-  std::unordered_set<std::uint64_t> in_s;  // cells whose points are in S
+  // Cells whose points are in S → (first, count): where their points are in pts.
+  std::unordered_map<std::uint64_t, std::pair<std::size_t, std::size_t>> in_s;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pending;
   std::vector<SortedPoint> pts;    // S, in gathering order
   std::vector<SortedPoint> own;    // the tile's own records, read at once
@@ -360,6 +361,8 @@ struct TileBuffers {
   std::vector<XY> peek_pool;
   std::vector<XY> xy;
   std::vector<detail::IndexTriangle> tris;
+  // The halo rounds' triangulation (extended round by round), then the final one.
+  detail::DelaunayBuilder delaunay;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> hull;   // grow_halo's local hull edges
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // edges crossing the border lines
 
@@ -372,6 +375,7 @@ struct TileBuffers {
     };
     release(pts), release(own), release(chunk), release(peek_pool), release(xy), release(tris);
     release(hull), release(edges), release(pending);
+    if (delaunay.memory_bytes() > kKeepBytes) delaunay = detail::DelaunayBuilder();
   }
 };
 
@@ -400,8 +404,41 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
     if (have.insert(pack(ux, uy)).second) pending.emplace_back(ux, uy);
   };
   const std::int64_t x0 = std::int64_t{id.x} * n, y0 = std::int64_t{id.y} * n;
+  const std::ptrdiff_t own = cells.tile_index(id);
+  // The halo's triangulation starts from a band along ∂R — the ring of neighbour cells and the
+  // own cells touching ∂R — not from all own points: the output depends only on the global
+  // triangles meeting ∂R and on the own points (taken from the tile's records below), and the
+  // halo test (grow_halo) treats the own cells left out, the "hole", like any cell not yet
+  // gathered: a circle that reaches one pulls it in, so its argument holds for the band as it
+  // stands. The band needs an own point (the argument's hull case) and only pays where ∂R is
+  // densely populated, so a tile with an empty own border cell (the data's edge, a gap) starts
+  // from all its own cells, as before.
+  //
+  //   r r r r r r    r  the ring: neighbours' cells along R     } gathered in the first round
+  //   r b b b b r    b  own border cells (each holds points)    }
+  //   r b h h b r    h  the hole: own cells a cell or more inside ∂R, gathered only when a
+  //   r b h h b r       circle of a triangle meeting ∂R reaches them (in band mode)
+  //   r b b b b r
+  //   r r r r r r    (n × n own cells; n = 16 but for the deepest levels)
+  const bool band = own >= 0 && n > 2 && [&] {
+    for (std::int64_t i = 0; i < n; ++i) {
+      for (const auto& [cx, cy] : {std::pair{x0 + i, y0}, std::pair{x0 + i, y0 + n - 1},
+                                   std::pair{x0, y0 + i}, std::pair{x0 + n - 1, y0 + i}}) {
+        if (cells.cell_range(static_cast<std::uint32_t>(cx), static_cast<std::uint32_t>(cy))
+                .second == 0) {
+          return false;
+        }
+      }
+    }
+    return true;
+  }();
+  auto in_hole = [&](std::int64_t cx, std::int64_t cy) {
+    return band && cx > x0 && cx < x0 + n - 1 && cy > y0 && cy < y0 + n - 1;
+  };
   for (std::int64_t cy = y0 - 1; cy <= y0 + n; ++cy) {
-    for (std::int64_t cx = x0 - 1; cx <= x0 + n; ++cx) want(cx, cy);
+    for (std::int64_t cx = x0 - 1; cx <= x0 + n; ++cx) {
+      if (!in_hole(cx, cy)) want(cx, cy);
+    }
   }
 
   std::uint64_t circle_tests = 0;
@@ -432,6 +469,15 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   const double cell_width = R.width() / n;
   const geo::MercatorRect inner{R.min_x - cell_width, R.min_y - cell_width, R.max_x + cell_width,
                                 R.max_y + cell_width};
+  // The band's hole cells together, from their own bounds (a circle missing this misses each).
+  const geo::MercatorRect hole = [&] {
+    if (!band) return geo::MercatorRect{};
+    const auto sw = cell_rect(cell_level, static_cast<std::uint32_t>(x0 + 1),
+                              static_cast<std::uint32_t>(y0 + n - 2));
+    const auto ne = cell_rect(cell_level, static_cast<std::uint32_t>(x0 + n - 2),
+                              static_cast<std::uint32_t>(y0 + 1));
+    return geo::MercatorRect{sw.min_x, sw.min_y, ne.max_x, ne.max_y};
+  }();
   // B: the only region whose points can matter for triangles kept in this tile.
   const double rmax = options.max_circumradius_tiles * R.width();
   const double rmax2 = rmax * rmax;
@@ -573,11 +619,13 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
       // the data's hull where it runs through R, whose circles are huge).
       if (!bbox_meets_border(a, b, c, R)) continue;
       const Circle circle = circumcircle(a, b, c);
-      // Circles inside R grown by one cell lie in cells gathered from the start (own + ring).
+      // Circles inside R grown by one cell lie in cells gathered from the start (own + ring),
+      // unless they reach the band's hole.
       if (!circle.unbounded) {
         const double r = padded_radius(circle);
         if (circle.cx - r > inner.min_x && circle.cx + r < inner.max_x &&
-            circle.cy - r > inner.min_y && circle.cy + r < inner.max_y) {
+            circle.cy - r > inner.min_y && circle.cy + r < inner.max_y &&
+            (!band || !circle_meets(circle, hole))) {
           continue;
         }
         if (r <= large_r) {
@@ -620,9 +668,11 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   };
   auto& xy = buffers.xy;
   auto& tris = buffers.tris;
+  auto& delaunay = buffers.delaunay;
+  xy.clear();
+  delaunay.clear();
   // The own cells' records come from one read of the whole tile (cells are contiguous ranges of
   // it), not one read per cell; they are appended in the same (gathering) order as before.
-  const std::ptrdiff_t own = cells.tile_index(id);
   auto& own_points = buffers.own;
   own_points.clear();
   std::uint64_t own_first = 0;
@@ -641,8 +691,8 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
                                             std::to_string(options.max_rounds) + " rounds");
     }
     for (const auto& [cx, cy] : pending) {
-      in_s.insert(pack(cx, cy));
       const auto [first, count] = cells.cell_range(cx, cy);
+      in_s.emplace(pack(cx, cy), std::pair{pts.size(), static_cast<std::size_t>(count)});
       if (count == 0) continue;
       if (is_own_cell(cx, cy)) {
         const auto begin = own_points.begin() + static_cast<std::ptrdiff_t>(first - own_first);
@@ -659,11 +709,12 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
                        std::to_string(options.max_gathered_points) +
                        " points (very uneven density); raise max_gathered_points");
     }
-    xy.resize(pts.size());
-    for (std::size_t i = 0; i < pts.size(); ++i) xy[i] = {pts[i].x, pts[i].y};
-    detail::DelaunayMesh mesh = detail::delaunay_mesh(xy);
-    grow_halo(xy, mesh);
-    tris = std::move(mesh.triangles);
+    // Each round inserts only its new cells' points into the same triangulation: the canonical
+    // triangulation is unique, so it holds the triangles a fresh one of all points would (in
+    // another order, which changes nothing: the cells a round asks for are a set, see grow_halo).
+    for (std::size_t i = xy.size(); i < pts.size(); ++i) xy.push_back({pts[i].x, pts[i].y});
+    delaunay.extend(xy);
+    grow_halo(xy, delaunay.mesh());
     if (!peek_error.ok()) return peek_error.error();
     // Only cells that hold points matter.
     std::erase_if(pending, [&](const auto& cell) {
@@ -671,6 +722,7 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
     });
     if (pending.empty()) break;
   }
+  tris = delaunay.mesh().triangles;
   if (stats) {
     stats->gathered_points = pts.size();
     stats->rounds = round + 1;
@@ -685,7 +737,7 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   bool corner_found[4] = {false, false, false, false};
   std::vector<tile::Vertex> north, east, south, west;
   out.source_points = own >= 0 ? cells.tiles()[static_cast<std::size_t>(own)].count : 0;
-  for (const SortedPoint& p : pts) {
+  auto classify = [&](const SortedPoint& p) {
     const bool in_x = p.x > R.min_x && p.x < R.max_x;
     const bool in_y = p.y > R.min_y && p.y < R.max_y;
     if (in_x && in_y) {
@@ -705,6 +757,24 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
           corner_found[k] = true;
         }
       }
+    }
+  };
+  // The points in and on R come from the cells around it, visited row by row as the first halo
+  // round once gathered them (the interior points' order is part of the output): own cells from
+  // the tile's records (the band's hole is not in S), the ring's from S. Cells beyond the ring
+  // lie a cell width away from R.
+  for (std::int64_t cy = y0 - 1; cy <= y0 + n; ++cy) {
+    for (std::int64_t cx = x0 - 1; cx <= x0 + n; ++cx) {
+      if (cx < 0 || cy < 0 || cx >= cells_per_side || cy >= cells_per_side) continue;
+      const auto ux = static_cast<std::uint32_t>(cx), uy = static_cast<std::uint32_t>(cy);
+      std::span<const SortedPoint> cell_points;
+      if (is_own_cell(ux, uy)) {
+        const auto [first, count] = cells.cell_range(ux, uy);
+        cell_points = {own_points.data() + (first - own_first), count};
+      } else if (const auto it = in_s.find(pack(ux, uy)); it != in_s.end()) {
+        cell_points = {pts.data() + it->second.first, it->second.second};
+      }
+      for (const SortedPoint& p : cell_points) classify(p);
     }
   }
   // Only triangles with circumradius ≤ rmax are part of the surface (larger ones span data gaps
@@ -785,7 +855,9 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   const std::vector<tile::Vertex> vertices = out.vertices();
   xy.resize(vertices.size());
   for (std::size_t i = 0; i < vertices.size(); ++i) xy[i] = {vertices[i].x, vertices[i].y};
-  const auto final_tris = detail::delaunay(xy);
+  delaunay.clear();  // a cleared builder triangulates exactly as a new one (same order)
+  delaunay.extend(xy);
+  const auto& final_tris = delaunay.mesh().triangles;
   out.triangles.assign(final_tris.begin(), final_tris.end());
   out.update_z_range();
   return out;

@@ -349,6 +349,47 @@ TEST(FinestTiles, CurvedConcaveHullWithClustersMatchesGlobalOnEveryBorder) {
   expect_global_tiles(f, pts);
 }
 
+TEST(FinestTiles, BorderCirclesReachingDeepIntoTheTileMatchGlobal) {
+  // The halo starts from a band along each tile's border (the ring and the own border cells) and
+  // must pull in own cells further inside when a border triangle's circle reaches them. Here it
+  // must: every tile has two points per border cell on a line just inside each side (the
+  // neighbour's line, shifted by half a step, just outside), so the triangles across each border
+  // have flat circles reaching 1.3 cells into the tile, where a row of points 1.1 cells deep lies
+  // in them. A band that stopped at the border cells gives other edge points than CGAL's.
+  const geo::TileId base{12, 2000, 1500};
+  const double width = base.bounds().width();
+  const double step = width / 32;  // half a cell (16 cells per tile side)
+  const double depth = 0.05 * step;
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<InputPoint> pts;
+  auto add = [&](double x, double y) { pts.push_back({x, y, 100.0 + 10.0 * u(rng)}); };
+  for (std::uint32_t ty = 0; ty < 4; ++ty) {
+    for (std::uint32_t tx = 0; tx < 4; ++tx) {
+      const auto r = geo::TileId{12, base.x + tx, base.y + ty}.bounds();
+      for (int k = 0; k < 32; ++k) {
+        const double j = 0.01 * step * u(rng);
+        add(r.min_x + (k + 0.25) * step + j, r.max_y - depth);  // north
+        add(r.min_x + (k + 0.75) * step + j, r.min_y + depth);  // south
+        add(r.min_x + depth, r.min_y + (k + 0.25) * step + j);  // west
+        add(r.max_x - depth, r.min_y + (k + 0.75) * step + j);  // east
+      }
+      for (int k = 2; k < 30; ++k) {  // the row 1.1 cells deep along each side
+        const double along = (k + 0.5 + 0.01 * u(rng)) * step;
+        const double in = (2.2 + 0.05 * u(rng)) * step;
+        add(r.min_x + along, r.max_y - in);
+        add(r.min_x + along, r.min_y + in);
+        add(r.min_x + in, r.min_y + along);
+        add(r.max_x - in, r.min_y + along);
+      }
+    }
+  }
+  const Fixture f = build(pts, 300, 2, "deep-circles");
+  ASSERT_EQ(f.run.finest_level, 12u);
+  ASSERT_EQ(f.tiles.size(), 16u);
+  expect_global_tiles(f, pts);
+}
+
 TEST(FinestTiles, PlanarSurfaceInterpolatesEdgeAndCornerPointsOnThePlane) {
   auto pts = random_points(3000, 2, -0.3, 0.4, 2e-4);
   for (auto& p : pts) p.z = 1000.0 + 2e5 * (p.x + 0.3) - 1e5 * (p.y - 0.4);

@@ -67,7 +67,9 @@ struct IngestSummary {
   std::uint32_t min_level = 0;
   std::uint64_t tiles = 0;  // all levels
   std::vector<LevelSummary> levels;
-  double halo_overhead = 0;  // points triangulated / points (pass 3)
+  // Points in pass 3's halo triangulations / points: below 1 where tiles start from a band along
+  // their border (their own points are triangulated once more for the tile itself).
+  double halo_overhead = 0;
   double seconds = 0;
   std::vector<PhaseTime> phases;  // in order; their seconds add up to about `seconds`
   std::uint64_t peak_rss_bytes = 0;

@@ -322,6 +322,16 @@ class Mesh {
     ghosts_ = 0;
     for (auto& t : vtri_) t = kNone;
   }
+  // Drops every vertex and triangle but keeps the arrays' memory: the mesh is then as a new one
+  // (only the infinite vertex), and what is built next reuses the capacity.
+  void clear() {
+    xy_.clear();
+    z_.clear();
+    weight_.clear();
+    vtri_.clear();
+    clear_triangles();
+    add_vertex(0.0, 0.0, 0.0, 0.0);
+  }
   void reserve_triangles(std::size_t n) {
     tris_.reserve(n);
     if (any_constrained_) flags_.reserve(n);

@@ -76,6 +76,10 @@ class Triangulation {
   explicit Triangulation(const Rect& domain) : domain_(domain) {}
 
   // ---- building -------------------------------------------------------------------------------
+  // Removes every vertex, triangle and constraint but keeps the memory (the domain stays): the
+  // triangulation then behaves exactly as a newly constructed one — the same insertions give the
+  // same vertex and triangle ids — so one object can serve many builds without reallocating.
+  void clear();
   InsertResult insert(const Point3& p);
   // Inserts all points in a spatially sorted order (BRIO rounds, each in Hilbert order); result
   // i belongs to points[i]. Among exact duplicates the first in `points` wins (its z and weight
@@ -243,7 +247,8 @@ class Triangulation {
   // walk picks its first edge at random (remembering stochastic walk).
   bool randomize_walk_ = false;
   bool has_constraints_ = false;
-  mutable std::uint32_t rng_ = 0x9E3779B9u;
+  static constexpr std::uint32_t kRngSeed = 0x9E3779B9u;
+  mutable std::uint32_t rng_ = kRngSeed;
   std::size_t live_vertices_ = 0;
   bool cut_ = false;
 };

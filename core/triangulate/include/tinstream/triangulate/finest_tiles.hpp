@@ -84,9 +84,11 @@ struct FinestTileOptions {
 };
 
 struct FinestTileStats {
-  std::uint64_t gathered_points = 0;  // points triangulated for this tile (own + halo)
-  int rounds = 0;                     // halo growth rounds
-  std::uint64_t circle_tests = 0;     // point-in-circumcircle tests deciding the halo
+  // Points in the tile's halo triangulation: the halo plus the own points (in band mode only the
+  // own cells along the border and those a circle reached; see build_tile).
+  std::uint64_t gathered_points = 0;
+  int rounds = 0;                  // halo growth rounds
+  std::uint64_t circle_tests = 0;  // point-in-circumcircle tests deciding the halo
 };
 
 // Computes one finest tile. `reader` must read the run that `cells` indexes.
@@ -100,7 +102,7 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
 // the first error (returned) or when `sink` or `progress` returns false/an error.
 struct TriangulateSummary {
   std::uint64_t tiles = 0;
-  std::uint64_t gathered_points = 0;  // Σ points triangulated (own + halo): overhead measure
+  std::uint64_t gathered_points = 0;  // Σ FinestTileStats::gathered_points: overhead measure
   int max_rounds = 0;
   std::uint64_t circle_tests = 0;  // Σ point-in-circumcircle tests (work measure of the halo)
 };
