@@ -20,6 +20,7 @@
 #include "greedy.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -169,8 +170,8 @@ class GreedyInserter {
       const std::uint32_t t = where[i - filed_from_];
       if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {p.x,       p.y,          p.z, static_cast<std::uint32_t>(i),
-                                        state_[i], p.weight != 0};
+      pool_[begin_[t] + count_[t]++] = {
+          p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i], weight_index(p.weight)};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -277,28 +278,49 @@ class GreedyInserter {
   enum class Outcome { inserted, duplicate, on_wall };
 
   // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
-  // memory in order (32 bytes: its weight, usually 0, is looked up by id when it is not).
+  // memory in order (32 bytes: its weight is an index into the few distinct weights of the
+  // tile's points, weights_, or kWeightById when there are too many: then looked up by id).
   struct Filed {
     double x, y, z;
-    std::uint32_t id;   // index into pts_
-    std::uint8_t kind;  // State
-    bool weighted;      // its weight is not 0
+    std::uint32_t id;      // index into pts_
+    std::uint8_t kind;     // State
+    std::uint16_t weight;  // index into weights_, or kWeightById
   };
+  static_assert(sizeof(Filed) == 32);
+  static constexpr std::uint16_t kWeightById = 0xFFFF;
+  static constexpr std::size_t kMaxWeights = 64;  // distinct weights kept in weights_
 
   Plane plane(std::uint32_t t) const {
     const auto& v = tris_[t].v;
     return Plane(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
   }
 
+  // |z − surface| + the point's weight: the same double sum as e + pts_[f.id].weight (weights_
+  // holds the weights' exact values, and |…| + 0 is |…| bit for bit), without the random access
+  // into the input (LiDAR points all carry a weight, 1 by default).
   double effective_error(const Filed& f, double surface) const {
     const double e = std::abs(f.z - surface);
-    if (!f.weighted) return e;  // (|…| + 0 is |…|, bit for bit)
-    return plus_weight(e, f.id);
+    if (f.weight == kWeightById) [[unlikely]]
+      return plus_weight(e, f.id);
+    return e + weights_[f.weight];
   }
-  // Out of line, so that the compiler cannot turn the branch above into a conditional move that
-  // reads the point's weight (a random access) for every point.
+  // Out of line: the rare case (more than kMaxWeights distinct weights in one tile).
   [[gnu::noinline]] double plus_weight(double e, std::uint32_t id) const {
     return e + pts_[id].weight;
+  }
+  // The index of weight w in weights_ (same bits), added when new; kWeightById when full.
+  std::uint16_t weight_index(double w) {
+    const auto bits = std::bit_cast<std::uint64_t>(w);
+    if (bits == last_weight_bits_ && last_weight_ != kWeightById) return last_weight_;
+    std::size_t k = 0;
+    while (k < weights_.size() && std::bit_cast<std::uint64_t>(weights_[k]) != bits) ++k;
+    if (k == weights_.size()) {
+      if (k == kMaxWeights) return kWeightById;
+      weights_.push_back(w);
+    }
+    last_weight_bits_ = bits;
+    last_weight_ = static_cast<std::uint16_t>(k);
+    return last_weight_;
   }
 
   // Recomputes t's best candidate from its bucket (compacting away points that left) and its
@@ -752,6 +774,10 @@ class GreedyInserter {
   std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
   double sector_cells_per_unit_ = 0;
   std::vector<Plane> planes_;
+  // The distinct weights of the filed points (Filed::weight), and weight_index()'s last answer.
+  std::vector<double> weights_;
+  std::uint64_t last_weight_bits_ = 0;
+  std::uint16_t last_weight_ = kWeightById;  // (none yet)
 };
 
 }  // namespace
