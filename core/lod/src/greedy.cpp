@@ -23,7 +23,10 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <new>
 #include <string>
+#include <utility>
 
 #include "indexed_heap.hpp"
 #include "plane.hpp"
@@ -64,6 +67,27 @@ bool axis_rectangle(const XY& a, const XY& b, const XY& c, const XY& d) {
          either(d.x, a.x, x1) && either(b.y, a.y, y1) && either(c.y, a.y, y1) &&
          either(d.y, a.y, y1);
 }
+
+// An allocator whose value-less construct() default-initializes: vector::resize then leaves
+// trivial elements unset instead of zeroing memory that is written right after.
+template <typename T>
+struct DefaultInit : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = DefaultInit<U>;
+  };
+  DefaultInit() = default;
+  template <typename U>
+  DefaultInit(const DefaultInit<U>&) noexcept {}
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
 
 enum State : std::uint8_t {
   kCandidate,  // may be inserted
@@ -573,25 +597,30 @@ class GreedyInserter {
     }
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
-    star_best_.assign(n, kNone);  // the index in its scratch bucket, then in the pool
+    star_best_.assign(n, kNone);  // the index in its new bucket, then in the pool
     star_error_.assign(n, -1.0);
-    if (scratch_.size() < n) scratch_.resize(n);
-    for (std::size_t k = 0; k < n; ++k) scratch_[k].clear();
+    star_count_.assign(n, 0);
+    if (slot_.size() < entries) slot_.resize(entries);
     const bool by_angle = n > kSmallStar;
     if (by_angle) sort_star_by_angle();
     // (The loops work on raw pointers: through the vectors, every store made the compiler reload
     // their bounds.)
-    std::vector<Filed>* const scratch = scratch_.data();
+    std::uint32_t* const slot = slot_.data();
+    std::uint32_t* const star_count = star_count_.data();
     std::uint32_t* const star_best = star_best_.data();
     double* const star_error = star_error_.data();
     const Plane* const planes = planes_.data();
-    std::uint32_t moved = 0;
-    // Each point into the scratch bucket of its star triangle (in gather order, as before).
+    // Pass 1: each point's star triangle (slot, by gathered entry; kNone for a point that left),
+    // its place in that triangle's new bucket (in gather order), and the buckets' best.
+    std::uint32_t moved = 0, m = 0;
     for (const auto& [b, cnt] : taken_) {
       const Filed* const bucket = pool_.data() + b;
-      for (std::uint32_t e = 0; e < cnt; ++e) {
+      for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
         const Filed& f = bucket[e];
-        if (f.kind != kCandidate && f.kind != kExtra) continue;
+        if (f.kind != kCandidate && f.kind != kExtra) {
+          slot[m] = kNone;
+          continue;
+        }
         double surface = 0.0;  // always set by the locate calls below (GCC -O3 cannot see it)
         std::uint32_t k = 0;
         if (by_angle) {
@@ -600,26 +629,34 @@ class GreedyInserter {
           while (k < n && !planes[k].contains(f.x, f.y, &surface)) ++k;
           if (k == n) k = locate_in_order(f.x, f.y, &surface);
         }
-        std::vector<Filed>& to = scratch[k];
-        to.push_back(f);
+        slot[m] = k;
+        const std::uint32_t place = star_count[k]++;
         ++moved;
         if (f.kind != kCandidate) continue;
         const double err = effective_error(f, surface);
-        if (err > star_error[k]) {
-          star_error[k] = err, star_best[k] = static_cast<std::uint32_t>(to.size() - 1);
-        }
+        if (err > star_error[k]) star_error[k] = err, star_best[k] = place;
       }
     }
-    // The new buckets go after everything (the taken ones included); positions are indices,
-    // valid across the growth (which insert() keeps within the capacity).
+    // The new buckets go after everything (the taken ones included), in star order; positions
+    // are indices, valid across the growth (which insert() keeps within the capacity).
+    auto at = static_cast<std::uint32_t>(pool_.size());
     for (std::size_t k = 0; k < n; ++k) {
       const std::uint32_t t = star_[k];
-      const auto at = static_cast<std::uint32_t>(pool_.size());
-      const std::vector<Filed>& from = scratch[k];
       begin_[t] = at;
-      count_[t] = static_cast<std::uint32_t>(from.size());
-      pool_.insert(pool_.end(), from.begin(), from.end());
+      count_[t] = star_count[k];
       if (star_best[k] != kNone) star_best[k] += at;
+      star_count[k] = at;  // from here: where the bucket's next point goes
+      at += count_[t];
+    }
+    // Pass 2: the points into their buckets, straight from the taken ones (no scratch copy).
+    pool_.resize(at);
+    Filed* const pool = pool_.data();
+    m = 0;
+    for (const auto& [b, cnt] : taken_) {
+      for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
+        const std::uint32_t k = slot[m];
+        if (k != kNone) pool[star_count[k]++] = pool[b + e];
+      }
     }
     live_ += moved;
     for (std::size_t k = 0; k < n; ++k) {
@@ -759,15 +796,16 @@ class GreedyInserter {
   std::vector<double> z_;
   std::vector<Tri> tris_;
   // Buckets: triangle t's points are pool_[begin_[t], begin_[t] + count_[t]).
-  std::vector<Filed> pool_, spare_;
-  std::vector<std::uint32_t> begin_, count_;  // by triangle
-  std::size_t live_ = 0;                      // points in buckets
+  std::vector<Filed, DefaultInit<Filed>> pool_, spare_;  // (resize leaves new entries unset)
+  std::vector<std::uint32_t> begin_, count_;             // by triangle
+  std::size_t live_ = 0;                                 // points in buckets
   std::vector<std::uint32_t> best_;  // by triangle: pool index of its candidate of largest error
   IndexedHeap heap_;                 // triangles by −(largest effective error), then id
   // Scratch of one insertion.
   std::vector<std::uint32_t> star_, stack_, star_best_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
-  std::vector<std::vector<Filed>> scratch_;  // by star index: its points, in gather order
+  std::vector<std::uint32_t> slot_;        // by gathered entry: its star index, or kNone
+  std::vector<std::uint32_t> star_count_;  // by star index: its new bucket's size, then its end
   std::vector<double> star_error_;
   std::vector<std::uint32_t> sector_;
   std::vector<double> angle_, sector_start_;
