@@ -20,9 +20,13 @@
 #include "greedy.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <new>
 #include <string>
+#include <utility>
 
 #include "indexed_heap.hpp"
 #include "plane.hpp"
@@ -63,6 +67,27 @@ bool axis_rectangle(const XY& a, const XY& b, const XY& c, const XY& d) {
          either(d.x, a.x, x1) && either(b.y, a.y, y1) && either(c.y, a.y, y1) &&
          either(d.y, a.y, y1);
 }
+
+// An allocator whose value-less construct() default-initializes: vector::resize then leaves
+// trivial elements unset instead of zeroing memory that is written right after.
+template <typename T>
+struct DefaultInit : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = DefaultInit<U>;
+  };
+  DefaultInit() = default;
+  template <typename U>
+  DefaultInit(const DefaultInit<U>&) noexcept {}
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
 
 enum State : std::uint8_t {
   kCandidate,  // may be inserted
@@ -169,8 +194,8 @@ class GreedyInserter {
       const std::uint32_t t = where[i - filed_from_];
       if (t == kNone) continue;
       const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {p.x,       p.y,          p.z, static_cast<std::uint32_t>(i),
-                                        state_[i], p.weight != 0};
+      pool_[begin_[t] + count_[t]++] = {
+          p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i], weight_index(p.weight)};
     }
     live_ = at;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
@@ -277,28 +302,49 @@ class GreedyInserter {
   enum class Outcome { inserted, duplicate, on_wall };
 
   // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
-  // memory in order (32 bytes: its weight, usually 0, is looked up by id when it is not).
+  // memory in order (32 bytes: its weight is an index into the few distinct weights of the
+  // tile's points, weights_, or kWeightById when there are too many: then looked up by id).
   struct Filed {
     double x, y, z;
-    std::uint32_t id;   // index into pts_
-    std::uint8_t kind;  // State
-    bool weighted;      // its weight is not 0
+    std::uint32_t id;      // index into pts_
+    std::uint8_t kind;     // State
+    std::uint16_t weight;  // index into weights_, or kWeightById
   };
+  static_assert(sizeof(Filed) == 32);
+  static constexpr std::uint16_t kWeightById = 0xFFFF;
+  static constexpr std::size_t kMaxWeights = 64;  // distinct weights kept in weights_
 
   Plane plane(std::uint32_t t) const {
     const auto& v = tris_[t].v;
     return Plane(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
   }
 
+  // |z − surface| + the point's weight: the same double sum as e + pts_[f.id].weight (weights_
+  // holds the weights' exact values, and |…| + 0 is |…| bit for bit), without the random access
+  // into the input (LiDAR points all carry a weight, 1 by default).
   double effective_error(const Filed& f, double surface) const {
     const double e = std::abs(f.z - surface);
-    if (!f.weighted) return e;  // (|…| + 0 is |…|, bit for bit)
-    return plus_weight(e, f.id);
+    if (f.weight == kWeightById) [[unlikely]]
+      return plus_weight(e, f.id);
+    return e + weights_[f.weight];
   }
-  // Out of line, so that the compiler cannot turn the branch above into a conditional move that
-  // reads the point's weight (a random access) for every point.
+  // Out of line: the rare case (more than kMaxWeights distinct weights in one tile).
   [[gnu::noinline]] double plus_weight(double e, std::uint32_t id) const {
     return e + pts_[id].weight;
+  }
+  // The index of weight w in weights_ (same bits), added when new; kWeightById when full.
+  std::uint16_t weight_index(double w) {
+    const auto bits = std::bit_cast<std::uint64_t>(w);
+    if (bits == last_weight_bits_ && last_weight_ != kWeightById) return last_weight_;
+    std::size_t k = 0;
+    while (k < weights_.size() && std::bit_cast<std::uint64_t>(weights_[k]) != bits) ++k;
+    if (k == weights_.size()) {
+      if (k == kMaxWeights) return kWeightById;
+      weights_.push_back(w);
+    }
+    last_weight_bits_ = bits;
+    last_weight_ = static_cast<std::uint16_t>(k);
+    return last_weight_;
   }
 
   // Recomputes t's best candidate from its bucket (compacting away points that left) and its
@@ -551,25 +597,30 @@ class GreedyInserter {
     }
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
-    star_best_.assign(n, kNone);  // the index in its scratch bucket, then in the pool
+    star_best_.assign(n, kNone);  // the index in its new bucket, then in the pool
     star_error_.assign(n, -1.0);
-    if (scratch_.size() < n) scratch_.resize(n);
-    for (std::size_t k = 0; k < n; ++k) scratch_[k].clear();
+    star_count_.assign(n, 0);
+    if (slot_.size() < entries) slot_.resize(entries);
     const bool by_angle = n > kSmallStar;
     if (by_angle) sort_star_by_angle();
     // (The loops work on raw pointers: through the vectors, every store made the compiler reload
     // their bounds.)
-    std::vector<Filed>* const scratch = scratch_.data();
+    std::uint32_t* const slot = slot_.data();
+    std::uint32_t* const star_count = star_count_.data();
     std::uint32_t* const star_best = star_best_.data();
     double* const star_error = star_error_.data();
     const Plane* const planes = planes_.data();
-    std::uint32_t moved = 0;
-    // Each point into the scratch bucket of its star triangle (in gather order, as before).
+    // Pass 1: each point's star triangle (slot, by gathered entry; kNone for a point that left),
+    // its place in that triangle's new bucket (in gather order), and the buckets' best.
+    std::uint32_t moved = 0, m = 0;
     for (const auto& [b, cnt] : taken_) {
       const Filed* const bucket = pool_.data() + b;
-      for (std::uint32_t e = 0; e < cnt; ++e) {
+      for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
         const Filed& f = bucket[e];
-        if (f.kind != kCandidate && f.kind != kExtra) continue;
+        if (f.kind != kCandidate && f.kind != kExtra) {
+          slot[m] = kNone;
+          continue;
+        }
         double surface = 0.0;  // always set by the locate calls below (GCC -O3 cannot see it)
         std::uint32_t k = 0;
         if (by_angle) {
@@ -578,26 +629,34 @@ class GreedyInserter {
           while (k < n && !planes[k].contains(f.x, f.y, &surface)) ++k;
           if (k == n) k = locate_in_order(f.x, f.y, &surface);
         }
-        std::vector<Filed>& to = scratch[k];
-        to.push_back(f);
+        slot[m] = k;
+        const std::uint32_t place = star_count[k]++;
         ++moved;
         if (f.kind != kCandidate) continue;
         const double err = effective_error(f, surface);
-        if (err > star_error[k]) {
-          star_error[k] = err, star_best[k] = static_cast<std::uint32_t>(to.size() - 1);
-        }
+        if (err > star_error[k]) star_error[k] = err, star_best[k] = place;
       }
     }
-    // The new buckets go after everything (the taken ones included); positions are indices,
-    // valid across the growth (which insert() keeps within the capacity).
+    // The new buckets go after everything (the taken ones included), in star order; positions
+    // are indices, valid across the growth (which insert() keeps within the capacity).
+    auto at = static_cast<std::uint32_t>(pool_.size());
     for (std::size_t k = 0; k < n; ++k) {
       const std::uint32_t t = star_[k];
-      const auto at = static_cast<std::uint32_t>(pool_.size());
-      const std::vector<Filed>& from = scratch[k];
       begin_[t] = at;
-      count_[t] = static_cast<std::uint32_t>(from.size());
-      pool_.insert(pool_.end(), from.begin(), from.end());
+      count_[t] = star_count[k];
       if (star_best[k] != kNone) star_best[k] += at;
+      star_count[k] = at;  // from here: where the bucket's next point goes
+      at += count_[t];
+    }
+    // Pass 2: the points into their buckets, straight from the taken ones (no scratch copy).
+    pool_.resize(at);
+    Filed* const pool = pool_.data();
+    m = 0;
+    for (const auto& [b, cnt] : taken_) {
+      for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
+        const std::uint32_t k = slot[m];
+        if (k != kNone) pool[star_count[k]++] = pool[b + e];
+      }
     }
     live_ += moved;
     for (std::size_t k = 0; k < n; ++k) {
@@ -737,21 +796,26 @@ class GreedyInserter {
   std::vector<double> z_;
   std::vector<Tri> tris_;
   // Buckets: triangle t's points are pool_[begin_[t], begin_[t] + count_[t]).
-  std::vector<Filed> pool_, spare_;
-  std::vector<std::uint32_t> begin_, count_;  // by triangle
-  std::size_t live_ = 0;                      // points in buckets
+  std::vector<Filed, DefaultInit<Filed>> pool_, spare_;  // (resize leaves new entries unset)
+  std::vector<std::uint32_t> begin_, count_;             // by triangle
+  std::size_t live_ = 0;                                 // points in buckets
   std::vector<std::uint32_t> best_;  // by triangle: pool index of its candidate of largest error
   IndexedHeap heap_;                 // triangles by −(largest effective error), then id
   // Scratch of one insertion.
   std::vector<std::uint32_t> star_, stack_, star_best_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
-  std::vector<std::vector<Filed>> scratch_;  // by star index: its points, in gather order
+  std::vector<std::uint32_t> slot_;        // by gathered entry: its star index, or kNone
+  std::vector<std::uint32_t> star_count_;  // by star index: its new bucket's size, then its end
   std::vector<double> star_error_;
   std::vector<std::uint32_t> sector_;
   std::vector<double> angle_, sector_start_;
   std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
   double sector_cells_per_unit_ = 0;
   std::vector<Plane> planes_;
+  // The distinct weights of the filed points (Filed::weight), and weight_index()'s last answer.
+  std::vector<double> weights_;
+  std::uint64_t last_weight_bits_ = 0;
+  std::uint16_t last_weight_ = kWeightById;  // (none yet)
 };
 
 }  // namespace

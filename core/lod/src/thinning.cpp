@@ -151,6 +151,27 @@ class InteriorThinner {
     } while (t != t0);
   }
 
+  // star_: v's finite triangles (for_each_star_triangle's order); ring_: its neighbours, as
+  // adjacent_vertices(v) lists them (the same fan order), without that call's two vectors.
+  void gather_star(VertexId v) {
+    star_.clear(), ring_.clear();
+    const kernel::Mesh& m = tri_.mesh();
+    const TriangleId t0 = m.vertex_triangle(v);
+    TriangleId t = t0;
+    do {
+      if (m.is_ghost(t)) break;  // on the hull: the general walks below
+      const int k = m.index_of(t, v);
+      const kernel::Triangle& T = m.tri(t);
+      star_.push_back(t);
+      ring_.push_back(T.v[k == 2 ? 0 : k + 1]);
+      t = T.n[k == 2 ? 0 : k + 1];
+    } while (t != t0 && t != kNone);
+    if (t == t0 && !m.is_ghost(t)) return;  // a closed fan of finite triangles
+    star_.clear();
+    for_each_star_triangle(v, [&](TriangleId u) { star_.push_back(u); });
+    ring_ = tri_.adjacent_vertices(v);
+  }
+
   // The planes of the replacement triangles `tris`, for surface_at.
   void set_planes(std::span<const VertexTriple> tris) const {
     planes_.clear();
@@ -310,10 +331,9 @@ class InteriorThinner {
     }
     if (!preview.ok()) return preview.error();
     const std::vector<VertexTriple> tris = std::move(*preview);
-    std::vector<TriangleId>& star = star_;
-    star.clear();
-    for_each_star_triangle(v, [&](TriangleId t) { star.push_back(t); });
-    const std::vector<VertexId> ring = tri_.adjacent_vertices(v);
+    gather_star(v);
+    const std::vector<TriangleId>& star = star_;
+    const std::vector<VertexId>& ring = ring_;
     gathered_.clear();
     for (TriangleId t : star) {
       if (t >= orph_.head.size()) continue;
@@ -386,7 +406,8 @@ class InteriorThinner {
   mutable std::vector<Bound> bound_;
   mutable std::vector<VertexTriple> bound_tris_;
   std::vector<std::uint32_t> gathered_;
-  std::vector<TriangleId> star_;  // remove(): v's triangles
+  std::vector<TriangleId> star_;  // remove(): v's triangles (gather_star)
+  std::vector<VertexId> ring_;    // remove(): v's neighbours (gather_star)
   std::vector<TriangleId> new_ids_;
   const detail::Lattice* lattice_;
   VertexId removed_last_ = kNone;
