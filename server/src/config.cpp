@@ -63,6 +63,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
                                 "cache_max_age_s",
                                 "cors_allow_origin",
                                 "terrain_cache_bytes",
+                                "sendfile",
+                                "sendfile_min_bytes",
                                 "max_queued_jobs",
                                 "shutdown_grace_ms",
                                 "log_level",
@@ -91,13 +93,16 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "cache_max_age_s", c.cache_max_age_s))) return st.error();
   if (!(st = read_string(j, "cors_allow_origin", c.cors_allow_origin))) return st.error();
   if (!(st = read_uint(j, "terrain_cache_bytes", c.terrain_cache_bytes))) return st.error();
+  if (!(st = read_uint(j, "sendfile_min_bytes", c.sendfile_min_bytes))) return st.error();
   if (!(st = read_uint(j, "max_queued_jobs", c.max_queued_jobs))) return st.error();
   if (!(st = read_uint(j, "shutdown_grace_ms", c.shutdown_grace_ms))) return st.error();
   if (!(st = read_string(j, "log_level", c.log_level))) return st.error();
-  if (j.contains("access_log")) {
-    if (!j["access_log"].is_boolean())
-      return invalid_argument("config key \"access_log\": expected true/false");
-    c.access_log = j["access_log"].get<bool>();
+  for (auto [key, flag] : {std::pair{"access_log", &c.access_log}, {"sendfile", &c.sendfile}}) {
+    if (!j.contains(key)) continue;
+    if (!j[key].is_boolean()) {
+      return invalid_argument(std::string("config key \"") + key + "\": expected true/false");
+    }
+    *flag = j[key].get<bool>();
   }
   if (c.max_header_bytes < 512)
     return invalid_argument("config key \"max_header_bytes\": at least 512");

@@ -27,6 +27,8 @@
 #include "tinstream/server/server.hpp"
 
 #include <spdlog/spdlog.h>
+#include <sys/sendfile.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 #include <array>
@@ -37,6 +39,7 @@
 #include <cassert>
 #include <charconv>
 #include <chrono>
+#include <csignal>
 #include <limits>
 #include <map>
 #include <optional>
@@ -44,6 +47,7 @@
 #include <thread>
 #include <unordered_set>
 
+#include "body_file.hpp"
 #include "tinstream/server/handler.hpp"
 #include "tinstream/store/tile_store.hpp"
 
@@ -59,8 +63,12 @@ class Session;
 
 // One io_context, run by one thread, and the sessions on it.
 struct Shard {
-  explicit Shard(std::chrono::milliseconds sweep_every)
-      : ioc(1), work(net::make_work_guard(ioc)), sweep(ioc), every(sweep_every) {}
+  Shard(std::chrono::milliseconds sweep_every, std::uint64_t body_file_bytes)
+      : ioc(1),
+        work(net::make_work_guard(ioc)),
+        sweep(ioc),
+        every(sweep_every),
+        bodies(body_file_bytes) {}
 
   // Touched only by the shard's own thread (or, once no thread runs the shard, by the thread
   // destroying the server). Declared before ioc: it outlives the handlers ioc destroys.
@@ -68,8 +76,9 @@ struct Shard {
   net::io_context ioc;
   // Keeps run() going while the shard has no session; dropped by stop().
   std::optional<net::executor_work_guard<net::io_context::executor_type>> work;
-  net::steady_timer sweep;  // checks the sessions' deadlines
+  net::steady_timer sweep;  // checks the sessions' deadlines, collects unused bodies
   std::chrono::milliseconds every;
+  BodyFile bodies;  // cached bodies this shard's sessions send with sendfile
 };
 
 struct Server::Impl {
@@ -87,7 +96,10 @@ struct Server::Impl {
     const auto every = std::chrono::milliseconds(
         std::clamp<std::uint32_t>(std::min(c.read_timeout_ms, c.write_timeout_ms) / 8, 5, 250));
     std::vector<std::unique_ptr<Shard>> out;
-    for (unsigned i = 0; i < std::max(1u, n); ++i) out.push_back(std::make_unique<Shard>(every));
+    // Room for the whole terrain cache plus the bodies still in flight after their eviction.
+    const std::uint64_t body_file = 2 * c.terrain_cache_bytes + (64u << 20);
+    for (unsigned i = 0; i < std::max(1u, n); ++i)
+      out.push_back(std::make_unique<Shard>(every, body_file));
     return out;
   }
 
@@ -265,6 +277,8 @@ class Session : public std::enable_shared_from_this<Session> {
   // On the shard's thread. `reject`: answer 503 and close (over max_connections).
   void start(bool reject) {
     shard_.sessions.insert(this);
+    beast::error_code ec;
+    socket_.native_non_blocking(true, ec);  // send_file() calls send/sendfile itself
     if (!reject) return do_read();
     start_ = Clock::now();
     reset_request();
@@ -541,8 +555,53 @@ class Session : public std::enable_shared_from_this<Session> {
         net::buffer(whole_head ? *whole_head : head_),
         head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     expires_after(cfg().write_timeout_ms);
+    if (!head && shared_body_ && cfg().sendfile &&
+        shared_body_->size() >= cfg().sendfile_min_bytes) {
+      if (const auto at = shard_.bodies.place(shared_body_)) {
+        pending_head_ = whole_head ? std::string_view(*whole_head) : std::string_view(head_);
+        file_at_ = *at;
+        file_end_ = *at + static_cast<off_t>(shared_body_->size());
+        return send_file();
+      }
+    }
     net::async_write(socket_, buffers, whole_buffers,
                      beast::bind_front_handler(&Session::on_write, shared_from_this()));
+  }
+
+  // The head from memory (MSG_MORE: it leaves with the body), then the body from the shard's
+  // body file; waits for room in the socket whenever it is full. The write deadline still holds:
+  // the sweep closes the socket, which ends the wait with an error.
+  void send_file() {
+    const int fd = socket_.native_handle();
+    const auto failed = [this](int err) {
+      on_write(beast::error_code(err, beast::system_category()), 0);
+    };
+    while (!pending_head_.empty()) {
+      const ssize_t n =
+          ::send(fd, pending_head_.data(), pending_head_.size(), MSG_NOSIGNAL | MSG_MORE);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        return errno == EAGAIN ? wait_to_send_file() : failed(errno);
+      }
+      pending_head_.remove_prefix(static_cast<std::size_t>(n));
+    }
+    while (file_at_ < file_end_) {
+      const ssize_t n = ::sendfile(fd, shard_.bodies.fd(), &file_at_,
+                                   static_cast<std::size_t>(file_end_ - file_at_));
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        return errno == EAGAIN ? wait_to_send_file() : failed(errno);
+      }
+      if (n == 0) return failed(EIO);  // the file is shorter than placed: never expected
+    }
+    on_write({}, 0);
+  }
+
+  void wait_to_send_file() {
+    socket_.async_wait(tcp::socket::wait_write, [self = shared_from_this()](beast::error_code ec) {
+      if (ec) return self->on_write(ec, 0);
+      self->send_file();
+    });
   }
 
   void on_write(beast::error_code ec, std::size_t) {
@@ -595,6 +654,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string body_;                                       // the response's own body bytes
   std::shared_ptr<const std::string> shared_body_;         // or shared, cached ones
   std::shared_ptr<const HeaderBlock> prebuilt_;            // holds a shared head being written
+  std::string_view pending_head_;     // sendfile path: head bytes not yet sent (in head_/prebuilt_)
+  off_t file_at_ = 0, file_end_ = 0;  // sendfile path: body range left in the body file
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
   Request req_;
   Clock::time_point start_;
@@ -649,7 +710,8 @@ void Server::Impl::do_accept() {
 void Server::Impl::sweep(Shard& shard) {
   const auto now = Clock::now();
   for (Session* s : shard.sessions) s->check_deadline(now);  // closing erases nothing here
-  if (stopping && shard.sessions.empty()) return;            // lets run() return
+  shard.bodies.collect();
+  if (stopping && shard.sessions.empty()) return;  // lets run() return
   shard.sweep.expires_after(shard.every);
   shard.sweep.async_wait([this, &shard](beast::error_code ec) {
     if (!ec) sweep(shard);
@@ -746,6 +808,9 @@ std::uint16_t Server::port() const {
 
 void Server::run(bool handle_signals) {
   Impl& s = *impl_;
+  // sendfile(2) has no MSG_NOSIGNAL: a peer gone mid-response must be an EPIPE, not a signal
+  // that ends the process.
+  std::signal(SIGPIPE, SIG_IGN);
   if (handle_signals) {
     s.signals.async_wait([&s](beast::error_code ec, int signo) {
       if (ec) return;

@@ -540,7 +540,10 @@ TEST_F(ServerTest, SlowLorisIsCutOffAtTheReadDeadline) {
 TEST_F(ServerTest, WriteTimeoutClosesAConnectionThatNeverReads) {
   stop();
   testing::write_test_layer(store_path_, "dense", geo::Projection::spherical, 129);
-  start([](ServerConfig& c) { c.write_timeout_ms = 300; });
+  start([](ServerConfig& c) {
+    c.write_timeout_ms = 300;
+    c.sendfile_min_bytes = 4096;
+  });
   using clock = std::chrono::steady_clock;
   const std::string target = "/tiles/dense/" + kTile.quadkey();
   const auto ref = http_get(port_, target);  // identity: the raw tile
@@ -555,9 +558,16 @@ TEST_F(ServerTest, WriteTimeoutClosesAConnectionThatNeverReads) {
   // 12 MiB of answers: far more than the client's and the server's socket buffers hold (a
   // send buffer grows to 4 MiB at most: net.ipv4.tcp_wmem).
   const std::size_t requests = (12u << 20) / ref.body.size() + 1;
+  // Native tiles (copied into the socket) and cached terrain tiles (sent with sendfile from the
+  // body file) in turn: the deadline must end a write stuck in either.
+  const std::string terrain = "GET " + terrain_target(kTile, "dense") +
+                              " HTTP/1.1\r\nHost: x\r\nAccept-Encoding: gzip\r\n\r\n";
+  ASSERT_GT(
+      http_get(port_, terrain_target(kTile, "dense"), {{"Accept-Encoding", "gzip"}}).body.size(),
+      4096u);  // over sendfile_min_bytes
   std::string burst;
   for (std::size_t i = 0; i < requests; ++i)
-    burst += "GET " + target + " HTTP/1.1\r\nHost: x\r\n\r\n";
+    burst += (i % 2 ? terrain : "GET " + target + " HTTP/1.1\r\nHost: x\r\n\r\n");
   HttpConnection stuck(port_, /*receive_buffer=*/2048);
   const auto t0 = clock::now();
   ASSERT_TRUE(stuck.send_raw(burst));

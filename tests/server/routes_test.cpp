@@ -135,13 +135,16 @@ TEST(Config, ParsesKeysAndRejectsUnknownOnes) {
     "max_upload_bytes": 1000, "max_header_bytes": 4096, "max_body_bytes": 2000,
     "max_connections": 10, "read_timeout_ms": 100, "write_timeout_ms": 200,
     "cache_max_age_s": 60, "cors_allow_origin": "", "terrain_cache_bytes": 0,
-    "max_queued_jobs": 2, "shutdown_grace_ms": 500, "log_level": "warn", "access_log": false})");
+    "max_queued_jobs": 2, "shutdown_grace_ms": 500, "log_level": "warn", "access_log": false,
+    "sendfile": false, "sendfile_min_bytes": 0})");
   ASSERT_TRUE(c.ok()) << c.error().message;
   EXPECT_EQ(c->port, 9000);
   EXPECT_EQ(c->threads, 3u);
   EXPECT_EQ(c->store, "x.db");
   EXPECT_EQ(c->max_header_bytes, 4096u);
   EXPECT_FALSE(c->access_log);
+  EXPECT_FALSE(c->sendfile);
+  EXPECT_EQ(c->sendfile_min_bytes, 0u);
   EXPECT_EQ(c->cors_allow_origin, "");
 
   auto bad = config_from_json(R"({"prot": 1})");
@@ -150,6 +153,7 @@ TEST(Config, ParsesKeysAndRejectsUnknownOnes) {
   EXPECT_FALSE(config_from_json(R"({"port": 70000})").ok());
   EXPECT_FALSE(config_from_json(R"({"port": "80"})").ok());
   EXPECT_FALSE(config_from_json(R"({"log_level": "loud"})").ok());
+  EXPECT_FALSE(config_from_json(R"({"sendfile": 1})").ok());
   EXPECT_FALSE(config_from_json("[1,2]").ok());
   EXPECT_FALSE(config_from_json("{").ok());
 }

@@ -31,10 +31,14 @@ struct ServerConfig {
   std::uint32_t cache_max_age_s = 86400;   // Cache-Control max-age for tiles
   std::string cors_allow_origin = "*";     // empty: no CORS headers
   std::uint64_t terrain_cache_bytes = 64u << 20;  // LRU of encoded .terrain tiles; 0: off
-  std::uint32_t max_queued_jobs = 8;              // ingest jobs waiting or running
-  std::uint32_t shutdown_grace_ms = 10000;        // in-flight responses get this long on SIGTERM
-  std::string log_level = "info";                 // trace, debug, info, warn, error, critical, off
-  bool access_log = true;                         // one line per request at info level
+  // Cached bodies of at least this many bytes are sent with sendfile(2) from a memory file
+  // (server/src/body_file.hpp) instead of being copied into the socket; 0: every cached body.
+  std::uint64_t sendfile_min_bytes = 16384;
+  bool sendfile = true;
+  std::uint32_t max_queued_jobs = 8;        // ingest jobs waiting or running
+  std::uint32_t shutdown_grace_ms = 10000;  // in-flight responses get this long on SIGTERM
+  std::string log_level = "info";           // trace, debug, info, warn, error, critical, off
+  bool access_log = true;                   // one line per request at info level
 };
 
 // Parses configuration JSON over the defaults. Errors name the key.
