@@ -555,7 +555,9 @@ class Session : public std::enable_shared_from_this<Session> {
         net::buffer(whole_head ? *whole_head : head_),
         head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     expires_after(cfg().write_timeout_ms);
-    if (!head && shared_body_ && cfg().sendfile &&
+    // Only bodies the terrain cache keeps are worth a copy in the body file: without the cache
+    // every answer would be a new body, written there once and sent once.
+    if (!head && shared_body_ && cfg().sendfile && cfg().terrain_cache_bytes > 0 &&
         shared_body_->size() >= cfg().sendfile_min_bytes) {
       if (const auto at = shard_.bodies.place(shared_body_)) {
         pending_head_ = whole_head ? std::string_view(*whole_head) : std::string_view(head_);
