@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <iterator>
 
 namespace tinstream::server {
 namespace {
@@ -38,7 +39,7 @@ std::optional<off_t> BodyFile::place(const std::shared_ptr<const std::string>& b
         ::pwrite(fd_, body->data() + done, body->size() - done, *at + static_cast<off_t>(done));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      free_.emplace(length, *at);  // nothing refers to it; a later write gets fresh pages
+      release(Region{{}, *at, length});  // nothing refers to it
       return std::nullopt;
     }
     done += static_cast<std::size_t>(n);
@@ -60,15 +61,15 @@ void BodyFile::collect() {
 
 std::size_t BodyFile::free_bytes() const {
   std::size_t total = 0;
-  for (const auto& [length, offset] : free_) total += length;
+  for (const auto& [offset, length] : free_at_) total += length;
   return total;
 }
 
 std::optional<off_t> BodyFile::allocate(std::size_t length) {
-  if (auto it = free_.lower_bound(length); it != free_.end()) {
+  if (auto it = free_by_length_.lower_bound(length); it != free_by_length_.end()) {
     const auto [have, at] = *it;
-    free_.erase(it);
-    if (have > length) free_.emplace(have - length, at + static_cast<off_t>(length));
+    take_free(free_at_.find(at));
+    if (have > length) add_free(at + static_cast<off_t>(length), have - length);
     return at;
   }
   if (static_cast<std::uint64_t>(end_) + length > max_bytes_) return std::nullopt;
@@ -83,7 +84,35 @@ void BodyFile::release(const Region& r) {
                   static_cast<off_t>(r.length)) != 0) {
     return;  // cannot be reused safely: left out of the free list
   }
-  free_.emplace(r.length, r.offset);
+  add_free(r.offset, r.length);
+}
+
+void BodyFile::add_free(off_t offset, std::size_t length) {
+  if (auto next = free_at_.find(offset + static_cast<off_t>(length)); next != free_at_.end()) {
+    length += next->second;
+    take_free(next);
+  }
+  if (auto next = free_at_.lower_bound(offset); next != free_at_.begin()) {
+    const auto prev = std::prev(next);
+    if (prev->first + static_cast<off_t>(prev->second) == offset) {
+      offset = prev->first;
+      length += prev->second;
+      take_free(prev);
+    }
+  }
+  if (offset + static_cast<off_t>(length) == end_) {
+    end_ = offset;  // the file's tail: the file may grow there again
+    return;
+  }
+  free_at_.emplace(offset, length);
+  free_by_length_.emplace(length, offset);
+}
+
+void BodyFile::take_free(std::map<off_t, std::size_t>::iterator it) {
+  auto [first, last] = free_by_length_.equal_range(it->second);
+  while (first != last && first->second != it->first) ++first;
+  free_by_length_.erase(first);
+  free_at_.erase(it);
 }
 
 }  // namespace tinstream::server

@@ -9,7 +9,9 @@
 //   file:  | body A (pages) | free (hole) | body C (pages) | …            regions page-aligned
 //
 // Regions whose body is gone are freed by collect() (the shard's sweep): the range is punched out
-// of the file (FALLOC_FL_PUNCH_HOLE) before it is used again. Socket buffers may still hold the
+// of the file (FALLOC_FL_PUNCH_HOLE) before it is used again, merged with free neighbours (so
+// churn does not leave the file in fragments too small for the next body), and given back to the
+// end of the file when it is the last region. Socket buffers may still hold the
 // old pages of a body already sent; punching drops the pages from the file without touching them,
 // and a later write to the range gets new pages, so bytes in flight never change. That is why
 // regions are whole pages: punching part of a page would zero it in place.
@@ -59,10 +61,14 @@ class BodyFile {
   };
   std::optional<off_t> allocate(std::size_t length);
   void release(const Region& r);
+  void add_free(off_t offset, std::size_t length);  // merges with free neighbours
+  void take_free(std::map<off_t, std::size_t>::iterator it);
 
   int fd_ = -1;
   std::unordered_map<const std::string*, Region> placed_;
-  std::multimap<std::size_t, off_t> free_;  // free regions by length (best fit)
+  // Free regions, by offset (to merge neighbours) and by length (best fit): the same set.
+  std::map<off_t, std::size_t> free_at_;
+  std::multimap<std::size_t, off_t> free_by_length_;
   off_t end_ = 0;
   std::uint64_t max_bytes_;
 };

@@ -551,9 +551,6 @@ class Session : public std::enable_shared_from_this<Session> {
     prebuilt_ = std::move(res.prebuilt);
     shared_body_ = std::move(res.shared_body);
     body_ = std::move(res.body);
-    const std::array<net::const_buffer, 2> buffers{
-        net::buffer(whole_head ? *whole_head : head_),
-        head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     expires_after(cfg().write_timeout_ms);
     // Only bodies the terrain cache keeps are worth a copy in the body file: without the cache
     // every answer would be a new body, written there once and sent once.
@@ -566,6 +563,9 @@ class Session : public std::enable_shared_from_this<Session> {
         return send_file();
       }
     }
+    const std::array<net::const_buffer, 2> buffers{
+        net::buffer(whole_head ? *whole_head : head_),
+        head ? net::const_buffer() : net::buffer(shared_body_ ? *shared_body_ : body_)};
     net::async_write(socket_, buffers, whole_buffers,
                      beast::bind_front_handler(&Session::on_write, shared_from_this()));
   }

@@ -61,6 +61,32 @@ TEST(BodyFile, RegionsOfBodiesGoneAreReusedWithTheirNewBytes) {
   EXPECT_EQ(f.free_bytes(), 4096u);  // the page d does not need
 }
 
+// Freed neighbours merge (a body larger than each of them fits where they were) and a free tail
+// goes back to the file's end.
+TEST(BodyFile, FreedNeighboursMergeAndTheTailShrinks) {
+  BodyFile f(64u << 20);
+  auto a = body(4096, 10), b = body(4096, 11), c = body(4096, 12), d = body(4096, 13);
+  ASSERT_EQ(f.place(a), off_t{0});
+  ASSERT_EQ(f.place(b), off_t{4096});
+  ASSERT_EQ(f.place(c), off_t{8192});
+  ASSERT_EQ(f.place(d), off_t{12288});
+  a.reset();
+  b.reset();
+  f.collect();
+  EXPECT_EQ(f.free_bytes(), 8192u);
+  const auto e = body(8000, 14);
+  EXPECT_EQ(f.place(e), off_t{0});  // in the merged a + b, not at the end
+  EXPECT_EQ(file_bytes(f, 0, e->size()), *e);
+  EXPECT_EQ(f.file_size(), 16384);
+  d.reset();
+  f.collect();
+  EXPECT_EQ(f.file_size(), 12288);  // d was the tail
+  c.reset();
+  f.collect();
+  EXPECT_EQ(f.file_size(), 8192);  // c became the tail
+  EXPECT_EQ(f.free_bytes(), 0u);
+}
+
 TEST(BodyFile, FullFileRefusesAndTheCallerCopiesInstead) {
   BodyFile f(16384);
   const auto a = body(10000, 7), b = body(10000, 8);

@@ -241,10 +241,6 @@ struct DeflateDecompressor {
   ~DeflateDecompressor() { libdeflate_free_decompressor(d); }
 };
 
-}  // namespace
-
-namespace {
-
 // This thread's compressor at `level` (0–12), kept from call to call.
 libdeflate_compressor* compressor(int level) {
   thread_local DeflateCompressor state;
@@ -258,26 +254,26 @@ libdeflate_compressor* compressor(int level) {
   return state.c;
 }
 
-}  // namespace
-
-std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level) {
+// `bytes` through this thread's compressor at `level`, in the container of Bound/Compress
+// (libdeflate's zlib or gzip pair).
+template <auto Bound, auto Compress>
+std::vector<std::uint8_t> deflate_into(std::span<const std::uint8_t> bytes, int level) {
   libdeflate_compressor* c = compressor(level);
-  std::vector<std::uint8_t> out(libdeflate_zlib_compress_bound(c, bytes.size()));
-  const std::size_t n =
-      libdeflate_zlib_compress(c, bytes.data(), bytes.size(), out.data(), out.size());
+  std::vector<std::uint8_t> out(Bound(c, bytes.size()));
+  const std::size_t n = Compress(c, bytes.data(), bytes.size(), out.data(), out.size());
   assert(n > 0);  // the bound always suffices
   out.resize(n);
   return out;
 }
 
+}  // namespace
+
+std::vector<std::uint8_t> compress(std::span<const std::uint8_t> bytes, int level) {
+  return deflate_into<libdeflate_zlib_compress_bound, libdeflate_zlib_compress>(bytes, level);
+}
+
 std::vector<std::uint8_t> compress_gzip(std::span<const std::uint8_t> bytes, int level) {
-  libdeflate_compressor* c = compressor(level);
-  std::vector<std::uint8_t> out(libdeflate_gzip_compress_bound(c, bytes.size()));
-  const std::size_t n =
-      libdeflate_gzip_compress(c, bytes.data(), bytes.size(), out.data(), out.size());
-  assert(n > 0);
-  out.resize(n);
-  return out;
+  return deflate_into<libdeflate_gzip_compress_bound, libdeflate_gzip_compress>(bytes, level);
 }
 
 Result<std::vector<std::uint8_t>> decompress(std::span<const std::uint8_t> bytes,
