@@ -24,6 +24,13 @@ TinTile random_tile(std::mt19937_64& rng, std::uint32_t max_cells = 12) {
                         1 + static_cast<std::uint32_t>(rng() % max_cells), rng);
 }
 
+constexpr std::array<FormatVersion, 2> kVersions{FormatVersion::v1, FormatVersion::v2};
+
+// The version field of a blob (bytes 4–5), for re-encoding what decode() accepted.
+FormatVersion version_of(std::span<const std::uint8_t> b) {
+  return static_cast<FormatVersion>(b[4] | b[5] << 8);
+}
+
 void put_u32(std::vector<std::uint8_t>& b, std::size_t at, std::uint32_t v) {
   for (int i = 0; i < 4; ++i)
     b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
@@ -33,12 +40,15 @@ TEST(Codec, RoundTripsRandomTilesBitExactly) {
   std::mt19937_64 rng(11);
   for (int i = 0; i < 300; ++i) {
     const TinTile t = random_tile(rng);
-    const auto bytes = encode(t);
-    const auto back = decode(bytes);
-    ASSERT_TRUE(back.ok()) << back.error().message;
-    EXPECT_TRUE(same_tile(t, *back)) << t.id.to_string();
-    EXPECT_TRUE(check_structure(*back).ok());
-    EXPECT_EQ(encode(*back), bytes);  // canonical: one tile, one blob
+    for (const FormatVersion version : kVersions) {
+      const auto bytes = encode(t, version);
+      EXPECT_EQ(version_of(bytes), version);
+      const auto back = decode(bytes);
+      ASSERT_TRUE(back.ok()) << back.error().message;
+      EXPECT_TRUE(same_tile(t, *back)) << t.id.to_string();
+      EXPECT_TRUE(check_structure(*back).ok());
+      EXPECT_EQ(encode(*back, version), bytes);  // canonical: one tile, one blob per version
+    }
   }
 }
 
@@ -49,10 +59,12 @@ TEST(Codec, RoundTripsSpecialDoubles) {
   t.interior[0].weight = std::numeric_limits<double>::denorm_min();
   t.north[0].z = 1e300;
   t.source_points = ~std::uint64_t{0};
-  const auto back = decode(encode(t));
-  ASSERT_TRUE(back.ok());
-  EXPECT_TRUE(same_tile(t, *back));
-  EXPECT_TRUE(std::signbit(back->interior[0].z));
+  for (const FormatVersion version : kVersions) {
+    const auto back = decode(encode(t, version));
+    ASSERT_TRUE(back.ok());
+    EXPECT_TRUE(same_tile(t, *back));
+    EXPECT_TRUE(std::signbit(back->interior[0].z));
+  }
 }
 
 TEST(Codec, UsesSixteenBitIndicesUpTo65536VerticesAnd32BitBeyond) {
@@ -60,24 +72,29 @@ TEST(Codec, UsesSixteenBitIndicesUpTo65536VerticesAnd32BitBeyond) {
   // 255 × 255 cells = 256² = 65536 vertices: the largest 16-bit mesh.
   const TinTile small = make_grid_tile({12, 5, 5}, 255, 255, rng);
   ASSERT_EQ(small.vertex_count(), 65536u);
-  const auto a = encode(small);
-  EXPECT_EQ(a[6], 2);
-  EXPECT_EQ(a.size(), 84 + 65536u * 32 + small.triangles.size() * 6);
   const TinTile big = make_grid_tile({12, 5, 5}, 256, 255, rng);
-  const auto b = encode(big);
-  EXPECT_EQ(b[6], 4);
-  EXPECT_EQ(b.size(), 84 + big.vertex_count() * 32 + big.triangles.size() * 12);
-  const auto back = decode(b);
-  ASSERT_TRUE(back.ok()) << back.error().message;
-  EXPECT_TRUE(same_tile(big, *back));
+  for (const FormatVersion version : kVersions) {
+    const auto a = encode(small, version);
+    EXPECT_EQ(a[6], 2);
+    EXPECT_EQ(a.size(), 84 + 65536u * 32 + small.triangles.size() * 6);
+    const auto small_back = decode(a);
+    ASSERT_TRUE(small_back.ok()) << small_back.error().message;
+    EXPECT_TRUE(same_tile(small, *small_back));
+    const auto b = encode(big, version);
+    EXPECT_EQ(b[6], 4);
+    EXPECT_EQ(b.size(), 84 + big.vertex_count() * 32 + big.triangles.size() * 12);
+    const auto back = decode(b);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_TRUE(same_tile(big, *back));
+  }
 }
 
-TEST(Codec, HeaderLayoutMatchesTheSpecification) {
+TEST(Codec, Version1LayoutMatchesTheSpecification) {
   std::mt19937_64 rng(14);
   TinTile t = make_grid_tile({3, 5, 6}, 2, 3, rng, false);
   t.corner_nodata = {false, true, false, true};
   t.corners[1].z = t.corners[3].z = 0;
-  const auto b = encode(t);
+  const auto b = encode(t, FormatVersion::v1);
   EXPECT_EQ(std::memcmp(b.data(), "TINT", 4), 0);
   EXPECT_EQ(b[4], 1);
   EXPECT_EQ(b[5], 0);
@@ -98,15 +115,18 @@ TEST(Codec, HeaderLayoutMatchesTheSpecification) {
 
 TEST(Codec, RejectsEveryTruncation) {
   std::mt19937_64 rng(15);
-  const auto bytes = encode(make_grid_tile({8, 100, 200}, 3, 2, rng));
-  for (std::size_t n = 0; n < bytes.size(); ++n) {
-    const auto r = decode(std::span(bytes.data(), n));
-    ASSERT_FALSE(r.ok()) << "prefix of " << n << " bytes was accepted";
-    EXPECT_EQ(r.error().code, ErrorCode::corrupt_data);
+  const TinTile t = make_grid_tile({8, 100, 200}, 3, 2, rng);
+  for (const FormatVersion version : kVersions) {
+    const auto bytes = encode(t, version);
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      const auto r = decode(std::span(bytes.data(), n));
+      ASSERT_FALSE(r.ok()) << "prefix of " << n << " bytes was accepted";
+      EXPECT_EQ(r.error().code, ErrorCode::corrupt_data);
+    }
+    auto longer = bytes;
+    longer.push_back(0);
+    EXPECT_FALSE(decode(longer).ok());
   }
-  auto longer = bytes;
-  longer.push_back(0);
-  EXPECT_FALSE(decode(longer).ok());
 }
 
 TEST(Codec, RejectsBadMagicAndVersion) {
@@ -117,35 +137,40 @@ TEST(Codec, RejectsBadMagicAndVersion) {
   auto r = decode(b);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("magic"), std::string::npos);
-  b = bytes;
-  b[4] = 2;
-  r = decode(b);
-  ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.error().code, ErrorCode::unsupported);
-  EXPECT_NE(r.error().message.find("version 2"), std::string::npos);
+  for (const int unknown : {0, 3, 255}) {
+    b = bytes;
+    b[4] = static_cast<std::uint8_t>(unknown);
+    r = decode(b);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().code, ErrorCode::unsupported);
+    EXPECT_NE(r.error().message.find("version " + std::to_string(unknown)), std::string::npos);
+  }
 }
 
 TEST(Codec, RejectsAbsurdCountsWithoutAllocating) {
   std::mt19937_64 rng(17);
-  const auto bytes = encode(make_grid_tile({4, 1, 2}, 2, 2, rng));
-  for (std::size_t field = 20; field <= 40; field += 4) {
-    for (std::uint32_t v : {0xFFFFFFFFu, 0x7FFFFFFFu, 0x10000000u, 65535u}) {
-      auto b = bytes;
-      put_u32(b, field, v);
-      EXPECT_FALSE(decode(b).ok()) << "field " << field << " = " << v;
+  const TinTile t = make_grid_tile({4, 1, 2}, 2, 2, rng);
+  for (const FormatVersion version : kVersions) {
+    const auto bytes = encode(t, version);
+    for (std::size_t field = 20; field <= 40; field += 4) {
+      for (std::uint32_t v : {0xFFFFFFFFu, 0x7FFFFFFFu, 0x10000000u, 65535u}) {
+        auto b = bytes;
+        put_u32(b, field, v);
+        EXPECT_FALSE(decode(b).ok()) << "field " << field << " = " << v;
+      }
     }
+    // Counts whose sum overflows 32 bits.
+    auto b = bytes;
+    put_u32(b, 20, 0x80000000u);
+    put_u32(b, 36, 0x80000000u);
+    EXPECT_FALSE(decode(b).ok());
   }
-  // Counts whose sum overflows 32 bits.
-  auto b = bytes;
-  put_u32(b, 20, 0x80000000u);
-  put_u32(b, 36, 0x80000000u);
-  EXPECT_FALSE(decode(b).ok());
 }
 
-TEST(Codec, RejectsInvalidFields) {
+TEST(Codec, Version1RejectsInvalidFields) {
   std::mt19937_64 rng(18);
   const TinTile t = make_grid_tile({4, 1, 2}, 2, 2, rng);
-  const auto bytes = encode(t);
+  const auto bytes = encode(t, FormatVersion::v1);
   auto expect_bad = [](std::vector<std::uint8_t> b, const char* what) {
     const auto r = decode(b);
     EXPECT_FALSE(r.ok()) << what;
@@ -180,7 +205,7 @@ TEST(Codec, RejectsInvalidFields) {
 TEST(Codec, MiniFuzzRandomByteFlips) {
   std::mt19937_64 rng(19);
   std::vector<std::vector<std::uint8_t>> seeds;
-  for (int i = 0; i < 20; ++i) seeds.push_back(encode(random_tile(rng, 5)));
+  for (int i = 0; i < 20; ++i) seeds.push_back(encode(random_tile(rng, 5), kVersions[i % 2]));
   int accepted = 0;
   for (int i = 0; i < 30000; ++i) {
     auto b = seeds[rng() % seeds.size()];
@@ -205,7 +230,7 @@ TEST(Codec, MiniFuzzRandomByteFlips) {
     const auto r = decode(b);
     if (r.ok()) {
       ++accepted;
-      ASSERT_EQ(encode(*r), b) << "iteration " << i;
+      ASSERT_EQ(encode(*r, version_of(b)), b) << "iteration " << i;
       (void)check_structure(*r);
     } else {
       EXPECT_FALSE(r.error().message.empty());
@@ -220,11 +245,11 @@ TEST(Codec, MiniFuzzRandomGarbage) {
     std::vector<std::uint8_t> b(rng() % 300);
     for (auto& c : b) c = static_cast<std::uint8_t>(rng());
     if (b.size() >= 6 && i % 2 == 0) {
-      std::memcpy(b.data(), "TINT\x01\x00", 6);
+      std::memcpy(b.data(), i % 4 == 0 ? "TINT\x01\x00" : "TINT\x02\x00", 6);
     }
     const auto r = decode(b);
     if (r.ok()) {
-      EXPECT_EQ(encode(*r), b);
+      EXPECT_EQ(encode(*r, version_of(b)), b);
     }
   }
 }
@@ -334,7 +359,7 @@ TEST(Codec, SeedCorpusFromTheSpecificationDecodes) {
     ASSERT_TRUE(t.ok()) << entry.path() << ": " << t.error().message;
     const Status s = check_structure(*t);
     EXPECT_TRUE(s.ok()) << entry.path() << ": " << (s.ok() ? "" : s.error().message);
-    EXPECT_EQ(encode(*t), raw);
+    EXPECT_EQ(encode(*t, version_of(raw)), raw);
     ++tiles;
   }
   EXPECT_GE(tiles, 3);

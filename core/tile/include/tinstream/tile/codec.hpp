@@ -2,9 +2,14 @@
 //
 // encode() produces the uncompressed little-endian binary form; the store compresses it with zlib
 // (compress/decompress here too so that the server can send the stored bytes as-is with
-// `Content-Encoding: deflate`). decode() validates everything it reads and never trusts counts:
-// a malformed blob gives an Error naming what was wrong, never a crash or an unbounded allocation.
-// Pure functions, thread-safe.
+// `Content-Encoding: deflate`). decode() reads every format version and validates everything it
+// reads and never trusts counts: a malformed blob gives an Error naming what was wrong, never a
+// crash or an unbounded allocation. Pure functions, thread-safe.
+//
+// Versions (docs/tile-format.md): 1 stores vertices as interleaved f64 (x, y, z, weight); 2, the
+// one written by default, stores the same values losslessly as delta-coded, byte-shuffled columns
+// (and delta-coded triangle indices), which deflate compresses faster and smaller. Both are
+// canonical: a blob that decodes re-encodes, in its own version, to the same bytes.
 #pragma once
 
 #include <cstdint>
@@ -16,7 +21,10 @@
 
 namespace tinstream::tile {
 
-std::vector<std::uint8_t> encode(const TinTile& tile);
+enum class FormatVersion : std::uint16_t { v1 = 1, v2 = 2 };
+inline constexpr FormatVersion kCurrentFormat = FormatVersion::v2;
+
+std::vector<std::uint8_t> encode(const TinTile& tile, FormatVersion version = kCurrentFormat);
 Result<TinTile> decode(std::span<const std::uint8_t> bytes);
 
 // zlib (RFC 1950) streams, made and read with libdeflate (levels 0–12; 2–3× zlib's speed, any
