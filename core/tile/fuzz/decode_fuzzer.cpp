@@ -1,8 +1,9 @@
 // libFuzzer target for tile::decode (clang only; see core/tile/CMakeLists.txt).
 //   tile_decode_fuzzer core/tile/fuzz/corpus -max_total_time=60
 // Properties: decode never crashes, never allocates beyond what the input can describe, and what it
-// accepts re-encodes to the same bytes (the format is canonical); check_structure must not crash on
-// whatever decode accepts. The same input is also fed through decompress() with a small limit.
+// accepts re-encodes, in its own version, to the same bytes (each version is canonical);
+// check_structure must not crash on whatever decode accepts. The same input is also fed through
+// decompress() with a small limit.
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
@@ -14,7 +15,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::span<const std::uint8_t> bytes(data, size);
   const auto tile = tinstream::tile::decode(bytes);
   if (tile.ok()) {
-    const auto again = tinstream::tile::encode(*tile);
+    // Re-encode in the blob's own version (bytes 4–5; decode accepted it, so it is 1 or 2).
+    const auto version = static_cast<tinstream::tile::FormatVersion>(data[4] | data[5] << 8);
+    const auto again = tinstream::tile::encode(*tile, version);
     if (again.size() != size || !std::equal(again.begin(), again.end(), data)) std::abort();
     (void)tinstream::tile::check_structure(*tile);
   }
