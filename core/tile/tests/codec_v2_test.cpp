@@ -2,7 +2,9 @@
 // the layout of the specification, clear errors on damaged blobs, and agreement with the seeds an
 // independent Python encoder (core/tile/fuzz/make_v2_seeds.py) wrote from the specification.
 #include <gtest/gtest.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -337,6 +339,99 @@ TEST(CodecV2, PythonAdversarialSeedDecodesToTheValuesThePythonScriptWrote) {
   const Status s = check_structure(t);
   EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
   EXPECT_EQ(encode(t), raw);
+}
+
+}  // namespace
+}  // namespace tinstream::tile
+
+// --- compress_runs: a deflate encoder of our own, so every inflater must read what it writes ---
+
+namespace tinstream::tile {
+namespace {
+
+std::vector<std::uint8_t> zlib_inflate(const std::vector<std::uint8_t>& packed, std::size_t size) {
+  std::vector<std::uint8_t> out(size + 1);
+  uLongf n = out.size();
+  const int rc = uncompress(out.data(), &n, packed.data(), packed.size());
+  EXPECT_EQ(rc, Z_OK);
+  out.resize(rc == Z_OK ? n : 0);
+  return out;
+}
+
+void expect_round_trip(const std::vector<std::uint8_t>& raw, const std::string& what) {
+  const auto packed = compress_runs(raw);
+  const auto back = decompress(packed);  // libdeflate
+  ASSERT_TRUE(back.ok()) << what << ": " << back.error().message;
+  EXPECT_EQ(*back, raw) << what;
+  EXPECT_EQ(zlib_inflate(packed, raw.size()), raw) << what;  // zlib, as HTTP clients use
+  // Never more than stored blocks cost: 6 bytes per 16 KiB block and the zlib frame.
+  EXPECT_LE(packed.size(), raw.size() + 6 * (raw.size() / 16384 + 1) + 7) << what;
+}
+
+TEST(CompressRuns, RoundTripsEdgeSizesAndContents) {
+  std::mt19937_64 rng(41);
+  for (const std::size_t size :
+       {0, 1, 2, 3, 4, 5, 257, 258, 259, 16383, 16384, 16385, 32768, 100000}) {
+    std::vector<std::uint8_t> zeros(size, 0), noise(size), few(size), runs(size);
+    for (auto& c : noise) c = static_cast<std::uint8_t>(rng());
+    for (auto& c : few) c = static_cast<std::uint8_t>(rng() % 3);
+    std::uint8_t value = 7;
+    for (std::size_t i = 0; i < size; ++i) {
+      if (rng() % 300 == 0) value = static_cast<std::uint8_t>(rng());
+      runs[i] = value;
+    }
+    for (const auto* data : {&zeros, &noise, &few, &runs}) {
+      expect_round_trip(*data, "size " + std::to_string(size));
+    }
+  }
+}
+
+TEST(CompressRuns, LimitsCodeLengthsOnSkewedCounts) {
+  // Fibonacci counts over 19 byte values (10945 bytes, one block) would give a Huffman tree 18
+  // deep; deflate allows 15.
+  std::vector<std::uint8_t> raw;
+  std::uint64_t a = 1, b = 1;
+  for (std::uint8_t symbol = 0; symbol < 19; ++symbol) {
+    for (std::uint64_t i = 0; i < a; ++i) raw.push_back(symbol);
+    const std::uint64_t c = a + b;
+    a = b;
+    b = c;
+  }
+  ASSERT_LT(raw.size(), 16384u);
+  // Shuffled so that the counts are literals, not runs.
+  std::mt19937_64 rng(42);
+  std::shuffle(raw.begin(), raw.end(), rng);
+  expect_round_trip(raw, "fibonacci");
+}
+
+TEST(CompressRuns, RoundTripsTileBlobsAndIsSmallerThanStoredOnThem) {
+  std::mt19937_64 rng(43);
+  for (int i = 0; i < 20; ++i) {
+    const TinTile t = random_grid_tile(rng, 60);
+    for (const FormatVersion version : {FormatVersion::v1, FormatVersion::v2}) {
+      const auto raw = encode(t, version);
+      expect_round_trip(raw, "tile " + std::to_string(i));
+      const auto back = decode(*decompress(compress_runs(raw)));
+      ASSERT_TRUE(back.ok());
+      EXPECT_TRUE(same_tile(t, *back));
+    }
+    const auto v2 = encode(t);
+    EXPECT_LT(compress_runs(v2).size(), v2.size()) << "tile " << i;
+  }
+}
+
+TEST(CompressRuns, RandomInputsRoundTrip) {
+  std::mt19937_64 rng(44);
+  for (int i = 0; i < 300; ++i) {
+    std::vector<std::uint8_t> raw(rng() % 40000);
+    const unsigned alphabet = 1 + static_cast<unsigned>(rng() % 256);
+    const unsigned run_odds = 1 + static_cast<unsigned>(rng() % 50);
+    for (std::size_t k = 0; k < raw.size(); ++k) {
+      raw[k] = (k > 0 && rng() % run_odds != 0) ? raw[k - 1]
+                                                : static_cast<std::uint8_t>(rng() % alphabet);
+    }
+    expect_round_trip(raw, "input " + std::to_string(i));
+  }
 }
 
 }  // namespace
