@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cassert>
 #include <cstdint>
 #include <cstring>
@@ -219,6 +220,26 @@ std::vector<LengthToken> length_tokens(const std::uint8_t* lengths, std::size_t 
   return out;
 }
 
+// The length of the run of `byte` at p, knowing that p[0 … known) are `byte`, up to `limit`.
+// Eight bytes at a time: runs fill whole planes of version-2 blobs.
+std::size_t run_length(const std::uint8_t* p, std::size_t known, std::size_t limit,
+                       std::uint8_t byte) {
+  std::size_t run = known;
+  if constexpr (std::endian::native == std::endian::little) {
+    const std::uint64_t pattern = 0x0101010101010101u * byte;
+    while (run + 8 <= limit) {
+      std::uint64_t word;
+      std::memcpy(&word, p + run, 8);
+      if (const std::uint64_t diff = word ^ pattern; diff != 0) {
+        return run + static_cast<std::size_t>(std::countr_zero(diff)) / 8;  // first other byte
+      }
+      run += 8;
+    }
+  }
+  while (run < limit && p[run] == byte) ++run;
+  return run;
+}
+
 // Writes in[begin, end) as one block (dynamic or stored, whichever is smaller).
 void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t begin, std::size_t end,
                  bool final, std::vector<std::uint16_t>& tokens) {
@@ -244,8 +265,7 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
     }
     // At least three repeats of the previous byte: one run token of up to 258.
     const std::size_t limit = std::min<std::size_t>(258, end - i);
-    std::size_t run = 3;
-    while (run < limit && data[i + run] == byte) ++run;
+    const std::size_t run = run_length(data + i, 3, limit, byte);
     *token++ = static_cast<std::uint16_t>(256 + run);
     ++freq[kLengthCodes[run].symbol];
     i += run;
