@@ -7,8 +7,8 @@
 // when that would not be smaller. Any inflater reads the result (tile::decompress, zlib).
 //
 // Per block of kBlockSize input bytes (the last one may be shorter):
-//   tokens     literal bytes, and (length 3…258, distance 1) for repeats of the previous byte
-//   dynamic    Huffman block (BTYPE 2): literal/length code from the token counts (≤ 15 bits),
+//   symbols    literal bytes, and (length 3…258, distance 1) for repeats of the previous byte
+//   dynamic    Huffman block (BTYPE 2): literal/length code from the symbol counts (≤ 15 bits),
 //              distance code {0, 1} of 1 bit each (complete; only distance 1 is used), code
 //              lengths sent with the code-length alphabet including its run symbols 16/17/18
 //   stored     BTYPE 0, chosen when its exact size is not larger than the dynamic block's
@@ -240,17 +240,20 @@ std::size_t run_length(const std::uint8_t* p, std::size_t known, std::size_t lim
   return run;
 }
 
+// A match of the block: `length` (3…258) repeats of the byte before `position`.
+struct Run {
+  std::size_t position;
+  std::size_t length;
+};
+
 // Writes in[begin, end) as one block (dynamic or stored, whichever is smaller).
 void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t begin, std::size_t end,
-                 bool final, std::vector<std::uint16_t>& tokens) {
-  // Tokens: a byte below 256, or 256 + run length for a run of the previous byte. `tokens` has
-  // room for one per input byte (kBlockSize).
-  std::uint16_t* const first_token = tokens.data();
-  std::uint16_t* token = first_token;
+                 bool final, std::vector<Run>& runs) {
+  // Every byte is a literal except those covered by `runs` (in order).
+  runs.clear();
   std::array<std::uint32_t, kLitLenSymbols> freq{};
   std::size_t i = begin;
   if (i == 0 && i < end) {  // the stream's first byte has no previous byte
-    *token++ = in[0];
     ++freq[in[0]];
     ++i;
   }
@@ -258,19 +261,17 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
   while (i < end) {
     const std::uint8_t byte = data[i];
     if (byte != data[i - 1] || i + 2 >= end || data[i + 1] != byte || data[i + 2] != byte) {
-      *token++ = byte;
       ++freq[byte];
       ++i;
       continue;
     }
-    // At least three repeats of the previous byte: one run token of up to 258.
+    // At least three repeats of the previous byte: one match of up to 258.
     const std::size_t limit = std::min<std::size_t>(258, end - i);
     const std::size_t run = run_length(data + i, 3, limit, byte);
-    *token++ = static_cast<std::uint16_t>(256 + run);
+    runs.push_back({i, run});
     ++freq[kLengthCodes[run].symbol];
     i += run;
   }
-  const std::size_t token_count = static_cast<std::size_t>(token - first_token);
   freq[kEndOfBlock] = 1;
 
   std::array<std::uint8_t, kLitLenSymbols> lit_lengths{};
@@ -326,19 +327,24 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
   // A local copy of the writer: its state stays in registers (stores through the output pointer
   // could alias `w`).
   BitWriter out = w;
-  for (std::size_t k = 0; k < token_count; ++k) {
-    const std::uint16_t t = first_token[k];
-    if (t < 256) {
-      out.put(lit_words[t] & 0xFFFFu, lit_words[t] >> 16);
-    } else {
-      // Length symbol, its extra bits, then distance code 0 (distance 1) of the 1-bit code:
-      // 15 + 5 + 1 bits at most, one put.
-      const LengthCode& lc = kLengthCodes[t - 256];
-      const std::uint32_t word = lit_words[lc.symbol];
-      const unsigned len = word >> 16;
-      out.put((word & 0xFFFFu) | std::uint32_t{lc.extra} << len, len + lc.extra_bits + 1u);
+  const auto literals = [&](std::size_t from, std::size_t to) {
+    for (std::size_t k = from; k < to; ++k) {
+      const std::uint32_t word = lit_words[data[k]];
+      out.put(word & 0xFFFFu, word >> 16);
     }
+  };
+  std::size_t next = begin;
+  for (const Run& r : runs) {
+    literals(next, r.position);
+    // Length symbol, its extra bits, then distance code 0 (distance 1) of the 1-bit code:
+    // 15 + 5 + 1 bits at most, one put.
+    const LengthCode& lc = kLengthCodes[r.length];
+    const std::uint32_t word = lit_words[lc.symbol];
+    const unsigned len = word >> 16;
+    out.put((word & 0xFFFFu) | std::uint32_t{lc.extra} << len, len + lc.extra_bits + 1u);
+    next = r.position + r.length;
   }
+  literals(next, end);
   w = out;
   w.put(lit_codes[kEndOfBlock], lit_lengths[kEndOfBlock]);
 }
@@ -354,11 +360,12 @@ std::vector<std::uint8_t> compress_runs(std::span<const std::uint8_t> bytes) {
   out[0] = 0x78;  // CMF: deflate, 32 KiB window
   out[1] = 0x01;  // FLG: fastest compression, no dictionary; (0x78 · 256 + 0x01) % 31 == 0
   BitWriter w(out.data() + 2);
-  std::vector<std::uint16_t> tokens(kBlockSize);
+  std::vector<Run> runs;
+  runs.reserve(kBlockSize / 3 + 1);
   for (std::size_t b = 0; b < blocks; ++b) {
     const std::size_t begin = b * kBlockSize;
     const std::size_t end = std::min(bytes.size(), begin + kBlockSize);
-    write_block(w, bytes, begin, end, b + 1 == blocks, tokens);
+    write_block(w, bytes, begin, end, b + 1 == blocks, runs);
   }
   w.align();
   std::uint8_t* p = w.position();
