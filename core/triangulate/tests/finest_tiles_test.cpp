@@ -4,11 +4,14 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <numbers>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "tinstream/kernel/predicates.hpp"
 
@@ -47,7 +50,9 @@ Fixture build(const std::vector<InputPoint>& points, std::uint32_t max_points, u
       opt);
   EXPECT_TRUE(run.ok()) << run.error().message;
   f.run = *run;
+  std::mutex mutex;  // the sink runs on the workers, concurrently
   auto summary = build_finest_tiles(f.run, threads, [&](tile::TinTile&& t) {
+    std::lock_guard lock(mutex);
     f.tiles.push_back(std::move(t));
     return Status{};
   });
@@ -470,6 +475,48 @@ TEST(FinestTiles, LatticeCellsStraddlingTileBordersStayWatertight) {
   ASSERT_GT(f.tiles.size(), 4u);
   expect_watertight(f);
   expect_no_point_lost(f, pts);
+}
+
+TEST(FinestTiles, SinkRunsOnTheWorkersAndItsErrorOrACancelStopsTheRun) {
+  const auto pts = random_points(6000, 5, 0.1, 0.2, 3e-4);
+  const Fixture f = build(pts, 200, 2, "sink");
+  ASSERT_GT(f.run.tiles.size(), 12u);
+  // The sink is called on the worker threads, never on the calling one.
+  std::mutex mutex;
+  std::set<std::thread::id> sink_threads;
+  auto all = build_finest_tiles(f.run, 2, [&](tile::TinTile&&) {
+    std::lock_guard lock(mutex);
+    sink_threads.insert(std::this_thread::get_id());
+    return Status{};
+  });
+  ASSERT_TRUE(all.ok()) << all.error().message;
+  EXPECT_EQ(all->tiles, f.run.tiles.size());
+  EXPECT_FALSE(sink_threads.empty());
+  EXPECT_EQ(sink_threads.count(std::this_thread::get_id()), 0u);
+  // The sink's first error is the run's result, and later tiles are not handed over.
+  std::atomic<int> calls{0};
+  auto failed = build_finest_tiles(f.run, 2, [&](tile::TinTile&&) -> Status {
+    if (++calls == 3) return io_error("disk full on purpose");
+    return {};
+  });
+  ASSERT_FALSE(failed.ok());
+  EXPECT_EQ(failed.error().message, "disk full on purpose");
+  EXPECT_LT(calls.load(), static_cast<int>(f.run.tiles.size()));
+  // Progress reported on the calling thread; false cancels.
+  std::uint64_t last_done = 0;
+  bool progress_on_caller = true;
+  const auto caller = std::this_thread::get_id();
+  auto cancelled = build_finest_tiles(
+      f.run, 2, [](tile::TinTile&&) { return Status{}; }, {},
+      [&](const Progress& p) {
+        progress_on_caller = progress_on_caller && std::this_thread::get_id() == caller;
+        last_done = p.done;
+        return p.done < 2;
+      });
+  ASSERT_FALSE(cancelled.ok());
+  EXPECT_EQ(cancelled.error().code, ErrorCode::cancelled);
+  EXPECT_TRUE(progress_on_caller);
+  EXPECT_GE(last_done, 2u);
 }
 
 TEST(FinestTiles, WrongLevelRejected) {
