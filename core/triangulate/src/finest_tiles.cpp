@@ -304,47 +304,82 @@ Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::Sor
     cells->index_.emplace(pack(cells->tiles_[i].id.x, cells->tiles_[i].id.y), i);
   }
   const std::uint32_t cell_shift = 2 * (kKeyLevel - cells->cell_level());
-  // Each reader takes the next tile: its cell offsets and the hull of its points (the data's hull
-  // is the hull of the tiles' hulls, whatever their order).
-  std::vector<std::vector<XY>> tile_hulls(tiles);
-  std::atomic<std::size_t> next{0};
-  std::mutex mutex;
-  Status failure;
-  auto read_tiles = [&] {
-    auto reader = subdivide::SortedRunReader::open(run.path);
-    if (!reader) {
+  // Calls visit(t, points) for each tile index in `which`, on `threads` readers, each taking the
+  // next tile.
+  auto for_each_tile = [&](const std::vector<std::uint32_t>& which, const auto& visit) -> Status {
+    std::atomic<std::size_t> next{0};
+    std::mutex mutex;
+    Status failure;
+    auto read_tiles = [&] {
+      auto reader = subdivide::SortedRunReader::open(run.path);
+      Status s = reader ? Status{} : Status(reader.error());
+      std::vector<SortedPoint> chunk;
+      for (std::size_t i; s.ok() && (i = next.fetch_add(1)) < which.size();) {
+        const auto& range = cells->tiles_[which[i]];
+        s = reader->read(range.first, range.count, chunk);
+        if (s.ok()) visit(which[i], chunk);
+      }
       std::lock_guard lock(mutex);
-      failure = reader.error();
-      return;
-    }
-    std::vector<SortedPoint> chunk;
-    std::vector<XY> tile_points;
-    for (std::size_t t; (t = next.fetch_add(1)) < tiles;) {
-      const auto& range = cells->tiles_[t];
-      if (Status s = reader->read(range.first, range.count, chunk); !s) {
-        std::lock_guard lock(mutex);
-        failure = s;
-        return;
-      }
-      std::uint32_t* counts = &cells->cell_offsets_[t * (per_tile + 1)];
-      for (const SortedPoint& p : chunk) {
-        const auto local = static_cast<std::uint32_t>((p.key >> cell_shift) & (per_tile - 1));
-        ++counts[local + 1];
-      }
-      for (std::uint32_t i = 1; i <= per_tile; ++i) counts[i] += counts[i - 1];
-      tile_points.resize(chunk.size());
-      for (std::size_t i = 0; i < chunk.size(); ++i) tile_points[i] = {chunk[i].x, chunk[i].y};
-      tile_hulls[t] = convex_hull(tile_points);
-    }
+      if (failure.ok()) failure = s;
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < std::max(1u, threads); ++t) pool.emplace_back(read_tiles);
+    read_tiles();
+    for (auto& t : pool) t.join();
+    return failure;
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < std::max(1u, threads); ++t) pool.emplace_back(read_tiles);
-  read_tiles();
-  for (auto& t : pool) t.join();
-  if (!failure.ok()) return failure.error();
+  // Every tile: its cell offsets and the bounding box of its points.
+  std::vector<std::uint32_t> all(tiles);
+  for (std::uint32_t t = 0; t < tiles; ++t) all[t] = t;
+  std::vector<geo::MercatorRect> boxes(tiles);
+  Status read = for_each_tile(all, [&](std::uint32_t t, const std::vector<SortedPoint>& chunk) {
+    std::uint32_t* counts = &cells->cell_offsets_[t * (per_tile + 1)];
+    geo::MercatorRect box{chunk[0].x, chunk[0].y, chunk[0].x, chunk[0].y};
+    for (const SortedPoint& p : chunk) {
+      const auto local = static_cast<std::uint32_t>((p.key >> cell_shift) & (per_tile - 1));
+      ++counts[local + 1];
+      box.min_x = std::min(box.min_x, p.x), box.max_x = std::max(box.max_x, p.x);
+      box.min_y = std::min(box.min_y, p.y), box.max_y = std::max(box.max_y, p.y);
+    }
+    for (std::uint32_t i = 1; i <= per_tile; ++i) counts[i] += counts[i - 1];
+    boxes[t] = box;
+  });
+  if (!read.ok()) return read.error();
+  // The data's hull is the hull of the tiles' hulls. A tile whose four diagonal neighbours' points
+  // all lie strictly beyond its own in both coordinates has no point on it: for every direction,
+  // one neighbour's points lie strictly further that way. Only the other tiles are read again.
+  auto enclosed = [&](std::uint32_t t) {
+    const geo::TileId& id = cells->tiles_[t].id;
+    const geo::MercatorRect& b = boxes[t];
+    for (const int dx : {-1, 1}) {
+      for (const int dy : {-1, 1}) {  // rows count from the north: dy = -1 is north, +y
+        const std::ptrdiff_t n = cells->tile_index(
+            {id.z, static_cast<std::uint32_t>(static_cast<std::int64_t>(id.x) + dx),
+             static_cast<std::uint32_t>(static_cast<std::int64_t>(id.y) + dy)});
+        if (n < 0) return false;
+        const geo::MercatorRect& o = boxes[static_cast<std::size_t>(n)];
+        const bool beyond_x = dx > 0 ? o.min_x > b.max_x : o.max_x < b.min_x;
+        const bool beyond_y = dy < 0 ? o.min_y > b.max_y : o.max_y < b.min_y;
+        if (!beyond_x || !beyond_y) return false;
+      }
+    }
+    return true;
+  };
+  std::vector<std::uint32_t> open;
+  for (std::uint32_t t = 0; t < tiles; ++t) {
+    if (!enclosed(t)) open.push_back(t);
+  }
+  std::vector<std::vector<XY>> tile_hulls(tiles);
+  read = for_each_tile(open, [&](std::uint32_t t, const std::vector<SortedPoint>& chunk) {
+    std::vector<XY> points(chunk.size());
+    for (std::size_t i = 0; i < chunk.size(); ++i) points[i] = {chunk[i].x, chunk[i].y};
+    tile_hulls[t] = convex_hull(std::move(points));
+  });
+  if (!read.ok()) return read.error();
   std::vector<XY> hull_candidates;
-  for (const auto& h : tile_hulls)
+  for (const auto& h : tile_hulls) {
     hull_candidates.insert(hull_candidates.end(), h.begin(), h.end());
+  }
   cells->hull_ = convex_hull(std::move(hull_candidates));
   return std::shared_ptr<const PointCells>(std::move(cells));
 }

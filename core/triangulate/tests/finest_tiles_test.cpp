@@ -2,6 +2,7 @@
 
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/convex_hull_2.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -475,6 +476,40 @@ TEST(FinestTiles, LatticeCellsStraddlingTileBordersStayWatertight) {
   ASSERT_GT(f.tiles.size(), 4u);
   expect_watertight(f);
   expect_no_point_lost(f, pts);
+}
+
+TEST(FinestTiles, PointCellsHullIsTheDataHull) {
+  // PointCells::build skips the hull of tiles enclosed by their diagonal neighbours; the result
+  // must still be the exact convex hull of all points (CGAL's), on a ring (inner tiles enclosed,
+  // a concave inner boundary whose tiles are not), a dense disc and a lattice whose points lie
+  // on tile borders (bounding boxes touch, so nothing counts as enclosed there).
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<std::vector<InputPoint>> inputs(3);
+  for (int i = 0; i < 20000; ++i) {
+    const double a = 2 * std::numbers::pi * u(rng), r = 1e-4 * (1.0 + u(rng));
+    inputs[0].push_back({0.3 + r * std::cos(a), 0.4 + r * std::sin(a), u(rng)});
+    const double r2 = 2e-4 * std::sqrt(u(rng));
+    inputs[1].push_back({-0.2 + r2 * std::cos(a), 0.1 + r2 * std::sin(a), u(rng)});
+  }
+  const double step = std::ldexp(1.0, -19);  // level-18 tile = 8 steps of the lattice
+  for (int i = 0; i < 120; ++i) {
+    for (int j = 0; j < 120; ++j) inputs[2].push_back({0.25 + i * step, 0.5 + j * step, 1.0 * i});
+  }
+  for (std::size_t k = 0; k < inputs.size(); ++k) {
+    const Fixture f = build(inputs[k], 300, 2, "hull" + std::to_string(k));
+    ASSERT_GT(f.run.tiles.size(), 16u);
+    auto cells = PointCells::build(f.run, 2);
+    ASSERT_TRUE(cells.ok()) << cells.error().message;
+    std::vector<K::Point_2> all, expected;
+    for (const auto& p : inputs[k]) all.emplace_back(p.x, p.y);
+    CGAL::convex_hull_2(all.begin(), all.end(), std::back_inserter(expected));
+    std::set<std::pair<double, double>> want, got;
+    for (const auto& p : expected) want.emplace(p.x(), p.y());
+    for (const auto& p : (*cells)->hull()) got.emplace(p.x, p.y);
+    EXPECT_EQ(got, want) << "input " << k;
+    EXPECT_EQ((*cells)->hull().size(), expected.size()) << "input " << k;
+  }
 }
 
 TEST(FinestTiles, SinkRunsOnTheWorkersAndItsErrorOrACancelStopsTheRun) {
