@@ -4,8 +4,11 @@
 //
 // OBJ is exactly: one `v <lon°> <lat°> <ellipsoidal height m>` line per vertex in the tile's
 // numbering (degrees with 10 decimals, metres with 4), then one `f a b c` line per triangle,
-// 1-based, counter-clockwise seen from above. JSON carries the same plus each vertex's role,
-// NODATA flag, normalised Mercator coordinates and weight; its triangle indices are 0-based.
+// 1-based, counter-clockwise seen from above. With --drop-nodata, NODATA corners (height 0, no
+// data) and the triangles using them are left out and the rest renumbered in the same order, so
+// a mesh viewer shows no walls down to sea level where the data end. JSON carries every vertex
+// plus its role, NODATA flag, normalised Mercator coordinates and weight; its triangle indices
+// are 0-based.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
@@ -29,6 +32,7 @@ struct ExportOptions {
   std::string out;
   std::string dir;
   bool has_tile = false;  // an empty quadkey is the level-0 tile
+  bool drop_nodata = false;
   CesiumDirExport cesium;
 };
 
@@ -55,18 +59,26 @@ const char* role_name(tile::VertexRole role) {
   return "unknown";
 }
 
-std::string to_obj(const tile::TinTile& t, const geo::NormalisedMercator& projection) {
+std::string to_obj(const tile::TinTile& t, const geo::NormalisedMercator& projection,
+                   bool drop_nodata) {
   std::string out;
   out.reserve(t.vertex_count() * 48 + t.triangles.size() * 24);
   char line[160];
+  // number[i]: vertex i's 1-based OBJ index, 0 when left out.
+  std::vector<std::uint32_t> number(t.vertex_count(), 0);
+  std::uint32_t written = 0;
   for (std::size_t i = 0; i < t.vertex_count(); ++i) {
+    if (drop_nodata && i < 4 && t.corner_nodata[i]) continue;
+    number[i] = ++written;
     const tile::Vertex& v = t.vertex(i);
     const geo::LonLat p = projection.inverse({v.x, v.y});
     std::snprintf(line, sizeof line, "v %.10f %.10f %.4f\n", p.lon, p.lat, v.z);
     out += line;
   }
   for (const tile::Triangle& tri : t.triangles) {
-    std::snprintf(line, sizeof line, "f %u %u %u\n", tri[0] + 1, tri[1] + 1, tri[2] + 1);
+    if (number[tri[0]] == 0 || number[tri[1]] == 0 || number[tri[2]] == 0) continue;
+    std::snprintf(line, sizeof line, "f %u %u %u\n", number[tri[0]], number[tri[1]],
+                  number[tri[2]]);
     out += line;
   }
   return out;
@@ -120,7 +132,7 @@ int export_tile(const ExportOptions& o) {
   }
   const geo::NormalisedMercator projection(layer->projection);
   const std::string text =
-      o.format == "obj" ? to_obj(**t, projection) : to_json(**t, *layer, projection);
+      o.format == "obj" ? to_obj(**t, projection, o.drop_nodata) : to_json(**t, *layer, projection);
   if (o.out.empty()) {
     std::cout << text;
     std::cout.flush();
@@ -162,14 +174,17 @@ const CommandRegistration kRegistration{
           ->check(CLI::IsMember({"obj", "json"}))
           ->default_val("obj");
       sub.add_option("--out", o->out, "Output file for --tile (default: standard output)");
+      sub.add_flag("--drop-nodata", o->drop_nodata,
+                   "OBJ: leave out NODATA corners (no data there, height 0) and their triangles");
       sub.add_option("--dir", o->dir, "Output directory: static Cesium quantized-mesh tree");
       add_cesium_dir_options(sub, o->cesium);
       sub.footer(
           "OBJ: `v <lon deg> <lat deg> <ellipsoidal height m>` per vertex (tile numbering: "
           "corners\n"
           "NW NE SW SE, north, east, south, west edges, interior), then `f a b c` per triangle\n"
-          "(1-based, counter-clockwise seen from above). JSON: the same plus role, nodata,\n"
-          "Mercator x/y and weight per vertex; triangle indices 0-based.");
+          "(1-based, counter-clockwise seen from above). --drop-nodata leaves out NODATA\n"
+          "corners and the triangles using them (no walls to sea level at the data's edge).\n"
+          "JSON: every vertex with role, nodata, Mercator x/y and weight; indices 0-based.");
       return [o, tile] {
         o->has_tile = tile->count() > 0;
         return run_export(*o);

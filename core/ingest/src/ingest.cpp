@@ -277,14 +277,19 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   auto writer = store->begin_layer(info);
   if (!writer) return writer.error();
 
-  // ── Pass 3: finest tiles on the worker pool, stored by this thread ──
+  // ── Pass 3: finest tiles on the worker pool, each worker encoding its own, stored one at a time
+  // ──
   clock.next("triangulate");
   std::uint64_t finest_tiles = 0;
+  std::mutex writer_mutex;
   auto pass3 = triangulate::build_finest_tiles(
       *sorted, threads,
       [&](tile::TinTile&& t) -> Status {
+        auto prepared = store::prepare_tile(t);
+        if (!prepared) return prepared.error();
+        std::lock_guard lock(writer_mutex);
         ++finest_tiles;
-        return (*writer)->put(t);
+        return (*writer)->put(std::move(*prepared));
       },
       {}, progress);
   if (!pass3) return pass3.error();

@@ -1,8 +1,9 @@
-// Pass 4 driver. The calling thread owns the LayerWriter: it reads the children of a parent,
-// hands the parent to a worker, and writes finished parents. Workers only compute.
+// Pass 4 driver. The calling thread owns the LayerWriter: it reads the children of a parent (still
+// compressed), hands the parent to a worker, and writes finished parents. Workers do all the CPU
+// work: decoding the children, building the parent, encoding it for the store.
 //
-//   calling thread:  read 4 children ─▶ tasks ─▶ [workers: build_parent] ─▶ done ─▶ writer.put
-//                    (at most max_in_flight parents between "read" and "put")
+//   calling thread:  read 4 blobs ─▶ tasks ─▶ [workers: decode, build_parent, prepare_tile]
+//                    ─▶ done ─▶ writer.put   (at most max_in_flight parents between read and put)
 #include "tinstream/lod/pyramid.hpp"
 
 #include <algorithm>
@@ -27,7 +28,7 @@ namespace {
 // A fixed set of workers running submitted jobs; finished results are collected by the owner.
 class TilePool {
  public:
-  using Job = std::function<Result<TinTile>()>;
+  using Job = std::function<Result<store::StoredTile>()>;
 
   explicit TilePool(unsigned threads) {
     for (unsigned i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
@@ -51,10 +52,10 @@ class TilePool {
     cv_work_.notify_one();
   }
   // Blocks until at least one result is ready and returns all ready ones.
-  std::vector<Result<TinTile>> wait_results() {
+  std::vector<Result<store::StoredTile>> wait_results() {
     std::unique_lock lock(m_);
     cv_done_.wait(lock, [&] { return !done_.empty(); });
-    std::vector<Result<TinTile>> out;
+    std::vector<Result<store::StoredTile>> out;
     while (!done_.empty()) {
       out.push_back(std::move(done_.front()));
       done_.pop_front();
@@ -73,7 +74,7 @@ class TilePool {
         job = std::move(jobs_.front());
         jobs_.pop_front();
       }
-      Result<TinTile> r = Error(ErrorCode::internal, "lod: job did not run");
+      Result<store::StoredTile> r = Error(ErrorCode::internal, "lod: job did not run");
       try {
         r = job();
       } catch (const std::exception& e) {
@@ -90,7 +91,7 @@ class TilePool {
   std::mutex m_;  // guards jobs_, done_, stop_
   std::condition_variable cv_work_, cv_done_;
   std::deque<Job> jobs_;
-  std::deque<Result<TinTile>> done_;
+  std::deque<Result<store::StoredTile>> done_;
   bool stop_ = false;
   std::vector<std::thread> workers_;
 };
@@ -107,6 +108,16 @@ class Throttle {
  private:
   std::chrono::steady_clock::time_point last_{};
 };
+
+// A child tile read back from the layer being written, decoded on a worker.
+Result<TinTile> decode_child(const store::StoredTile& stored) {
+  auto decoded = store::decode_tile(stored);
+  if (!decoded) {
+    return Error(decoded.error().code,
+                 "lod: tile " + stored.id.to_string() + ": " + decoded.error().message);
+  }
+  return decoded;
+}
 
 }  // namespace
 
@@ -125,10 +136,10 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   summary.level_max_error.assign(finest_level + 1, 0.0);
   summary.level_tiles.assign(finest_level + 1, 0);
   summary.level_vertices.assign(finest_level + 1, 0);
-  auto account = [&](const TinTile& t) {
+  auto account = [&](const store::StoredTile& t) {
     summary.level_max_error[t.id.z] = std::max(summary.level_max_error[t.id.z], t.geometric_error);
     ++summary.level_tiles[t.id.z];
-    summary.level_vertices[t.id.z] += t.vertex_count();
+    summary.level_vertices[t.id.z] += t.vertex_count;
   };
 
   TilePool pool(threads);
@@ -146,7 +157,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   // on the calling thread, with at most max_in_flight items between load and store.
   auto run_level = [&](const std::vector<geo::TileId>& items,
                        const std::function<Result<TilePool::Job>(const geo::TileId&)>& load,
-                       const std::function<Status(TinTile &&)>& store) -> Status {
+                       const std::function<Status(store::StoredTile &&)>& store) -> Status {
     std::size_t next = 0, in_flight = 0;
     std::optional<Error> failure;
     while ((next < items.size() && !failure) || in_flight > 0) {
@@ -188,12 +199,15 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     Status s = run_level(
         *finest_ids,
         [&](const geo::TileId& id) -> Result<TilePool::Job> {
-          auto t = writer.get(id);
+          auto t = writer.get_stored(id);
           if (!t.ok()) return t.error();
           if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
-          auto shared = std::make_shared<TinTile>(std::move(**t));
+          auto blob = std::make_shared<store::StoredTile>(std::move(**t));
           const HeightRange heights = opts.finest_heights;
-          return TilePool::Job([shared, lod, heights]() -> Result<TinTile> {
+          return TilePool::Job([blob, lod, heights]() -> Result<store::StoredTile> {
+            auto decoded = decode_child(*blob);
+            if (!decoded) return decoded.error();
+            auto shared = std::make_shared<TinTile>(std::move(*decoded));
             bool nodata = false;
             for (const auto& tr : shared->triangles) {
               for (auto v : tr) nodata = nodata || (v < 4 && shared->corner_nodata[v]);
@@ -205,15 +219,15 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
                   std::max(shared->geometric_error,
                            nodata_band_bound(*shared, heights) + error_rounding_allowance(*shared));
             }
-            return std::move(*shared);
+            return store::prepare_tile(*shared);
           });
         },
-        [&](TinTile&& t) { return writer.put(t); });
+        [&](store::StoredTile&& t) { return writer.put(std::move(t)); });
     if (!s.ok()) return s.error();
   }
   if (finest_level == min_level) {
     for (const auto& id : *finest_ids) {
-      auto t = writer.get(id);
+      auto t = writer.get_stored(id);
       if (!t.ok()) return t.error();
       if (*t) account(**t);
     }
@@ -236,25 +250,37 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     Status s = run_level(
         parents,
         [&](const geo::TileId& pid) -> Result<TilePool::Job> {
-          auto kids = std::make_shared<std::array<std::optional<TinTile>, 4>>();
+          auto blobs = std::make_shared<std::array<std::optional<store::StoredTile>, 4>>();
           const auto ids = pid.children();
           for (std::size_t i = 0; i < 4; ++i) {
-            auto t = writer.get(ids[i]);
+            auto t = writer.get_stored(ids[i]);
             if (!t.ok()) return t.error();
             if (*t) {
               account(**t);
-              (*kids)[i] = std::move(**t);
+              (*blobs)[i] = std::move(**t);
             }
           }
           const HeightRange heights = opts.finest_heights;
-          return TilePool::Job([kids, pid, lod, heights]() {
-            return build_parent(pid, std::move(*kids), lod, nullptr, heights);
+          return TilePool::Job([blobs, pid, lod, heights]() -> Result<store::StoredTile> {
+            std::array<std::optional<TinTile>, 4> kids;
+            for (std::size_t i = 0; i < 4; ++i) {
+              if (!(*blobs)[i]) continue;
+              auto decoded = decode_child(*(*blobs)[i]);
+              if (!decoded) return decoded.error();
+              kids[i] = std::move(*decoded);
+              (*blobs)[i].reset();  // the compressed copy is not needed any more
+            }
+            auto parent = build_parent(pid, std::move(kids), lod, nullptr, heights);
+            if (!parent) return parent.error();
+            return store::prepare_tile(*parent);
           });
         },
-        [&](TinTile&& t) -> Status {
-          if (Status st = writer.put(t); !st.ok()) return st;
-          written.push_back(t.id);
-          if (t.id.z == min_level) account(t);
+        [&](store::StoredTile&& t) -> Status {
+          const store::StoredTile& stored = t;
+          if (t.id.z == min_level) account(stored);
+          const geo::TileId id = t.id;
+          if (Status st = writer.put(std::move(t)); !st.ok()) return st;
+          written.push_back(id);
           return {};
         });
     if (!s.ok()) return s.error();

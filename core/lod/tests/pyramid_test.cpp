@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <random>
 
 #include "lod_test_support.hpp"
@@ -283,7 +284,11 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
   ASSERT_TRUE(run.ok()) << run.error().message;
   auto w = ts.writer("random");
   ASSERT_TRUE(w);
-  auto tri = triangulate::build_finest_tiles(*run, 2, [&](TinTile&& t) { return w->put(t); });
+  std::mutex mutex;  // the sink runs on the workers, concurrently
+  auto tri = triangulate::build_finest_tiles(*run, 2, [&](TinTile&& t) {
+    std::lock_guard lock(mutex);
+    return w->put(t);
+  });
   ASSERT_TRUE(tri.ok()) << tri.error().message;
   const std::uint32_t L = run->finest_level;
   ASSERT_GE(L, 3u);

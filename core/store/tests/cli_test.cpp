@@ -189,6 +189,48 @@ TEST_F(CliTest, ExportObjIsParsableCcwAndPrecise) {
   }
 }
 
+TEST_F(CliTest, ExportObjDropNodataLeavesOutTheCornerAndItsTriangles) {
+  const ProcessResult r =
+      run(dir_, {"export", "--store", path_.string(), "--layer", "dem", "--tile",
+                 tile_.id.quadkey(), "--format", "obj", "--drop-nodata"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream in(r.out);
+  std::string line;
+  std::vector<double> heights;
+  std::vector<std::array<long, 3>> faces;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string kind;
+    fields >> kind;
+    if (kind == "v") {
+      double lon = 0, lat = 0, h = 0;
+      fields >> lon >> lat >> h;
+      heights.push_back(h);
+    } else if (kind == "f") {
+      std::array<long, 3> t{};
+      fields >> t[0] >> t[1] >> t[2];
+      faces.push_back(t);
+    }
+  }
+  // Corner 3 (SE) is NODATA in the fixture: one vertex fewer, the others in order.
+  ASSERT_EQ(heights.size(), tile_.vertex_count() - 1);
+  for (std::size_t i = 0, k = 0; i < tile_.vertex_count(); ++i) {
+    if (i == 3) continue;
+    EXPECT_NEAR(heights[k++], tile_.vertex(i).z, 5e-5) << "vertex " << i;
+  }
+  // The faces: the tile's triangles without corner 3, in order, renumbered (1-based, the
+  // vertices after the dropped corner move down by one).
+  std::vector<std::array<long, 3>> expected;
+  for (const auto& t : tile_.triangles) {
+    if (t[0] == 3 || t[1] == 3 || t[2] == 3) continue;
+    std::array<long, 3> f{};
+    for (std::size_t k = 0; k < 3; ++k) f[k] = t[k] < 3 ? t[k] + 1 : t[k];
+    expected.push_back(f);
+  }
+  ASSERT_LT(expected.size(), tile_.triangles.size());  // the corner had triangles
+  EXPECT_EQ(faces, expected);
+}
+
 TEST_F(CliTest, ExportJsonCarriesRolesNodataAndMercator) {
   const auto out = dir_ / "tile.json";
   const ProcessResult r =

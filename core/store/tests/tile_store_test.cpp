@@ -3,6 +3,7 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <thread>
 
 #include "store_test_util.hpp"
 #include "tinstream/tile/codec.hpp"
@@ -321,6 +322,58 @@ TEST(TileStore, PutOfTheSameIdReplacesTheTile) {
   ASSERT_TRUE((*w)->publish(basic_info("dem")).ok());
   EXPECT_TRUE(same_tile(**store.read_tile("dem", first.id), first));
   EXPECT_EQ(store.layer("dem")->tile_count, 1u);
+}
+
+TEST(TileStore, PreparedTilesOnOtherThreadsStoreAsPutDoes) {
+  TempDir dir;
+  auto store = open_rw(dir / "a.tinstream");
+  const auto tiles = some_tiles(41);
+  // Prepared on worker threads, put by this one: the same rows as put(TinTile) writes.
+  std::vector<Result<StoredTile>> prepared(tiles.size(), Error(ErrorCode::internal, "unset"));
+  {
+    std::vector<std::thread> workers;
+    for (std::size_t w = 0; w < 2; ++w) {
+      workers.emplace_back([&, w] {
+        for (std::size_t i = w; i < tiles.size(); i += 2) prepared[i] = prepare_tile(tiles[i]);
+      });
+    }
+    for (auto& t : workers) t.join();
+  }
+  write_layer(store, "direct", tiles);
+  auto writer = store.begin_layer(basic_info("prepared"));
+  ASSERT_TRUE(writer.ok());
+  for (auto& p : prepared) {
+    ASSERT_TRUE(p.ok()) << p.error().message;
+    ASSERT_TRUE((*writer)->put(std::move(*p)).ok());
+  }
+  for (const auto& t : tiles) {
+    auto pending = (*writer)->get_stored(t.id);  // still in the writer's batch
+    ASSERT_TRUE(pending.ok() && pending->has_value());
+    auto decoded = decode_tile(**pending);
+    ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+    EXPECT_TRUE(same_tile(*decoded, t));
+  }
+  ASSERT_TRUE((*writer)->publish(basic_info("prepared")).ok());
+  for (const auto& t : tiles) {
+    const StoredTile a = **store.tile("direct", t.id);
+    const StoredTile b = **store.tile("prepared", t.id);
+    EXPECT_EQ(a.compressed, b.compressed);
+    EXPECT_EQ(a.etag, b.etag);
+    EXPECT_EQ(a.vertex_count, b.vertex_count);
+    EXPECT_EQ(a.triangle_count, b.triangle_count);
+    EXPECT_EQ(a.geometric_error, b.geometric_error);
+  }
+  // A blob holding another tile than its row says is refused by decode_tile.
+  StoredTile moved = **store.tile("direct", tiles[0].id);
+  moved.id = tiles[1].id;
+  auto wrong = decode_tile(moved);
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_EQ(wrong.error().code, ErrorCode::corrupt_data);
+  EXPECT_NE(wrong.error().message.find(tiles[0].id.to_string()), std::string::npos);
+  // An invalid id is refused before any encoding.
+  TinTile bad = tiles[0];
+  bad.id = {3, 9, 0};
+  EXPECT_EQ(prepare_tile(bad).error().code, ErrorCode::invalid_argument);
 }
 
 TEST(TileStore, PublishedTilesViewHasQuadkeyAndTmsRow) {

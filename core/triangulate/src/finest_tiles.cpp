@@ -5,7 +5,6 @@
 #include <atomic>
 #include <cmath>
 #include <condition_variable>
-#include <deque>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -172,6 +171,7 @@ std::vector<XY> convex_hull(std::vector<XY> points) {
     hull[k++] = points[i];
   }
   hull.resize(k - 1);
+  hull.shrink_to_fit();  // kept per tile while PointCells::build runs: not 2 × the tile's points
   return hull;
 }
 
@@ -290,35 +290,95 @@ double canonical_circumradius2(XY a, XY b, XY c) {
 
 // ── PointCells ─────────────────────────────────────────────────────────────────────────────────
 
-Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::SortedRun& run) {
+Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::SortedRun& run,
+                                                            unsigned threads) {
   auto cells = std::make_shared<PointCells>();
   cells->level_ = run.finest_level;
   cells->sub_shift_ = std::min(kDefaultSubShift, kKeyLevel - run.finest_level);
   cells->tiles_ = run.tiles;
   cells->run_path_ = run.path;
   const std::uint32_t per_tile = 1u << (2 * cells->sub_shift_);
-  cells->cell_offsets_.assign(cells->tiles_.size() * (per_tile + 1), 0);
-  for (std::uint32_t i = 0; i < cells->tiles_.size(); ++i) {
+  const std::size_t tiles = cells->tiles_.size();
+  cells->cell_offsets_.assign(tiles * (per_tile + 1), 0);
+  for (std::uint32_t i = 0; i < tiles; ++i) {
     cells->index_.emplace(pack(cells->tiles_[i].id.x, cells->tiles_[i].id.y), i);
   }
-  auto reader = subdivide::SortedRunReader::open(run.path);
-  if (!reader) return reader.error();
   const std::uint32_t cell_shift = 2 * (kKeyLevel - cells->cell_level());
-  std::vector<SortedPoint> chunk;
-  std::vector<XY> hull_candidates;
-  for (std::uint32_t t = 0; t < cells->tiles_.size(); ++t) {
-    const auto& range = cells->tiles_[t];
-    if (Status s = reader->read(range.first, range.count, chunk); !s) return s.error();
+  // Calls visit(t, points) for each tile index in `which`, on `threads` readers, each taking the
+  // next tile.
+  auto for_each_tile = [&](const std::vector<std::uint32_t>& which, const auto& visit) -> Status {
+    std::atomic<std::size_t> next{0};
+    std::mutex mutex;
+    Status failure;
+    auto read_tiles = [&] {
+      auto reader = subdivide::SortedRunReader::open(run.path);
+      Status s = reader ? Status{} : Status(reader.error());
+      std::vector<SortedPoint> chunk;
+      for (std::size_t i; s.ok() && (i = next.fetch_add(1)) < which.size();) {
+        const auto& range = cells->tiles_[which[i]];
+        s = reader->read(range.first, range.count, chunk);
+        if (s.ok()) visit(which[i], chunk);
+      }
+      std::lock_guard lock(mutex);
+      if (failure.ok()) failure = s;
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < std::max(1u, threads); ++t) pool.emplace_back(read_tiles);
+    read_tiles();
+    for (auto& t : pool) t.join();
+    return failure;
+  };
+  // Every tile: its cell offsets and the bounding box of its points.
+  std::vector<std::uint32_t> all(tiles);
+  for (std::uint32_t t = 0; t < tiles; ++t) all[t] = t;
+  std::vector<geo::MercatorRect> boxes(tiles);
+  Status read = for_each_tile(all, [&](std::uint32_t t, const std::vector<SortedPoint>& chunk) {
     std::uint32_t* counts = &cells->cell_offsets_[t * (per_tile + 1)];
+    geo::MercatorRect box{chunk[0].x, chunk[0].y, chunk[0].x, chunk[0].y};
     for (const SortedPoint& p : chunk) {
       const auto local = static_cast<std::uint32_t>((p.key >> cell_shift) & (per_tile - 1));
       ++counts[local + 1];
+      box.min_x = std::min(box.min_x, p.x), box.max_x = std::max(box.max_x, p.x);
+      box.min_y = std::min(box.min_y, p.y), box.max_y = std::max(box.max_y, p.y);
     }
     for (std::uint32_t i = 1; i <= per_tile; ++i) counts[i] += counts[i - 1];
-    std::vector<XY> tile_points(chunk.size());
-    for (std::size_t i = 0; i < chunk.size(); ++i) tile_points[i] = {chunk[i].x, chunk[i].y};
-    const auto tile_hull = convex_hull(std::move(tile_points));
-    hull_candidates.insert(hull_candidates.end(), tile_hull.begin(), tile_hull.end());
+    boxes[t] = box;
+  });
+  if (!read.ok()) return read.error();
+  // The data's hull is the hull of the tiles' hulls. A tile whose four diagonal neighbours' points
+  // all lie strictly beyond its own in both coordinates has no point on it: for every direction,
+  // one neighbour's points lie strictly further that way. Only the other tiles are read again.
+  auto enclosed = [&](std::uint32_t t) {
+    const geo::TileId& id = cells->tiles_[t].id;
+    const geo::MercatorRect& b = boxes[t];
+    for (const int dx : {-1, 1}) {
+      for (const int dy : {-1, 1}) {  // rows count from the north: dy = -1 is north, +y
+        const std::ptrdiff_t n = cells->tile_index(
+            {id.z, static_cast<std::uint32_t>(static_cast<std::int64_t>(id.x) + dx),
+             static_cast<std::uint32_t>(static_cast<std::int64_t>(id.y) + dy)});
+        if (n < 0) return false;
+        const geo::MercatorRect& o = boxes[static_cast<std::size_t>(n)];
+        const bool beyond_x = dx > 0 ? o.min_x > b.max_x : o.max_x < b.min_x;
+        const bool beyond_y = dy < 0 ? o.min_y > b.max_y : o.max_y < b.min_y;
+        if (!beyond_x || !beyond_y) return false;
+      }
+    }
+    return true;
+  };
+  std::vector<std::uint32_t> open;
+  for (std::uint32_t t = 0; t < tiles; ++t) {
+    if (!enclosed(t)) open.push_back(t);
+  }
+  std::vector<std::vector<XY>> tile_hulls(tiles);
+  read = for_each_tile(open, [&](std::uint32_t t, const std::vector<SortedPoint>& chunk) {
+    std::vector<XY> points(chunk.size());
+    for (std::size_t i = 0; i < chunk.size(); ++i) points[i] = {chunk[i].x, chunk[i].y};
+    tile_hulls[t] = convex_hull(std::move(points));
+  });
+  if (!read.ok()) return read.error();
+  std::vector<XY> hull_candidates;
+  for (const auto& h : tile_hulls) {
+    hull_candidates.insert(hull_candidates.end(), h.begin(), h.end());
   }
   cells->hull_ = convex_hull(std::move(hull_candidates));
   return std::shared_ptr<const PointCells>(std::move(cells));
@@ -878,79 +938,75 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
                                               const TileSink& sink,
                                               const FinestTileOptions& options,
                                               const ProgressSink& progress) {
-  auto cells_or = PointCells::build(run);
+  auto cells_or = PointCells::build(run, threads);
   if (!cells_or) return cells_or.error();
   const std::shared_ptr<const PointCells> cells = *cells_or;
   const std::size_t total = cells->tiles().size();
   threads = std::max(
       1u, std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(total, 1))));
 
-  struct Done {
-    Result<tile::TinTile> tile;
-    FinestTileStats stats;
-  };
   std::mutex mutex;
-  std::condition_variable ready, space;
-  std::deque<Done> queue;
-  const std::size_t capacity = 2 * threads;
+  std::condition_variable changed;
   std::atomic<std::size_t> next{0};
   std::atomic<bool> stop{false};
+  TriangulateSummary summary;  // guarded by mutex, as are the two below
+  Status failure;              // the first error
+  unsigned finished = 0;       // workers that have returned
+  auto fail = [&](Status s) {
+    std::lock_guard lock(mutex);
+    if (failure.ok()) failure = std::move(s);
+    stop.store(true);
+    changed.notify_all();
+  };
 
   auto worker = [&] {
     auto reader = subdivide::SortedRunReader::open(cells->run_path());
     TileBuffers buffers;  // this worker's, reused from tile to tile
-    for (;;) {
+    if (!reader) fail(reader.error());
+    while (reader) {
       const std::size_t i = next.fetch_add(1);
-      if (i >= total || stop.load()) return;
-      Done done{Error(ErrorCode::internal, "unset"), {}};
-      if (!reader) {
-        done.tile = reader.error();
-      } else {
-        done.tile =
-            build_tile(cells->tiles()[i].id, *cells, *reader, options, &done.stats, buffers);
-        buffers.release_oversized();
+      if (i >= total || stop.load()) break;
+      FinestTileStats stats;
+      auto tile = build_tile(cells->tiles()[i].id, *cells, *reader, options, &stats, buffers);
+      buffers.release_oversized();
+      if (!tile) {
+        fail(tile.error());
+        break;
       }
-      std::unique_lock lock(mutex);
-      space.wait(lock, [&] { return queue.size() < capacity || stop.load(); });
-      queue.push_back(std::move(done));
-      ready.notify_one();
+      if (stop.load()) break;
+      if (Status s = sink(std::move(*tile)); !s) {
+        fail(s);
+        break;
+      }
+      std::lock_guard lock(mutex);
+      ++summary.tiles;
+      summary.gathered_points += stats.gathered_points;
+      summary.max_rounds = std::max(summary.max_rounds, stats.rounds);
+      summary.circle_tests += stats.circle_tests;
+      changed.notify_all();
     }
+    std::lock_guard lock(mutex);
+    ++finished;
+    changed.notify_all();
   };
   std::vector<std::thread> pool;
   for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
 
-  TriangulateSummary summary;
-  Status failure;
-  for (std::size_t received = 0; received < total; ++received) {
-    Done done{Error(ErrorCode::internal, "unset"), {}};
+  std::uint64_t reported = ~std::uint64_t{0};
+  for (;;) {
+    std::uint64_t done = 0;
+    bool all_returned = false;
     {
       std::unique_lock lock(mutex);
-      ready.wait(lock, [&] { return !queue.empty(); });
-      done = std::move(queue.front());
-      queue.pop_front();
-      space.notify_one();
+      changed.wait(lock, [&] { return finished == threads || summary.tiles != reported; });
+      done = summary.tiles;
+      all_returned = finished == threads;
     }
-    if (!done.tile) {
-      failure = done.tile.error();
-      break;
+    if (progress && done != reported && !progress({"triangulate", done, total, "tiles"})) {
+      fail(Error(ErrorCode::cancelled, "ingest cancelled while triangulating"));
     }
-    summary.gathered_points += done.stats.gathered_points;
-    summary.max_rounds = std::max(summary.max_rounds, done.stats.rounds);
-    summary.circle_tests += done.stats.circle_tests;
-    if (Status s = sink(std::move(*done.tile)); !s) {
-      failure = s;
-      break;
-    }
-    ++summary.tiles;
-    if (progress && !progress({"triangulate", summary.tiles, total, "tiles"})) {
-      failure = Error(ErrorCode::cancelled, "ingest cancelled while triangulating");
-      break;
-    }
-  }
-  if (!failure.ok()) {
-    stop.store(true);
-    std::lock_guard lock(mutex);
-    space.notify_all();
+    reported = done;
+    if (all_returned) break;
   }
   for (auto& t : pool) t.join();
   if (!failure.ok()) return failure.error();

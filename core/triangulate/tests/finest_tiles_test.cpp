@@ -2,13 +2,17 @@
 
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/convex_hull_2.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <numbers>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "tinstream/kernel/predicates.hpp"
 
@@ -47,7 +51,9 @@ Fixture build(const std::vector<InputPoint>& points, std::uint32_t max_points, u
       opt);
   EXPECT_TRUE(run.ok()) << run.error().message;
   f.run = *run;
+  std::mutex mutex;  // the sink runs on the workers, concurrently
   auto summary = build_finest_tiles(f.run, threads, [&](tile::TinTile&& t) {
+    std::lock_guard lock(mutex);
     f.tiles.push_back(std::move(t));
     return Status{};
   });
@@ -470,6 +476,82 @@ TEST(FinestTiles, LatticeCellsStraddlingTileBordersStayWatertight) {
   ASSERT_GT(f.tiles.size(), 4u);
   expect_watertight(f);
   expect_no_point_lost(f, pts);
+}
+
+TEST(FinestTiles, PointCellsHullIsTheDataHull) {
+  // PointCells::build skips the hull of tiles enclosed by their diagonal neighbours; the result
+  // must still be the exact convex hull of all points (CGAL's), on a ring (inner tiles enclosed,
+  // a concave inner boundary whose tiles are not), a dense disc and a lattice whose points lie
+  // on tile borders (bounding boxes touch, so nothing counts as enclosed there).
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<std::vector<InputPoint>> inputs(3);
+  for (int i = 0; i < 20000; ++i) {
+    const double a = 2 * std::numbers::pi * u(rng), r = 1e-4 * (1.0 + u(rng));
+    inputs[0].push_back({0.3 + r * std::cos(a), 0.4 + r * std::sin(a), u(rng)});
+    const double r2 = 2e-4 * std::sqrt(u(rng));
+    inputs[1].push_back({-0.2 + r2 * std::cos(a), 0.1 + r2 * std::sin(a), u(rng)});
+  }
+  const double step = std::ldexp(1.0, -19);  // level-18 tile = 8 steps of the lattice
+  for (int i = 0; i < 120; ++i) {
+    for (int j = 0; j < 120; ++j) inputs[2].push_back({0.25 + i * step, 0.5 + j * step, 1.0 * i});
+  }
+  for (std::size_t k = 0; k < inputs.size(); ++k) {
+    const Fixture f = build(inputs[k], 300, 2, "hull" + std::to_string(k));
+    ASSERT_GT(f.run.tiles.size(), 16u);
+    auto cells = PointCells::build(f.run, 2);
+    ASSERT_TRUE(cells.ok()) << cells.error().message;
+    std::vector<K::Point_2> all, expected;
+    for (const auto& p : inputs[k]) all.emplace_back(p.x, p.y);
+    CGAL::convex_hull_2(all.begin(), all.end(), std::back_inserter(expected));
+    std::set<std::pair<double, double>> want, got;
+    for (const auto& p : expected) want.emplace(p.x(), p.y());
+    for (const auto& p : (*cells)->hull()) got.emplace(p.x, p.y);
+    EXPECT_EQ(got, want) << "input " << k;
+    EXPECT_EQ((*cells)->hull().size(), expected.size()) << "input " << k;
+  }
+}
+
+TEST(FinestTiles, SinkRunsOnTheWorkersAndItsErrorOrACancelStopsTheRun) {
+  const auto pts = random_points(6000, 5, 0.1, 0.2, 3e-4);
+  const Fixture f = build(pts, 200, 2, "sink");
+  ASSERT_GT(f.run.tiles.size(), 12u);
+  // The sink is called on the worker threads, never on the calling one.
+  std::mutex mutex;
+  std::set<std::thread::id> sink_threads;
+  auto all = build_finest_tiles(f.run, 2, [&](tile::TinTile&&) {
+    std::lock_guard lock(mutex);
+    sink_threads.insert(std::this_thread::get_id());
+    return Status{};
+  });
+  ASSERT_TRUE(all.ok()) << all.error().message;
+  EXPECT_EQ(all->tiles, f.run.tiles.size());
+  EXPECT_FALSE(sink_threads.empty());
+  EXPECT_EQ(sink_threads.count(std::this_thread::get_id()), 0u);
+  // The sink's first error is the run's result, and later tiles are not handed over.
+  std::atomic<int> calls{0};
+  auto failed = build_finest_tiles(f.run, 2, [&](tile::TinTile&&) -> Status {
+    if (++calls == 3) return io_error("disk full on purpose");
+    return {};
+  });
+  ASSERT_FALSE(failed.ok());
+  EXPECT_EQ(failed.error().message, "disk full on purpose");
+  EXPECT_LT(calls.load(), static_cast<int>(f.run.tiles.size()));
+  // Progress reported on the calling thread; false cancels.
+  std::uint64_t last_done = 0;
+  bool progress_on_caller = true;
+  const auto caller = std::this_thread::get_id();
+  auto cancelled = build_finest_tiles(
+      f.run, 2, [](tile::TinTile&&) { return Status{}; }, {},
+      [&](const Progress& p) {
+        progress_on_caller = progress_on_caller && std::this_thread::get_id() == caller;
+        last_done = p.done;
+        return p.done < 2;
+      });
+  ASSERT_FALSE(cancelled.ok());
+  EXPECT_EQ(cancelled.error().code, ErrorCode::cancelled);
+  EXPECT_TRUE(progress_on_caller);
+  EXPECT_GE(last_done, 2u);
 }
 
 TEST(FinestTiles, WrongLevelRejected) {

@@ -61,6 +61,13 @@ struct StoredTile {
   std::uint32_t triangle_count = 0;
 };
 
+// The CPU-heavy part of LayerWriter::put() — encoding, compression, the entity tag — without the
+// store: thread-safe, so workers prepare tiles in parallel and one thread puts them.
+Result<StoredTile> prepare_tile(const tile::TinTile& tile);
+// Decompresses and decodes a stored blob and checks that it holds tile `stored.id` (thread-safe,
+// no store needed). Errors say what is wrong with the blob, not where it came from.
+Result<tile::TinTile> decode_tile(const StoredTile& stored);
+
 class LayerWriter;
 
 class TileStore {
@@ -110,11 +117,15 @@ class LayerWriter {
 
   // Encodes, compresses and stores a tile (replacing one with the same id in this version).
   Status put(const tile::TinTile& tile);
+  // Stores a tile made by prepare_tile() (the same as put() of the tile it was prepared from).
+  Status put(StoredTile&& tile);
   // Writes the tiles batched in memory now. put() and publish() flush by themselves; a failed
   // flush (e.g. the file stayed locked past the busy timeout) keeps the batch for a retry.
   Status flush();
   // Reads back a tile written to this (unpublished) version, e.g. children for the LOD pass.
   Result<std::optional<tile::TinTile>> get(const geo::TileId& id);
+  // The same tile still compressed, for decode_tile() on another thread.
+  Result<std::optional<StoredTile>> get_stored(const geo::TileId& id);
   Result<std::vector<geo::TileId>> tile_ids(std::optional<std::uint32_t> level = std::nullopt);
   // Makes the version the layer's published one, atomically; `info` replaces the metadata given
   // to begin_layer (counts, bounds, errors are known only at the end). `info.name` must be the

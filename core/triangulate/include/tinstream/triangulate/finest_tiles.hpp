@@ -46,7 +46,9 @@ namespace tinstream::triangulate {
 class PointCells {
  public:
   // Scans the run once (sequentially) to count the points of each sub-cell.
-  static Result<std::shared_ptr<const PointCells>> build(const subdivide::SortedRun& run);
+  // Reads the run once, split between `threads` readers.
+  static Result<std::shared_ptr<const PointCells>> build(const subdivide::SortedRun& run,
+                                                         unsigned threads = 1);
 
   std::uint32_t level() const { return level_; }          // finest tile level L
   std::uint32_t sub_shift() const { return sub_shift_; }  // cells per tile side = 2^sub_shift
@@ -97,9 +99,11 @@ Result<tile::TinTile> build_finest_tile(const geo::TileId& id, const PointCells&
                                         const FinestTileOptions& options = {},
                                         FinestTileStats* stats = nullptr);
 
-// Computes every finest tile of the run on `threads` workers and hands each finished tile to
-// `sink` on the calling thread (in completion order), so a single writer can store them. Stops at
-// the first error (returned) or when `sink` or `progress` returns false/an error.
+// Computes every finest tile of the run on `threads` workers. Each worker hands the tiles it
+// finishes to `sink` itself, so `sink` is called from several threads at once and must be
+// thread-safe: CPU work on a tile (encoding it for the store) then runs in parallel, and only the
+// sink's own critical section (the store write) is serial. The calling thread reports `progress`.
+// Stops at the first error (returned) or when `sink` or `progress` returns false/an error.
 struct TriangulateSummary {
   std::uint64_t tiles = 0;
   std::uint64_t gathered_points = 0;  // Σ FinestTileStats::gathered_points: overhead measure
