@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <queue>
 #include <string>
 #include <thread>
@@ -184,10 +185,156 @@ class LevelCounter {
   std::array<std::uint64_t, kKeyLevel + 1> prefix_{}, count_{}, max_{};
 };
 
+// Keeps, while the final merge streams keys in order, the tile index (first record and count of
+// every non-empty tile) at the finest level it can afford: it starts at max_level and, whenever
+// `capacity` entries are full, coarsens one level (tiles nest, so neighbours with the same parent
+// add up exactly). At the end it answers the index of any level L at or above the one it kept.
+class TileTally {
+ public:
+  TileTally(std::uint32_t max_level, std::uint32_t min_level, std::size_t capacity)
+      : level_(max_level), min_level_(min_level), capacity_(std::max<std::size_t>(capacity, 2)) {
+    entries_.reserve(std::min<std::size_t>(capacity_, 1 << 12));
+  }
+  void add(std::uint64_t key) {
+    if (given_up_) return;
+    const std::uint64_t prefix = key >> shift();
+    if (!entries_.empty() && entries_.back().prefix == prefix) {
+      ++entries_.back().count;
+      return;
+    }
+    while (entries_.size() == capacity_) {
+      if (level_ == min_level_) {  // L is never below min_level: nothing coarser can help
+        given_up_ = true;
+        std::vector<Entry>().swap(entries_);
+        return;
+      }
+      coarsen_to(level_ - 1);
+      if (entries_.back().prefix == (key >> shift())) {
+        ++entries_.back().count;
+        return;
+      }
+    }
+    entries_.push_back({key >> shift(), 1});
+  }
+  // The index at `level`; false when the tally kept only coarser tiles (or gave up).
+  bool index(std::uint32_t level, std::vector<TileRange>& out) {
+    if (given_up_ || level > level_) return false;
+    coarsen_to(level);
+    out.clear();
+    out.reserve(entries_.size());
+    std::uint64_t first = 0;
+    for (const Entry& e : entries_) {
+      out.push_back({tile_of_key(e.prefix << shift(), level), first, e.count});
+      first += e.count;
+    }
+    return true;
+  }
+
+ private:
+  struct Entry {
+    std::uint64_t prefix;  // key >> shift()
+    std::uint64_t count;
+  };
+  std::uint32_t shift() const { return 2 * (kKeyLevel - level_); }
+  // Merges the entries (tiles of level_) into tiles of the coarser `level`, in place, in order.
+  void coarsen_to(std::uint32_t level) {
+    const std::uint32_t by = 2 * (level_ - level);
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < entries_.size(); ++i) {
+      const std::uint64_t parent = entries_[i].prefix >> by;
+      if (out > 0 && entries_[out - 1].prefix == parent) {
+        entries_[out - 1].count += entries_[i].count;
+      } else {
+        entries_[out++] = {parent, entries_[i].count};
+      }
+    }
+    entries_.resize(out);
+    level_ = level;
+  }
+
+  std::uint32_t level_;  // the level of the entries' prefixes
+  std::uint32_t min_level_;
+  std::size_t capacity_;
+  bool given_up_ = false;
+  std::vector<Entry> entries_;
+};
+
+// A record's place in a chunk being sorted: its key and its index in the chunk.
+struct KeyIndex {
+  std::uint64_t key;
+  std::uint64_t index;
+};
+static_assert(sizeof(KeyIndex) == 16);
+
+// Fills every record's key and sorts `order` (indexes into `chunk`) into record_less order:
+// a stable LSD radix sort on the key (11-bit digits; digits where no two keys differ are
+// skipped, so a chunk from a small area costs few passes), then the rare runs of equal keys by
+// the rest of record_less. `scratch` is the radix sort's second array.
+void sort_chunk(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
+                std::vector<KeyIndex>& scratch) {
+  const std::size_t n = chunk.size();
+  order.resize(n);
+  scratch.resize(n);
+  std::uint64_t any = 0, all = ~std::uint64_t{0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t key = cell_key(chunk[i].x, chunk[i].y);
+    chunk[i].key = key;
+    order[i] = {key, i};
+    any |= key;
+    all &= key;
+  }
+  const std::uint64_t varying = any ^ all;
+  constexpr std::uint32_t kDigitBits = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kDigitBits;
+  std::vector<std::size_t> count(kBuckets);
+  for (std::uint32_t shift = 0; shift < 64 && (varying >> shift) != 0; shift += kDigitBits) {
+    if (((varying >> shift) & (kBuckets - 1)) == 0) continue;
+    std::fill(count.begin(), count.end(), 0);
+    for (const KeyIndex& e : order) ++count[(e.key >> shift) & (kBuckets - 1)];
+    std::size_t sum = 0;
+    for (std::size_t& c : count) sum += std::exchange(c, sum);
+    for (const KeyIndex& e : order) scratch[count[(e.key >> shift) & (kBuckets - 1)]++] = e;
+    order.swap(scratch);
+  }
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i + 1;
+    while (j < n && order[j].key == order[i].key) ++j;
+    if (j - i > 1) {
+      std::sort(order.begin() + static_cast<std::ptrdiff_t>(i),
+                order.begin() + static_cast<std::ptrdiff_t>(j),
+                [&](const KeyIndex& a, const KeyIndex& b) {
+                  return record_less(chunk[a.index], chunk[b.index]);
+                });
+    }
+    i = j;
+  }
+}
+
+// Sorts `chunk` and writes it as a run at `path`, dropping exact duplicates; runs on the spill
+// thread (touches only its arguments).
+Status write_run(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
+                 std::vector<KeyIndex>& scratch, const std::filesystem::path& path,
+                 std::uint64_t& duplicates) {
+  sort_chunk(chunk, order, scratch);
+  auto w = RunWriter::create(path, 1 << 15);
+  if (!w) return w.error();
+  const SortedPoint* last = nullptr;
+  for (const KeyIndex& e : order) {
+    const SortedPoint& p = chunk[e.index];
+    if (last && same_xy(*last, p)) {
+      ++duplicates;
+      continue;
+    }
+    if (Status s = w->push(p); !s) return s;
+    last = &p;
+  }
+  return w->close();
+}
+
 // Merges sorted runs into `writer`, dropping duplicate (x, y) (the first, lowest z, survives).
 Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t buffer_records,
-                  RunWriter& writer, LevelCounter* levels, std::uint64_t& duplicates,
-                  const std::function<bool(std::uint64_t)>& tick) {
+                  RunWriter& writer, LevelCounter* levels, TileTally* tally,
+                  std::uint64_t& duplicates, const std::function<bool(std::uint64_t)>& tick) {
   std::vector<RunCursor> cursors;
   cursors.reserve(inputs.size());
   for (const auto& p : inputs) {
@@ -212,6 +359,7 @@ Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t 
     } else {
       if (Status s = writer.push(p); !s) return s;
       if (levels) levels->add(p.key);
+      if (tally) tally->add(p.key);
       last = p;
       have_last = true;
     }
@@ -240,114 +388,132 @@ geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
   return {level, compact_bits(prefix), compact_bits(prefix >> 1)};
 }
 
-Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
-                            const ProgressSink& progress) {
-  assert(options.max_points >= 1);
-  assert(options.min_level <= options.max_level && options.max_level <= kKeyLevel);
-  std::error_code ec;
-  std::filesystem::create_directories(options.tmp_dir, ec);
-  if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
+// ---- the builder ------------------------------------------------------------------------------
+//
+// Memory: half of the budget sorts. It holds two chunks of SortedPoints (one fills on the caller's
+// thread while the spill thread sorts and writes the other) and the spill thread's two order
+// arrays (key + index, 16 bytes each per record): 112 bytes per chunk record. The other half
+// buffers the merge (fan_in + 1 cursors/writer).
 
-  // Half the budget sorts (two buffers: one is sorted and written on a second thread while the
-  // other fills), the other half buffers the merge.
-  const std::size_t budget_records =
-      std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
-  const std::size_t sort_capacity = budget_records / 4;
-  const std::size_t fan_in = 64;
-  const std::size_t merge_buffer = std::max<std::size_t>(budget_records / 2 / (fan_in + 1), 256);
+struct SortedRunBuilder::State {
+  explicit State(const SubdivideOptions& o) : options(o) {}
+  State(const State&) = delete;
+  State& operator=(const State&) = delete;
+  ~State() {
+    if (spill_thread.joinable()) spill_thread.join();
+  }
 
-  const std::string stem =
-      "tinstream-" + std::to_string(reinterpret_cast<std::uintptr_t>(&options)) + "-";
-  FileSet temporaries;
+  SubdivideOptions options;
+  std::size_t budget_records = 0, sort_capacity = 0, merge_buffer = 0;
+  static constexpr std::size_t kFanIn = 128;
+  FileSet temporaries;  // declared before the thread: removed after it is joined
+  std::string stem;
   std::size_t next_id = 0;
-  auto temp_path = [&] {
-    auto p = options.tmp_dir / (stem + std::to_string(next_id++) + ".run");
-    temporaries.add(p);
-    return p;
-  };
-
-  SortedRun result;
-  std::vector<SortedPoint> buffer, spilling;
-  buffer.reserve(sort_capacity);
-  std::vector<InputPoint> batch;
   std::vector<std::filesystem::path> runs;
+  std::vector<SortedPoint> buffer, spilling;
+  std::uint64_t input_points = 0, duplicates = 0;
+  bool finished = false;
 
-  // Sorts `chunk` and writes it as a run at `path`, dropping exact duplicates; runs on the spill
-  // thread (touches nothing else shared).
-  auto write_run = [](std::vector<SortedPoint>& chunk, const std::filesystem::path& path,
-                      std::uint64_t& duplicates) -> Status {
-    std::sort(chunk.begin(), chunk.end(), record_less);
-    auto w = RunWriter::create(path, 1 << 15);
-    if (!w) return w.error();
-    for (std::size_t i = 0; i < chunk.size(); ++i) {
-      if (i > 0 && same_xy(chunk[i - 1], chunk[i])) {
-        ++duplicates;
-        continue;
-      }
-      if (Status s = w->push(chunk[i]); !s) return s;
-    }
-    return w->close();
-  };
+  // Owned by the spill thread while it runs (spilling, order, scratch, spill_*).
+  std::vector<KeyIndex> order, scratch;
   std::thread spill_thread;
   Status spill_status;
   std::uint64_t spill_duplicates = 0;
-  auto join_spill = [&]() -> Status {
+
+  std::filesystem::path temp_path() {
+    auto p = options.tmp_dir / (stem + std::to_string(next_id++) + ".run");
+    temporaries.add(p);
+    return p;
+  }
+  Status join_spill() {
     if (spill_thread.joinable()) spill_thread.join();
-    result.duplicates_merged += std::exchange(spill_duplicates, 0);
+    duplicates += std::exchange(spill_duplicates, 0);
     return std::exchange(spill_status, Status{});
-  };
+  }
   // Hands the full buffer to the spill thread (after the previous spill finished) and continues
   // with the other buffer.
-  auto spill = [&]() -> Status {
+  Status spill() {
     if (Status s = join_spill(); !s) return s;
     std::swap(buffer, spilling);
     buffer.clear();
     buffer.reserve(sort_capacity);
     auto path = temp_path();
     runs.push_back(path);
-    spill_thread =
-        std::thread([&, path] { spill_status = write_run(spilling, path, spill_duplicates); });
+    spill_thread = std::thread([this, path] {
+      spill_status = write_run(spilling, order, scratch, path, spill_duplicates);
+    });
     return {};
-  };
-  struct JoinOnExit {
-    std::thread& t;
-    ~JoinOnExit() {
-      if (t.joinable()) t.join();
-    }
-  } join_on_exit{spill_thread};
+  }
+};
 
-  // Phase 1: read, key, sort in memory-sized chunks.
-  for (;;) {
-    batch.clear();
-    auto n = feed(batch);
-    if (!n) return n.error();
-    if (*n == 0) break;
-    for (const InputPoint& p : batch) {
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.x < -1.0 ||
-          p.x > 1.0 || p.y < -1.0 || p.y > 1.0) {
-        return invalid_argument("point " + std::to_string(result.input_points) +
-                                " is not a finite normalised-Mercator position (x " +
-                                std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
-                                std::to_string(p.z) + ")");
-      }
-      buffer.push_back({cell_key(p.x, p.y), p.x, p.y, p.z, p.weight, 0});
-      ++result.input_points;
-      if (buffer.size() == sort_capacity) {
-        if (Status s = spill(); !s) return s.error();
-      }
+SortedRunBuilder::SortedRunBuilder(std::unique_ptr<State> state) : state_(std::move(state)) {}
+SortedRunBuilder::SortedRunBuilder(SortedRunBuilder&&) noexcept = default;
+SortedRunBuilder& SortedRunBuilder::operator=(SortedRunBuilder&&) noexcept = default;
+SortedRunBuilder::~SortedRunBuilder() = default;
+
+Result<SortedRunBuilder> SortedRunBuilder::create(const SubdivideOptions& options) {
+  assert(options.max_points >= 1);
+  assert(options.min_level <= options.max_level && options.max_level <= kKeyLevel);
+  std::error_code ec;
+  std::filesystem::create_directories(options.tmp_dir, ec);
+  if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
+  auto st = std::make_unique<State>(options);
+  st->budget_records = std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
+  st->sort_capacity = std::min<std::size_t>(st->budget_records * sizeof(SortedPoint) / 2 /
+                                                (2 * sizeof(SortedPoint) + 2 * sizeof(KeyIndex)),
+                                            std::numeric_limits<std::uint32_t>::max());
+  st->merge_buffer = std::max<std::size_t>(st->budget_records / 2 / (State::kFanIn + 1), 256);
+  st->stem = "tinstream-" + std::to_string(reinterpret_cast<std::uintptr_t>(st.get())) + "-";
+  st->buffer.reserve(st->sort_capacity);
+  return SortedRunBuilder(std::move(st));
+}
+
+std::uint64_t SortedRunBuilder::input_points() const { return state_->input_points; }
+
+Status SortedRunBuilder::add(std::span<const InputPoint> points) {
+  State& st = *state_;
+  assert(!st.finished);
+  for (const InputPoint& p : points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.x < -1.0 ||
+        p.x > 1.0 || p.y < -1.0 || p.y > 1.0) {
+      return invalid_argument("point " + std::to_string(st.input_points) +
+                              " is not a finite normalised-Mercator position (x " +
+                              std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
+                              std::to_string(p.z) + ")");
     }
-    if (progress && !progress({"sort", result.input_points, 0, "points"})) {
-      return Error(ErrorCode::cancelled, "ingest cancelled while sorting");
+    // The key is computed by the spill thread (keys_and_order), off this thread.
+    st.buffer.push_back({0, p.x, p.y, p.z, p.weight, 0});
+    ++st.input_points;
+    if (st.buffer.size() == st.sort_capacity) {
+      if (Status s = st.spill(); !s) return s;
     }
   }
-  if (!buffer.empty() || runs.empty()) {
-    if (Status s = spill(); !s) return s.error();
-  }
-  if (Status s = join_spill(); !s) return s.error();
-  std::vector<SortedPoint>().swap(buffer);
-  std::vector<SortedPoint>().swap(spilling);
+  return {};
+}
 
-  // Phase 2: merge down to one run (multi-pass when there are more runs than the fan-in).
+Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
+  State& st = *state_;
+  assert(!st.finished);
+  st.finished = true;
+  const SubdivideOptions& options = st.options;
+  std::error_code ec;
+  if (!st.buffer.empty() || st.runs.empty()) {
+    if (Status s = st.spill(); !s) return s.error();
+  }
+  if (Status s = st.join_spill(); !s) return s.error();
+  std::vector<SortedPoint>().swap(st.buffer);
+  std::vector<SortedPoint>().swap(st.spilling);
+  std::vector<KeyIndex>().swap(st.order);
+  std::vector<KeyIndex>().swap(st.scratch);
+
+  SortedRun result;
+  result.input_points = st.input_points;
+  result.duplicates_merged = st.duplicates;
+  const std::size_t fan_in = State::kFanIn;
+  const std::size_t merge_buffer = st.merge_buffer;
+  auto& runs = st.runs;
+
+  // Merge down to one run (multi-pass when there are more runs than the fan-in).
   auto tick = [&](std::uint64_t done) {
     return !progress || progress({"merge", done, result.input_points, "points"});
   };
@@ -357,10 +523,11 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
       const std::vector<std::filesystem::path> group(
           runs.begin() + static_cast<std::ptrdiff_t>(i),
           runs.begin() + static_cast<std::ptrdiff_t>(std::min(runs.size(), i + fan_in)));
-      auto path = temp_path();
+      auto path = st.temp_path();
       auto w = RunWriter::create(path, merge_buffer);
       if (!w) return w.error();
-      if (Status s = merge_runs(group, merge_buffer, *w, nullptr, result.duplicates_merged, tick);
+      if (Status s =
+              merge_runs(group, merge_buffer, *w, nullptr, nullptr, result.duplicates_merged, tick);
           !s)
         return s.error();
       if (Status s = w->close(); !s) return s.error();
@@ -369,17 +536,24 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
     }
     runs = std::move(next);
   }
-  result.path = options.output.empty() ? temp_path() : options.output;
-  temporaries.add(result.path);  // removed unless everything succeeds
+  result.path = options.output.empty() ? st.temp_path() : options.output;
+  st.temporaries.add(result.path);  // removed unless everything succeeds
   LevelCounter levels;
+  TileTally tally(options.max_level, options.min_level,
+                  options.index_entries != 0
+                      ? options.index_entries
+                      : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096));
   {
     auto w = RunWriter::create(result.path, merge_buffer);
     if (!w) return w.error();
-    if (Status s = merge_runs(runs, merge_buffer, *w, &levels, result.duplicates_merged, tick); !s)
+    if (Status s =
+            merge_runs(runs, merge_buffer, *w, &levels, &tally, result.duplicates_merged, tick);
+        !s)
       return s.error();
     if (Status s = w->close(); !s) return s.error();
     result.points = w->written();
   }
+  for (const auto& r : runs) std::filesystem::remove(r, ec);
   result.max_tile_points = levels.finish();
 
   // Finest level: the smallest level whose fullest tile fits the budget.
@@ -391,8 +565,10 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
     }
   }
 
-  // Phase 3: the tile index of level L (keys only matter; one sequential pass).
-  {
+  // The tile index of level L: from the merge's tally when it kept a level at least as fine as L
+  // (tiles nest, so it coarsens exactly), else one sequential pass over the keys.
+  if (!tally.index(result.finest_level, result.tiles)) {
+    result.tiles.clear();
     auto cursor = RunCursor::open(result.path, 1 << 15);
     if (!cursor) return cursor.error();
     const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
@@ -409,8 +585,26 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
       if (Status s = cursor->advance(); !s) return s.error();
     }
   }
-  temporaries.release(result.path);
+  st.temporaries.release(result.path);
   return result;
+}
+
+Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
+                            const ProgressSink& progress) {
+  auto builder = SortedRunBuilder::create(options);
+  if (!builder) return builder.error();
+  std::vector<InputPoint> batch;
+  for (;;) {
+    batch.clear();
+    auto n = feed(batch);
+    if (!n) return n.error();
+    if (*n == 0) break;
+    if (Status s = builder->add(batch); !s) return s.error();
+    if (progress && !progress({"sort", builder->input_points(), 0, "points"})) {
+      return Error(ErrorCode::cancelled, "ingest cancelled while sorting");
+    }
+  }
+  return builder->finish(progress);
 }
 
 SortedRunReader::SortedRunReader(SortedRunReader&& other) noexcept
