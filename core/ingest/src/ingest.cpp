@@ -222,6 +222,9 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
+  // threads + 1 batches are in flight beside pass 2's sort buffers: 16384 points (~2 MB of
+  // buffers each) keep that small and the workers busy.
+  topt.batch_size = 16384;
   topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
     handed.clear();
     for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});

@@ -4,9 +4,10 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <limits>
-#include <queue>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -81,24 +82,35 @@ class FileSet {
   std::vector<std::filesystem::path> paths_;
 };
 
+// Writes records to a run file through a buffer. With `background`, a writer thread writes the
+// full buffer while the caller fills a second one (the merge's output: the copy into the page
+// cache then runs beside the merge instead of after it).
 class RunWriter {
  public:
-  static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records) {
+  static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records,
+                                  bool background = false) {
     FilePtr f(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
     RunWriter w;
     w.file_ = std::move(f);
     w.path_ = path;
-    w.buffer_.reserve(std::max<std::size_t>(buffer_records, 256));
+    w.capacity_ = std::max<std::size_t>(buffer_records, 256);
+    w.buffer_.reserve(w.capacity_);
+    if (background) w.background_ = std::make_unique<Background>(w.file_.get(), w.capacity_);
     return w;
   }
   Status push(const SortedPoint& p) {
     buffer_.push_back(p);
     ++written_;
-    if (buffer_.size() == buffer_.capacity()) return flush();
+    if (buffer_.size() == capacity_) return flush();
     return {};
   }
   Status flush() {
+    if (background_) {
+      if (Status s = wait_background(); !s) return s;
+      background_->hand_over(buffer_);
+      return {};
+    }
     if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(),
                                         file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
@@ -108,16 +120,86 @@ class RunWriter {
   }
   Status close() {
     if (Status s = flush(); !s) return s;
+    if (Status s = wait_background(); !s) return s;
+    background_.reset();  // joins the writer thread before the file goes
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
     return {};
   }
   std::uint64_t written() const { return written_; }
 
  private:
+  // The writer thread and the buffer it writes. `writing`, `pending`, `stop` and `error` are
+  // guarded by `mutex`; the thread touches the FILE only while `pending`.
+  struct Background {
+    Background(std::FILE* f, std::size_t capacity) : file(f) {
+      writing.reserve(capacity);
+      thread = std::thread([this] { run(); });
+    }
+    Background(const Background&) = delete;
+    Background& operator=(const Background&) = delete;
+    ~Background() {
+      {
+        std::lock_guard lock(mutex);
+        stop = true;
+      }
+      wake.notify_all();
+      thread.join();
+    }
+    // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
+    void hand_over(std::vector<SortedPoint>& buffer) {
+      {
+        std::lock_guard lock(mutex);
+        writing.swap(buffer);
+        buffer.clear();
+        pending = true;
+      }
+      wake.notify_all();
+    }
+    // Blocks until the buffer handed over is written; the errno of a failed write, else 0.
+    int wait_idle() {
+      std::unique_lock lock(mutex);
+      wake.wait(lock, [&] { return !pending; });
+      return error;
+    }
+    void run() {
+      std::unique_lock lock(mutex);
+      for (;;) {
+        wake.wait(lock, [&] { return pending || stop; });
+        if (!pending) return;
+        lock.unlock();
+        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(SortedPoint),
+                                                       writing.size(), file) == writing.size();
+        const int err = ok ? 0 : (errno != 0 ? errno : EIO);
+        lock.lock();
+        if (err != 0 && error == 0) error = err;
+        pending = false;
+        wake.notify_all();
+      }
+    }
+    std::FILE* file;
+    std::mutex mutex;
+    std::condition_variable wake;
+    std::vector<SortedPoint> writing;
+    bool pending = false, stop = false;
+    int error = 0;
+    std::thread thread;  // last: started when the rest exists
+  };
+
+  Status wait_background() {
+    if (!background_) return {};
+    if (const int err = background_->wait_idle(); err != 0) {
+      errno = err;
+      return io_failure("cannot write", path_);
+    }
+    return {};
+  }
+
   FilePtr file_;
   std::filesystem::path path_;
+  std::size_t capacity_ = 0;
   std::vector<SortedPoint> buffer_;
   std::uint64_t written_ = 0;
+  std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
 };
 
 class RunCursor {
@@ -319,8 +401,16 @@ Status write_run(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
   auto w = RunWriter::create(path, 1 << 15);
   if (!w) return w.error();
   const SortedPoint* last = nullptr;
-  for (const KeyIndex& e : order) {
-    const SortedPoint& p = chunk[e.index];
+  // The gather jumps around a chunk far larger than the caches: ask for the record a few steps
+  // ahead (both lines: a 40-byte record may straddle two) so the misses overlap.
+  constexpr std::size_t kAhead = 16;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (k + kAhead < order.size()) {
+      const char* ahead = reinterpret_cast<const char*>(&chunk[order[k + kAhead].index]);
+      __builtin_prefetch(ahead);
+      __builtin_prefetch(ahead + sizeof(SortedPoint) - 1);
+    }
+    const SortedPoint& p = chunk[order[k].index];
     if (last && same_xy(*last, p)) {
       ++duplicates;
       continue;
@@ -342,18 +432,39 @@ Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t 
     if (!c) return c.error();
     if (!c->done()) cursors.push_back(std::move(*c));
   }
-  auto greater = [&](std::size_t a, std::size_t b) {
-    return record_less(cursors[b].current(), cursors[a].current());
+  // A binary min-heap of the cursors, each entry with a copy of its current key so that most
+  // comparisons need no trip to the cursor's buffer. The smallest record's cursor is at the top;
+  // after it advances, one sift-down restores the heap (a pop and a push cost two).
+  struct HeapEntry {
+    std::uint64_t key;
+    std::size_t cursor;
   };
-  std::priority_queue<std::size_t, std::vector<std::size_t>, decltype(greater)> heap(greater);
-  for (std::size_t i = 0; i < cursors.size(); ++i) heap.push(i);
+  auto less = [&](const HeapEntry& a, const HeapEntry& b) {
+    if (a.key != b.key) return a.key < b.key;
+    return record_less(cursors[a.cursor].current(), cursors[b.cursor].current());
+  };
+  std::vector<HeapEntry> heap(cursors.size());
+  for (std::size_t i = 0; i < heap.size(); ++i) heap[i] = {cursors[i].current().key, i};
+  std::make_heap(heap.begin(), heap.end(),
+                 [&](const HeapEntry& a, const HeapEntry& b) { return less(b, a); });
+  auto sift_down = [&] {
+    const std::size_t n = heap.size();
+    std::size_t pos = 0;
+    for (;;) {
+      std::size_t child = 2 * pos + 1;
+      if (child >= n) return;
+      if (child + 1 < n && less(heap[child + 1], heap[child])) ++child;
+      if (!less(heap[child], heap[pos])) return;
+      std::swap(heap[child], heap[pos]);
+      pos = child;
+    }
+  };
   SortedPoint last{};
   bool have_last = false;
   std::uint64_t merged = 0;
   while (!heap.empty()) {
-    const std::size_t i = heap.top();
-    heap.pop();
-    const SortedPoint p = cursors[i].current();
+    const std::size_t i = heap.front().cursor;
+    const SortedPoint& p = cursors[i].current();
     if (have_last && same_xy(last, p)) {
       ++duplicates;
     } else {
@@ -364,7 +475,13 @@ Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t 
       have_last = true;
     }
     if (Status s = cursors[i].advance(); !s) return s;
-    if (!cursors[i].done()) heap.push(i);
+    if (cursors[i].done()) {
+      heap.front() = heap.back();
+      heap.pop_back();
+    } else {
+      heap.front().key = cursors[i].current().key;
+    }
+    sift_down();
     if ((++merged & 0xFFFF) == 0 && tick && !tick(merged)) {
       return Error(ErrorCode::cancelled, "ingest cancelled while merging sorted runs");
     }
@@ -378,9 +495,31 @@ std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y) {
   return spread_bits(x) | (spread_bits(y) << 1);
 }
 
+namespace {
+
+// The level-30 column of normalised coordinate c ∈ [-1, 1] (the row of y is that of -y), as
+// geo::TileId::containing finds it: the largest i < 2^30 whose edge -1 + i·2^-29 is ≤ c. The
+// edges are exact doubles (i·2^-29 has ≤ 30 significant bits and the sum is exact), so the
+// estimate from (c + 1)·2^29, which may be off by one where c + 1 rounds, is fixed up by exact
+// comparisons; the same answer as containing's binary-free search, without its ldexp calls.
+std::uint32_t key_column(double c) {
+  constexpr std::int64_t n = std::int64_t{1} << kKeyLevel;
+  constexpr double step = 0x1p-29;  // 2 / 2^30
+  auto edge = [](std::int64_t i) { return -1.0 + static_cast<double>(i) * step; };
+  std::int64_t i =
+      std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((c + 1.0) * 0x1p29)), 0, n - 1);
+  while (i > 0 && c < edge(i)) --i;
+  while (i + 1 < n && c >= edge(i + 1)) ++i;
+  return static_cast<std::uint32_t>(i);
+}
+
+}  // namespace
+
 std::uint64_t cell_key(double x, double y) {
-  const geo::TileId cell = geo::TileId::containing({x, y}, kKeyLevel);
-  return morton_interleave(cell.x, cell.y);
+  // As geo::TileId::containing({x, y}, 30): NaN is 0, the rest clamped to the map.
+  const double px = std::isnan(x) ? 0.0 : std::clamp(x, -1.0, 1.0);
+  const double py = std::isnan(y) ? 0.0 : std::clamp(y, -1.0, 1.0);
+  return morton_interleave(key_column(px), key_column(-py));
 }
 
 geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
@@ -524,7 +663,7 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
           runs.begin() + static_cast<std::ptrdiff_t>(i),
           runs.begin() + static_cast<std::ptrdiff_t>(std::min(runs.size(), i + fan_in)));
       auto path = st.temp_path();
-      auto w = RunWriter::create(path, merge_buffer);
+      auto w = RunWriter::create(path, merge_buffer, /*background=*/true);
       if (!w) return w.error();
       if (Status s =
               merge_runs(group, merge_buffer, *w, nullptr, nullptr, result.duplicates_merged, tick);
@@ -544,7 +683,7 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
                       ? options.index_entries
                       : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096));
   {
-    auto w = RunWriter::create(result.path, merge_buffer);
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true);
     if (!w) return w.error();
     if (Status s =
             merge_runs(runs, merge_buffer, *w, &levels, &tally, result.duplicates_merged, tick);

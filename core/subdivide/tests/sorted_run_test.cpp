@@ -336,6 +336,28 @@ TEST(Subdivide, KeyToTileMatchesContainment) {
   }
 }
 
+// cell_key finds the level-30 cell without geo's search: it must agree with
+// TileId::containing exactly, also on and one ulp either side of cell edges (where c + 1 rounds),
+// at the map's border, beyond it (clamped) and for NaN.
+TEST(Subdivide, CellKeyMatchesContainmentOnCellEdges) {
+  std::mt19937_64 rng(13);
+  std::uniform_int_distribution<std::uint32_t> cell(0, (1u << 30) - 1);
+  std::vector<double> coords = {-1.0,    1.0,   0.0,    -0.0, 0.5,  -0.5, 1e-300,
+                                -1e-300, 1e-20, -1e-20, 2.0,  -3.0, NAN};
+  for (int i = 0; i < 20000; ++i) {
+    const double edge = -1.0 + std::ldexp(static_cast<double>(cell(rng)), -29);
+    coords.push_back(edge);
+    coords.push_back(std::nextafter(edge, -2.0));
+    coords.push_back(std::nextafter(edge, 2.0));
+  }
+  std::uniform_int_distribution<std::size_t> pick(0, coords.size() - 1);
+  for (int i = 0; i < 200000; ++i) {
+    const double x = coords[pick(rng)], y = coords[pick(rng)];
+    const geo::TileId expected = geo::TileId::containing({x, y}, 30);
+    ASSERT_EQ(tile_of_key(cell_key(x, y), 30), expected) << x << " " << y;
+  }
+}
+
 TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
   TempDir tmp;
   const fs::path bad = tmp.path() / "bad.run";
