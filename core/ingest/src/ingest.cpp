@@ -212,7 +212,16 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   sopt.max_points = options.max_points;
   sopt.max_level = options.max_level;
   sopt.min_level = options.min_level;
-  sopt.memory_bytes = options.memory_bytes;
+  // Pass 1's batches in flight (threads + 1 of them, each point as read, reprojected, in the run
+  // file's form, with its lon/lat and as handed over) live beside pass 2's sort buffers: they
+  // come out of the same budget. (The batch size stays pass 1's default: it decides whether a
+  // read error or an earlier bad record of the same batch is reported, as before.)
+  const std::size_t in_flight =
+      (threads + 1) * transform::TransformOptions{}.batch_size *
+      (sizeof(sources::SourcePoint) + sizeof(transform::GeoPoint) + sizeof(transform::RunPoint) +
+       sizeof(geo::LonLat) + sizeof(subdivide::InputPoint));
+  sopt.memory_bytes = options.memory_bytes > 2 * in_flight ? options.memory_bytes - in_flight
+                                                           : options.memory_bytes / 2;
   sopt.tmp_dir = scratch->path();
   sopt.output = scratch->path() / "sorted.run";
   auto builder = subdivide::SortedRunBuilder::create(sopt);
@@ -222,9 +231,6 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
-  // threads + 1 batches are in flight beside pass 2's sort buffers: 16384 points (~2 MB of
-  // buffers each) keep that small and the workers busy.
-  topt.batch_size = 16384;
   topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
     handed.clear();
     for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});
