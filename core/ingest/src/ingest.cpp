@@ -231,6 +231,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
+  topt.durable = false;  // removed right after pass 1 (below)
   topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
     handed.clear();
     for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});
@@ -250,6 +251,14 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
         " records read, all rejected by the class filter, NODATA or as invalid)");
   }
 
+  {
+    // Pass 2 had the points in memory: the run file is not read back. It becomes the space the
+    // merge writes sorted.run over (rewriting its cached pages costs a fraction of new ones).
+    std::error_code ec;
+    fs::rename(pass1->run_file, sopt.output, ec);
+    if (ec) fs::remove(pass1->run_file, ec);
+  }
+
   // ── Pass 2: merge the sorted chunks, finest level, tile index ──
   clock.next("sort");
   const std::uint64_t handed_points = builder->input_points();
@@ -258,11 +267,6 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   }
   auto sorted = builder->finish(progress);
   if (!sorted) return sorted.error();
-  {
-    // The unsorted run is not read back (pass 2 had its points in memory): free the disk.
-    std::error_code ec;
-    fs::remove(pass1->run_file, ec);
-  }
   summary.duplicates_merged = sorted->duplicates_merged;
   summary.points = sorted->points;
   summary.finest_level = sorted->finest_level;

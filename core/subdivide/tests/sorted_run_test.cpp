@@ -264,6 +264,31 @@ TEST(Subdivide, TileIndexSameWhetherTalliedOrReRead) {
   }
 }
 
+// A file already at the output path (the ingest leaves pass 1's run file there) is written over
+// and cut to the run's size, whether it was longer or shorter.
+TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
+  const auto pts = clustered_points(5000, 14);
+  const auto expected = reference_run(pts);
+  for (std::size_t garbage : {std::size_t{1} << 20, std::size_t{1000}}) {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.max_points = 500;
+    opt.output = tmp.path() / "sorted.run";
+    {
+      std::FILE* f = std::fopen(opt.output.c_str(), "wb");
+      const std::vector<char> junk(garbage, 'x');
+      std::fwrite(junk.data(), 1, junk.size(), f);
+      std::fclose(f);
+    }
+    auto run = subdivide(feed_of(pts), opt);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    EXPECT_EQ(fs::file_size(opt.output), expected.size() * sizeof(SortedPoint));
+    expect_same_records(expected, *run);
+    EXPECT_EQ(tmp.entries(), 1u);
+  }
+}
+
 TEST(Subdivide, DuplicatesMergedLowestZWins) {
   TempDir tmp;
   std::vector<InputPoint> pts = {{0.1, 0.2, 10}, {0.1, 0.2, 7}, {0.3, 0.2, 1},

@@ -283,7 +283,7 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
   if (!throttle.report(done_before, total, true)) {
     return Error(ErrorCode::cancelled, "transform cancelled before the run file was committed");
   }
-  auto header = writer->commit();
+  auto header = writer->commit(options.durable);
   if (!header.ok()) return header.error();
   summary.header = *header;
   return summary;

@@ -67,7 +67,9 @@ struct SubdivideOptions {
   std::uint32_t min_level = 0;            // floor for L
   std::size_t memory_bytes = 256u << 20;  // sort + merge buffers
   std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
-  std::filesystem::path output;  // the sorted run; default: a file in tmp_dir
+  // The sorted run; default: a file in tmp_dir. A file already there is written over in place
+  // and cut to size (its page-cache pages are reused: the ingest leaves pass 1's run file there).
+  std::filesystem::path output;
   // Entries the tile index may take while the final merge tallies it (0: from memory_bytes);
   // beyond that it is built by re-reading the sorted run. The result is the same either way.
   std::size_t index_entries = 0;

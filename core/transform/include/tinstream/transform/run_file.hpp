@@ -24,8 +24,8 @@
 //     30    1    u8 ASPRS class (0 where the format has none)
 //     31    1    reserved, 0
 //
-// Atomicity: RunFileWriter writes "<path>.partial-<pid>", and commit() fsyncs and renames it to
-// <path>; a writer destroyed without commit() removes its partial file. So a file under the
+// Atomicity: RunFileWriter writes "<path>.partial-<pid>", and commit() (durable) fsyncs and renames
+// it to <path>; a writer destroyed without commit() removes its partial file. So a file under the
 // final name is always complete. Readers check magic, sizes and the complete flag.
 // Threads: writer and reader are thread-compatible (one per thread).
 #pragma once
@@ -80,8 +80,9 @@ class RunFileWriter {
 
   // Requires: every point has finite x, y, z and lon/lat in `lonlat` (same length) if given.
   Status append(std::span<const RunPoint> points, std::span<const geo::LonLat> lonlat);
-  // Writes the final header, fsyncs, renames to the final path. Returns the header.
-  Result<RunFileHeader> commit();
+  // Writes the final header, fsyncs (unless !durable: a scratch file its writer removes soon,
+  // whose data need not reach the disk), renames to the final path. Returns the header.
+  Result<RunFileHeader> commit(bool durable = true);
 
   const std::filesystem::path& partial_path() const { return partial_; }
   std::uint64_t point_count() const { return header_.point_count; }
