@@ -569,7 +569,7 @@ geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
 // Memory: half of the budget sorts. It holds two chunks of SortedPoints (one fills on the caller's
 // thread while the spill thread sorts and writes the other) and the spill thread's two order
 // arrays (key + index, 16 bytes each per record): 112 bytes per chunk record. The other half
-// buffers the merge (fan_in + 1 cursors/writer).
+// buffers the merge: up to kFanIn cursors and the output writer's two buffers.
 
 struct SortedRunBuilder::State {
   explicit State(const SubdivideOptions& o) : options(o) {}
@@ -638,7 +638,7 @@ Result<SortedRunBuilder> SortedRunBuilder::create(const SubdivideOptions& option
   st->sort_capacity = std::min<std::size_t>(st->budget_records * sizeof(SortedPoint) / 2 /
                                                 (2 * sizeof(SortedPoint) + 2 * sizeof(KeyIndex)),
                                             std::numeric_limits<std::uint32_t>::max());
-  st->merge_buffer = std::max<std::size_t>(st->budget_records / 2 / (State::kFanIn + 1), 256);
+  st->merge_buffer = std::max<std::size_t>(st->budget_records / 2 / (State::kFanIn + 2), 256);
   st->stem = "tinstream-" + std::to_string(reinterpret_cast<std::uintptr_t>(st.get())) + "-";
   st->buffer.reserve(st->sort_capacity);
   return SortedRunBuilder(std::move(st));

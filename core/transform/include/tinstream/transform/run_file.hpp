@@ -1,5 +1,6 @@
-// tinstream/transform/run_file.hpp — the binary point run file written by ingest pass 1 and
-// read sequentially by pass 2.
+// tinstream/transform/run_file.hpp — the binary point run file written by ingest pass 1.
+// The ingest hands pass 1's points to pass 2 in memory (TransformOptions::on_points) and uses the
+// header; RunFileReader reads a run file sequentially (tools, tests, any later consumer).
 //
 // Layout (all little-endian, whatever the host):
 //
