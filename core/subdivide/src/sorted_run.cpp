@@ -223,7 +223,7 @@ class RunCursor {
  public:
   static Result<RunCursor> open(const std::filesystem::path& path, std::size_t buffer_records,
                                 bool release_read = false) {
-    FilePtr f(std::fopen(path.c_str(), "rb"));
+    FilePtr f(std::fopen(path.c_str(), release_read ? "r+b" : "rb"));  // punching needs write
     if (!f) return io_failure("cannot open", path);
     RunCursor c;
     c.file_ = std::move(f);
