@@ -231,7 +231,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
-  topt.durable = false;  // removed right after pass 1 (below)
+  topt.durable = false;  // never read back: the merge writes sorted.run over it (below)
   topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
     handed.clear();
     for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});
