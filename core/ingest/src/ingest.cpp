@@ -205,11 +205,38 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   PhaseClock clock(summary.phases);
   clock.next("transform");
 
-  // ── Pass 1: read, reproject, normalised Mercator → run file ──
+  // ── Passes 1 and 2 overlap: pass 1 writes the run file and hands every batch to pass 2's
+  // builder, whose spill thread sorts and writes chunks while pass 1 goes on; the merge (all
+  // points needed) starts when pass 1 is done. ──
+  subdivide::SubdivideOptions sopt;
+  sopt.max_points = options.max_points;
+  sopt.max_level = options.max_level;
+  sopt.min_level = options.min_level;
+  // Pass 1's batches in flight (threads + 1 of them, each point as read, reprojected, in the run
+  // file's form, with its lon/lat and as handed over) live beside pass 2's sort buffers: they
+  // come out of the same budget. (The batch size stays pass 1's default: it decides whether a
+  // read error or an earlier bad record of the same batch is reported, as before.)
+  const std::size_t in_flight =
+      (threads + 1) * transform::TransformOptions{}.batch_size *
+      (sizeof(sources::SourcePoint) + sizeof(transform::GeoPoint) + sizeof(transform::RunPoint) +
+       sizeof(geo::LonLat) + sizeof(subdivide::InputPoint));
+  sopt.memory_bytes = options.memory_bytes > 2 * in_flight ? options.memory_bytes - in_flight
+                                                           : options.memory_bytes / 2;
+  sopt.tmp_dir = scratch->path();
+  sopt.output = scratch->path() / "sorted.run";
+  auto builder = subdivide::SortedRunBuilder::create(sopt);
+  if (!builder) return builder.error();
+  std::vector<subdivide::InputPoint> handed;
   transform::TransformOptions topt;
   topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
+  topt.durable = false;  // never read back: the merge writes sorted.run over it (below)
+  topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
+    handed.clear();
+    for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});
+    return builder->add(handed);
+  };
   auto pass1 = transform::transform_sources(options.inputs, topt, progress);
   if (!pass1) return pass1.error();
   summary.inputs = pass1->inputs;
@@ -224,34 +251,22 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
         " records read, all rejected by the class filter, NODATA or as invalid)");
   }
 
-  // ── Pass 2: Morton sort + finest level ──
-  clock.next("sort");
-  auto run_reader = transform::RunFileReader::open(pass1->run_file);
-  if (!run_reader) return run_reader.error();
-  std::vector<transform::RunPoint> run_batch;
-  subdivide::PointFeed feed =
-      [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
-    run_batch.clear();
-    auto n = run_reader->read(run_batch, 1 << 16);
-    if (!n) return n.error();
-    for (const auto& p : run_batch) batch.push_back({p.x, p.y, p.z, p.weight});
-    return *n;
-  };
-  subdivide::SubdivideOptions sopt;
-  sopt.max_points = options.max_points;
-  sopt.max_level = options.max_level;
-  sopt.min_level = options.min_level;
-  sopt.memory_bytes = options.memory_bytes;
-  sopt.tmp_dir = scratch->path();
-  sopt.output = scratch->path() / "sorted.run";
-  auto sorted = subdivide::subdivide(feed, sopt, progress);
-  if (!sorted) return sorted.error();
   {
-    // The unsorted run is no longer needed: free the disk early.
-    run_reader = Error(ErrorCode::internal, "closed");
+    // Pass 2 had the points in memory: the run file is not read back. It becomes the space the
+    // merge writes sorted.run over (rewriting its cached pages costs a fraction of new ones).
     std::error_code ec;
-    fs::remove(pass1->run_file, ec);
+    fs::rename(pass1->run_file, sopt.output, ec);
+    if (ec) fs::remove(pass1->run_file, ec);
   }
+
+  // ── Pass 2: merge the sorted chunks, finest level, tile index ──
+  clock.next("sort");
+  const std::uint64_t handed_points = builder->input_points();
+  if (progress && !progress({"sort", handed_points, handed_points, "points"})) {
+    return cancelled("sort").error();
+  }
+  auto sorted = builder->finish(progress);
+  if (!sorted) return sorted.error();
   summary.duplicates_merged = sorted->duplicates_merged;
   summary.points = sorted->points;
   summary.finest_level = sorted->finest_level;

@@ -1,11 +1,16 @@
 #include "tinstream/subdivide/sorted_run.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
-#include <queue>
+#include <limits>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -80,24 +85,40 @@ class FileSet {
   std::vector<std::filesystem::path> paths_;
 };
 
+// Writes records to a run file through a buffer. With `background`, a writer thread writes the
+// full buffer while the caller fills a second one (the merge's output: the copy into the page
+// cache then runs beside the merge instead of after it).
 class RunWriter {
  public:
-  static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records) {
-    FilePtr f(std::fopen(path.c_str(), "wb"));
+  // With `overwrite`, an existing file at `path` is written over from its start and cut to size
+  // at close(): its cached pages are rewritten instead of new ones being allocated, which on the
+  // benchmark VM costs ~4 ms per MB (a first touch of a page the host has taken back) against
+  // ~0.2 ms. Without, or with no file there, the file is created empty.
+  static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records,
+                                  bool background = false, bool overwrite = false) {
+    FilePtr f(overwrite ? std::fopen(path.c_str(), "r+b") : nullptr);
+    if (!f) f.reset(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
     RunWriter w;
     w.file_ = std::move(f);
     w.path_ = path;
-    w.buffer_.reserve(std::max<std::size_t>(buffer_records, 256));
+    w.capacity_ = std::max<std::size_t>(buffer_records, 256);
+    w.buffer_.reserve(w.capacity_);
+    if (background) w.background_ = std::make_unique<Background>(w.file_.get(), w.capacity_);
     return w;
   }
   Status push(const SortedPoint& p) {
     buffer_.push_back(p);
     ++written_;
-    if (buffer_.size() == buffer_.capacity()) return flush();
+    if (buffer_.size() == capacity_) return flush();
     return {};
   }
   Status flush() {
+    if (background_) {
+      if (Status s = wait_background(); !s) return s;
+      background_->hand_over(buffer_);
+      return {};
+    }
     if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(),
                                         file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
@@ -107,26 +128,107 @@ class RunWriter {
   }
   Status close() {
     if (Status s = flush(); !s) return s;
+    if (Status s = wait_background(); !s) return s;
+    background_.reset();  // joins the writer thread before the file goes
+    if (std::fflush(file_.get()) != 0 ||
+        ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * sizeof(SortedPoint))) != 0) {
+      return io_failure("cannot write", path_);
+    }
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
     return {};
   }
   std::uint64_t written() const { return written_; }
 
  private:
+  // The writer thread and the buffer it writes. `writing`, `pending`, `stop` and `error` are
+  // guarded by `mutex`; the thread touches the FILE only while `pending`.
+  struct Background {
+    Background(std::FILE* f, std::size_t capacity) : file(f) {
+      writing.reserve(capacity);
+      thread = std::thread([this] { run(); });
+    }
+    Background(const Background&) = delete;
+    Background& operator=(const Background&) = delete;
+    ~Background() {
+      {
+        std::lock_guard lock(mutex);
+        stop = true;
+      }
+      wake.notify_all();
+      thread.join();
+    }
+    // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
+    void hand_over(std::vector<SortedPoint>& buffer) {
+      {
+        std::lock_guard lock(mutex);
+        writing.swap(buffer);
+        buffer.clear();
+        pending = true;
+      }
+      wake.notify_all();
+    }
+    // Blocks until the buffer handed over is written; the errno of a failed write, else 0.
+    int wait_idle() {
+      std::unique_lock lock(mutex);
+      wake.wait(lock, [&] { return !pending; });
+      return error;
+    }
+    void run() {
+      std::unique_lock lock(mutex);
+      for (;;) {
+        wake.wait(lock, [&] { return pending || stop; });
+        if (!pending) return;
+        lock.unlock();
+        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(SortedPoint),
+                                                       writing.size(), file) == writing.size();
+        const int err = ok ? 0 : (errno != 0 ? errno : EIO);
+        lock.lock();
+        if (err != 0 && error == 0) error = err;
+        pending = false;
+        wake.notify_all();
+      }
+    }
+    std::FILE* file;
+    std::mutex mutex;
+    std::condition_variable wake;
+    std::vector<SortedPoint> writing;
+    bool pending = false, stop = false;
+    int error = 0;
+    std::thread thread;  // last: started when the rest exists
+  };
+
+  Status wait_background() {
+    if (!background_) return {};
+    if (const int err = background_->wait_idle(); err != 0) {
+      errno = err;
+      return io_failure("cannot write", path_);
+    }
+    return {};
+  }
+
   FilePtr file_;
   std::filesystem::path path_;
+  std::size_t capacity_ = 0;
   std::vector<SortedPoint> buffer_;
   std::uint64_t written_ = 0;
+  std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
 };
 
+// Reads a run sequentially through a buffer. With `release_read` (temporary runs, removed after
+// the merge that reads them) the part already read is punched out of the file as it goes: its
+// page-cache pages are freed while the merge runs and new writes reuse them, instead of the
+// cache growing by the size of everything the ingest wrote (fresh pages cost far more than
+// recycled ones on the benchmark machine). Where punching is unsupported it is skipped.
 class RunCursor {
  public:
-  static Result<RunCursor> open(const std::filesystem::path& path, std::size_t buffer_records) {
-    FilePtr f(std::fopen(path.c_str(), "rb"));
+  static Result<RunCursor> open(const std::filesystem::path& path, std::size_t buffer_records,
+                                bool release_read = false) {
+    FilePtr f(std::fopen(path.c_str(), release_read ? "r+b" : "rb"));  // punching needs write
     if (!f) return io_failure("cannot open", path);
     RunCursor c;
     c.file_ = std::move(f);
     c.path_ = path;
+    c.release_read_ = release_read;
     c.buffer_.resize(std::max<std::size_t>(buffer_records, 64));
     if (Status s = c.refill(); !s) return s.error();
     return c;
@@ -140,15 +242,33 @@ class RunCursor {
 
  private:
   Status refill() {
+    if (release_read_) release(read_bytes_);
     size_ = std::fread(buffer_.data(), sizeof(SortedPoint), buffer_.size(), file_.get());
+    read_bytes_ += size_ * sizeof(SortedPoint);
     pos_ = 0;
     if (size_ == 0 && std::ferror(file_.get())) return io_failure("cannot read", path_);
     return {};
+  }
+  // Punches [released_, end) out of the file, in whole 64 KiB blocks (a partial block would be
+  // zeroed, not freed).
+  void release(std::uint64_t end) {
+#ifdef FALLOC_FL_PUNCH_HOLE
+    constexpr std::uint64_t kBlock = 1 << 16;
+    end -= end % kBlock;
+    if (end <= released_) return;
+    (void)::fallocate(fileno(file_.get()), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+                      static_cast<off_t>(released_), static_cast<off_t>(end - released_));
+    released_ = end;
+#else
+    (void)end;
+#endif
   }
   FilePtr file_;
   std::filesystem::path path_;
   std::vector<SortedPoint> buffer_;
   std::size_t pos_ = 0, size_ = 0;
+  bool release_read_ = false;
+  std::uint64_t read_bytes_ = 0, released_ = 0;
 };
 
 // Tracks, for every level, the largest number of records in one tile of a key-ordered stream.
@@ -184,39 +304,221 @@ class LevelCounter {
   std::array<std::uint64_t, kKeyLevel + 1> prefix_{}, count_{}, max_{};
 };
 
+// Keeps, while the final merge streams keys in order, the tile index (first record and count of
+// every non-empty tile) at the finest level it can afford: it starts at max_level and, whenever
+// `capacity` entries are full, coarsens one level (tiles nest, so neighbours with the same parent
+// add up exactly). At the end it answers the index of any level L at or above the one it kept.
+class TileTally {
+ public:
+  TileTally(std::uint32_t max_level, std::uint32_t min_level, std::size_t capacity)
+      : level_(max_level), min_level_(min_level), capacity_(std::max<std::size_t>(capacity, 2)) {
+    entries_.reserve(std::min<std::size_t>(capacity_, 1 << 12));
+  }
+  void add(std::uint64_t key) {
+    if (given_up_) return;
+    const std::uint64_t prefix = key >> shift();
+    if (!entries_.empty() && entries_.back().prefix == prefix) {
+      ++entries_.back().count;
+      return;
+    }
+    while (entries_.size() == capacity_) {
+      if (level_ == min_level_) {  // L is never below min_level: nothing coarser can help
+        given_up_ = true;
+        std::vector<Entry>().swap(entries_);
+        return;
+      }
+      coarsen_to(level_ - 1);
+      if (entries_.back().prefix == (key >> shift())) {
+        ++entries_.back().count;
+        return;
+      }
+    }
+    entries_.push_back({key >> shift(), 1});
+  }
+  // The index at `level`; false when the tally kept only coarser tiles (or gave up).
+  bool index(std::uint32_t level, std::vector<TileRange>& out) {
+    if (given_up_ || level > level_) return false;
+    coarsen_to(level);
+    out.clear();
+    out.reserve(entries_.size());
+    std::uint64_t first = 0;
+    for (const Entry& e : entries_) {
+      out.push_back({tile_of_key(e.prefix << shift(), level), first, e.count});
+      first += e.count;
+    }
+    return true;
+  }
+
+ private:
+  struct Entry {
+    std::uint64_t prefix;  // key >> shift()
+    std::uint64_t count;
+  };
+  std::uint32_t shift() const { return 2 * (kKeyLevel - level_); }
+  // Merges the entries (tiles of level_) into tiles of the coarser `level`, in place, in order.
+  void coarsen_to(std::uint32_t level) {
+    const std::uint32_t by = 2 * (level_ - level);
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < entries_.size(); ++i) {
+      const std::uint64_t parent = entries_[i].prefix >> by;
+      if (out > 0 && entries_[out - 1].prefix == parent) {
+        entries_[out - 1].count += entries_[i].count;
+      } else {
+        entries_[out++] = {parent, entries_[i].count};
+      }
+    }
+    entries_.resize(out);
+    level_ = level;
+  }
+
+  std::uint32_t level_;  // the level of the entries' prefixes
+  std::uint32_t min_level_;
+  std::size_t capacity_;
+  bool given_up_ = false;
+  std::vector<Entry> entries_;
+};
+
+// A record's place in a chunk being sorted: its key and its index in the chunk.
+struct KeyIndex {
+  std::uint64_t key;
+  std::uint64_t index;
+};
+static_assert(sizeof(KeyIndex) == 16);
+
+// Fills every record's key and sorts `order` (indexes into `chunk`) into record_less order:
+// a stable LSD radix sort on the key (11-bit digits; digits where no two keys differ are
+// skipped, so a chunk from a small area costs few passes), then the rare runs of equal keys by
+// the rest of record_less. `scratch` is the radix sort's second array.
+void sort_chunk(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
+                std::vector<KeyIndex>& scratch) {
+  const std::size_t n = chunk.size();
+  order.resize(n);
+  scratch.resize(n);
+  std::uint64_t any = 0, all = ~std::uint64_t{0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t key = cell_key(chunk[i].x, chunk[i].y);
+    chunk[i].key = key;
+    order[i] = {key, i};
+    any |= key;
+    all &= key;
+  }
+  const std::uint64_t varying = any ^ all;
+  constexpr std::uint32_t kDigitBits = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kDigitBits;
+  std::vector<std::size_t> count(kBuckets);
+  for (std::uint32_t shift = 0; shift < 64 && (varying >> shift) != 0; shift += kDigitBits) {
+    if (((varying >> shift) & (kBuckets - 1)) == 0) continue;
+    std::fill(count.begin(), count.end(), 0);
+    for (const KeyIndex& e : order) ++count[(e.key >> shift) & (kBuckets - 1)];
+    std::size_t sum = 0;
+    for (std::size_t& c : count) sum += std::exchange(c, sum);
+    for (const KeyIndex& e : order) scratch[count[(e.key >> shift) & (kBuckets - 1)]++] = e;
+    order.swap(scratch);
+  }
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i + 1;
+    while (j < n && order[j].key == order[i].key) ++j;
+    if (j - i > 1) {
+      std::sort(order.begin() + static_cast<std::ptrdiff_t>(i),
+                order.begin() + static_cast<std::ptrdiff_t>(j),
+                [&](const KeyIndex& a, const KeyIndex& b) {
+                  return record_less(chunk[a.index], chunk[b.index]);
+                });
+    }
+    i = j;
+  }
+}
+
+// Sorts `chunk` and writes it as a run at `path`, dropping exact duplicates; runs on the spill
+// thread (touches only its arguments).
+Status write_run(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
+                 std::vector<KeyIndex>& scratch, const std::filesystem::path& path,
+                 std::uint64_t& duplicates) {
+  sort_chunk(chunk, order, scratch);
+  auto w = RunWriter::create(path, 1 << 15);
+  if (!w) return w.error();
+  const SortedPoint* last = nullptr;
+  // The gather jumps around a chunk far larger than the caches: ask for the record a few steps
+  // ahead (both lines: a 40-byte record may straddle two) so the misses overlap.
+  constexpr std::size_t kAhead = 16;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (k + kAhead < order.size()) {
+      const char* ahead = reinterpret_cast<const char*>(&chunk[order[k + kAhead].index]);
+      __builtin_prefetch(ahead);
+      __builtin_prefetch(ahead + sizeof(SortedPoint) - 1);
+    }
+    const SortedPoint& p = chunk[order[k].index];
+    if (last && same_xy(*last, p)) {
+      ++duplicates;
+      continue;
+    }
+    if (Status s = w->push(p); !s) return s;
+    last = &p;
+  }
+  return w->close();
+}
+
 // Merges sorted runs into `writer`, dropping duplicate (x, y) (the first, lowest z, survives).
 Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t buffer_records,
-                  RunWriter& writer, LevelCounter* levels, std::uint64_t& duplicates,
-                  const std::function<bool(std::uint64_t)>& tick) {
+                  RunWriter& writer, LevelCounter* levels, TileTally* tally,
+                  std::uint64_t& duplicates, const std::function<bool(std::uint64_t)>& tick) {
   std::vector<RunCursor> cursors;
   cursors.reserve(inputs.size());
   for (const auto& p : inputs) {
-    auto c = RunCursor::open(p, buffer_records);
+    auto c = RunCursor::open(p, buffer_records, /*release_read=*/true);  // inputs are temporary
     if (!c) return c.error();
     if (!c->done()) cursors.push_back(std::move(*c));
   }
-  auto greater = [&](std::size_t a, std::size_t b) {
-    return record_less(cursors[b].current(), cursors[a].current());
+  // A binary min-heap of the cursors, each entry with a copy of its current key so that most
+  // comparisons need no trip to the cursor's buffer. The smallest record's cursor is at the top;
+  // after it advances, one sift-down restores the heap (a pop and a push cost two).
+  struct HeapEntry {
+    std::uint64_t key;
+    std::size_t cursor;
   };
-  std::priority_queue<std::size_t, std::vector<std::size_t>, decltype(greater)> heap(greater);
-  for (std::size_t i = 0; i < cursors.size(); ++i) heap.push(i);
+  auto less = [&](const HeapEntry& a, const HeapEntry& b) {
+    if (a.key != b.key) return a.key < b.key;
+    return record_less(cursors[a.cursor].current(), cursors[b.cursor].current());
+  };
+  std::vector<HeapEntry> heap(cursors.size());
+  for (std::size_t i = 0; i < heap.size(); ++i) heap[i] = {cursors[i].current().key, i};
+  std::make_heap(heap.begin(), heap.end(),
+                 [&](const HeapEntry& a, const HeapEntry& b) { return less(b, a); });
+  auto sift_down = [&] {
+    const std::size_t n = heap.size();
+    std::size_t pos = 0;
+    for (;;) {
+      std::size_t child = 2 * pos + 1;
+      if (child >= n) return;
+      if (child + 1 < n && less(heap[child + 1], heap[child])) ++child;
+      if (!less(heap[child], heap[pos])) return;
+      std::swap(heap[child], heap[pos]);
+      pos = child;
+    }
+  };
   SortedPoint last{};
   bool have_last = false;
   std::uint64_t merged = 0;
   while (!heap.empty()) {
-    const std::size_t i = heap.top();
-    heap.pop();
-    const SortedPoint p = cursors[i].current();
+    const std::size_t i = heap.front().cursor;
+    const SortedPoint& p = cursors[i].current();
     if (have_last && same_xy(last, p)) {
       ++duplicates;
     } else {
       if (Status s = writer.push(p); !s) return s;
       if (levels) levels->add(p.key);
+      if (tally) tally->add(p.key);
       last = p;
       have_last = true;
     }
     if (Status s = cursors[i].advance(); !s) return s;
-    if (!cursors[i].done()) heap.push(i);
+    if (cursors[i].done()) {
+      heap.front() = heap.back();
+      heap.pop_back();
+    } else {
+      heap.front().key = cursors[i].current().key;
+    }
+    sift_down();
     if ((++merged & 0xFFFF) == 0 && tick && !tick(merged)) {
       return Error(ErrorCode::cancelled, "ingest cancelled while merging sorted runs");
     }
@@ -230,9 +532,31 @@ std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y) {
   return spread_bits(x) | (spread_bits(y) << 1);
 }
 
+namespace {
+
+// The level-30 column of normalised coordinate c ∈ [-1, 1] (the row of y is that of -y), as
+// geo::TileId::containing finds it: the largest i < 2^30 whose edge -1 + i·2^-29 is ≤ c. The
+// edges are exact doubles (i·2^-29 has ≤ 30 significant bits and the sum is exact), so the
+// estimate from (c + 1)·2^29, which may be off by one where c + 1 rounds, is fixed up by exact
+// comparisons; the same answer as containing's binary-free search, without its ldexp calls.
+std::uint32_t key_column(double c) {
+  constexpr std::int64_t n = std::int64_t{1} << kKeyLevel;
+  constexpr double step = 0x1p-29;  // 2 / 2^30
+  auto edge = [](std::int64_t i) { return -1.0 + static_cast<double>(i) * step; };
+  std::int64_t i =
+      std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((c + 1.0) * 0x1p29)), 0, n - 1);
+  while (i > 0 && c < edge(i)) --i;
+  while (i + 1 < n && c >= edge(i + 1)) ++i;
+  return static_cast<std::uint32_t>(i);
+}
+
+}  // namespace
+
 std::uint64_t cell_key(double x, double y) {
-  const geo::TileId cell = geo::TileId::containing({x, y}, kKeyLevel);
-  return morton_interleave(cell.x, cell.y);
+  // As geo::TileId::containing({x, y}, 30): NaN is 0, the rest clamped to the map.
+  const double px = std::isnan(x) ? 0.0 : std::clamp(x, -1.0, 1.0);
+  const double py = std::isnan(y) ? 0.0 : std::clamp(y, -1.0, 1.0);
+  return morton_interleave(key_column(px), key_column(-py));
 }
 
 geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
@@ -240,114 +564,132 @@ geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
   return {level, compact_bits(prefix), compact_bits(prefix >> 1)};
 }
 
-Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
-                            const ProgressSink& progress) {
-  assert(options.max_points >= 1);
-  assert(options.min_level <= options.max_level && options.max_level <= kKeyLevel);
-  std::error_code ec;
-  std::filesystem::create_directories(options.tmp_dir, ec);
-  if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
+// ---- the builder ------------------------------------------------------------------------------
+//
+// Memory: half of the budget sorts. It holds two chunks of SortedPoints (one fills on the caller's
+// thread while the spill thread sorts and writes the other) and the spill thread's two order
+// arrays (key + index, 16 bytes each per record): 112 bytes per chunk record. The other half
+// buffers the merge: up to kFanIn cursors and the output writer's two buffers.
 
-  // Half the budget sorts (two buffers: one is sorted and written on a second thread while the
-  // other fills), the other half buffers the merge.
-  const std::size_t budget_records =
-      std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
-  const std::size_t sort_capacity = budget_records / 4;
-  const std::size_t fan_in = 64;
-  const std::size_t merge_buffer = std::max<std::size_t>(budget_records / 2 / (fan_in + 1), 256);
+struct SortedRunBuilder::State {
+  explicit State(const SubdivideOptions& o) : options(o) {}
+  State(const State&) = delete;
+  State& operator=(const State&) = delete;
+  ~State() {
+    if (spill_thread.joinable()) spill_thread.join();
+  }
 
-  const std::string stem =
-      "tinstream-" + std::to_string(reinterpret_cast<std::uintptr_t>(&options)) + "-";
-  FileSet temporaries;
+  SubdivideOptions options;
+  std::size_t budget_records = 0, sort_capacity = 0, merge_buffer = 0;
+  static constexpr std::size_t kFanIn = 128;
+  FileSet temporaries;  // declared before the thread: removed after it is joined
+  std::string stem;
   std::size_t next_id = 0;
-  auto temp_path = [&] {
-    auto p = options.tmp_dir / (stem + std::to_string(next_id++) + ".run");
-    temporaries.add(p);
-    return p;
-  };
-
-  SortedRun result;
-  std::vector<SortedPoint> buffer, spilling;
-  buffer.reserve(sort_capacity);
-  std::vector<InputPoint> batch;
   std::vector<std::filesystem::path> runs;
+  std::vector<SortedPoint> buffer, spilling;
+  std::uint64_t input_points = 0, duplicates = 0;
+  bool finished = false;
 
-  // Sorts `chunk` and writes it as a run at `path`, dropping exact duplicates; runs on the spill
-  // thread (touches nothing else shared).
-  auto write_run = [](std::vector<SortedPoint>& chunk, const std::filesystem::path& path,
-                      std::uint64_t& duplicates) -> Status {
-    std::sort(chunk.begin(), chunk.end(), record_less);
-    auto w = RunWriter::create(path, 1 << 15);
-    if (!w) return w.error();
-    for (std::size_t i = 0; i < chunk.size(); ++i) {
-      if (i > 0 && same_xy(chunk[i - 1], chunk[i])) {
-        ++duplicates;
-        continue;
-      }
-      if (Status s = w->push(chunk[i]); !s) return s;
-    }
-    return w->close();
-  };
+  // Owned by the spill thread while it runs (spilling, order, scratch, spill_*).
+  std::vector<KeyIndex> order, scratch;
   std::thread spill_thread;
   Status spill_status;
   std::uint64_t spill_duplicates = 0;
-  auto join_spill = [&]() -> Status {
+
+  std::filesystem::path temp_path() {
+    auto p = options.tmp_dir / (stem + std::to_string(next_id++) + ".run");
+    temporaries.add(p);
+    return p;
+  }
+  Status join_spill() {
     if (spill_thread.joinable()) spill_thread.join();
-    result.duplicates_merged += std::exchange(spill_duplicates, 0);
+    duplicates += std::exchange(spill_duplicates, 0);
     return std::exchange(spill_status, Status{});
-  };
+  }
   // Hands the full buffer to the spill thread (after the previous spill finished) and continues
   // with the other buffer.
-  auto spill = [&]() -> Status {
+  Status spill() {
     if (Status s = join_spill(); !s) return s;
     std::swap(buffer, spilling);
     buffer.clear();
     buffer.reserve(sort_capacity);
     auto path = temp_path();
     runs.push_back(path);
-    spill_thread =
-        std::thread([&, path] { spill_status = write_run(spilling, path, spill_duplicates); });
+    spill_thread = std::thread([this, path] {
+      spill_status = write_run(spilling, order, scratch, path, spill_duplicates);
+    });
     return {};
-  };
-  struct JoinOnExit {
-    std::thread& t;
-    ~JoinOnExit() {
-      if (t.joinable()) t.join();
-    }
-  } join_on_exit{spill_thread};
+  }
+};
 
-  // Phase 1: read, key, sort in memory-sized chunks.
-  for (;;) {
-    batch.clear();
-    auto n = feed(batch);
-    if (!n) return n.error();
-    if (*n == 0) break;
-    for (const InputPoint& p : batch) {
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.x < -1.0 ||
-          p.x > 1.0 || p.y < -1.0 || p.y > 1.0) {
-        return invalid_argument("point " + std::to_string(result.input_points) +
-                                " is not a finite normalised-Mercator position (x " +
-                                std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
-                                std::to_string(p.z) + ")");
-      }
-      buffer.push_back({cell_key(p.x, p.y), p.x, p.y, p.z, p.weight, 0});
-      ++result.input_points;
-      if (buffer.size() == sort_capacity) {
-        if (Status s = spill(); !s) return s.error();
-      }
+SortedRunBuilder::SortedRunBuilder(std::unique_ptr<State> state) : state_(std::move(state)) {}
+SortedRunBuilder::SortedRunBuilder(SortedRunBuilder&&) noexcept = default;
+SortedRunBuilder& SortedRunBuilder::operator=(SortedRunBuilder&&) noexcept = default;
+SortedRunBuilder::~SortedRunBuilder() = default;
+
+Result<SortedRunBuilder> SortedRunBuilder::create(const SubdivideOptions& options) {
+  assert(options.max_points >= 1);
+  assert(options.min_level <= options.max_level && options.max_level <= kKeyLevel);
+  std::error_code ec;
+  std::filesystem::create_directories(options.tmp_dir, ec);
+  if (ec) return io_error("cannot create temporary directory " + options.tmp_dir.string());
+  auto st = std::make_unique<State>(options);
+  st->budget_records = std::max<std::size_t>(options.memory_bytes / sizeof(SortedPoint), 4096);
+  st->sort_capacity = std::min<std::size_t>(st->budget_records * sizeof(SortedPoint) / 2 /
+                                                (2 * sizeof(SortedPoint) + 2 * sizeof(KeyIndex)),
+                                            std::numeric_limits<std::uint32_t>::max());
+  st->merge_buffer = std::max<std::size_t>(st->budget_records / 2 / (State::kFanIn + 2), 256);
+  st->stem = "tinstream-" + std::to_string(reinterpret_cast<std::uintptr_t>(st.get())) + "-";
+  st->buffer.reserve(st->sort_capacity);
+  return SortedRunBuilder(std::move(st));
+}
+
+std::uint64_t SortedRunBuilder::input_points() const { return state_->input_points; }
+
+Status SortedRunBuilder::add(std::span<const InputPoint> points) {
+  State& st = *state_;
+  assert(!st.finished);
+  for (const InputPoint& p : points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.x < -1.0 ||
+        p.x > 1.0 || p.y < -1.0 || p.y > 1.0) {
+      return invalid_argument("point " + std::to_string(st.input_points) +
+                              " is not a finite normalised-Mercator position (x " +
+                              std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
+                              std::to_string(p.z) + ")");
     }
-    if (progress && !progress({"sort", result.input_points, 0, "points"})) {
-      return Error(ErrorCode::cancelled, "ingest cancelled while sorting");
+    // The key is computed by the spill thread (keys_and_order), off this thread.
+    st.buffer.push_back({0, p.x, p.y, p.z, p.weight, 0});
+    ++st.input_points;
+    if (st.buffer.size() == st.sort_capacity) {
+      if (Status s = st.spill(); !s) return s;
     }
   }
-  if (!buffer.empty() || runs.empty()) {
-    if (Status s = spill(); !s) return s.error();
-  }
-  if (Status s = join_spill(); !s) return s.error();
-  std::vector<SortedPoint>().swap(buffer);
-  std::vector<SortedPoint>().swap(spilling);
+  return {};
+}
 
-  // Phase 2: merge down to one run (multi-pass when there are more runs than the fan-in).
+Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
+  State& st = *state_;
+  assert(!st.finished);
+  st.finished = true;
+  const SubdivideOptions& options = st.options;
+  std::error_code ec;
+  if (!st.buffer.empty() || st.runs.empty()) {
+    if (Status s = st.spill(); !s) return s.error();
+  }
+  if (Status s = st.join_spill(); !s) return s.error();
+  std::vector<SortedPoint>().swap(st.buffer);
+  std::vector<SortedPoint>().swap(st.spilling);
+  std::vector<KeyIndex>().swap(st.order);
+  std::vector<KeyIndex>().swap(st.scratch);
+
+  SortedRun result;
+  result.input_points = st.input_points;
+  result.duplicates_merged = st.duplicates;
+  const std::size_t fan_in = State::kFanIn;
+  const std::size_t merge_buffer = st.merge_buffer;
+  auto& runs = st.runs;
+
+  // Merge down to one run (multi-pass when there are more runs than the fan-in).
   auto tick = [&](std::uint64_t done) {
     return !progress || progress({"merge", done, result.input_points, "points"});
   };
@@ -357,10 +699,11 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
       const std::vector<std::filesystem::path> group(
           runs.begin() + static_cast<std::ptrdiff_t>(i),
           runs.begin() + static_cast<std::ptrdiff_t>(std::min(runs.size(), i + fan_in)));
-      auto path = temp_path();
-      auto w = RunWriter::create(path, merge_buffer);
+      auto path = st.temp_path();
+      auto w = RunWriter::create(path, merge_buffer, /*background=*/true);
       if (!w) return w.error();
-      if (Status s = merge_runs(group, merge_buffer, *w, nullptr, result.duplicates_merged, tick);
+      if (Status s =
+              merge_runs(group, merge_buffer, *w, nullptr, nullptr, result.duplicates_merged, tick);
           !s)
         return s.error();
       if (Status s = w->close(); !s) return s.error();
@@ -369,17 +712,24 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
     }
     runs = std::move(next);
   }
-  result.path = options.output.empty() ? temp_path() : options.output;
-  temporaries.add(result.path);  // removed unless everything succeeds
+  result.path = options.output.empty() ? st.temp_path() : options.output;
+  st.temporaries.add(result.path);  // removed unless everything succeeds
   LevelCounter levels;
+  TileTally tally(options.max_level, options.min_level,
+                  options.index_entries != 0
+                      ? options.index_entries
+                      : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096));
   {
-    auto w = RunWriter::create(result.path, merge_buffer);
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true);
     if (!w) return w.error();
-    if (Status s = merge_runs(runs, merge_buffer, *w, &levels, result.duplicates_merged, tick); !s)
+    if (Status s =
+            merge_runs(runs, merge_buffer, *w, &levels, &tally, result.duplicates_merged, tick);
+        !s)
       return s.error();
     if (Status s = w->close(); !s) return s.error();
     result.points = w->written();
   }
+  for (const auto& r : runs) std::filesystem::remove(r, ec);
   result.max_tile_points = levels.finish();
 
   // Finest level: the smallest level whose fullest tile fits the budget.
@@ -391,8 +741,10 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
     }
   }
 
-  // Phase 3: the tile index of level L (keys only matter; one sequential pass).
-  {
+  // The tile index of level L: from the merge's tally when it kept a level at least as fine as L
+  // (tiles nest, so it coarsens exactly), else one sequential pass over the keys.
+  if (!tally.index(result.finest_level, result.tiles)) {
+    result.tiles.clear();
     auto cursor = RunCursor::open(result.path, 1 << 15);
     if (!cursor) return cursor.error();
     const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
@@ -409,8 +761,26 @@ Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& optio
       if (Status s = cursor->advance(); !s) return s.error();
     }
   }
-  temporaries.release(result.path);
+  st.temporaries.release(result.path);
   return result;
+}
+
+Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
+                            const ProgressSink& progress) {
+  auto builder = SortedRunBuilder::create(options);
+  if (!builder) return builder.error();
+  std::vector<InputPoint> batch;
+  for (;;) {
+    batch.clear();
+    auto n = feed(batch);
+    if (!n) return n.error();
+    if (*n == 0) break;
+    if (Status s = builder->add(batch); !s) return s.error();
+    if (progress && !progress({"sort", builder->input_points(), 0, "points"})) {
+      return Error(ErrorCode::cancelled, "ingest cancelled while sorting");
+    }
+  }
+  return builder->finish(progress);
 }
 
 SortedRunReader::SortedRunReader(SortedRunReader&& other) noexcept

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <random>
+#include <tuple>
 
 namespace tinstream::subdivide {
 namespace {
@@ -155,6 +157,138 @@ TEST(Subdivide, TinyMemoryBudgetForcesMultiPassMergeWithSameResult) {
   EXPECT_EQ(tmp.entries(), 1u);
 }
 
+// What the run must hold, computed the slow way: every point keyed, std::sort by the full run
+// order (key, x, y, lowest z, highest weight), then the first of every equal (x, y) kept.
+std::vector<SortedPoint> reference_run(const std::vector<InputPoint>& input) {
+  std::vector<SortedPoint> all;
+  for (const auto& p : input) all.push_back({cell_key(p.x, p.y), p.x, p.y, p.z, p.weight, 0});
+  std::sort(all.begin(), all.end(), [](const SortedPoint& a, const SortedPoint& b) {
+    return std::tie(a.key, a.x, a.y, a.z, b.weight) < std::tie(b.key, b.x, b.y, b.z, a.weight);
+  });
+  std::vector<SortedPoint> kept;
+  for (const auto& p : all) {
+    if (!kept.empty() && kept.back().x == p.x && kept.back().y == p.y) continue;
+    kept.push_back(p);
+  }
+  return kept;
+}
+
+void expect_same_records(const std::vector<SortedPoint>& expected, const SortedRun& run) {
+  const auto all = read_all(run);
+  ASSERT_EQ(all.size(), expected.size());
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    ASSERT_EQ(all[i].key, expected[i].key) << i;
+    ASSERT_EQ(all[i].x, expected[i].x) << i;
+    ASSERT_EQ(all[i].y, expected[i].y) << i;
+    ASSERT_EQ(all[i].z, expected[i].z) << i;
+    ASSERT_EQ(all[i].weight, expected[i].weight) << i;
+  }
+}
+
+// Keys that share a level-30 cell (many points a few ulps apart, so equal keys are common),
+// exact duplicates with different z and weights, keys varying in every bit (points all over the
+// map, on tile edges and on the map's border): the radix sort plus the equal-key pass must give
+// exactly the comparator's order, in single runs and through multi-pass merges.
+TEST(Subdivide, RadixOrderEqualsComparatorOrderOnAdversarialKeys) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::uniform_int_distribution<int> small(0, 3);
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 3000; ++i) {  // all over the map
+    pts.push_back({u(rng), u(rng), 10.0 * small(rng), static_cast<float>(small(rng))});
+  }
+  for (double edge : {-1.0, -0.5, 0.0, 0.25, 0.5, 1.0}) {  // tile edges and the map's border
+    for (int i = 0; i < 50; ++i) pts.push_back({edge, u(rng), 1.0 * i, 1});
+    pts.push_back({edge, edge, 2.0, 1});
+  }
+  const double cx = 0.123456789, cy = -0.3456789;
+  for (int i = 0; i < 6000; ++i) {  // one cell: equal keys, x and y a few ulps apart, duplicates
+    double x = cx, y = cy;
+    for (int k = small(rng); k > 0; --k) x = std::nextafter(x, 1.0);
+    for (int k = small(rng); k > 0; --k) y = std::nextafter(y, -1.0);
+    pts.push_back({x, y, 1.0 * small(rng), static_cast<float>(small(rng))});
+  }
+  std::shuffle(pts.begin(), pts.end(), rng);
+  const auto expected = reference_run(pts);
+  ASSERT_LT(expected.size(), pts.size());  // the input does hold duplicates
+  for (std::size_t memory : {std::size_t{256} << 20, std::size_t{1}}) {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.max_points = 100;
+    opt.memory_bytes = memory;  // one run, or ~20 runs of 731 records
+    auto run = subdivide(feed_of(pts, 333), opt);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    expect_same_records(expected, *run);
+    EXPECT_EQ(run->duplicates_merged, pts.size() - expected.size());
+  }
+}
+
+// The tile index comes from the merge's tally when it could keep a fine enough level and from a
+// re-read of the run when not; both must be the index of the run. With T tiles at level L, a
+// tally of T entries ends exactly at L (after coarsening from max_level), T - 1 entries forces
+// the re-read, 4T ends finer than L.
+TEST(Subdivide, TileIndexSameWhetherTalliedOrReRead) {
+  const auto pts = clustered_points(50000, 12);
+  auto check = [&](std::size_t entries) -> std::size_t {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.max_points = 2000;
+    opt.index_entries = entries;
+    opt.memory_bytes = 4096 * sizeof(SortedPoint);
+    auto run = subdivide(feed_of(pts), opt);
+    EXPECT_TRUE(run.ok()) << run.error().message;
+    if (!run.ok()) return 0;
+    // Independent: the tiles of level L in the order of the run, counted from the records.
+    const auto all = read_all(*run);
+    std::vector<TileRange> expected;
+    for (std::uint64_t i = 0; i < all.size(); ++i) {
+      const auto id = geo::TileId::containing({all[i].x, all[i].y}, run->finest_level);
+      if (expected.empty() || expected.back().id != id) expected.push_back({id, i, 0});
+      ++expected.back().count;
+    }
+    EXPECT_EQ(run->tiles.size(), expected.size()) << entries;
+    for (std::size_t t = 0; t < std::min(expected.size(), run->tiles.size()); ++t) {
+      EXPECT_EQ(run->tiles[t].id, expected[t].id) << entries << " " << t;
+      EXPECT_EQ(run->tiles[t].first, expected[t].first) << entries << " " << t;
+      EXPECT_EQ(run->tiles[t].count, expected[t].count) << entries << " " << t;
+    }
+    EXPECT_EQ(tmp.entries(), 1u);
+    return expected.size();
+  };
+  const std::size_t tiles = check(2);
+  ASSERT_GT(tiles, 10u);
+  for (std::size_t entries : {tiles - 1, tiles, 4 * tiles, std::size_t{0}, std::size_t{1} << 20}) {
+    check(entries);
+  }
+}
+
+// A file already at the output path (the ingest leaves pass 1's run file there) is written over
+// and cut to the run's size, whether it was longer or shorter.
+TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
+  const auto pts = clustered_points(5000, 14);
+  const auto expected = reference_run(pts);
+  for (std::size_t garbage : {std::size_t{1} << 20, std::size_t{1000}}) {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.max_points = 500;
+    opt.output = tmp.path() / "sorted.run";
+    {
+      std::FILE* f = std::fopen(opt.output.c_str(), "wb");
+      const std::vector<char> junk(garbage, 'x');
+      std::fwrite(junk.data(), 1, junk.size(), f);
+      std::fclose(f);
+    }
+    auto run = subdivide(feed_of(pts), opt);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    EXPECT_EQ(fs::file_size(opt.output), expected.size() * sizeof(SortedPoint));
+    expect_same_records(expected, *run);
+    EXPECT_EQ(tmp.entries(), 1u);
+  }
+}
+
 TEST(Subdivide, DuplicatesMergedLowestZWins) {
   TempDir tmp;
   std::vector<InputPoint> pts = {{0.1, 0.2, 10}, {0.1, 0.2, 7}, {0.3, 0.2, 1},
@@ -224,6 +358,28 @@ TEST(Subdivide, KeyToTileMatchesContainment) {
     for (std::uint32_t level : {0u, 3u, 11u, 20u, 30u}) {
       ASSERT_EQ(tile_of_key(key, level), geo::TileId::containing({x, y}, level));
     }
+  }
+}
+
+// cell_key finds the level-30 cell without geo's search: it must agree with
+// TileId::containing exactly, also on and one ulp either side of cell edges (where c + 1 rounds),
+// at the map's border, beyond it (clamped) and for NaN.
+TEST(Subdivide, CellKeyMatchesContainmentOnCellEdges) {
+  std::mt19937_64 rng(13);
+  std::uniform_int_distribution<std::uint32_t> cell(0, (1u << 30) - 1);
+  std::vector<double> coords = {-1.0,    1.0,   0.0,    -0.0, 0.5,  -0.5, 1e-300,
+                                -1e-300, 1e-20, -1e-20, 2.0,  -3.0, NAN};
+  for (int i = 0; i < 20000; ++i) {
+    const double edge = -1.0 + std::ldexp(static_cast<double>(cell(rng)), -29);
+    coords.push_back(edge);
+    coords.push_back(std::nextafter(edge, -2.0));
+    coords.push_back(std::nextafter(edge, 2.0));
+  }
+  std::uniform_int_distribution<std::size_t> pick(0, coords.size() - 1);
+  for (int i = 0; i < 200000; ++i) {
+    const double x = coords[pick(rng)], y = coords[pick(rng)];
+    const geo::TileId expected = geo::TileId::containing({x, y}, 30);
+    ASSERT_EQ(tile_of_key(cell_key(x, y), 30), expected) << x << " " << y;
   }
 }
 

@@ -4,7 +4,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <optional>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
 #include <thread>
 
 namespace tinstream::transform {
@@ -62,6 +64,7 @@ struct BatchWork {
   std::vector<geo::LonLat> lonlat;
   std::uint64_t outside_mercator = 0;
   Status status;
+  bool done = false;  // guarded by the pipeline's mutex while the batch is in flight
 };
 
 // Reprojects a batch and maps it to normalised Mercator. Touches only `w` and the reprojector,
@@ -96,6 +99,73 @@ void transform_batch(const BatchContext& c, Reprojector& reprojector, BatchWork&
   }
 }
 
+// Worker threads that transform batches, one Reprojector each (PROJ contexts are not shared).
+// The calling thread submits batches in record order and collects them in the same order, so
+// the run file and the first error reported do not depend on the number of workers.
+//
+//   reader (calling thread) ──submit──▶ todo_ ──▶ worker k: transform_batch ──▶ done = true
+//   writer (calling thread) ◀──wait(oldest)───────────────────────────────────────┘
+class TransformWorkers {
+ public:
+  TransformWorkers(const BatchContext& context, std::vector<Reprojector>& reprojectors)
+      : context_(context) {
+    threads_.reserve(reprojectors.size());
+    for (Reprojector& r : reprojectors) threads_.emplace_back([this, &r] { work(r); });
+  }
+  TransformWorkers(const TransformWorkers&) = delete;
+  TransformWorkers& operator=(const TransformWorkers&) = delete;
+  // Batches still queued are dropped; those being transformed finish first.
+  ~TransformWorkers() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+      todo_.clear();
+    }
+    wake_workers_.notify_all();
+    for (auto& t : threads_) t.join();
+  }
+  void submit(BatchWork& w) {
+    {
+      std::lock_guard lock(mutex_);
+      w.done = false;
+      todo_.push_back(&w);
+    }
+    wake_workers_.notify_one();
+  }
+  // Blocks until `w` (submitted) is transformed.
+  void wait(BatchWork& w) {
+    std::unique_lock lock(mutex_);
+    batch_done_.wait(lock, [&] { return w.done; });
+  }
+
+ private:
+  void work(Reprojector& reprojector) {
+    for (;;) {
+      BatchWork* w = nullptr;
+      {
+        std::unique_lock lock(mutex_);
+        wake_workers_.wait(lock, [&] { return stop_ || !todo_.empty(); });
+        if (todo_.empty()) return;  // stop_
+        w = todo_.front();
+        todo_.pop_front();
+      }
+      transform_batch(context_, reprojector, *w);
+      {
+        std::lock_guard lock(mutex_);
+        w->done = true;
+      }
+      batch_done_.notify_all();
+    }
+  }
+
+  const BatchContext& context_;
+  std::mutex mutex_;  // guards todo_, stop_ and every submitted BatchWork::done
+  std::condition_variable wake_workers_, batch_done_;
+  std::deque<BatchWork*> todo_;
+  bool stop_ = false;
+  std::vector<std::thread> threads_;  // last: started after, joined before the rest goes
+};
+
 }  // namespace
 
 Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
@@ -114,11 +184,10 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
   RunSummary summary;
   summary.run_file = options.output;
   std::uint64_t done_before = 0;  // records of the inputs already finished
-  // Two batch slots: with a helper thread, the helper transforms slot 0 while this thread reads
-  // and transforms slot 1; both are then appended in record order.
-  std::array<BatchWork, 2> slot;
-  for (auto& w : slot) w.batch.reserve(options.batch_size);
-  const bool helper = options.threads > 1;
+  // Batches in flight: one per worker plus the one the reader fills.
+  const unsigned workers = options.threads > 1 ? options.threads : 0;
+  std::vector<BatchWork> slots(workers + 1);
+  for (auto& w : slots) w.batch.reserve(options.batch_size);
 
   for (std::size_t index = 0; index < inputs.size(); ++index) {
     const InputSpec& in = inputs[index];
@@ -127,11 +196,11 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
     sources::PointSource& src = **source;
     auto reprojector = Reprojector::create(src.info(), in.reproject);
     if (!reprojector.ok()) return reprojector.error();
-    std::optional<Reprojector> helper_reprojector;
-    if (helper) {
+    std::vector<Reprojector> worker_reprojectors;
+    for (unsigned k = 0; k < workers; ++k) {
       auto r = Reprojector::create(src.info(), in.reproject);
       if (!r.ok()) return r.error();
-      helper_reprojector.emplace(std::move(*r));
+      worker_reprojectors.push_back(std::move(*r));
     }
 
     InputSummary s;
@@ -148,34 +217,59 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
       s.outside_mercator += w.outside_mercator;
       if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
       s.points_written += w.run_points.size();
+      if (options.on_points) return options.on_points(w.run_points);
       return {};
     };
-    bool more = true;
-    while (more) {
-      slot[0].batch.clear();
-      auto got = src.read(slot[0].batch, options.batch_size);
-      if (!got.ok()) return got.error();
-      if (*got == 0) break;
-      if (!helper) {
-        transform_batch(context, *reprojector, slot[0]);
-        if (Status st = append(slot[0]); !st.ok()) return st.error();
-      } else {
-        std::thread t([&] { transform_batch(context, *helper_reprojector, slot[0]); });
-        slot[1].batch.clear();
-        auto got1 = src.read(slot[1].batch, options.batch_size);
-        if (got1.ok() && *got1 > 0) transform_batch(context, *reprojector, slot[1]);
-        t.join();
-        // Record order decides which error is reported: the helper's batch came first.
-        if (Status st = append(slot[0]); !st.ok()) return st.error();
-        if (!got1.ok()) return got1.error();
-        if (*got1 == 0) {
-          more = false;
-        } else if (Status st = append(slot[1]); !st.ok()) {
-          return st.error();
-        }
-      }
+    auto report = [&]() -> Status {
       if (!throttle.report(done_before + src.counters().records_read, total, false)) {
         return Error(ErrorCode::cancelled, "transform cancelled while reading " + s.path);
+      }
+      return {};
+    };
+    if (workers == 0) {
+      BatchWork& w = slots[0];
+      for (;;) {
+        w.batch.clear();
+        auto got = src.read(w.batch, options.batch_size);
+        if (!got.ok()) return got.error();
+        if (*got == 0) break;
+        transform_batch(context, *reprojector, w);
+        if (Status st = append(w); !st.ok()) return st.error();
+        if (Status st = report(); !st.ok()) return st.error();
+      }
+    } else {
+      // Slots are used round robin: batch i lives in slots[i % size], so the oldest batch in
+      // flight is always the next slot to refill.
+      TransformWorkers pool(context, worker_reprojectors);
+      std::size_t next = 0, in_flight = 0;
+      bool more = true;
+      while (more || in_flight > 0) {
+        if (more && in_flight < slots.size()) {
+          BatchWork& w = slots[(next + in_flight) % slots.size()];
+          w.batch.clear();
+          auto got = src.read(w.batch, options.batch_size);
+          if (!got.ok()) {
+            // Batches before the failing read come first: their errors win.
+            for (; in_flight > 0; --in_flight, next = (next + 1) % slots.size()) {
+              pool.wait(slots[next]);
+              if (Status st = append(slots[next]); !st.ok()) return st.error();
+            }
+            return got.error();
+          }
+          if (*got == 0) {
+            more = false;
+          } else {
+            pool.submit(w);
+            ++in_flight;
+          }
+          continue;
+        }
+        BatchWork& oldest = slots[next];
+        pool.wait(oldest);
+        if (Status st = append(oldest); !st.ok()) return st.error();
+        next = (next + 1) % slots.size();
+        --in_flight;
+        if (Status st = report(); !st.ok()) return st.error();
       }
     }
     s.counters = src.counters();
@@ -189,7 +283,7 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
   if (!throttle.report(done_before, total, true)) {
     return Error(ErrorCode::cancelled, "transform cancelled before the run file was committed");
   }
-  auto header = writer->commit();
+  auto header = writer->commit(options.durable);
   if (!header.ok()) return header.error();
   summary.header = *header;
   return summary;

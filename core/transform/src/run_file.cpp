@@ -210,14 +210,14 @@ Status RunFileWriter::append(std::span<const RunPoint> points,
   return {};
 }
 
-Result<RunFileHeader> RunFileWriter::commit() {
+Result<RunFileHeader> RunFileWriter::commit(bool durable) {
   if (!file_) return Error(ErrorCode::internal, "run file writer committed twice or after failure");
   unsigned char head[kRunHeaderBytes];
   encode_run_header(header_, true, head);
   std::FILE* f = file_.get();
   if (std::fflush(f) != 0 || std::fseek(f, 0, SEEK_SET) != 0 ||
       std::fwrite(head, 1, sizeof head, f) != sizeof head || std::fflush(f) != 0 ||
-      ::fsync(fileno(f)) != 0) {
+      (durable && ::fsync(fileno(f)) != 0)) {
     const std::string why = std::strerror(errno);
     abandon();
     return io_error(partial_.string() + ": cannot finish the run file: " + why);

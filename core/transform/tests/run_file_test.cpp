@@ -392,5 +392,63 @@ TEST(Pass1, HelperThreadReportsTheFirstBadRecordInFileOrder) {
   std::filesystem::remove_all(dir);
 }
 
+// The points handed to on_points are the run file's, in its order, whatever the worker count;
+// an error from on_points stops the pass and leaves no run file.
+TEST(Pass1, WorkersHandEveryBatchOverInRecordOrder) {
+  auto dir = scratch("on_points");
+  std::vector<InputSpec> inputs(2);
+  inputs[0].path = utm_points(dir, 7'003);
+  inputs[0].reproject.crs = "EPSG:32632";
+  inputs[1] = inputs[0];
+  inputs[1].weight = 2;
+  TransformOptions opt;
+  opt.batch_size = 500;
+  std::vector<unsigned char> first_run;
+  for (unsigned threads : {1u, 2u, 3u}) {
+    opt.threads = threads;
+    opt.output = dir / ("t" + std::to_string(threads) + ".run");
+    std::vector<RunPoint> handed;
+    opt.on_points = [&](std::span<const RunPoint> points) -> Status {
+      handed.insert(handed.end(), points.begin(), points.end());
+      return {};
+    };
+    auto s = transform_sources(inputs, opt);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    auto reader = RunFileReader::open(opt.output);
+    ASSERT_TRUE(reader.ok());
+    std::vector<RunPoint> stored;
+    while (true) {
+      auto n = reader->read(stored, 4096);
+      ASSERT_TRUE(n.ok());
+      if (*n == 0) break;
+    }
+    ASSERT_EQ(handed.size(), 14'006u) << threads;
+    ASSERT_EQ(stored.size(), handed.size()) << threads;
+    for (std::size_t i = 0; i < handed.size(); ++i) {
+      ASSERT_EQ(handed[i].x, stored[i].x) << threads << " " << i;
+      ASSERT_EQ(handed[i].y, stored[i].y) << threads << " " << i;
+      ASSERT_EQ(handed[i].z, stored[i].z) << threads << " " << i;
+      ASSERT_EQ(handed[i].weight, stored[i].weight) << threads << " " << i;
+    }
+    if (first_run.empty()) {
+      first_run = slurp(opt.output);
+    } else {
+      EXPECT_EQ(slurp(opt.output), first_run) << threads;
+    }
+  }
+  std::size_t calls = 0;
+  opt.output = dir / "stopped.run";
+  opt.on_points = [&](std::span<const RunPoint>) -> Status {
+    if (++calls == 5) return Error(ErrorCode::io_error, "pass 2 is full");
+    return {};
+  };
+  auto stopped = transform_sources(inputs, opt);
+  ASSERT_FALSE(stopped.ok());
+  EXPECT_EQ(stopped.error().message, "pass 2 is full");
+  EXPECT_EQ(calls, 5u);
+  EXPECT_FALSE(std::filesystem::exists(opt.output));
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace tinstream::transform

@@ -17,9 +17,10 @@
 // Finest level L: the smallest level at which no tile holds more than max_points points (after
 // merging duplicates), capped by max_level; never below min_level.
 //
-// Memory: at most about `memory_bytes` (sort buffer + merge buffers), whatever the input size;
+// Memory: at most about `memory_bytes` (sort buffers + merge buffers), whatever the input size;
 // temporary runs go to `tmp_dir` and are removed when done or on failure.
-// Threads: one call runs on the calling thread.
+// Threads: subdivide() and a SortedRunBuilder run on the calling thread plus one spill thread
+// (sorts and writes a full chunk while the next one fills).
 #pragma once
 
 #include <cstdint>
@@ -27,6 +28,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "tinstream/base/progress.hpp"
@@ -65,7 +67,12 @@ struct SubdivideOptions {
   std::uint32_t min_level = 0;            // floor for L
   std::size_t memory_bytes = 256u << 20;  // sort + merge buffers
   std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
-  std::filesystem::path output;  // the sorted run; default: a file in tmp_dir
+  // The sorted run; default: a file in tmp_dir. A file already there is written over in place
+  // and cut to size (its page-cache pages are reused: the ingest leaves pass 1's run file there).
+  std::filesystem::path output;
+  // Entries the tile index may take while the final merge tallies it (0: from memory_bytes);
+  // beyond that it is built by re-reading the sorted run. The result is the same either way.
+  std::size_t index_entries = 0;
 };
 
 struct SortedRun {
@@ -89,6 +96,30 @@ using PointFeed = std::function<Result<std::size_t>(std::vector<InputPoint>& bat
 // Requires: options.max_points ≥ 1, min_level ≤ max_level ≤ 30.
 Result<SortedRun> subdivide(const PointFeed& feed, const SubdivideOptions& options,
                             const ProgressSink& progress = {});
+
+// The same pass in push form, for a caller that produces the points itself (the ingest hands
+// pass 1's batches over as they are transformed): add() every point in order, then finish().
+// The result is identical to subdivide() over the same points. Destroying a builder without a
+// successful finish() removes its temporary runs. Thread-compatible: one thread calls it.
+class SortedRunBuilder {
+ public:
+  static Result<SortedRunBuilder> create(const SubdivideOptions& options);
+  SortedRunBuilder(SortedRunBuilder&&) noexcept;
+  SortedRunBuilder& operator=(SortedRunBuilder&&) noexcept;
+  ~SortedRunBuilder();
+
+  // Errors: a point that is not a finite normalised-Mercator position (named by its index among
+  // all points added), or a failed spill. After an error the builder is only fit to destroy.
+  Status add(std::span<const InputPoint> points);
+  std::uint64_t input_points() const;
+  // Merges the runs; progress phase "merge" (returning false cancels).
+  Result<SortedRun> finish(const ProgressSink& progress = {});
+
+ private:
+  struct State;
+  explicit SortedRunBuilder(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
 
 // Random access to a sorted run by record index. Thread-compatible: one reader per thread.
 class SortedRunReader {

@@ -16,11 +16,12 @@
 //   the sum of the inputs' record counts when all are known in advance (LAS, rasters), else 0.
 //   The sink is called from the calling thread, at most about 5 times a second, and once at the
 //   end. Returning false cancels (ErrorCode::cancelled).
-// Threads: runs on the calling thread, plus one helper thread when TransformOptions::threads > 1.
+// Threads: runs on the calling thread, plus TransformOptions::threads workers when it is > 1.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -45,10 +46,16 @@ struct TransformOptions {
   std::filesystem::path output;  // the run file
   geo::Projection projection = geo::Projection::spherical;
   std::size_t batch_size = 65536;  // points per batch; Requires: > 0
-  // > 1: a second thread (with its own Reprojector) transforms every other batch while this
-  // thread reads and transforms the next; the run file is the same (batches are appended in
-  // record order, and the first error in record order is the one reported).
+  // > 1: that many worker threads (each with its own Reprojector) transform batches while this
+  // thread reads the next ones and appends finished ones; the run file is the same (batches are
+  // appended in record order, and the first error in record order is the one reported).
   unsigned threads = 1;
+  // Called on the calling thread with every batch of points just appended to the run file, in
+  // record order (the ingest hands them to pass 2). An error stops the pass and is returned.
+  std::function<Status(std::span<const RunPoint>)> on_points;
+  // false: the run file is not fsynced before its rename (the ingest removes it as soon as pass 1
+  // is done: its points went to pass 2 through on_points, so its data need never reach the disk).
+  bool durable = true;
 };
 
 struct InputSummary {

@@ -1,5 +1,6 @@
-// tinstream/transform/run_file.hpp — the binary point run file written by ingest pass 1 and
-// read sequentially by pass 2.
+// tinstream/transform/run_file.hpp — the binary point run file written by ingest pass 1.
+// The ingest hands pass 1's points to pass 2 in memory (TransformOptions::on_points) and uses the
+// header; RunFileReader reads a run file sequentially (tools, tests, any later consumer).
 //
 // Layout (all little-endian, whatever the host):
 //
@@ -24,8 +25,8 @@
 //     30    1    u8 ASPRS class (0 where the format has none)
 //     31    1    reserved, 0
 //
-// Atomicity: RunFileWriter writes "<path>.partial-<pid>", and commit() fsyncs and renames it to
-// <path>; a writer destroyed without commit() removes its partial file. So a file under the
+// Atomicity: RunFileWriter writes "<path>.partial-<pid>", and commit() (durable) fsyncs and renames
+// it to <path>; a writer destroyed without commit() removes its partial file. So a file under the
 // final name is always complete. Readers check magic, sizes and the complete flag.
 // Threads: writer and reader are thread-compatible (one per thread).
 #pragma once
@@ -80,8 +81,9 @@ class RunFileWriter {
 
   // Requires: every point has finite x, y, z and lon/lat in `lonlat` (same length) if given.
   Status append(std::span<const RunPoint> points, std::span<const geo::LonLat> lonlat);
-  // Writes the final header, fsyncs, renames to the final path. Returns the header.
-  Result<RunFileHeader> commit();
+  // Writes the final header, fsyncs (unless !durable: a scratch file its writer removes soon,
+  // whose data need not reach the disk), renames to the final path. Returns the header.
+  Result<RunFileHeader> commit(bool durable = true);
 
   const std::filesystem::path& partial_path() const { return partial_; }
   std::uint64_t point_count() const { return header_.point_count; }
