@@ -292,8 +292,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   auto writer = store->begin_layer(info);
   if (!writer) return writer.error();
 
-  // ── Pass 3: finest tiles on the worker pool, each worker encoding its own, stored one at a time
-  // ──
+  // ── Pass 3: finest tiles on the workers, each encoding its own; store writes one at a time ──
   clock.next("triangulate");
   std::uint64_t finest_tiles = 0;
   std::mutex writer_mutex;
