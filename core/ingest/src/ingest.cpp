@@ -11,11 +11,14 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "tinstream/store/queued_writer.hpp"
 #include "tinstream/subdivide/sorted_run.hpp"
 #include "tinstream/transform/run_file.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
@@ -292,20 +295,20 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   auto writer = store->begin_layer(info);
   if (!writer) return writer.error();
 
-  // ── Pass 3: finest tiles on the workers, each encoding its own; store writes one at a time ──
+  // ── Pass 3: finest tiles on the workers, each encoding its own; a writer thread stores them,
+  // so no worker waits while another commits a batch (and its WAL checkpoint) ──
   clock.next("triangulate");
-  std::uint64_t finest_tiles = 0;
-  std::mutex writer_mutex;
+  store::QueuedWriter queue(**writer, 4 * threads);
   auto pass3 = triangulate::build_finest_tiles(
       *sorted, threads,
       [&](tile::TinTile&& t) -> Status {
         auto prepared = store::prepare_tile(t);
         if (!prepared) return prepared.error();
-        std::lock_guard lock(writer_mutex);
-        ++finest_tiles;
-        return (*writer)->put(std::move(*prepared));
+        return queue.push(std::move(*prepared));
       },
       {}, progress);
+  if (Status s = queue.finish(); pass3 && !s) return s.error();
+  const std::uint64_t finest_tiles = queue.stored();
   if (!pass3) return pass3.error();
   summary.halo_overhead = static_cast<double>(pass3->gathered_points) /
                           static_cast<double>(std::max<std::uint64_t>(sorted->points, 1));

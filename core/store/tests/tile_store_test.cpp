@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "store_test_util.hpp"
+#include "tinstream/store/queued_writer.hpp"
 #include "tinstream/tile/codec.hpp"
 
 namespace tinstream::store {
@@ -374,6 +375,66 @@ TEST(TileStore, PreparedTilesOnOtherThreadsStoreAsPutDoes) {
   TinTile bad = tiles[0];
   bad.id = {3, 9, 0};
   EXPECT_EQ(prepare_tile(bad).error().code, ErrorCode::invalid_argument);
+}
+
+StoredTile prepared(const TinTile& t) {
+  auto r = prepare_tile(t);
+  if (!r) throw std::runtime_error(r.error().message);
+  return std::move(*r);
+}
+
+TEST(QueuedWriter, TilesPushedFromSeveralThreadsAreAllStored) {
+  TempDir dir;
+  auto store = open_rw(dir / "a.tinstream");
+  std::vector<TinTile> tiles;
+  std::mt19937_64 rng(51);
+  for (std::uint32_t i = 0; i < 300; ++i) {
+    tiles.push_back(make_grid_tile({10, i % 32, i / 32}, 2 + i % 3, 2, rng));
+  }
+  auto writer = store.begin_layer(basic_info("q"));
+  ASSERT_TRUE(writer.ok());
+  {
+    QueuedWriter queue(**writer, 3);  // smaller than the tiles in flight: push() waits
+    std::vector<std::thread> workers;
+    for (std::size_t w = 0; w < 3; ++w) {
+      workers.emplace_back([&, w] {
+        for (std::size_t i = w; i < tiles.size(); i += 3) {
+          ASSERT_TRUE(queue.push(prepared(tiles[i])).ok());
+        }
+      });
+    }
+    for (auto& t : workers) t.join();
+    ASSERT_TRUE(queue.finish().ok());
+    EXPECT_EQ(queue.stored(), tiles.size());
+    EXPECT_EQ(queue.push(prepared(tiles[0])).error().code,
+              ErrorCode::invalid_argument);  // after finish()
+  }
+  ASSERT_TRUE((*writer)->publish(basic_info("q")).ok());
+  EXPECT_EQ(store.layer("q")->tile_count, tiles.size());
+  for (const auto& t : tiles) EXPECT_TRUE(same_tile(**store.read_tile("q", t.id), t));
+}
+
+TEST(QueuedWriter, TheFirstStoreErrorStopsItAndIsReturned) {
+  TempDir dir;
+  auto store = open_rw(dir / "a.tinstream");
+  const auto tiles = some_tiles(52);
+  auto writer = store.begin_layer(basic_info("q"));
+  ASSERT_TRUE(writer.ok());
+  ASSERT_TRUE((*writer)->publish(basic_info("q")).ok());  // every later put() fails
+  QueuedWriter queue(**writer, 1);
+  Status first;
+  for (const auto& t : tiles) {  // the queue's thread fails on the first; a later push says so
+    first = queue.push(prepared(t));
+    if (!first.ok()) break;
+  }
+  const Status end = queue.finish();
+  ASSERT_FALSE(end.ok());
+  EXPECT_NE(end.error().message.find("already published"), std::string::npos)
+      << end.error().message;
+  EXPECT_EQ(queue.stored(), 0u);
+  if (!first.ok()) {
+    EXPECT_EQ(first.error().message, end.error().message);
+  }
 }
 
 TEST(TileStore, PublishedTilesViewHasQuadkeyAndTmsRow) {

@@ -1,0 +1,38 @@
+// tinstream/store/queued_writer.hpp — a LayerWriter fed by several threads through a bounded
+// queue and drained by one thread of its own.
+//
+// Workers prepare tiles (store::prepare_tile: encoding and compression, the CPU-heavy part) and
+// push() them; the queue's thread put()s them into the LayerWriter, so no worker waits while
+// SQLite commits a batch (and checkpoints the WAL). push() waits only while `capacity` tiles are
+// queued. The first store error stops the queue: the next push() and finish() return it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "tinstream/base/result.hpp"
+#include "tinstream/store/tile_store.hpp"
+
+namespace tinstream::store {
+
+class QueuedWriter {
+ public:
+  // `writer` must outlive the QueuedWriter and not be used by others until finish() returned.
+  QueuedWriter(LayerWriter& writer, std::size_t capacity);
+  QueuedWriter(const QueuedWriter&) = delete;
+  QueuedWriter& operator=(const QueuedWriter&) = delete;
+  ~QueuedWriter();  // finish()es
+
+  // Thread-safe.
+  Status push(StoredTile&& tile);
+  // Stores what is queued and stops the thread; the first store error, if any. Idempotent.
+  Status finish();
+  // Tiles stored so far (exact after finish()).
+  std::uint64_t stored() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tinstream::store
