@@ -43,9 +43,9 @@ quadkey=$(sqlite3 "$out/demo.sqlite" "SELECT quadkey FROM published_tiles WHERE 
 if [[ -n $quadkey ]]; then
   echo "GET $base/tiles/sample/$quadkey (native TIN tile, deflate)"
   curl -fsS --compressed -o "$out/tile.bin" -D - "$base/tiles/sample/$quadkey" | grep -iE '^(HTTP|etag|content-)'
-  echo "export as OBJ (lon lat height):"
+  echo "export as OBJ (lon lat height; NODATA corners at the data's edge left out):"
   "$bin/tinstream" export --store "$out/demo.sqlite" --layer sample --tile "$quadkey" --format obj \
-    --out "$out/tile.obj"
+    --drop-nodata --out "$out/tile.obj"
   head -3 "$out/tile.obj"; echo "… $(grep -c '^f' "$out/tile.obj") triangles in $out/tile.obj"
 fi
 echo "GET $base/tiles/sample/layer.json (Cesium terrain)"
