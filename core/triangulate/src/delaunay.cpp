@@ -41,7 +41,8 @@ void canonicalize(const std::vector<XY>& p, DelaunayMesh& mesh,
     if (t2 == kNoTri) continue;
     const int i2 = index_in(t2, t1);
     if (i2 < 0) continue;
-    const auto at = [](int i) { return static_cast<std::size_t>(i % 3); };
+    // (i ≤ 4 here: a subtraction, not the division i % 3 compiles to)
+    const auto at = [](int i) { return static_cast<std::size_t>(i >= 3 ? i - 3 : i); };
     // t1 = (c, a, b) from position i1; t2 = (d, b, a) from position i2.
     const std::uint32_t c = tv[t1][at(i1)], a = tv[t1][at(i1 + 1)], b = tv[t1][at(i1 + 2)];
     const std::uint32_t d = tv[t2][at(i2)];
