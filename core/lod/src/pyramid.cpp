@@ -207,19 +207,19 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
           return TilePool::Job([blob, lod, heights]() -> Result<store::StoredTile> {
             auto decoded = decode_child(*blob);
             if (!decoded) return decoded.error();
-            auto shared = std::make_shared<TinTile>(std::move(*decoded));
+            TinTile& tile = *decoded;
             bool nodata = false;
-            for (const auto& tr : shared->triangles) {
-              for (auto v : tr) nodata = nodata || (v < 4 && shared->corner_nodata[v]);
+            for (const auto& tr : tile.triangles) {
+              for (auto v : tr) nodata = nodata || (v < 4 && tile.corner_nodata[v]);
             }
-            if (Status st = reduce_finest_tile(*shared, lod); !st.ok()) return st.error();
+            if (Status st = reduce_finest_tile(tile, lod); !st.ok()) return st.error();
             if (nodata) {
               // The reduced tile's NODATA fan may reach over the original's data (parent.hpp).
-              shared->geometric_error =
-                  std::max(shared->geometric_error,
-                           nodata_band_bound(*shared, heights) + error_rounding_allowance(*shared));
+              tile.geometric_error =
+                  std::max(tile.geometric_error,
+                           nodata_band_bound(tile, heights) + error_rounding_allowance(tile));
             }
-            return store::prepare_tile(*shared);
+            return store::prepare_tile(tile);
           });
         },
         [&](store::StoredTile&& t) { return writer.put(std::move(t)); });

@@ -657,7 +657,7 @@ Status SortedRunBuilder::add(std::span<const InputPoint> points) {
                               std::to_string(p.x) + ", y " + std::to_string(p.y) + ", z " +
                               std::to_string(p.z) + ")");
     }
-    // The key is computed by the spill thread (keys_and_order), off this thread.
+    // The key is computed by the spill thread (sort_chunk), off this thread.
     st.buffer.push_back({0, p.x, p.y, p.z, p.weight, 0});
     ++st.input_points;
     if (st.buffer.size() == st.sort_capacity) {

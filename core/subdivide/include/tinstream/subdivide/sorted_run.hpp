@@ -20,7 +20,8 @@
 // Memory: at most about `memory_bytes` (sort buffers + merge buffers), whatever the input size;
 // temporary runs go to `tmp_dir` and are removed when done or on failure.
 // Threads: subdivide() and a SortedRunBuilder run on the calling thread plus one spill thread
-// (sorts and writes a full chunk while the next one fills).
+// (sorts and writes a full chunk while the next one fills) and, while merging, a writer thread
+// (writes one output buffer while the merge fills the other).
 #pragma once
 
 #include <cstdint>

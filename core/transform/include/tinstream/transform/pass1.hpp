@@ -53,8 +53,8 @@ struct TransformOptions {
   // Called on the calling thread with every batch of points just appended to the run file, in
   // record order (the ingest hands them to pass 2). An error stops the pass and is returned.
   std::function<Status(std::span<const RunPoint>)> on_points;
-  // false: the run file is not fsynced before its rename (the ingest removes it as soon as pass 1
-  // is done: its points went to pass 2 through on_points, so its data need never reach the disk).
+  // false: the run file is not fsynced before its rename (the ingest never reads it back: its
+  // points went to pass 2 through on_points, and the merge writes sorted.run over its pages).
   bool durable = true;
 };
 
