@@ -110,7 +110,10 @@ void Triangulation::legalize(VertexId p, std::size_t top) {
       } else if (u == kInfiniteVertex) {
         conflict = orient2d(mesh_.xy(q), mesh_.xy(w), pp) > 0.0;  // ghost (q, w, 0)
       } else {
-        conflict = incircle(mesh_.xy(q), mesh_.xy(w), mesh_.xy(u), pp) > 0.0;
+        const XY &xq = mesh_.xy(q), &xw = mesh_.xy(w), &xu = mesh_.xy(u);
+        const double in = incircle(xq, xw, xu, pp);
+        conflict =
+            in > 0.0 || (in == 0.0 && perturbed_ties_ && detail::perturbed_tie(xq, xw, xu, pp) > 0);
       }
       if (!conflict) break;
       const TriangleId v2 = mesh_.flip(t, i, j);

@@ -331,4 +331,28 @@ double incircle_exact(const XY& a, const XY& b, const XY& c, const XY& d) {
   return total.sign_value();
 }
 
+int perturbed_tie(const XY& a, const XY& b, const XY& c, const XY& d) {
+  // Cofactor of each point's lift (see perturbed_incircle), highest lexicographic rank first.
+  const auto lex_greater = [](const XY* l, const XY* r) {
+    return l->x > r->x || (l->x == r->x && l->y > r->y);
+  };
+  const XY* order[4] = {&a, &b, &c, &d};
+  std::sort(std::begin(order), std::end(order), lex_greater);
+  for (const XY* t : order) {
+    double s;
+    if (t == &d) {
+      s = -orient2d(a, b, c);
+    } else if (t == &a) {
+      s = orient2d(d, b, c);
+    } else if (t == &b) {
+      s = orient2d(a, d, c);
+    } else {
+      s = orient2d(a, b, d);
+    }
+    if (s > 0.0) return 1;
+    if (s < 0.0) return -1;
+  }
+  return -1;  // degenerate (a, b, c collinear): treat as outside
+}
+
 }  // namespace tinstream::kernel::detail

@@ -206,6 +206,84 @@ TEST(Delaunay, GeneralPositionResultDoesNotDependOnInsertionOrder) {
   EXPECT_EQ(sa, sb);
 }
 
+// Triangles as sets of input indices, each rotated to start at its smallest index (the
+// counter-clockwise order kept).
+std::set<VertexTriple> input_triangles(const Triangulation& t,
+                                       const std::vector<InsertResult>& inserted) {
+  std::vector<std::uint32_t> to_input(t.vertex_id_bound(), 0);
+  for (std::size_t i = 0; i < inserted.size(); ++i) {
+    if (inserted[i].outcome == InsertOutcome::inserted)
+      to_input[inserted[i].vertex] = static_cast<std::uint32_t>(i);
+  }
+  std::set<VertexTriple> out;
+  for (const auto& tri : t.finite_triangles()) {
+    VertexTriple v{to_input[tri[0]], to_input[tri[1]], to_input[tri[2]]};
+    std::rotate(v.begin(), std::min_element(v.begin(), v.end()), v.end());
+    out.insert(v);
+  }
+  return out;
+}
+
+TEST(Delaunay, PerturbedTiesGiveOneTriangulationWhateverTheInsertionOrder) {
+  // A lattice (every square cocircular), exactly cocircular integer circles and random points
+  // between them: with set_perturbed_ties every insertion order — bulk, one by one forwards and
+  // backwards, shuffled — gives the same triangles; without it the orders disagree (so the test
+  // can tell), and every edge of the result is locally Delaunay under the perturbation, checked
+  // edge by edge with perturbed_incircle (which makes it the unique perturbed triangulation).
+  std::vector<Point3> pts = test::lattice_points(24, 0.25);
+  for (const Point3& p : test::circle_points(0)) pts.push_back({p.x + 6.0, p.y + 3.0, 0.0, 0.0});
+  for (const Point3& p : test::uniform_points(200, 5, 0.0, 6.0)) pts.push_back(p);
+  auto build = [&](bool perturbed, const std::vector<std::size_t>& order, bool bulk) {
+    Triangulation t;
+    t.set_perturbed_ties(perturbed);
+    std::vector<InsertResult> inserted(pts.size(), InsertResult{InsertOutcome::rejected, kNone});
+    if (bulk) {
+      std::vector<Point3> permuted;
+      for (std::size_t i : order) permuted.push_back(pts[i]);
+      const auto r = t.insert_bulk(permuted);
+      for (std::size_t k = 0; k < order.size(); ++k) inserted[order[k]] = r[k];
+    } else {
+      for (std::size_t i : order) inserted[i] = t.insert(pts[i]);
+    }
+    for (const auto& r : inserted) EXPECT_EQ(r.outcome, InsertOutcome::inserted);
+    expect_valid(t);
+    return std::pair{input_triangles(t, inserted), std::move(t)};
+  };
+  std::vector<std::size_t> forwards(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) forwards[i] = i;
+  std::vector<std::size_t> backwards(forwards.rbegin(), forwards.rend());
+  std::vector<std::size_t> shuffled = forwards;
+  std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(7));
+
+  const auto built = build(true, forwards, true);
+  const std::set<VertexTriple>& reference = built.first;
+  const Triangulation& t = built.second;
+  for (const auto& order : {forwards, backwards, shuffled}) {
+    EXPECT_EQ(build(true, order, false).first, reference);
+    EXPECT_EQ(build(true, order, true).first, reference);
+  }
+  EXPECT_NE(build(false, forwards, false).first, build(false, backwards, false).first)
+      << "the fixture has no ties that insertion order decides";
+
+  // Every interior edge (a, b) with c and d on its two sides: d is outside the circle of
+  // (c, a, b) under the perturbation.
+  std::size_t edges = 0;
+  t.for_each_finite_triangle([&](TriangleId id, const Triangle& tri) {
+    for (int i = 0; i < 3; ++i) {
+      const TriangleId nb = tri.n[i];
+      if (nb == kNone) continue;
+      const Triangle& other = t.mesh().tri(nb);
+      const int j = t.mesh().index_of_neighbour(nb, id);
+      if (other.v[j] == kInfiniteVertex) continue;
+      ++edges;
+      EXPECT_LT(perturbed_incircle(t.xy(tri.v[i]), t.xy(tri.v[(i + 1) % 3]),
+                                   t.xy(tri.v[(i + 2) % 3]), t.xy(other.v[j])),
+                0);
+    }
+  });
+  EXPECT_GT(edges, 2 * pts.size());
+}
+
 TEST(Delaunay, BulkDuplicatesKeepTheFirstInInputOrder) {
   auto pts = test::uniform_points(5000, 23);
   const std::size_t n = pts.size();

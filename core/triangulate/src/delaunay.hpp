@@ -2,14 +2,11 @@
 // distinct points, and the perturbed in-circle test that defines it.
 //
 // Cocircular points (every rectangle of a DEM lattice in Mercator!) have several Delaunay
-// triangulations; the kernel picks one by insertion order. Two tiles triangulating different
-// subsets must agree on the triangles near their shared border, so ties are broken by a
-// symbolic perturbation that depends on the points alone: each point is lifted onto the
-// paraboloid and then raised by δ(p), where δ grows with the lexicographic rank of p and each
-// rank's δ dominates all lower ones. For four cocircular points the sign is then the sign of the
-// cofactor of the highest-ranked point (never zero: no three points of a circle are collinear).
-// The perturbed point set is in general position, so its Delaunay triangulation is unique and
-// Lawson flipping reaches it from any triangulation.
+// triangulations. Two tiles triangulating different subsets must agree on the triangles near
+// their shared border, so ties are broken by the kernel's perturbed_incircle (predicates.hpp),
+// a symbolic perturbation that depends on the points alone: the kernel flips by it as the points
+// go in (Triangulation::set_perturbed_ties), so its triangulation is the perturbed point set's,
+// which is unique.
 #pragma once
 
 #include <array>
@@ -23,10 +20,8 @@ namespace tinstream::triangulate::detail {
 
 using IndexTriangle = std::array<std::uint32_t, 3>;
 
-// +1 when d is inside the circle through the counter-clockwise a, b, c under the perturbation,
-// -1 outside (never 0 for distinct points with a, b, c not collinear).
-int perturbed_incircle(const kernel::XY& a, const kernel::XY& b, const kernel::XY& c,
-                       const kernel::XY& d);
+// The kernel's perturbed_incircle (predicates.hpp) defines the perturbation.
+using kernel::perturbed_incircle;
 
 // The canonical (perturbed) Delaunay triangulation: counter-clockwise triangles (indices into
 // `points`) covering the convex hull of `points`. Requires: points are pairwise distinct.
@@ -64,7 +59,6 @@ class DelaunayBuilder {
   std::vector<kernel::Point3> batch_;
   std::vector<std::uint32_t> index_of_;  // kernel vertex id → index into the points
   std::vector<std::uint32_t> compact_;  // kernel triangle id → index into mesh_ (or kNoNeighbour)
-  std::vector<std::pair<std::uint32_t, int>> flips_;  // canonicalize's stack
   std::size_t added_ = 0;
   DelaunayMesh mesh_;
 };

@@ -29,6 +29,8 @@ inline constexpr double kIncircleBoundA = (10.0 + 96.0 * kEpsilon) * kEpsilon;
 // Slow paths: exact sign (returned as a double of that sign).
 double orient2d_exact(const XY& a, const XY& b, const XY& c);
 double incircle_exact(const XY& a, const XY& b, const XY& c, const XY& d);
+// perturbed_incircle's tie case (a, b, c, d exactly cocircular).
+int perturbed_tie(const XY& a, const XY& b, const XY& c, const XY& d);
 }  // namespace detail
 
 // > 0 when a, b, c turn counter-clockwise, < 0 clockwise, 0 when collinear.
@@ -65,6 +67,22 @@ inline double incircle(const XY& a, const XY& b, const XY& c, const XY& d) {
   const double bound = detail::kIncircleBoundA * permanent;
   if (det > bound || -det > bound) return det;
   return detail::incircle_exact(a, b, c, d);
+}
+
+// incircle under a symbolic perturbation that breaks ties (cocircular points) by the points
+// alone: each point is lifted onto the paraboloid and then raised by δ(p), where δ grows with
+// the lexicographic rank of p (x, then y) and each rank's δ dominates all lower ones. For four
+// cocircular points the sign is then the sign of the cofactor of the highest-ranked point
+// (never zero: no three points of a circle are collinear). The perturbed point set is in
+// general position, so its Delaunay triangulation is unique — the *canonical* one, the same
+// whatever the insertion order, which lets two triangulations of overlapping point sets agree.
+// +1 when d is inside the circle through the counter-clockwise a, b, c under the perturbation,
+// -1 outside (never 0 for distinct points with a, b, c not collinear).
+inline int perturbed_incircle(const XY& a, const XY& b, const XY& c, const XY& d) {
+  const double exact = incircle(a, b, c, d);
+  if (exact > 0.0) return 1;
+  if (exact < 0.0) return -1;
+  return detail::perturbed_tie(a, b, c, d);
 }
 
 inline int sign(double v) { return (v > 0.0) - (v < 0.0); }

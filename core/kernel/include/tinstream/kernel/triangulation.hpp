@@ -5,7 +5,9 @@
 //    of the inserted vertices covering exactly their convex hull: every edge that is not
 //    constrained satisfies the empty-circle property, decided with the exact predicates of
 //    predicates.hpp; constrained edges are never flipped. Ties (cocircular points) are resolved
-//    by insertion order, like CGAL's Delaunay_triangulation_2.
+//    by insertion order, like CGAL's Delaunay_triangulation_2, or — with set_perturbed_ties —
+//    by perturbed_incircle, which makes the triangulation of unconstrained points the canonical
+//    one whatever the insertion order.
 //  * Vertex ids are stable: a vertex keeps its id until it is removed, and ids of removed
 //    vertices are not reused. Id 0 is the infinite vertex. Triangle ids are *not* stable across
 //    edits (slots are recycled through a free list); hold vertex ids, not triangle ids.
@@ -80,6 +82,11 @@ class Triangulation {
   // triangulation then behaves exactly as a newly constructed one — the same insertions give the
   // same vertex and triangle ids — so one object can serve many builds without reallocating.
   void clear();
+  // Insertions flip cocircular ties by perturbed_incircle (predicates.hpp) instead of keeping
+  // the first diagonal found: a triangulation of points without constraints is then the
+  // canonical Delaunay triangulation (triangle ids still depend on the insertion order). Set
+  // before inserting; clear() keeps it.
+  void set_perturbed_ties(bool on) { perturbed_ties_ = on; }
   InsertResult insert(const Point3& p);
   // Inserts all points in a spatially sorted order (BRIO rounds, each in Hilbert order); result
   // i belongs to points[i]. Among exact duplicates the first in `points` wins (its z and weight
@@ -247,6 +254,7 @@ class Triangulation {
   // walk picks its first edge at random (remembering stochastic walk).
   bool randomize_walk_ = false;
   bool has_constraints_ = false;
+  bool perturbed_ties_ = false;
   static constexpr std::uint32_t kRngSeed = 0x9E3779B9u;
   mutable std::uint32_t rng_ = kRngSeed;
   std::size_t live_vertices_ = 0;
