@@ -74,6 +74,24 @@ class BitWriter {
       filled_ -= 32;
     }
   }
+  // The fast path of the symbol loops: add() only appends to the 64-bit buffer (the caller keeps
+  // pending_bits() + count ≤ 64), flush() then writes out its whole bytes without a branch,
+  // leaving at most 7 bits pending. flush() stores 8 bytes: the output needs 8 bytes of room
+  // past the last byte written.
+  void add(std::uint32_t bits, unsigned count) {
+    buffer_ |= std::uint64_t{bits} << filled_;
+    filled_ += count;
+  }
+  void flush() {
+    if constexpr (std::endian::native == std::endian::little) {
+      std::memcpy(out_, &buffer_, 8);
+    } else {
+      for (int i = 0; i < 8; ++i) out_[i] = static_cast<std::uint8_t>(buffer_ >> (8 * i));
+    }
+    out_ += filled_ >> 3;
+    buffer_ >>= filled_ & ~7u;  // < 64: flush() is called with at most 63 bits pending
+    filled_ &= 7u;
+  }
   // Pads with zero bits to a byte boundary and writes out everything pending.
   void align() {
     while (filled_ > 0) {
@@ -258,7 +276,27 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
     ++i;
   }
   const std::uint8_t* const data = in.data();
+  // Literals are counted into two tables by position parity (summed below), so that a byte
+  // repeated every other position does not wait on its own counter's previous increment.
+  std::array<std::uint32_t, 256> odd{};
   while (i < end) {
+    if constexpr (std::endian::native == std::endian::little) {
+      // Eight bytes none of which repeats the byte before it start no run: all literals.
+      if (i + 8 <= end) {
+        std::uint64_t word, before;
+        std::memcpy(&word, data + i, 8);
+        std::memcpy(&before, data + i - 1, 8);
+        const std::uint64_t x = word ^ before;
+        if (((x - 0x0101010101010101u) & ~x & 0x8080808080808080u) == 0) {  // no zero byte
+          for (int k = 0; k < 8; k += 2) {
+            ++freq[static_cast<std::uint8_t>(word >> (8 * k))];
+            ++odd[static_cast<std::uint8_t>(word >> (8 * k + 8))];
+          }
+          i += 8;
+          continue;
+        }
+      }
+    }
     const std::uint8_t byte = data[i];
     if (byte != data[i - 1] || i + 2 >= end || data[i + 1] != byte || data[i + 2] != byte) {
       ++freq[byte];
@@ -272,6 +310,7 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
     ++freq[kLengthCodes[run].symbol];
     i += run;
   }
+  for (std::size_t b = 0; b < 256; ++b) freq[b] += odd[b];
   freq[kEndOfBlock] = 1;
 
   std::array<std::uint8_t, kLitLenSymbols> lit_lengths{};
@@ -327,10 +366,20 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
   // A local copy of the writer: its state stays in registers (stores through the output pointer
   // could alias `w`).
   BitWriter out = w;
+  // Three literals (≤ 45 bits) after each flush (≤ 7 bits left pending).
   const auto literals = [&](std::size_t from, std::size_t to) {
-    for (std::size_t k = from; k < to; ++k) {
+    std::size_t k = from;
+    for (; k + 3 <= to; k += 3) {
+      out.flush();
+      for (std::size_t m = 0; m < 3; ++m) {
+        const std::uint32_t word = lit_words[data[k + m]];
+        out.add(word & 0xFFFFu, word >> 16);
+      }
+    }
+    for (; k < to; ++k) {
+      out.flush();
       const std::uint32_t word = lit_words[data[k]];
-      out.put(word & 0xFFFFu, word >> 16);
+      out.add(word & 0xFFFFu, word >> 16);
     }
   };
   std::size_t next = begin;
@@ -341,10 +390,12 @@ void write_block(BitWriter& w, std::span<const std::uint8_t> in, std::size_t beg
     const LengthCode& lc = kLengthCodes[r.length];
     const std::uint32_t word = lit_words[lc.symbol];
     const unsigned len = word >> 16;
-    out.put((word & 0xFFFFu) | std::uint32_t{lc.extra} << len, len + lc.extra_bits + 1u);
+    out.flush();
+    out.add((word & 0xFFFFu) | std::uint32_t{lc.extra} << len, len + lc.extra_bits + 1u);
     next = r.position + r.length;
   }
   literals(next, end);
+  out.flush();
   w = out;
   w.put(lit_codes[kEndOfBlock], lit_lengths[kEndOfBlock]);
 }
@@ -356,7 +407,8 @@ std::vector<std::uint8_t> compress_runs(std::span<const std::uint8_t> bytes) {
   // No block is larger than it would be stored (≤ 3 + 7 bits of header and padding, 4 bytes of
   // LEN/NLEN, the data): ≤ 6 bytes per block over the input, plus 2 of zlib header, 4 of Adler-32
   // and one for the last partial byte.
-  std::vector<std::uint8_t> out(2 + bytes.size() + 6 * blocks + 4 + 1);
+  // (+ 8: BitWriter::flush stores 8 bytes at a time)
+  std::vector<std::uint8_t> out(2 + bytes.size() + 6 * blocks + 4 + 1 + 8);
   out[0] = 0x78;  // CMF: deflate, 32 KiB window
   out[1] = 0x01;  // FLG: fastest compression, no dictionary; (0x78 · 256 + 0x01) % 31 == 0
   BitWriter w(out.data() + 2);
