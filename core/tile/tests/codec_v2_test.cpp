@@ -386,6 +386,34 @@ TEST(CompressRuns, RoundTripsEdgeSizesAndContents) {
   }
 }
 
+TEST(CompressRuns, RoundTripsRunsStartingAtEveryOffsetOfAWord) {
+  // The literal counter skips eight bytes at a time where none repeats the byte before it: runs
+  // of 2 to 10 bytes placed at every offset after stretches of distinct neighbours, and at the
+  // end of a block, must still come out as the same bytes.
+  std::mt19937_64 rng(45);
+  std::vector<std::uint8_t> raw;
+  auto distinct = [&](std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint8_t c;
+      do {
+        c = static_cast<std::uint8_t>(rng());
+      } while (!raw.empty() && c == raw.back());
+      raw.push_back(c);
+    }
+  };
+  for (std::size_t offset = 0; offset < 17; ++offset) {
+    for (std::size_t run = 2; run <= 10; ++run) {
+      distinct(offset);
+      raw.insert(raw.end(), run, raw.empty() ? 0 : raw.back());
+    }
+  }
+  expect_round_trip(raw, "runs after distinct bytes");
+  raw.resize(16384 - 5);
+  raw.insert(raw.end(), 9, 0xAB);  // a run across the block boundary
+  distinct(30);
+  expect_round_trip(raw, "run across a block boundary");
+}
+
 TEST(CompressRuns, LimitsCodeLengthsOnSkewedCounts) {
   // Fibonacci counts over 19 byte values (10945 bytes, one block) would give a Huffman tree 18
   // deep; deflate allows 15.
