@@ -43,7 +43,10 @@ double NormalisedMercator::lon_from_x(double x) { return x * 180.0; }
 // This equals the DESIGN.md formula: ln(tan(π/4+φ/2)·((1−e sinφ)/(1+e sinφ))^(e/2)) = asinh(τ').
 double NormalisedMercator::y_from_lat(double lat_deg) const {
   const double tau = GeographicLib::Math::tand(lat_deg);
-  const double taup = GeographicLib::Math::taupf(tau, e_);
+  // On the sphere (e = 0) τ' = τ: taupf(τ, 0) = hypot(1, sinh 0)·τ − sinh(0)·hypot(1, τ) is τ to
+  // the bit for every finite τ, so its three library calls are skipped (pass 1 calls this for
+  // every point).
+  const double taup = e_ == 0.0 ? tau : GeographicLib::Math::taupf(tau, e_);
   return std::asinh(taup) / kPi;
 }
 

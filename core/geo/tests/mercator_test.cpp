@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 #include <proj.h>
 
+#include <GeographicLib/Math.hpp>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -86,6 +89,24 @@ TEST(Mercator, EllipsoidalInverseMatchesSnyderIteration) {
   const NormalisedMercator m(Projection::ellipsoidal);
   for (double y = -1.0; y <= 1.0; y += 1.0 / 1024) {
     EXPECT_NEAR(m.lat_from_y(y), static_cast<double>(snyder_lat(y, m.eccentricity())), 1e-11) << y;
+  }
+}
+
+TEST(Mercator, SphericalForwardIsGeographicLibsConformalFormToTheBit) {
+  // The spherical forward skips Math::taupf (τ' = τ when e = 0): every y must equal the general
+  // form asinh(taupf(tand(φ), 0)) / π bit for bit — random latitudes, ±0, subnormal and tiny
+  // ones, and the limits.
+  const NormalisedMercator m(Projection::spherical);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> lat(-m.max_latitude(), m.max_latitude());
+  std::vector<double> lats{0.0,   -0.0, 5e-324, -5e-324,          1e-300,           -1e-170,
+                           1e-10, 45.0, -45.0,  m.max_latitude(), -m.max_latitude()};
+  for (int i = 0; i < 1000000; ++i) lats.push_back(lat(rng));
+  for (const double phi : lats) {
+    const double general =
+        std::asinh(GeographicLib::Math::taupf(GeographicLib::Math::tand(phi), 0.0)) / kPi;
+    const double y = m.forward({0.0, phi}).y;
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(y), std::bit_cast<std::uint64_t>(general)) << phi;
   }
 }
 
