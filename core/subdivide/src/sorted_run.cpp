@@ -57,6 +57,30 @@ bool same_xy(const SortedPoint& a, const SortedPoint& b) {
   return a.key == b.key && a.x == b.x && a.y == b.y;
 }
 
+// A record as stored (sorted_run.hpp): the SortedPoint without its key, which is a function of
+// (x, y) — 32 bytes instead of 40 written and read per record, a fifth less temporary disk.
+struct StoredRecord {
+  double x, y, z;
+  float weight;
+  std::uint32_t reserved;
+};
+static_assert(sizeof(StoredRecord) == kSortedRecordBytes);
+
+StoredRecord to_stored(const SortedPoint& p) { return {p.x, p.y, p.z, p.weight, p.reserved}; }
+
+// Turns the first n records of `records`, which hold n StoredRecords as read (packed at the
+// front), into SortedPoints in place, computing their keys. Back to front: record i's stored
+// bytes [32i, 32i + 32) are read before its 40 bytes [40i, 40i + 40) are written, and those
+// cover no stored record j < i (32j + 32 ≤ 40i).
+void decode_stored(SortedPoint* records, std::size_t n) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(records);
+  for (std::size_t i = n; i-- > 0;) {
+    StoredRecord r;
+    std::memcpy(&r, bytes + i * sizeof(StoredRecord), sizeof r);
+    records[i] = {cell_key(r.x, r.y), r.x, r.y, r.z, r.weight, r.reserved};
+  }
+}
+
 struct FileCloser {
   void operator()(std::FILE* f) const {
     if (f) std::fclose(f);
@@ -108,7 +132,7 @@ class RunWriter {
     return w;
   }
   Status push(const SortedPoint& p) {
-    buffer_.push_back(p);
+    buffer_.push_back(to_stored(p));
     ++written_;
     if (buffer_.size() == capacity_) return flush();
     return {};
@@ -119,7 +143,7 @@ class RunWriter {
       background_->hand_over(buffer_);
       return {};
     }
-    if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(),
+    if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(StoredRecord), buffer_.size(),
                                         file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
     }
@@ -131,7 +155,8 @@ class RunWriter {
     if (Status s = wait_background(); !s) return s;
     background_.reset();  // joins the writer thread before the file goes
     if (std::fflush(file_.get()) != 0 ||
-        ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * sizeof(SortedPoint))) != 0) {
+        ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * sizeof(StoredRecord))) !=
+            0) {
       return io_failure("cannot write", path_);
     }
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
@@ -158,7 +183,7 @@ class RunWriter {
       thread.join();
     }
     // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
-    void hand_over(std::vector<SortedPoint>& buffer) {
+    void hand_over(std::vector<StoredRecord>& buffer) {
       {
         std::lock_guard lock(mutex);
         writing.swap(buffer);
@@ -179,7 +204,7 @@ class RunWriter {
         wake.wait(lock, [&] { return pending || stop; });
         if (!pending) return;
         lock.unlock();
-        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(SortedPoint),
+        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(StoredRecord),
                                                        writing.size(), file) == writing.size();
         const int err = ok ? 0 : (errno != 0 ? errno : EIO);
         lock.lock();
@@ -191,7 +216,7 @@ class RunWriter {
     std::FILE* file;
     std::mutex mutex;
     std::condition_variable wake;
-    std::vector<SortedPoint> writing;
+    std::vector<StoredRecord> writing;
     bool pending = false, stop = false;
     int error = 0;
     std::thread thread;  // last: started when the rest exists
@@ -209,7 +234,7 @@ class RunWriter {
   FilePtr file_;
   std::filesystem::path path_;
   std::size_t capacity_ = 0;
-  std::vector<SortedPoint> buffer_;
+  std::vector<StoredRecord> buffer_;
   std::uint64_t written_ = 0;
   std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
 };
@@ -243,8 +268,9 @@ class RunCursor {
  private:
   Status refill() {
     if (release_read_) release(read_bytes_);
-    size_ = std::fread(buffer_.data(), sizeof(SortedPoint), buffer_.size(), file_.get());
-    read_bytes_ += size_ * sizeof(SortedPoint);
+    size_ = std::fread(buffer_.data(), sizeof(StoredRecord), buffer_.size(), file_.get());
+    decode_stored(buffer_.data(), size_);
+    read_bytes_ += size_ * sizeof(StoredRecord);
     pos_ = 0;
     if (size_ == 0 && std::ferror(file_.get())) return io_failure("cannot read", path_);
     return {};
@@ -543,8 +569,10 @@ std::uint32_t key_column(double c) {
   constexpr std::int64_t n = std::int64_t{1} << kKeyLevel;
   constexpr double step = 0x1p-29;  // 2 / 2^30
   auto edge = [](std::int64_t i) { return -1.0 + static_cast<double>(i) * step; };
+  // c + 1 ≥ 0 (c is clamped to the map), so truncation is the floor (std::floor is a libm call
+  // on the baseline x86-64 target, and this runs once per record read).
   std::int64_t i =
-      std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((c + 1.0) * 0x1p29)), 0, n - 1);
+      std::clamp<std::int64_t>(static_cast<std::int64_t>((c + 1.0) * 0x1p29), 0, n - 1);
   while (i > 0 && c < edge(i)) --i;
   while (i + 1 < n && c >= edge(i + 1)) ++i;
   return static_cast<std::uint32_t>(i);
@@ -806,14 +834,14 @@ Result<SortedRunReader> SortedRunReader::open(const std::filesystem::path& path)
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(path, ec);
   if (ec) return io_error("cannot stat sorted run " + path.string() + ": " + ec.message());
-  if (bytes % sizeof(SortedPoint) != 0) {
+  if (bytes % sizeof(StoredRecord) != 0) {
     return corrupt_data("sorted run " + path.string() + " has " + std::to_string(bytes) +
-                        " bytes, not a multiple of the 40-byte record");
+                        " bytes, not a multiple of the 32-byte record");
   }
   SortedRunReader r;
   r.file_ = std::fopen(path.c_str(), "rb");
   if (!r.file_) return io_failure("cannot open", path);
-  r.records_ = bytes / sizeof(SortedPoint);
+  r.records_ = bytes / sizeof(StoredRecord);
   r.path_ = path;
   return r;
 }
@@ -827,10 +855,11 @@ Status SortedRunReader::read(std::uint64_t first, std::uint64_t count,
   }
   out.resize(count);
   if (count == 0) return {};
-  if (fseeko(file_, static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0 ||
-      std::fread(out.data(), sizeof(SortedPoint), count, file_) != count) {
+  if (fseeko(file_, static_cast<off_t>(first * sizeof(StoredRecord)), SEEK_SET) != 0 ||
+      std::fread(out.data(), sizeof(StoredRecord), count, file_) != count) {
     return io_failure("cannot read", path_);
   }
+  decode_stored(out.data(), count);
   return {};
 }
 

@@ -2,7 +2,7 @@
 // level and put every point into Morton (quadkey) order, with bounded memory.
 //
 // Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
-// Output: ONE sorted run file of fixed 40-byte records plus an in-memory tile index (first record
+// Output: ONE sorted run file of fixed 32-byte records plus an in-memory tile index (first record
 // and count of every non-empty finest tile, in Morton order) — not one file per tile.
 //
 // Order: records are sorted by (key, x, y) where key is the Morton code of the level-30 cell that
@@ -38,7 +38,9 @@
 
 namespace tinstream::subdivide {
 
-// One record of the sorted run (and of the temporary runs), 40 bytes, host (little-endian) order.
+// One record of the sorted run (and of the temporary runs) in memory. On disk a record is
+// kSortedRecordBytes, host (little-endian) order: f64 x, f64 y, f64 z, f32 weight, u32 reserved.
+// The key is not stored: it is cell_key(x, y), recomputed once per record read.
 struct SortedPoint {
   std::uint64_t key = 0;  // Morton code of the level-30 cell
   double x = 0, y = 0;    // normalised Mercator
@@ -47,6 +49,7 @@ struct SortedPoint {
   std::uint32_t reserved = 0;
 };
 static_assert(sizeof(SortedPoint) == 40);
+inline constexpr std::size_t kSortedRecordBytes = 32;
 
 // Morton code of column x and row y within one level: x bits at even positions, y bits at odd
 // ones (as quadkey digits 2·ybit + xbit).
@@ -69,7 +72,7 @@ struct SubdivideOptions {
   std::size_t memory_bytes = 256u << 20;  // sort + merge buffers
   std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
   // The sorted run; default: a file in tmp_dir. A file already there is written over in place
-  // and cut to size (its page-cache pages are reused: the ingest leaves pass 1's run file there).
+  // and cut to size (its page-cache pages are reused instead of new ones allocated).
   std::filesystem::path output;
   // Entries the tile index may take while the final merge tallies it (0: from memory_bytes);
   // beyond that it is built by re-reading the sorted run. The result is the same either way.
@@ -131,7 +134,8 @@ class SortedRunReader {
   ~SortedRunReader();
 
   std::uint64_t size() const { return records_; }
-  // Replaces `out` with records [first, first + count). Errors on I/O failure or range overflow.
+  // Replaces `out` with records [first, first + count), their keys computed from x and y. Errors
+  // on I/O failure or range overflow.
   Status read(std::uint64_t first, std::uint64_t count, std::vector<SortedPoint>& out);
 
  private:
