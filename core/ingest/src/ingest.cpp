@@ -226,6 +226,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
        sizeof(geo::LonLat) + sizeof(subdivide::InputPoint));
   sopt.memory_bytes = options.memory_bytes > 2 * in_flight ? options.memory_bytes - in_flight
                                                            : options.memory_bytes / 2;
+  sopt.merge_threads = threads >= 2 ? 2 : 1;  // --threads 1: one thread throughout
   sopt.tmp_dir = scratch->path();
   sopt.output = scratch->path() / "sorted.run";
   auto builder = subdivide::SortedRunBuilder::create(sopt);

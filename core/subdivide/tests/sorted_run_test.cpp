@@ -484,5 +484,59 @@ TEST(Subdivide, RecordsAreStoredWithoutKeysAndReadWithThem) {
   expect_same_records(expected, *run);
 }
 
+// The final merge split between two threads at one key: many records share a key (all of them
+// must land on one side: the split key is a run's middle key, here that cell's), duplicates lie
+// on both sides (across runs, so the lower half's leave a gap in the output that is closed), in
+// one run and in many. Same records, tile index, level counts and duplicate count as the
+// single-threaded merge and the reference.
+TEST(Subdivide, TwoThreadMergeEqualsOneThreadMerge) {
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 6000; ++i) {  // spread out, every fourth point given again with another z
+    const InputPoint p{0.0414 + 2e-4 * u(rng), 0.3524 + 2e-4 * u(rng), 100 * u(rng), 1};
+    pts.push_back(p);
+    if (i % 4 == 0) pts.push_back({p.x, p.y, p.z - 1, 2});
+  }
+  const double cx = 0.04150001, cy = 0.35250001;  // one level-30 cell, ulps apart
+  for (int i = 0; i < 8000; ++i) {
+    double x = cx, y = cy;
+    for (int k = i % 5; k > 0; --k) x = std::nextafter(x, 1.0);
+    for (int k = (i / 5) % 5; k > 0; --k) y = std::nextafter(y, 1.0);
+    pts.push_back({x, y, 1.0 * (i % 7), static_cast<float>(i % 3)});
+  }
+  std::shuffle(pts.begin(), pts.end(), rng);
+  const auto expected = reference_run(pts);
+  for (std::size_t memory : {std::size_t{256} << 20, std::size_t{1}}) {
+    std::vector<std::vector<unsigned char>> bytes;
+    std::vector<SortedRun> runs;
+    for (unsigned threads : {1u, 2u}) {
+      TempDir tmp;
+      SubdivideOptions opt;
+      opt.tmp_dir = tmp.path();
+      opt.max_points = 300;
+      opt.memory_bytes = memory;
+      opt.merge_threads = threads;
+      auto run = subdivide(feed_of(pts, 500), opt);
+      ASSERT_TRUE(run.ok()) << run.error().message;
+      expect_same_records(expected, *run);
+      EXPECT_EQ(run->duplicates_merged, pts.size() - expected.size()) << memory << " " << threads;
+      std::ifstream in(run->path, std::ios::binary);
+      bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      EXPECT_EQ(tmp.entries(), 1u);
+      runs.push_back(std::move(*run));
+    }
+    EXPECT_EQ(bytes[0], bytes[1]) << memory;
+    EXPECT_EQ(runs[0].max_tile_points, runs[1].max_tile_points) << memory;
+    EXPECT_EQ(runs[0].finest_level, runs[1].finest_level) << memory;
+    ASSERT_EQ(runs[0].tiles.size(), runs[1].tiles.size()) << memory;
+    for (std::size_t t = 0; t < runs[0].tiles.size(); ++t) {
+      EXPECT_EQ(runs[0].tiles[t].id, runs[1].tiles[t].id) << memory << " " << t;
+      EXPECT_EQ(runs[0].tiles[t].first, runs[1].tiles[t].first) << memory << " " << t;
+      EXPECT_EQ(runs[0].tiles[t].count, runs[1].tiles[t].count) << memory << " " << t;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace tinstream::subdivide

@@ -21,7 +21,8 @@
 // temporary runs go to `tmp_dir` and are removed when done or on failure.
 // Threads: subdivide() and a SortedRunBuilder run on the calling thread plus one spill thread
 // (sorts and writes a full chunk while the next one fills) and, while merging, a writer thread
-// (writes one output buffer while the merge fills the other).
+// (writes one output buffer while the merge fills the other); with merge_threads = 2 the final
+// merge's upper key range is merged on a second thread (with its own writer thread).
 #pragma once
 
 #include <cstdint>
@@ -77,6 +78,9 @@ struct SubdivideOptions {
   // Entries the tile index may take while the final merge tallies it (0: from memory_bytes);
   // beyond that it is built by re-reading the sorted run. The result is the same either way.
   std::size_t index_entries = 0;
+  // 2: the final merge runs on two threads, each merging the records on one side of a key into
+  // its own part of the output (same result as 1, the single-threaded merge).
+  unsigned merge_threads = 2;
 };
 
 struct SortedRun {
