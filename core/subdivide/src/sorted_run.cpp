@@ -59,14 +59,14 @@ bool same_xy(const SortedPoint& a, const SortedPoint& b) {
   return a.key == b.key && a.x == b.x && a.y == b.y;
 }
 
-// A record as stored (sorted_run.hpp): the SortedPoint without its key, which is a function of
-// (x, y) — 32 bytes instead of 40 written and read per record, a fifth less temporary disk.
+// A record of the temporary runs (sorted_run.hpp): the SortedPoint without its key, which is a
+// function of (x, y) — 32 bytes instead of 40 written and read per record.
 struct StoredRecord {
   double x, y, z;
   float weight;
   std::uint32_t reserved;
 };
-static_assert(sizeof(StoredRecord) == kSortedRecordBytes);
+static_assert(sizeof(StoredRecord) == kSpillRecordBytes);
 
 StoredRecord to_stored(const SortedPoint& p) { return {p.x, p.y, p.z, p.weight, p.reserved}; }
 
@@ -120,36 +120,46 @@ class RunWriter {
   // at close(): its cached pages are rewritten instead of new ones being allocated, which on the
   // benchmark VM costs ~4 ms per MB (a first touch of a page the host has taken back) against
   // ~0.2 ms. Without, or with no file there, the file is created empty.
+  // `keyed`: SortedPoints as they are, key included (the sorted run, which pass 3 reads many
+  // times over); else StoredRecords (the temporary runs, read once).
   static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records,
-                                  bool background = false, bool overwrite = false) {
+                                  bool background = false, bool overwrite = false,
+                                  bool keyed = false) {
     FilePtr f(overwrite ? std::fopen(path.c_str(), "r+b") : nullptr);
     if (!f) f.reset(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
-    return RunWriter(std::move(f), path, buffer_records, background);
+    return RunWriter(std::move(f), path, buffer_records, background, keyed);
   }
-  // Writes the region of an existing file that starts at record `first` (one of the parallel
-  // merge's halves); close() leaves the file's size alone.
+  // Writes keyed records into the region of an existing file that starts at record `first` (one
+  // of the parallel merge's halves of the sorted run); close() leaves the file's size alone.
   static Result<RunWriter> create_region(const std::filesystem::path& path, std::uint64_t first,
                                          std::size_t buffer_records) {
     FilePtr f(std::fopen(path.c_str(), "r+b"));
-    if (!f || fseeko(f.get(), static_cast<off_t>(first * sizeof(StoredRecord)), SEEK_SET) != 0) {
+    if (!f || fseeko(f.get(), static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0) {
       return io_failure("cannot open", path);
     }
-    RunWriter w(std::move(f), path, buffer_records, /*background=*/true);
+    RunWriter w(std::move(f), path, buffer_records, /*background=*/true, /*keyed=*/true);
     w.cut_at_close_ = false;
     return w;
   }
   RunWriter(FilePtr f, const std::filesystem::path& path, std::size_t buffer_records,
-            bool background) {
-    RunWriter& w = *this;
-    w.file_ = std::move(f);
-    w.path_ = path;
-    w.capacity_ = std::max<std::size_t>(buffer_records, 256);
-    w.buffer_.reserve(w.capacity_);
-    if (background) w.background_ = std::make_unique<Background>(w.file_.get(), w.capacity_);
+            bool background, bool keyed)
+      : file_(std::move(f)),
+        path_(path),
+        record_bytes_(keyed ? sizeof(SortedPoint) : sizeof(StoredRecord)),
+        capacity_(std::max<std::size_t>(buffer_records, 256) * record_bytes_) {
+    buffer_.reserve(capacity_);
+    if (background) background_ = std::make_unique<Background>(file_.get(), capacity_);
   }
   Status push(const SortedPoint& p) {
-    buffer_.push_back(to_stored(p));
+    const std::size_t at = buffer_.size();
+    buffer_.resize(at + record_bytes_);
+    if (record_bytes_ == sizeof(SortedPoint)) {
+      std::memcpy(buffer_.data() + at, &p, sizeof p);
+    } else {
+      const StoredRecord r = to_stored(p);
+      std::memcpy(buffer_.data() + at, &r, sizeof r);
+    }
     ++written_;
     if (buffer_.size() == capacity_) return flush();
     return {};
@@ -160,8 +170,8 @@ class RunWriter {
       background_->hand_over(buffer_);
       return {};
     }
-    if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(StoredRecord), buffer_.size(),
-                                        file_.get()) != buffer_.size()) {
+    if (!buffer_.empty() &&
+        std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
     }
     buffer_.clear();
@@ -172,8 +182,8 @@ class RunWriter {
     if (Status s = wait_background(); !s) return s;
     background_.reset();  // joins the writer thread before the file goes
     if (std::fflush(file_.get()) != 0 ||
-        (cut_at_close_ && ::ftruncate(fileno(file_.get()),
-                                      static_cast<off_t>(written_ * sizeof(StoredRecord))) != 0)) {
+        (cut_at_close_ &&
+         ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * record_bytes_)) != 0)) {
       return io_failure("cannot write", path_);
     }
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
@@ -200,7 +210,7 @@ class RunWriter {
       thread.join();
     }
     // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
-    void hand_over(std::vector<StoredRecord>& buffer) {
+    void hand_over(std::vector<unsigned char>& buffer) {
       {
         std::lock_guard lock(mutex);
         writing.swap(buffer);
@@ -221,8 +231,8 @@ class RunWriter {
         wake.wait(lock, [&] { return pending || stop; });
         if (!pending) return;
         lock.unlock();
-        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(StoredRecord),
-                                                       writing.size(), file) == writing.size();
+        const bool ok = writing.empty() ||
+                        std::fwrite(writing.data(), 1, writing.size(), file) == writing.size();
         const int err = ok ? 0 : (errno != 0 ? errno : EIO);
         lock.lock();
         if (err != 0 && error == 0) error = err;
@@ -233,7 +243,7 @@ class RunWriter {
     std::FILE* file;
     std::mutex mutex;
     std::condition_variable wake;
-    std::vector<StoredRecord> writing;
+    std::vector<unsigned char> writing;
     bool pending = false, stop = false;
     int error = 0;
     std::thread thread;  // last: started when the rest exists
@@ -250,8 +260,9 @@ class RunWriter {
 
   FilePtr file_;
   std::filesystem::path path_;
-  std::size_t capacity_ = 0;
-  std::vector<StoredRecord> buffer_;
+  std::size_t record_bytes_ = 0;
+  std::size_t capacity_ = 0;  // bytes
+  std::vector<unsigned char> buffer_;
   std::uint64_t written_ = 0;
   bool cut_at_close_ = true;
   std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
@@ -266,12 +277,13 @@ class RunCursor {
  public:
   // Reads records [first, end) of the run (end: ~0 for all); punching stays inside that range
   // (whole 64 KiB blocks), so two cursors may read the two halves of one run.
+  // `keyed`: the file holds SortedPoints (the sorted run), else StoredRecords (keys computed).
   static Result<RunCursor> open(const std::filesystem::path& path, std::size_t buffer_records,
                                 bool release_read = false, std::uint64_t first = 0,
-                                std::uint64_t end = ~std::uint64_t{0}) {
+                                std::uint64_t end = ~std::uint64_t{0}, bool keyed = false) {
     FilePtr f(std::fopen(path.c_str(), release_read ? "r+b" : "rb"));  // punching needs write
     if (!f) return io_failure("cannot open", path);
-    constexpr std::uint64_t kRecord = sizeof(StoredRecord);
+    const std::uint64_t kRecord = keyed ? sizeof(SortedPoint) : sizeof(StoredRecord);
     if (first > 0 && fseeko(f.get(), static_cast<off_t>(first * kRecord), SEEK_SET) != 0) {
       return io_failure("cannot seek in", path);
     }
@@ -279,6 +291,7 @@ class RunCursor {
     c.file_ = std::move(f);
     c.path_ = path;
     c.release_read_ = release_read;
+    c.keyed_ = keyed;
     c.left_ = end - first;
     c.read_bytes_ = first * kRecord;
     c.released_ = (c.read_bytes_ + kReleaseBlock - 1) / kReleaseBlock * kReleaseBlock;
@@ -297,9 +310,14 @@ class RunCursor {
   Status refill() {
     if (release_read_) release(read_bytes_);
     const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(buffer_.size(), left_));
-    size_ = std::fread(buffer_.data(), sizeof(StoredRecord), want, file_.get());
-    decode_stored(buffer_.data(), size_);
-    read_bytes_ += size_ * sizeof(StoredRecord);
+    if (keyed_) {
+      size_ = std::fread(buffer_.data(), sizeof(SortedPoint), want, file_.get());
+      read_bytes_ += size_ * sizeof(SortedPoint);
+    } else {
+      size_ = std::fread(buffer_.data(), sizeof(StoredRecord), want, file_.get());
+      decode_stored(buffer_.data(), size_);
+      read_bytes_ += size_ * sizeof(StoredRecord);
+    }
     left_ -= size_;
     pos_ = 0;
     if (size_ == 0 && std::ferror(file_.get())) return io_failure("cannot read", path_);
@@ -322,7 +340,7 @@ class RunCursor {
   std::filesystem::path path_;
   std::vector<SortedPoint> buffer_;
   std::size_t pos_ = 0, size_ = 0;
-  bool release_read_ = false;
+  bool release_read_ = false, keyed_ = false;
   std::uint64_t left_ = 0;  // records of the range not read yet
   std::uint64_t read_bytes_ = 0, released_ = 0;
   static constexpr std::uint64_t kReleaseBlock = 1 << 16;
@@ -774,19 +792,19 @@ Status close_gap(const std::filesystem::path& path, std::uint64_t from, std::uin
                  std::uint64_t count) {
   const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
   if (fd < 0) return io_failure("cannot open", path);
-  constexpr std::uint64_t kStep = (1 << 20) / sizeof(StoredRecord);
-  std::vector<StoredRecord> buffer(static_cast<std::size_t>(std::min(kStep, count)));
+  constexpr std::uint64_t kStep = (1 << 20) / sizeof(SortedPoint);
+  std::vector<SortedPoint> buffer(static_cast<std::size_t>(std::min(kStep, count)));
   bool ok = true;
   for (std::uint64_t done = 0; ok && done < count && from != to;) {
     const std::uint64_t n = std::min(kStep, count - done);
-    const auto bytes = static_cast<ssize_t>(n * sizeof(StoredRecord));
+    const auto bytes = static_cast<ssize_t>(n * sizeof(SortedPoint));
     ok = ::pread(fd, buffer.data(), static_cast<std::size_t>(bytes),
-                 static_cast<off_t>((from + done) * sizeof(StoredRecord))) == bytes &&
+                 static_cast<off_t>((from + done) * sizeof(SortedPoint))) == bytes &&
          ::pwrite(fd, buffer.data(), static_cast<std::size_t>(bytes),
-                  static_cast<off_t>((to + done) * sizeof(StoredRecord))) == bytes;
+                  static_cast<off_t>((to + done) * sizeof(SortedPoint))) == bytes;
     done += n;
   }
-  ok = ok && ::ftruncate(fd, static_cast<off_t>((to + count) * sizeof(StoredRecord))) == 0;
+  ok = ok && ::ftruncate(fd, static_cast<off_t>((to + count) * sizeof(SortedPoint))) == 0;
   const int err = errno;
   ::close(fd);
   if (!ok) {
@@ -1001,7 +1019,8 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   TileTally tally(options.max_level, options.min_level,
                   split.low.empty() ? tally_entries : tally_entries / 2);
   if (split.low.empty()) {
-    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true);
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true,
+                               /*keyed=*/true);
     if (!w) return w.error();
     if (Status s = merge_runs(whole_runs(runs), merge_buffer, *w, &levels, &tally,
                               result.duplicates_merged, tick);
@@ -1073,7 +1092,8 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   // (tiles nest, so it coarsens exactly), else one sequential pass over the keys.
   if (!tally.index(result.finest_level, result.tiles)) {
     result.tiles.clear();
-    auto cursor = RunCursor::open(result.path, 1 << 15);
+    auto cursor =
+        RunCursor::open(result.path, 1 << 15, false, 0, ~std::uint64_t{0}, /*keyed=*/true);
     if (!cursor) return cursor.error();
     const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
     std::uint64_t index = 0;
@@ -1134,14 +1154,14 @@ Result<SortedRunReader> SortedRunReader::open(const std::filesystem::path& path)
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(path, ec);
   if (ec) return io_error("cannot stat sorted run " + path.string() + ": " + ec.message());
-  if (bytes % sizeof(StoredRecord) != 0) {
+  if (bytes % sizeof(SortedPoint) != 0) {
     return corrupt_data("sorted run " + path.string() + " has " + std::to_string(bytes) +
-                        " bytes, not a multiple of the 32-byte record");
+                        " bytes, not a multiple of the 40-byte record");
   }
   SortedRunReader r;
   r.file_ = std::fopen(path.c_str(), "rb");
   if (!r.file_) return io_failure("cannot open", path);
-  r.records_ = bytes / sizeof(StoredRecord);
+  r.records_ = bytes / sizeof(SortedPoint);
   r.path_ = path;
   return r;
 }
@@ -1155,11 +1175,10 @@ Status SortedRunReader::read(std::uint64_t first, std::uint64_t count,
   }
   out.resize(count);
   if (count == 0) return {};
-  if (fseeko(file_, static_cast<off_t>(first * sizeof(StoredRecord)), SEEK_SET) != 0 ||
-      std::fread(out.data(), sizeof(StoredRecord), count, file_) != count) {
+  if (fseeko(file_, static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0 ||
+      std::fread(out.data(), sizeof(SortedPoint), count, file_) != count) {
     return io_failure("cannot read", path_);
   }
-  decode_stored(out.data(), count);
   return {};
 }
 

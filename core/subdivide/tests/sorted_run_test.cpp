@@ -294,7 +294,7 @@ TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
     }
     auto run = subdivide(feed_of(pts), opt);
     ASSERT_TRUE(run.ok()) << run.error().message;
-    EXPECT_EQ(fs::file_size(opt.output), expected.size() * kSortedRecordBytes);
+    EXPECT_EQ(fs::file_size(opt.output), expected.size() * sizeof(SortedPoint));
     expect_same_records(expected, *run);
     EXPECT_EQ(tmp.entries(), 1u);
   }
@@ -399,7 +399,7 @@ TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
   const fs::path bad = tmp.path() / "bad.run";
   {
     std::FILE* f = std::fopen(bad.c_str(), "wb");
-    std::fputs("not a multiple of 32 bytes", f);
+    std::fputs("not a multiple of forty bytes", f);
     std::fclose(f);
   }
   auto r = SortedRunReader::open(bad);
@@ -417,71 +417,42 @@ TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
   EXPECT_TRUE(reader->read(90, 10, out).ok());
 }
 
-// The run stores 32 bytes per record (x, y, z, weight, reserved; no key) and the reader gives the
-// key back, computed from x and y: checked on a file written by hand, keyed through the tile
-// module, and on the bytes of a run the builder wrote.
-TEST(Subdivide, RecordsAreStoredWithoutKeysAndReadWithThem) {
-  TempDir tmp;
-  const std::vector<InputPoint> by_hand = {
-      {0.25, -0.5, 12.5, 2.0f}, {-1.0, 1.0, -3.0, 0.5f}, {0.0414, 0.3524, 1e4, 1.0f}};
-  const fs::path file = tmp.path() / "by_hand.run";
-  {
-    std::FILE* f = std::fopen(file.c_str(), "wb");
-    for (const InputPoint& p : by_hand) {
-      unsigned char rec[32] = {};
-      std::memcpy(rec, &p.x, 8);
-      std::memcpy(rec + 8, &p.y, 8);
-      std::memcpy(rec + 16, &p.z, 8);
-      std::memcpy(rec + 24, &p.weight, 4);
-      std::fwrite(rec, 1, sizeof rec, f);
-    }
-    std::fclose(f);
-  }
-  auto reader = SortedRunReader::open(file);
-  ASSERT_TRUE(reader.ok()) << reader.error().message;
-  EXPECT_EQ(reader->size(), by_hand.size());
-  std::vector<SortedPoint> got;
-  for (std::uint64_t first : {0, 1}) {
-    ASSERT_TRUE(reader->read(first, by_hand.size() - first, got).ok());
-    ASSERT_EQ(got.size(), by_hand.size() - first);
-    for (std::size_t i = 0; i < got.size(); ++i) {
-      const InputPoint& p = by_hand[first + i];
-      const geo::TileId cell = geo::TileId::containing({p.x, p.y}, 30);
-      EXPECT_EQ(got[i].key, morton_interleave(cell.x, cell.y)) << first << " " << i;
-      EXPECT_EQ(got[i].x, p.x);
-      EXPECT_EQ(got[i].y, p.y);
-      EXPECT_EQ(got[i].z, p.z);
-      EXPECT_EQ(got[i].weight, p.weight);
-    }
-  }
-
+// The temporary runs store 32 bytes per record, without the key; the merge computes it again
+// as it reads them (a key left 0, or wrong, would show in the order and in the keys of the
+// sorted run, which keeps them): the sorted run's bytes are 40-byte records whose keys are
+// those of the tile module, through single- and multi-pass merges.
+TEST(Subdivide, SpillsDropTheKeyAndTheSortedRunKeepsIt) {
   const auto pts = clustered_points(3000, 21);
   const auto expected = reference_run(pts);
-  SubdivideOptions opt;
-  opt.tmp_dir = tmp.path();
-  opt.memory_bytes = 1;  // many runs: the merge reads them back too
-  auto run = subdivide(feed_of(pts, 100), opt);
-  ASSERT_TRUE(run.ok()) << run.error().message;
-  std::ifstream in(run->path, std::ios::binary);
-  const std::vector<unsigned char> bytes(std::istreambuf_iterator<char>(in), {});
-  ASSERT_EQ(bytes.size(), expected.size() * 32);
-  for (std::size_t i = 0; i < expected.size(); ++i) {
-    const unsigned char* rec = bytes.data() + 32 * i;
-    double x, y, z;
-    float w;
-    std::uint32_t reserved;
-    std::memcpy(&x, rec, 8);
-    std::memcpy(&y, rec + 8, 8);
-    std::memcpy(&z, rec + 16, 8);
-    std::memcpy(&w, rec + 24, 4);
-    std::memcpy(&reserved, rec + 28, 4);
-    ASSERT_EQ(x, expected[i].x) << i;
-    ASSERT_EQ(y, expected[i].y) << i;
-    ASSERT_EQ(z, expected[i].z) << i;
-    ASSERT_EQ(w, expected[i].weight) << i;
-    ASSERT_EQ(reserved, 0u) << i;
+  for (std::size_t memory : {std::size_t{256} << 20, std::size_t{1}}) {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.memory_bytes = memory;
+    auto run = subdivide(feed_of(pts, 100), opt);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    std::ifstream in(run->path, std::ios::binary);
+    const std::vector<unsigned char> bytes(std::istreambuf_iterator<char>(in), {});
+    ASSERT_EQ(bytes.size(), expected.size() * 40);
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      const unsigned char* rec = bytes.data() + 40 * i;
+      std::uint64_t key;
+      double x, y, z;
+      float w;
+      std::memcpy(&key, rec, 8);
+      std::memcpy(&x, rec + 8, 8);
+      std::memcpy(&y, rec + 16, 8);
+      std::memcpy(&z, rec + 24, 8);
+      std::memcpy(&w, rec + 32, 4);
+      const geo::TileId cell = geo::TileId::containing({x, y}, 30);
+      ASSERT_EQ(key, morton_interleave(cell.x, cell.y)) << i;
+      ASSERT_EQ(x, expected[i].x) << i;
+      ASSERT_EQ(y, expected[i].y) << i;
+      ASSERT_EQ(z, expected[i].z) << i;
+      ASSERT_EQ(w, expected[i].weight) << i;
+    }
+    expect_same_records(expected, *run);
   }
-  expect_same_records(expected, *run);
 }
 
 // The final merge split between two threads at one key: many records share a key (all of them

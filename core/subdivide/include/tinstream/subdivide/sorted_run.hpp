@@ -2,8 +2,9 @@
 // level and put every point into Morton (quadkey) order, with bounded memory.
 //
 // Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
-// Output: ONE sorted run file of fixed 32-byte records plus an in-memory tile index (first record
-// and count of every non-empty finest tile, in Morton order) — not one file per tile.
+// Output: ONE sorted run file of fixed 40-byte records (SortedPoint, key included) plus an
+// in-memory tile index (first record and count of every non-empty finest tile, in Morton order) —
+// not one file per tile. The temporary runs hold 32 bytes per record (kSpillRecordBytes).
 //
 // Order: records are sorted by (key, x, y) where key is the Morton code of the level-30 cell that
 // holds the point (geo::TileId::containing). Level-30 cells nest exactly inside every coarser
@@ -39,9 +40,10 @@
 
 namespace tinstream::subdivide {
 
-// One record of the sorted run (and of the temporary runs) in memory. On disk a record is
-// kSortedRecordBytes, host (little-endian) order: f64 x, f64 y, f64 z, f32 weight, u32 reserved.
-// The key is not stored: it is cell_key(x, y), recomputed once per record read.
+// One record of the sorted run, as in the file: 40 bytes, host (little-endian) order. The
+// temporary runs (spills, merge passes) store kSpillRecordBytes per record: f64 x, f64 y, f64 z,
+// f32 weight, u32 reserved, without the key, which is cell_key(x, y), recomputed once per record
+// the merge reads (pass 3 reads the sorted run many times over: it keeps its keys).
 struct SortedPoint {
   std::uint64_t key = 0;  // Morton code of the level-30 cell
   double x = 0, y = 0;    // normalised Mercator
@@ -50,7 +52,7 @@ struct SortedPoint {
   std::uint32_t reserved = 0;
 };
 static_assert(sizeof(SortedPoint) == 40);
-inline constexpr std::size_t kSortedRecordBytes = 32;
+inline constexpr std::size_t kSpillRecordBytes = 32;
 
 // Morton code of column x and row y within one level: x bits at even positions, y bits at odd
 // ones (as quadkey digits 2·ybit + xbit).
@@ -138,8 +140,7 @@ class SortedRunReader {
   ~SortedRunReader();
 
   std::uint64_t size() const { return records_; }
-  // Replaces `out` with records [first, first + count), their keys computed from x and y. Errors
-  // on I/O failure or range overflow.
+  // Replaces `out` with records [first, first + count). Errors on I/O failure or range overflow.
   Status read(std::uint64_t first, std::uint64_t count, std::vector<SortedPoint>& out);
 
  private:
