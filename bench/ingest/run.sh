@@ -3,7 +3,7 @@
 # mountains, 4 points/m², flight strips) of several sizes through `tinstream ingest` with default
 # options; records points/s and peak RSS for each size and prints a markdown table.
 #   SIZES="1e7 3e7 1e8" BUILD_DIR=build-bench WORK=/tmp/tinstream-ingest-bench bench/ingest/run.sh
-# Needs free disk: about 60 bytes per point for the LAS file plus ~90 bytes per point of
+# Needs free disk: about 60 bytes per point for the LAS file plus ~40 bytes per point of
 # temporary run files during the ingest.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -208,9 +208,10 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   PhaseClock clock(summary.phases);
   clock.next("transform");
 
-  // ── Passes 1 and 2 overlap: pass 1 writes the run file and hands every batch to pass 2's
-  // builder, whose spill thread sorts and writes chunks while pass 1 goes on; the merge (all
-  // points needed) starts when pass 1 is done. ──
+  // ── Passes 1 and 2 overlap: pass 1 hands every batch to pass 2's builder, whose spill thread
+  // sorts and writes chunks (the run files of transformed points) while pass 1 goes on; pass 1
+  // itself writes no run file, only its header (counts, boxes) is kept. The merge (all points
+  // needed) starts when pass 1 is done. ──
   subdivide::SubdivideOptions sopt;
   sopt.max_points = options.max_points;
   sopt.max_level = options.max_level;
@@ -225,16 +226,15 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
        sizeof(geo::LonLat) + sizeof(subdivide::InputPoint));
   sopt.memory_bytes = options.memory_bytes > 2 * in_flight ? options.memory_bytes - in_flight
                                                            : options.memory_bytes / 2;
+  sopt.merge_threads = threads >= 2 ? 2 : 1;  // --threads 1: one thread throughout
   sopt.tmp_dir = scratch->path();
   sopt.output = scratch->path() / "sorted.run";
   auto builder = subdivide::SortedRunBuilder::create(sopt);
   if (!builder) return builder.error();
   std::vector<subdivide::InputPoint> handed;
   transform::TransformOptions topt;
-  topt.output = scratch->path() / "points.run";
   topt.projection = options.projection;
   topt.threads = threads;
-  topt.durable = false;  // never read back: the merge writes sorted.run over it (below)
   topt.on_points = [&](std::span<const transform::RunPoint> points) -> Status {
     handed.clear();
     for (const auto& p : points) handed.push_back({p.x, p.y, p.z, p.weight});
@@ -252,14 +252,6 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
     return invalid_argument(
         "the inputs hold no usable points (" + std::to_string(summary.records_read) +
         " records read, all rejected by the class filter, NODATA or as invalid)");
-  }
-
-  {
-    // Pass 2 had the points in memory: the run file is not read back. It becomes the space the
-    // merge writes sorted.run over (rewriting its cached pages costs a fraction of new ones).
-    std::error_code ec;
-    fs::rename(pass1->run_file, sopt.output, ec);
-    if (ec) fs::remove(pass1->run_file, ec);
   }
 
   // ── Pass 2: merge the sorted chunks, finest level, tile index ──

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <condition_variable>
@@ -57,6 +59,30 @@ bool same_xy(const SortedPoint& a, const SortedPoint& b) {
   return a.key == b.key && a.x == b.x && a.y == b.y;
 }
 
+// A record of the temporary runs (sorted_run.hpp): the SortedPoint without its key, which is a
+// function of (x, y) — 32 bytes instead of 40 written and read per record.
+struct StoredRecord {
+  double x, y, z;
+  float weight;
+  std::uint32_t reserved;
+};
+static_assert(sizeof(StoredRecord) == kSpillRecordBytes);
+
+StoredRecord to_stored(const SortedPoint& p) { return {p.x, p.y, p.z, p.weight, p.reserved}; }
+
+// Turns the first n records of `records`, which hold n StoredRecords as read (packed at the
+// front), into SortedPoints in place, computing their keys. Back to front: record i's stored
+// bytes [32i, 32i + 32) are read before its 40 bytes [40i, 40i + 40) are written, and those
+// cover no stored record j < i (32j + 32 ≤ 40i).
+void decode_stored(SortedPoint* records, std::size_t n) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(records);
+  for (std::size_t i = n; i-- > 0;) {
+    StoredRecord r;
+    std::memcpy(&r, bytes + i * sizeof(StoredRecord), sizeof r);
+    records[i] = {cell_key(r.x, r.y), r.x, r.y, r.z, r.weight, r.reserved};
+  }
+}
+
 struct FileCloser {
   void operator()(std::FILE* f) const {
     if (f) std::fclose(f);
@@ -94,21 +120,46 @@ class RunWriter {
   // at close(): its cached pages are rewritten instead of new ones being allocated, which on the
   // benchmark VM costs ~4 ms per MB (a first touch of a page the host has taken back) against
   // ~0.2 ms. Without, or with no file there, the file is created empty.
+  // `keyed`: SortedPoints as they are, key included (the sorted run, which pass 3 reads many
+  // times over); else StoredRecords (the temporary runs, read once).
   static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records,
-                                  bool background = false, bool overwrite = false) {
+                                  bool background = false, bool overwrite = false,
+                                  bool keyed = false) {
     FilePtr f(overwrite ? std::fopen(path.c_str(), "r+b") : nullptr);
     if (!f) f.reset(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
-    RunWriter w;
-    w.file_ = std::move(f);
-    w.path_ = path;
-    w.capacity_ = std::max<std::size_t>(buffer_records, 256);
-    w.buffer_.reserve(w.capacity_);
-    if (background) w.background_ = std::make_unique<Background>(w.file_.get(), w.capacity_);
+    return RunWriter(std::move(f), path, buffer_records, background, keyed);
+  }
+  // Writes keyed records into the region of an existing file that starts at record `first` (one
+  // of the parallel merge's halves of the sorted run); close() leaves the file's size alone.
+  static Result<RunWriter> create_region(const std::filesystem::path& path, std::uint64_t first,
+                                         std::size_t buffer_records) {
+    FilePtr f(std::fopen(path.c_str(), "r+b"));
+    if (!f || fseeko(f.get(), static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0) {
+      return io_failure("cannot open", path);
+    }
+    RunWriter w(std::move(f), path, buffer_records, /*background=*/true, /*keyed=*/true);
+    w.cut_at_close_ = false;
     return w;
   }
+  RunWriter(FilePtr f, const std::filesystem::path& path, std::size_t buffer_records,
+            bool background, bool keyed)
+      : file_(std::move(f)),
+        path_(path),
+        record_bytes_(keyed ? sizeof(SortedPoint) : sizeof(StoredRecord)),
+        capacity_(std::max<std::size_t>(buffer_records, 256) * record_bytes_) {
+    buffer_.reserve(capacity_);
+    if (background) background_ = std::make_unique<Background>(file_.get(), capacity_);
+  }
   Status push(const SortedPoint& p) {
-    buffer_.push_back(p);
+    const std::size_t at = buffer_.size();
+    buffer_.resize(at + record_bytes_);
+    if (record_bytes_ == sizeof(SortedPoint)) {
+      std::memcpy(buffer_.data() + at, &p, sizeof p);
+    } else {
+      const StoredRecord r = to_stored(p);
+      std::memcpy(buffer_.data() + at, &r, sizeof r);
+    }
     ++written_;
     if (buffer_.size() == capacity_) return flush();
     return {};
@@ -119,8 +170,8 @@ class RunWriter {
       background_->hand_over(buffer_);
       return {};
     }
-    if (!buffer_.empty() && std::fwrite(buffer_.data(), sizeof(SortedPoint), buffer_.size(),
-                                        file_.get()) != buffer_.size()) {
+    if (!buffer_.empty() &&
+        std::fwrite(buffer_.data(), 1, buffer_.size(), file_.get()) != buffer_.size()) {
       return io_failure("cannot write", path_);
     }
     buffer_.clear();
@@ -131,7 +182,8 @@ class RunWriter {
     if (Status s = wait_background(); !s) return s;
     background_.reset();  // joins the writer thread before the file goes
     if (std::fflush(file_.get()) != 0 ||
-        ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * sizeof(SortedPoint))) != 0) {
+        (cut_at_close_ &&
+         ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * record_bytes_)) != 0)) {
       return io_failure("cannot write", path_);
     }
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
@@ -158,7 +210,7 @@ class RunWriter {
       thread.join();
     }
     // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
-    void hand_over(std::vector<SortedPoint>& buffer) {
+    void hand_over(std::vector<unsigned char>& buffer) {
       {
         std::lock_guard lock(mutex);
         writing.swap(buffer);
@@ -179,8 +231,8 @@ class RunWriter {
         wake.wait(lock, [&] { return pending || stop; });
         if (!pending) return;
         lock.unlock();
-        const bool ok = writing.empty() || std::fwrite(writing.data(), sizeof(SortedPoint),
-                                                       writing.size(), file) == writing.size();
+        const bool ok = writing.empty() ||
+                        std::fwrite(writing.data(), 1, writing.size(), file) == writing.size();
         const int err = ok ? 0 : (errno != 0 ? errno : EIO);
         lock.lock();
         if (err != 0 && error == 0) error = err;
@@ -191,7 +243,7 @@ class RunWriter {
     std::FILE* file;
     std::mutex mutex;
     std::condition_variable wake;
-    std::vector<SortedPoint> writing;
+    std::vector<unsigned char> writing;
     bool pending = false, stop = false;
     int error = 0;
     std::thread thread;  // last: started when the rest exists
@@ -208,9 +260,11 @@ class RunWriter {
 
   FilePtr file_;
   std::filesystem::path path_;
-  std::size_t capacity_ = 0;
-  std::vector<SortedPoint> buffer_;
+  std::size_t record_bytes_ = 0;
+  std::size_t capacity_ = 0;  // bytes
+  std::vector<unsigned char> buffer_;
   std::uint64_t written_ = 0;
+  bool cut_at_close_ = true;
   std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
 };
 
@@ -221,14 +275,26 @@ class RunWriter {
 // recycled ones on the benchmark machine). Where punching is unsupported it is skipped.
 class RunCursor {
  public:
+  // Reads records [first, end) of the run (end: ~0 for all); punching stays inside that range
+  // (whole 64 KiB blocks), so two cursors may read the two halves of one run.
+  // `keyed`: the file holds SortedPoints (the sorted run), else StoredRecords (keys computed).
   static Result<RunCursor> open(const std::filesystem::path& path, std::size_t buffer_records,
-                                bool release_read = false) {
+                                bool release_read = false, std::uint64_t first = 0,
+                                std::uint64_t end = ~std::uint64_t{0}, bool keyed = false) {
     FilePtr f(std::fopen(path.c_str(), release_read ? "r+b" : "rb"));  // punching needs write
     if (!f) return io_failure("cannot open", path);
+    const std::uint64_t kRecord = keyed ? sizeof(SortedPoint) : sizeof(StoredRecord);
+    if (first > 0 && fseeko(f.get(), static_cast<off_t>(first * kRecord), SEEK_SET) != 0) {
+      return io_failure("cannot seek in", path);
+    }
     RunCursor c;
     c.file_ = std::move(f);
     c.path_ = path;
     c.release_read_ = release_read;
+    c.keyed_ = keyed;
+    c.left_ = end - first;
+    c.read_bytes_ = first * kRecord;
+    c.released_ = (c.read_bytes_ + kReleaseBlock - 1) / kReleaseBlock * kReleaseBlock;
     c.buffer_.resize(std::max<std::size_t>(buffer_records, 64));
     if (Status s = c.refill(); !s) return s.error();
     return c;
@@ -243,8 +309,16 @@ class RunCursor {
  private:
   Status refill() {
     if (release_read_) release(read_bytes_);
-    size_ = std::fread(buffer_.data(), sizeof(SortedPoint), buffer_.size(), file_.get());
-    read_bytes_ += size_ * sizeof(SortedPoint);
+    const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(buffer_.size(), left_));
+    if (keyed_) {
+      size_ = std::fread(buffer_.data(), sizeof(SortedPoint), want, file_.get());
+      read_bytes_ += size_ * sizeof(SortedPoint);
+    } else {
+      size_ = std::fread(buffer_.data(), sizeof(StoredRecord), want, file_.get());
+      decode_stored(buffer_.data(), size_);
+      read_bytes_ += size_ * sizeof(StoredRecord);
+    }
+    left_ -= size_;
     pos_ = 0;
     if (size_ == 0 && std::ferror(file_.get())) return io_failure("cannot read", path_);
     return {};
@@ -253,8 +327,7 @@ class RunCursor {
   // zeroed, not freed).
   void release(std::uint64_t end) {
 #ifdef FALLOC_FL_PUNCH_HOLE
-    constexpr std::uint64_t kBlock = 1 << 16;
-    end -= end % kBlock;
+    end -= end % kReleaseBlock;
     if (end <= released_) return;
     (void)::fallocate(fileno(file_.get()), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
                       static_cast<off_t>(released_), static_cast<off_t>(end - released_));
@@ -267,41 +340,67 @@ class RunCursor {
   std::filesystem::path path_;
   std::vector<SortedPoint> buffer_;
   std::size_t pos_ = 0, size_ = 0;
-  bool release_read_ = false;
+  bool release_read_ = false, keyed_ = false;
+  std::uint64_t left_ = 0;  // records of the range not read yet
   std::uint64_t read_bytes_ = 0, released_ = 0;
+  static constexpr std::uint64_t kReleaseBlock = 1 << 16;
 };
 
 // Tracks, for every level, the largest number of records in one tile of a key-ordered stream.
+// Each level remembers where its current tile began; a key closes exactly the levels whose tile
+// it leaves (those whose prefix holds the highest bit in which it differs from the last key), so
+// a key in the same level-30 cell as the last costs one comparison instead of a pass over all
+// 31 levels.
 class LevelCounter {
  public:
   LevelCounter() {
-    prefix_.fill(~std::uint64_t{0});
-    count_.fill(0);
+    start_.fill(0);
+    first_end_.fill(0);
     max_.fill(0);
   }
   void add(std::uint64_t key) {
-    // Tiles nest: once a level's prefix is unchanged, all coarser levels are unchanged too.
-    for (int level = static_cast<int>(kKeyLevel); level >= 0; --level) {
-      const std::uint64_t prefix = key >> (2 * (kKeyLevel - static_cast<std::uint32_t>(level)));
-      auto& c = count_[static_cast<std::size_t>(level)];
-      auto& p = prefix_[static_cast<std::size_t>(level)];
-      if (prefix == p) {
-        for (int l = level; l >= 0; --l) ++count_[static_cast<std::size_t>(l)];
-        return;
+    if (const std::uint64_t diff = key ^ last_; diff != 0 && added_ > 0) {
+      // Level l's prefix is key >> 2(30 - l): it changed iff the highest differing bit h has
+      // h >= 2(30 - l), i.e. l >= 30 - h/2.
+      const auto high = static_cast<std::uint32_t>(63 - std::countl_zero(diff));
+      for (std::uint32_t level = kKeyLevel - high / 2; level <= kKeyLevel; ++level) {
+        close(level);
+        if (start_[level] == 0) first_end_[level] = added_;  // the level's first tile ends
+        start_[level] = added_;
       }
-      close(static_cast<std::size_t>(level));
-      p = prefix;
-      c = 1;
+    } else if (added_ == 0) {
+      first_key_ = key;
     }
+    last_ = key;
+    ++added_;
   }
   std::vector<std::uint64_t> finish() {
-    for (std::size_t l = 0; l <= kKeyLevel; ++l) close(l);
+    for (std::uint32_t l = 0; l <= kKeyLevel; ++l) close(l);
     return {max_.begin(), max_.end()};
+  }
+  // finish() of this stream followed by `next`'s (every key of `next` at or after this one's
+  // last): a tile split between the two counts as one.
+  std::vector<std::uint64_t> finish_followed_by(LevelCounter& next) {
+    std::array<std::uint64_t, kKeyLevel + 1> joined{};
+    for (std::uint32_t l = 0; l <= kKeyLevel; ++l) {
+      const std::uint32_t shift = 2 * (kKeyLevel - l);
+      if (added_ > 0 && next.added_ > 0 && (last_ >> shift) == (next.first_key_ >> shift)) {
+        const std::uint64_t next_first = next.first_end_[l] != 0 ? next.first_end_[l] : next.added_;
+        joined[l] = added_ - start_[l] + next_first;
+      }
+    }
+    std::vector<std::uint64_t> out = finish();
+    const std::vector<std::uint64_t> after = next.finish();
+    for (std::uint32_t l = 0; l <= kKeyLevel; ++l) out[l] = std::max({out[l], after[l], joined[l]});
+    return out;
   }
 
  private:
-  void close(std::size_t level) { max_[level] = std::max(max_[level], count_[level]); }
-  std::array<std::uint64_t, kKeyLevel + 1> prefix_{}, count_{}, max_{};
+  void close(std::uint32_t level) { max_[level] = std::max(max_[level], added_ - start_[level]); }
+  std::uint64_t first_key_ = 0, last_ = 0, added_ = 0;
+  // Per level: index of the current tile's first key; where the first tile ended (0: not yet);
+  // the most keys in one closed tile.
+  std::array<std::uint64_t, kKeyLevel + 1> start_{}, first_end_{}, max_{};
 };
 
 // Keeps, while the final merge streams keys in order, the tile index (first record and count of
@@ -334,6 +433,25 @@ class TileTally {
       }
     }
     entries_.push_back({key >> shift(), 1});
+  }
+  // Appends the tally of the records that follow this one's (a parallel merge's upper half), so
+  // that this one is the tally of both: the tile split between the two adds up.
+  void append(TileTally& next) {
+    if (given_up_ || next.given_up_) {
+      given_up_ = true;
+      std::vector<Entry>().swap(entries_);
+      return;
+    }
+    const std::uint32_t level = std::min(level_, next.level_);
+    coarsen_to(level);
+    next.coarsen_to(level);
+    for (const Entry& e : next.entries_) {
+      if (!entries_.empty() && entries_.back().prefix == e.prefix) {
+        entries_.back().count += e.count;
+      } else {
+        entries_.push_back(e);
+      }
+    }
   }
   // The index at `level`; false when the tally kept only coarser tiles (or gave up).
   bool index(std::uint32_t level, std::vector<TileRange>& out) {
@@ -458,14 +576,27 @@ Status write_run(std::vector<SortedPoint>& chunk, std::vector<KeyIndex>& order,
   return w->close();
 }
 
+// Records [first, end) of a run.
+struct RunSlice {
+  std::filesystem::path path;
+  std::uint64_t first = 0, end = ~std::uint64_t{0};
+};
+
+std::vector<RunSlice> whole_runs(const std::vector<std::filesystem::path>& runs) {
+  std::vector<RunSlice> out;
+  for (const auto& p : runs) out.push_back({p});
+  return out;
+}
+
 // Merges sorted runs into `writer`, dropping duplicate (x, y) (the first, lowest z, survives).
-Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t buffer_records,
+Status merge_runs(const std::vector<RunSlice>& inputs, std::size_t buffer_records,
                   RunWriter& writer, LevelCounter* levels, TileTally* tally,
                   std::uint64_t& duplicates, const std::function<bool(std::uint64_t)>& tick) {
   std::vector<RunCursor> cursors;
   cursors.reserve(inputs.size());
-  for (const auto& p : inputs) {
-    auto c = RunCursor::open(p, buffer_records, /*release_read=*/true);  // inputs are temporary
+  for (const auto& in : inputs) {
+    // Inputs are temporary: punched as they are read.
+    auto c = RunCursor::open(in.path, buffer_records, /*release_read=*/true, in.first, in.end);
     if (!c) return c.error();
     if (!c->done()) cursors.push_back(std::move(*c));
   }
@@ -526,6 +657,163 @@ Status merge_runs(const std::vector<std::filesystem::path>& inputs, std::size_t 
   return {};
 }
 
+// The final merge on two threads: the runs are cut at one key K (every record with key < K in
+// the lower half, the rest in the upper), each half merged on its own thread into its own
+// region of the output — the lower from record 0, the upper from the lower half's input count.
+// Duplicates share their key, so both halves drop exactly what one merge drops, and the lower
+// half's drops leave a gap that is closed afterwards.
+struct MergeSplit {
+  std::vector<RunSlice> low, high;
+  std::uint64_t low_records = 0, high_records = 0;
+};
+
+// Keys of a run's records by index, for the split search (a pread per probe).
+class RunProbe {
+ public:
+  static Result<RunProbe> open(const std::filesystem::path& path) {
+    RunProbe p;
+    p.path_ = path;
+    p.fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(path, ec);
+    if (p.fd_ < 0 || ec) return io_failure("cannot open", path);
+    p.records_ = bytes / sizeof(StoredRecord);
+    return p;
+  }
+  RunProbe(RunProbe&& o) noexcept
+      : path_(std::move(o.path_)), fd_(std::exchange(o.fd_, -1)), records_(o.records_) {}
+  RunProbe& operator=(RunProbe&&) = delete;
+  ~RunProbe() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  std::uint64_t records() const { return records_; }
+  Result<std::uint64_t> key(std::uint64_t index) const {
+    StoredRecord r;
+    if (::pread(fd_, &r, sizeof r, static_cast<off_t>(index * sizeof r)) !=
+        static_cast<ssize_t>(sizeof r)) {
+      return io_failure("cannot read", path_);
+    }
+    return cell_key(r.x, r.y);
+  }
+  // The first index whose key is at least k (records() when none).
+  Result<std::uint64_t> lower_bound(std::uint64_t k) const {
+    std::uint64_t lo = 0, hi = records_;
+    while (lo < hi) {
+      const std::uint64_t mid = lo + (hi - lo) / 2;
+      auto m = key(mid);
+      if (!m) return m.error();
+      if (*m < k) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    return lo;
+  }
+
+ private:
+  RunProbe() = default;
+  std::filesystem::path path_;
+  int fd_ = -1;
+  std::uint64_t records_ = 0;
+};
+
+// Chooses K among the runs' middle keys so that the lower half holds as close to half of the
+// records as those candidates allow. Empty `low` or `high`: no useful split.
+Result<MergeSplit> split_runs(const std::vector<std::filesystem::path>& runs) {
+  std::vector<RunProbe> probes;
+  std::vector<std::uint64_t> candidates;
+  std::uint64_t total = 0;
+  for (const auto& r : runs) {
+    auto p = RunProbe::open(r);
+    if (!p) return p.error();
+    if (p->records() > 0) {
+      auto k = p->key(p->records() / 2);
+      if (!k) return k.error();
+      candidates.push_back(*k);
+    }
+    total += p->records();
+    probes.push_back(std::move(*p));
+  }
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  auto below = [&](std::uint64_t k, std::vector<std::uint64_t>* cuts) -> Result<std::uint64_t> {
+    std::uint64_t n = 0;
+    for (const RunProbe& p : probes) {
+      auto cut = p.lower_bound(k);
+      if (!cut) return cut.error();
+      n += *cut;
+      if (cuts) cuts->push_back(*cut);
+    }
+    return n;
+  };
+  // Binary search for the first candidate with at least half the records below it; its
+  // predecessor may be closer.
+  std::size_t lo = 0, hi = candidates.size();
+  while (lo < hi) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    auto n = below(candidates[mid], nullptr);
+    if (!n) return n.error();
+    if (*n < total / 2) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  MergeSplit split;
+  if (candidates.empty()) return split;
+  std::uint64_t best = candidates[std::min(lo, candidates.size() - 1)];
+  if (lo > 0) {
+    auto at = below(best, nullptr), before = below(candidates[lo - 1], nullptr);
+    if (!at) return at.error();
+    if (!before) return before.error();
+    const auto distance = [&](std::uint64_t n) {
+      return n > total / 2 ? n - total / 2 : total / 2 - n;
+    };
+    if (lo == candidates.size() || distance(*before) < distance(*at)) best = candidates[lo - 1];
+  }
+  std::vector<std::uint64_t> cuts;
+  auto low = below(best, &cuts);
+  if (!low) return low.error();
+  if (*low == 0 || *low == total) return split;
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    split.low.push_back({runs[i], 0, cuts[i]});
+    split.high.push_back({runs[i], cuts[i], probes[i].records()});
+  }
+  split.low_records = *low;
+  split.high_records = total - *low;
+  return split;
+}
+
+// Moves `count` records from record `from` down to record `to` (to < from) and cuts the file
+// after them: the gap the lower half's dropped duplicates left. Front to back in 1 MiB steps
+// (the ranges may overlap), rewriting the file's own cached pages.
+Status close_gap(const std::filesystem::path& path, std::uint64_t from, std::uint64_t to,
+                 std::uint64_t count) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd < 0) return io_failure("cannot open", path);
+  constexpr std::uint64_t kStep = (1 << 20) / sizeof(SortedPoint);
+  std::vector<SortedPoint> buffer(static_cast<std::size_t>(std::min(kStep, count)));
+  bool ok = true;
+  for (std::uint64_t done = 0; ok && done < count && from != to;) {
+    const std::uint64_t n = std::min(kStep, count - done);
+    const auto bytes = static_cast<ssize_t>(n * sizeof(SortedPoint));
+    ok = ::pread(fd, buffer.data(), static_cast<std::size_t>(bytes),
+                 static_cast<off_t>((from + done) * sizeof(SortedPoint))) == bytes &&
+         ::pwrite(fd, buffer.data(), static_cast<std::size_t>(bytes),
+                  static_cast<off_t>((to + done) * sizeof(SortedPoint))) == bytes;
+    done += n;
+  }
+  ok = ok && ::ftruncate(fd, static_cast<off_t>((to + count) * sizeof(SortedPoint))) == 0;
+  const int err = errno;
+  ::close(fd);
+  if (!ok) {
+    errno = err;
+    return io_failure("cannot write", path);
+  }
+  return {};
+}
+
 }  // namespace
 
 std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y) {
@@ -543,8 +831,10 @@ std::uint32_t key_column(double c) {
   constexpr std::int64_t n = std::int64_t{1} << kKeyLevel;
   constexpr double step = 0x1p-29;  // 2 / 2^30
   auto edge = [](std::int64_t i) { return -1.0 + static_cast<double>(i) * step; };
+  // c + 1 ≥ 0 (c is clamped to the map), so truncation is the floor (std::floor is a libm call
+  // on the baseline x86-64 target, and this runs once per record read).
   std::int64_t i =
-      std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((c + 1.0) * 0x1p29)), 0, n - 1);
+      std::clamp<std::int64_t>(static_cast<std::int64_t>((c + 1.0) * 0x1p29), 0, n - 1);
   while (i > 0 && c < edge(i)) --i;
   while (i + 1 < n && c >= edge(i + 1)) ++i;
   return static_cast<std::uint32_t>(i);
@@ -702,8 +992,8 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
       auto path = st.temp_path();
       auto w = RunWriter::create(path, merge_buffer, /*background=*/true);
       if (!w) return w.error();
-      if (Status s =
-              merge_runs(group, merge_buffer, *w, nullptr, nullptr, result.duplicates_merged, tick);
+      if (Status s = merge_runs(whole_runs(group), merge_buffer, *w, nullptr, nullptr,
+                                result.duplicates_merged, tick);
           !s)
         return s.error();
       if (Status s = w->close(); !s) return s.error();
@@ -714,23 +1004,80 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   }
   result.path = options.output.empty() ? st.temp_path() : options.output;
   st.temporaries.add(result.path);  // removed unless everything succeeds
+  const std::size_t tally_entries =
+      options.index_entries != 0
+          ? options.index_entries
+          : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096);
+  MergeSplit split;
+  if (options.merge_threads >= 2) {
+    auto chosen = split_runs(runs);
+    if (!chosen) return chosen.error();
+    split = std::move(*chosen);
+  }
   LevelCounter levels;
+  // Two tallies of half the entries each when the merge is split.
   TileTally tally(options.max_level, options.min_level,
-                  options.index_entries != 0
-                      ? options.index_entries
-                      : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096));
-  {
-    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true);
+                  split.low.empty() ? tally_entries : tally_entries / 2);
+  if (split.low.empty()) {
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true,
+                               /*keyed=*/true);
     if (!w) return w.error();
-    if (Status s =
-            merge_runs(runs, merge_buffer, *w, &levels, &tally, result.duplicates_merged, tick);
+    if (Status s = merge_runs(whole_runs(runs), merge_buffer, *w, &levels, &tally,
+                              result.duplicates_merged, tick);
         !s)
       return s.error();
     if (Status s = w->close(); !s) return s.error();
     result.points = w->written();
+    result.max_tile_points = levels.finish();
+  } else {
+    // The upper half on its own thread (the cursors, buffers and writers of both halves share the
+    // merge's budget: half the buffer each).
+    {
+      FilePtr f(std::fopen(result.path.c_str(), "r+b"));  // an existing file is written over
+      if (!f) f.reset(std::fopen(result.path.c_str(), "wb"));
+      if (!f) return io_failure("cannot create", result.path);
+    }
+    const std::size_t half_buffer = std::max<std::size_t>(merge_buffer / 2, 256);
+    auto low_writer = RunWriter::create_region(result.path, 0, half_buffer);
+    if (!low_writer) return low_writer.error();
+    auto high_writer = RunWriter::create_region(result.path, split.low_records, half_buffer);
+    if (!high_writer) return high_writer.error();
+    LevelCounter high_levels;
+    TileTally high_tally(options.max_level, options.min_level, tally_entries / 2);
+    std::uint64_t high_duplicates = 0;
+    std::atomic<std::uint64_t> high_done{0};
+    std::atomic<bool> stop{false};
+    Status high_status;
+    std::thread high([&] {
+      high_status = merge_runs(split.high, half_buffer, *high_writer, &high_levels, &high_tally,
+                               high_duplicates, [&](std::uint64_t done) {
+                                 high_done = done;
+                                 return !stop;
+                               });
+      if (high_status) high_status = high_writer->close();
+    });
+    Status low_status = merge_runs(split.low, half_buffer, *low_writer, &levels, &tally,
+                                   result.duplicates_merged, [&](std::uint64_t done) {
+                                     if (tick(done + high_done)) return true;
+                                     stop = true;
+                                     return false;
+                                   });
+    if (low_status) low_status = low_writer->close();
+    if (!low_status) stop = true;
+    high.join();
+    if (!low_status) return low_status.error();
+    if (!high_status) return high_status.error();
+    result.duplicates_merged += high_duplicates;
+    const std::uint64_t low_points = low_writer->written();
+    const std::uint64_t high_points = high_writer->written();
+    if (Status s = close_gap(result.path, split.low_records, low_points, high_points); !s) {
+      return s.error();
+    }
+    result.points = low_points + high_points;
+    result.max_tile_points = levels.finish_followed_by(high_levels);
+    tally.append(high_tally);
   }
   for (const auto& r : runs) std::filesystem::remove(r, ec);
-  result.max_tile_points = levels.finish();
 
   // Finest level: the smallest level whose fullest tile fits the budget.
   result.finest_level = options.max_level;
@@ -745,7 +1092,8 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   // (tiles nest, so it coarsens exactly), else one sequential pass over the keys.
   if (!tally.index(result.finest_level, result.tiles)) {
     result.tiles.clear();
-    auto cursor = RunCursor::open(result.path, 1 << 15);
+    auto cursor =
+        RunCursor::open(result.path, 1 << 15, false, 0, ~std::uint64_t{0}, /*keyed=*/true);
     if (!cursor) return cursor.error();
     const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
     std::uint64_t index = 0;

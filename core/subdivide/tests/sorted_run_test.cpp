@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <random>
 #include <tuple>
@@ -221,6 +223,15 @@ TEST(Subdivide, RadixOrderEqualsComparatorOrderOnAdversarialKeys) {
     ASSERT_TRUE(run.ok()) << run.error().message;
     expect_same_records(expected, *run);
     EXPECT_EQ(run->duplicates_merged, pts.size() - expected.size());
+    // The fullest tile of every level, counted over the distinct points through the tile module.
+    ASSERT_EQ(run->max_tile_points.size(), 31u);
+    for (std::uint32_t level = 0; level <= 30; ++level) {
+      std::map<geo::TileId, std::uint64_t> counts;
+      for (const auto& p : expected) ++counts[geo::TileId::containing({p.x, p.y}, level)];
+      std::uint64_t fullest = 0;
+      for (const auto& [id, c] : counts) fullest = std::max(fullest, c);
+      EXPECT_EQ(run->max_tile_points[level], fullest) << "level " << level << ", " << memory;
+    }
   }
 }
 
@@ -404,6 +415,98 @@ TEST(Subdivide, ReaderRejectsOutOfRangeAndTruncatedFiles) {
   std::vector<SortedPoint> out;
   EXPECT_FALSE(reader->read(90, 20, out).ok());
   EXPECT_TRUE(reader->read(90, 10, out).ok());
+}
+
+// The temporary runs store 32 bytes per record, without the key; the merge computes it again
+// as it reads them (a key left 0, or wrong, would show in the order and in the keys of the
+// sorted run, which keeps them): the sorted run's bytes are 40-byte records whose keys are
+// those of the tile module, through single- and multi-pass merges.
+TEST(Subdivide, SpillsDropTheKeyAndTheSortedRunKeepsIt) {
+  const auto pts = clustered_points(3000, 21);
+  const auto expected = reference_run(pts);
+  for (std::size_t memory : {std::size_t{256} << 20, std::size_t{1}}) {
+    TempDir tmp;
+    SubdivideOptions opt;
+    opt.tmp_dir = tmp.path();
+    opt.memory_bytes = memory;
+    auto run = subdivide(feed_of(pts, 100), opt);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    std::ifstream in(run->path, std::ios::binary);
+    const std::vector<unsigned char> bytes(std::istreambuf_iterator<char>(in), {});
+    ASSERT_EQ(bytes.size(), expected.size() * 40);
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      const unsigned char* rec = bytes.data() + 40 * i;
+      std::uint64_t key;
+      double x, y, z;
+      float w;
+      std::memcpy(&key, rec, 8);
+      std::memcpy(&x, rec + 8, 8);
+      std::memcpy(&y, rec + 16, 8);
+      std::memcpy(&z, rec + 24, 8);
+      std::memcpy(&w, rec + 32, 4);
+      const geo::TileId cell = geo::TileId::containing({x, y}, 30);
+      ASSERT_EQ(key, morton_interleave(cell.x, cell.y)) << i;
+      ASSERT_EQ(x, expected[i].x) << i;
+      ASSERT_EQ(y, expected[i].y) << i;
+      ASSERT_EQ(z, expected[i].z) << i;
+      ASSERT_EQ(w, expected[i].weight) << i;
+    }
+    expect_same_records(expected, *run);
+  }
+}
+
+// The final merge split between two threads at one key: many records share a key (all of them
+// must land on one side: the split key is a run's middle key, here that cell's), duplicates lie
+// on both sides (across runs, so the lower half's leave a gap in the output that is closed), in
+// one run and in many. Same records, tile index, level counts and duplicate count as the
+// single-threaded merge and the reference.
+TEST(Subdivide, TwoThreadMergeEqualsOneThreadMerge) {
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 6000; ++i) {  // spread out, every fourth point given again with another z
+    const InputPoint p{0.0414 + 2e-4 * u(rng), 0.3524 + 2e-4 * u(rng), 100 * u(rng), 1};
+    pts.push_back(p);
+    if (i % 4 == 0) pts.push_back({p.x, p.y, p.z - 1, 2});
+  }
+  const double cx = 0.04150001, cy = 0.35250001;  // one level-30 cell, ulps apart
+  for (int i = 0; i < 8000; ++i) {
+    double x = cx, y = cy;
+    for (int k = i % 5; k > 0; --k) x = std::nextafter(x, 1.0);
+    for (int k = (i / 5) % 5; k > 0; --k) y = std::nextafter(y, 1.0);
+    pts.push_back({x, y, 1.0 * (i % 7), static_cast<float>(i % 3)});
+  }
+  std::shuffle(pts.begin(), pts.end(), rng);
+  const auto expected = reference_run(pts);
+  for (std::size_t memory : {std::size_t{256} << 20, std::size_t{1}}) {
+    std::vector<std::vector<unsigned char>> bytes;
+    std::vector<SortedRun> runs;
+    for (unsigned threads : {1u, 2u}) {
+      TempDir tmp;
+      SubdivideOptions opt;
+      opt.tmp_dir = tmp.path();
+      opt.max_points = 300;
+      opt.memory_bytes = memory;
+      opt.merge_threads = threads;
+      auto run = subdivide(feed_of(pts, 500), opt);
+      ASSERT_TRUE(run.ok()) << run.error().message;
+      expect_same_records(expected, *run);
+      EXPECT_EQ(run->duplicates_merged, pts.size() - expected.size()) << memory << " " << threads;
+      std::ifstream in(run->path, std::ios::binary);
+      bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      EXPECT_EQ(tmp.entries(), 1u);
+      runs.push_back(std::move(*run));
+    }
+    EXPECT_EQ(bytes[0], bytes[1]) << memory;
+    EXPECT_EQ(runs[0].max_tile_points, runs[1].max_tile_points) << memory;
+    EXPECT_EQ(runs[0].finest_level, runs[1].finest_level) << memory;
+    ASSERT_EQ(runs[0].tiles.size(), runs[1].tiles.size()) << memory;
+    for (std::size_t t = 0; t < runs[0].tiles.size(); ++t) {
+      EXPECT_EQ(runs[0].tiles[t].id, runs[1].tiles[t].id) << memory << " " << t;
+      EXPECT_EQ(runs[0].tiles[t].first, runs[1].tiles[t].first) << memory << " " << t;
+      EXPECT_EQ(runs[0].tiles[t].count, runs[1].tiles[t].count) << memory << " " << t;
+    }
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <condition_variable>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 namespace tinstream::transform {
@@ -172,13 +173,20 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
                                      const TransformOptions& options,
                                      const ProgressSink& progress) {
   if (options.batch_size == 0) return invalid_argument("batch size must be at least 1");
-  if (options.output.empty()) return invalid_argument("no run file path given");
+  if (options.output.empty() && !options.on_points) {
+    return invalid_argument("no run file path given and no consumer of the points");
+  }
   ProgressThrottle throttle(progress);
   const std::uint64_t total = progress ? total_records(inputs) : 0;
 
-  auto writer = RunFileWriter::create(options.output, options.projection,
-                                      static_cast<std::uint32_t>(inputs.size()));
-  if (!writer.ok()) return writer.error();
+  const auto input_count = static_cast<std::uint32_t>(inputs.size());
+  std::optional<RunFileWriter> writer;  // none: the points only go to on_points
+  RunHeaderBuilder header(options.projection, input_count);
+  if (!options.output.empty()) {
+    auto created = RunFileWriter::create(options.output, options.projection, input_count);
+    if (!created.ok()) return created.error();
+    writer = std::move(*created);
+  }
   const geo::NormalisedMercator mercator(options.projection);
 
   RunSummary summary;
@@ -215,7 +223,11 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
     auto append = [&](BatchWork& w) -> Status {
       if (!w.status.ok()) return w.status;
       s.outside_mercator += w.outside_mercator;
-      if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
+      if (writer) {
+        if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
+      } else {
+        header.add(w.run_points, w.lonlat);
+      }
       s.points_written += w.run_points.size();
       if (options.on_points) return options.on_points(w.run_points);
       return {};
@@ -283,9 +295,13 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
   if (!throttle.report(done_before, total, true)) {
     return Error(ErrorCode::cancelled, "transform cancelled before the run file was committed");
   }
-  auto header = writer->commit(options.durable);
-  if (!header.ok()) return header.error();
-  summary.header = *header;
+  if (writer) {
+    auto committed = writer->commit(options.durable);
+    if (!committed.ok()) return committed.error();
+    summary.header = *committed;
+  } else {
+    summary.header = header.header();
+  }
   return summary;
 }
 

@@ -118,6 +118,33 @@ RunPoint decode_run_point(const unsigned char in[kRunRecordBytes]) {
   return p;
 }
 
+// ---- header -------------------------------------------------------------------------------
+
+RunHeaderBuilder::RunHeaderBuilder(geo::Projection projection, std::uint32_t input_count) {
+  header_.projection = projection;
+  header_.input_count = input_count;
+  header_.mercator = empty_extent();
+  header_.lonlat = empty_extent();
+  header_.min_z = std::numeric_limits<double>::infinity();
+  header_.max_z = -std::numeric_limits<double>::infinity();
+}
+
+void RunHeaderBuilder::add(std::span<const RunPoint> points, std::span<const geo::LonLat> lonlat) {
+  Extent& m = header_.mercator;
+  for (const RunPoint& p : points) {
+    m.min_x = std::min(m.min_x, p.x), m.max_x = std::max(m.max_x, p.x);
+    m.min_y = std::min(m.min_y, p.y), m.max_y = std::max(m.max_y, p.y);
+    header_.min_z = std::min(header_.min_z, p.z);
+    header_.max_z = std::max(header_.max_z, p.z);
+  }
+  Extent& e = header_.lonlat;
+  for (const geo::LonLat& g : lonlat) {
+    e.min_x = std::min(e.min_x, g.lon), e.max_x = std::max(e.max_x, g.lon);
+    e.min_y = std::min(e.min_y, g.lat), e.max_y = std::max(e.max_y, g.lat);
+  }
+  header_.point_count += points.size();
+}
+
 // ---- writer -------------------------------------------------------------------------------
 
 Result<RunFileWriter> RunFileWriter::create(const std::filesystem::path& path,
@@ -130,14 +157,9 @@ Result<RunFileWriter> RunFileWriter::create(const std::filesystem::path& path,
   if (!w.file_) {
     return io_error(w.partial_.string() + ": cannot create the run file: " + std::strerror(errno));
   }
-  w.header_.projection = projection;
-  w.header_.input_count = input_count;
-  w.header_.mercator = empty_extent();
-  w.header_.lonlat = empty_extent();
-  w.header_.min_z = std::numeric_limits<double>::infinity();
-  w.header_.max_z = -std::numeric_limits<double>::infinity();
+  w.header_ = RunHeaderBuilder(projection, input_count);
   unsigned char head[kRunHeaderBytes];
-  encode_run_header(w.header_, false, head);
+  encode_run_header(w.header_.header(), false, head);
   if (std::fwrite(head, 1, sizeof head, w.file_.get()) != sizeof head) {
     w.abandon();
     return io_error(w.partial_.string() + ": cannot write: " + std::strerror(errno));
@@ -185,26 +207,14 @@ Status RunFileWriter::append(std::span<const RunPoint> points,
   while (i < points.size()) {
     const std::size_t n = std::min(points.size() - i, kBufferRecords);
     for (std::size_t k = 0; k < n; ++k) {
-      const RunPoint& p = points[i + k];
-      encode_run_point(p, buffer_.data() + k * kRunRecordBytes);
-      Extent& m = header_.mercator;
-      m.min_x = std::min(m.min_x, p.x), m.max_x = std::max(m.max_x, p.x);
-      m.min_y = std::min(m.min_y, p.y), m.max_y = std::max(m.max_y, p.y);
-      header_.min_z = std::min(header_.min_z, p.z);
-      header_.max_z = std::max(header_.max_z, p.z);
-      if (!lonlat.empty()) {
-        const geo::LonLat& g = lonlat[i + k];
-        Extent& e = header_.lonlat;
-        e.min_x = std::min(e.min_x, g.lon), e.max_x = std::max(e.max_x, g.lon);
-        e.min_y = std::min(e.min_y, g.lat), e.max_y = std::max(e.max_y, g.lat);
-      }
+      encode_run_point(points[i + k], buffer_.data() + k * kRunRecordBytes);
     }
     if (std::fwrite(buffer_.data(), kRunRecordBytes, n, file_.get()) != n) {
       const std::string why = std::strerror(errno);
       abandon();
       return io_error(partial_.string() + ": cannot write (disk full?): " + why);
     }
-    header_.point_count += n;
+    header_.add(points.subspan(i, n), lonlat.empty() ? lonlat : lonlat.subspan(i, n));
     i += n;
   }
   return {};
@@ -213,7 +223,7 @@ Status RunFileWriter::append(std::span<const RunPoint> points,
 Result<RunFileHeader> RunFileWriter::commit(bool durable) {
   if (!file_) return Error(ErrorCode::internal, "run file writer committed twice or after failure");
   unsigned char head[kRunHeaderBytes];
-  encode_run_header(header_, true, head);
+  encode_run_header(header_.header(), true, head);
   std::FILE* f = file_.get();
   if (std::fflush(f) != 0 || std::fseek(f, 0, SEEK_SET) != 0 ||
       std::fwrite(head, 1, sizeof head, f) != sizeof head || std::fflush(f) != 0 ||
@@ -236,7 +246,7 @@ Result<RunFileHeader> RunFileWriter::commit(bool durable) {
     return io_error(final_.string() +
                     ": cannot rename the finished run file into place: " + ec.message());
   }
-  return header_;
+  return header_.header();
 }
 
 // ---- reader -------------------------------------------------------------------------------

@@ -450,5 +450,61 @@ TEST(Pass1, WorkersHandEveryBatchOverInRecordOrder) {
   std::filesystem::remove_all(dir);
 }
 
+// Without a run file path (the ingest's way) nothing is written, the same points are handed over
+// and the header is the one a run file would have had.
+TEST(Pass1, WithoutARunFileThePointsAndHeaderAreTheSame) {
+  auto dir = scratch("no_run_file");
+  std::vector<InputSpec> inputs(2);
+  inputs[0].path = utm_points(dir, 5'001);
+  inputs[0].reproject.crs = "EPSG:32632";
+  inputs[1] = inputs[0];
+  inputs[1].weight = 3;
+  TransformOptions opt;
+  opt.batch_size = 700;
+  opt.threads = 2;
+  std::vector<RunPoint> with_file, without_file;
+  auto collect = [](std::vector<RunPoint>& into) {
+    return [&into](std::span<const RunPoint> points) -> Status {
+      into.insert(into.end(), points.begin(), points.end());
+      return {};
+    };
+  };
+  opt.output = dir / "with.run";
+  opt.on_points = collect(with_file);
+  auto a = transform_sources(inputs, opt);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  std::filesystem::remove(opt.output);
+  const std::size_t files_before = files_in(dir);
+
+  opt.output.clear();
+  opt.on_points = collect(without_file);
+  auto b = transform_sources(inputs, opt);
+  ASSERT_TRUE(b.ok()) << b.error().message;
+  EXPECT_EQ(files_in(dir), files_before) << "a file was written without a run file path";
+  EXPECT_TRUE(b->run_file.empty());
+  unsigned char ha[kRunHeaderBytes], hb[kRunHeaderBytes];
+  encode_run_header(a->header, true, ha);
+  encode_run_header(b->header, true, hb);
+  EXPECT_EQ(std::memcmp(ha, hb, kRunHeaderBytes), 0);
+  EXPECT_EQ(b->header.point_count, 10'002u);
+  EXPECT_EQ(b->header.input_count, 2u);
+  EXPECT_LT(b->header.mercator.min_x, b->header.mercator.max_x);
+  ASSERT_EQ(without_file.size(), with_file.size());
+  for (std::size_t i = 0; i < with_file.size(); ++i) {
+    ASSERT_EQ(without_file[i].x, with_file[i].x) << i;
+    ASSERT_EQ(without_file[i].z, with_file[i].z) << i;
+    ASSERT_EQ(without_file[i].weight, with_file[i].weight) << i;
+  }
+  ASSERT_EQ(b->inputs.size(), 2u);
+  EXPECT_EQ(b->inputs[1].points_written, 5'001u);
+
+  // With neither a run file nor a consumer there is nothing to do: refused.
+  opt.on_points = nullptr;
+  auto c = transform_sources(inputs, opt);
+  ASSERT_FALSE(c.ok());
+  EXPECT_EQ(c.error().code, ErrorCode::invalid_argument);
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace tinstream::transform

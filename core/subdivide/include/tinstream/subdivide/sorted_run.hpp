@@ -2,8 +2,9 @@
 // level and put every point into Morton (quadkey) order, with bounded memory.
 //
 // Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
-// Output: ONE sorted run file of fixed 40-byte records plus an in-memory tile index (first record
-// and count of every non-empty finest tile, in Morton order) — not one file per tile.
+// Output: ONE sorted run file of fixed 40-byte records (SortedPoint, key included) plus an
+// in-memory tile index (first record and count of every non-empty finest tile, in Morton order) —
+// not one file per tile. The temporary runs hold 32 bytes per record (kSpillRecordBytes).
 //
 // Order: records are sorted by (key, x, y) where key is the Morton code of the level-30 cell that
 // holds the point (geo::TileId::containing). Level-30 cells nest exactly inside every coarser
@@ -21,7 +22,8 @@
 // temporary runs go to `tmp_dir` and are removed when done or on failure.
 // Threads: subdivide() and a SortedRunBuilder run on the calling thread plus one spill thread
 // (sorts and writes a full chunk while the next one fills) and, while merging, a writer thread
-// (writes one output buffer while the merge fills the other).
+// (writes one output buffer while the merge fills the other); with merge_threads = 2 the final
+// merge's upper key range is merged on a second thread (with its own writer thread).
 #pragma once
 
 #include <cstdint>
@@ -38,7 +40,10 @@
 
 namespace tinstream::subdivide {
 
-// One record of the sorted run (and of the temporary runs), 40 bytes, host (little-endian) order.
+// One record of the sorted run, as in the file: 40 bytes, host (little-endian) order. The
+// temporary runs (spills, merge passes) store kSpillRecordBytes per record: f64 x, f64 y, f64 z,
+// f32 weight, u32 reserved, without the key, which is cell_key(x, y), recomputed once per record
+// the merge reads (pass 3 reads the sorted run many times over: it keeps its keys).
 struct SortedPoint {
   std::uint64_t key = 0;  // Morton code of the level-30 cell
   double x = 0, y = 0;    // normalised Mercator
@@ -47,6 +52,7 @@ struct SortedPoint {
   std::uint32_t reserved = 0;
 };
 static_assert(sizeof(SortedPoint) == 40);
+inline constexpr std::size_t kSpillRecordBytes = 32;
 
 // Morton code of column x and row y within one level: x bits at even positions, y bits at odd
 // ones (as quadkey digits 2·ybit + xbit).
@@ -69,11 +75,14 @@ struct SubdivideOptions {
   std::size_t memory_bytes = 256u << 20;  // sort + merge buffers
   std::filesystem::path tmp_dir = std::filesystem::temp_directory_path();
   // The sorted run; default: a file in tmp_dir. A file already there is written over in place
-  // and cut to size (its page-cache pages are reused: the ingest leaves pass 1's run file there).
+  // and cut to size (its page-cache pages are reused instead of new ones allocated).
   std::filesystem::path output;
   // Entries the tile index may take while the final merge tallies it (0: from memory_bytes);
   // beyond that it is built by re-reading the sorted run. The result is the same either way.
   std::size_t index_entries = 0;
+  // 2: the final merge runs on two threads, each merging the records on one side of a key into
+  // its own part of the output (same result as 1, the single-threaded merge).
+  unsigned merge_threads = 2;
 };
 
 struct SortedRun {

@@ -1,14 +1,15 @@
 // tinstream/transform/pass1.hpp — ingest pass 1 (DESIGN.md §3): read every input, reproject
-// to WGS84, map to normalised Mercator, and stream the points into one run file.
+// to WGS84, map to normalised Mercator, and hand the points on in batches (on_points) and/or
+// stream them into one run file; the summary has the run's header (count, boxes) either way.
 //
 // Contract:
 // - Inputs are processed in order, each with its own reader options and CRS options; formats
 //   may be mixed. Memory is bounded by TransformOptions::batch_size (a few batches of points),
 //   never by the inputs' sizes.
-// - The run file appears under TransformOptions::output only when every input went through:
-//   it is written under a temporary name and renamed at the end (see run_file.hpp). On any
-//   error, or when the progress sink asks to stop, nothing is left behind and the Error names
-//   the file and the record.
+// - A run file (when TransformOptions::output is set) appears under that name only when every
+//   input went through: it is written under a temporary name and renamed at the end (see
+//   run_file.hpp). On any error, or when the progress sink asks to stop, nothing is left behind
+//   and the Error names the file and the record.
 // - A point outside the Mercator square (|lat| beyond ±85.05° spherical / ±85.08° ellipsoidal)
 //   is an Error naming the record, like any other invalid point; with InvalidPolicy::skip it is
 //   counted as invalid instead.
@@ -43,18 +44,20 @@ struct InputSpec {
 };
 
 struct TransformOptions {
-  std::filesystem::path output;  // the run file
+  // The run file; empty: none is written (the ingest's case: its points go to pass 2 through
+  // on_points, whose sorted spills are the run files). Requires: set, or on_points given.
+  std::filesystem::path output;
   geo::Projection projection = geo::Projection::spherical;
   std::size_t batch_size = 65536;  // points per batch; Requires: > 0
   // > 1: that many worker threads (each with its own Reprojector) transform batches while this
   // thread reads the next ones and appends finished ones; the run file is the same (batches are
   // appended in record order, and the first error in record order is the one reported).
   unsigned threads = 1;
-  // Called on the calling thread with every batch of points just appended to the run file, in
-  // record order (the ingest hands them to pass 2). An error stops the pass and is returned.
+  // Called on the calling thread with every batch of transformed points (after it is appended to
+  // the run file, if any), in record order (the ingest hands them to pass 2). An error stops the
+  // pass and is returned.
   std::function<Status(std::span<const RunPoint>)> on_points;
-  // false: the run file is not fsynced before its rename (the ingest never reads it back: its
-  // points went to pass 2 through on_points, and the merge writes sorted.run over its pages).
+  // false: the run file is not fsynced before its rename (a scratch file its user removes soon).
   bool durable = true;
 };
 
@@ -69,8 +72,8 @@ struct InputSummary {
 };
 
 struct RunSummary {
-  std::filesystem::path run_file;
-  RunFileHeader header;  // count, Mercator and lon/lat boxes, z range
+  std::filesystem::path run_file;  // empty when none was written
+  RunFileHeader header;            // count, Mercator and lon/lat boxes, z range
   std::vector<InputSummary> inputs;
 };
 

@@ -1,6 +1,8 @@
-// tinstream/transform/run_file.hpp — the binary point run file written by ingest pass 1.
-// The ingest hands pass 1's points to pass 2 in memory (TransformOptions::on_points) and uses the
-// header; RunFileReader reads a run file sequentially (tools, tests, any later consumer).
+// tinstream/transform/run_file.hpp — the binary point run file pass 1 can write.
+// The ingest writes none: it hands pass 1's points to pass 2 in memory
+// (TransformOptions::on_points), whose sorted runs are its run files of transformed points, and
+// keeps only the header (RunHeaderBuilder). RunFileReader reads a run file sequentially (tools,
+// tests, any later consumer).
 //
 // Layout (all little-endian, whatever the host):
 //
@@ -70,6 +72,19 @@ struct RunFileHeader {
   std::uint32_t input_count = 0;
 };
 
+// Accumulates what a run file's header says (count, boxes, z range) over the points appended,
+// whether or not they are written anywhere.
+class RunHeaderBuilder {
+ public:
+  RunHeaderBuilder(geo::Projection projection, std::uint32_t input_count);
+  // Requires: `lonlat` is empty or as long as `points`.
+  void add(std::span<const RunPoint> points, std::span<const geo::LonLat> lonlat);
+  const RunFileHeader& header() const { return header_; }
+
+ private:
+  RunFileHeader header_;
+};
+
 class RunFileWriter {
  public:
   // Creates the partial file next to `path` (same directory, so the rename is atomic).
@@ -86,7 +101,7 @@ class RunFileWriter {
   Result<RunFileHeader> commit(bool durable = true);
 
   const std::filesystem::path& partial_path() const { return partial_; }
-  std::uint64_t point_count() const { return header_.point_count; }
+  std::uint64_t point_count() const { return header_.header().point_count; }
 
  private:
   RunFileWriter() = default;
@@ -98,7 +113,7 @@ class RunFileWriter {
   };
   std::unique_ptr<std::FILE, FileCloser> file_;
   std::filesystem::path final_, partial_;
-  RunFileHeader header_;
+  RunHeaderBuilder header_{geo::Projection::spherical, 0};
   std::vector<unsigned char> buffer_;
 };
 
