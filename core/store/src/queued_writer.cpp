@@ -11,16 +11,18 @@ namespace tinstream::store {
 struct QueuedWriter::Impl {
   LayerWriter& writer;
   const std::size_t capacity;
+  const std::size_t max_bytes;
   std::mutex mutex;  // guards the members below
   std::condition_variable ready, space;
   std::deque<StoredTile> queue;
+  std::size_t queued_bytes = 0;  // Σ compressed sizes in `queue`
   bool closed = false;
   Status failure;
   std::uint64_t stored = 0;
   std::thread thread;  // last: started once the members above exist
 
-  Impl(LayerWriter& w, std::size_t c)
-      : writer(w), capacity(std::max<std::size_t>(c, 1)), thread([this] { run(); }) {}
+  Impl(LayerWriter& w, std::size_t c, std::size_t b)
+      : writer(w), capacity(std::max<std::size_t>(c, 1)), max_bytes(b), thread([this] { run(); }) {}
 
   void run() {
     for (;;) {
@@ -31,13 +33,15 @@ struct QueuedWriter::Impl {
         if (queue.empty()) return;
         tile = std::move(queue.front());
         queue.pop_front();
-        space.notify_one();
+        queued_bytes -= tile.compressed.size();
+        space.notify_all();  // a freed byte budget may let several pushes in
       }
       Status s = writer.put(std::move(tile));
       std::lock_guard lock(mutex);
       if (!s.ok()) {
         failure = std::move(s);
         queue.clear();
+        queued_bytes = 0;
         space.notify_all();
         return;
       }
@@ -46,19 +50,24 @@ struct QueuedWriter::Impl {
   }
 };
 
-QueuedWriter::QueuedWriter(LayerWriter& writer, std::size_t capacity)
-    : impl_(std::make_unique<Impl>(writer, capacity)) {}
+QueuedWriter::QueuedWriter(LayerWriter& writer, std::size_t capacity, std::size_t max_bytes)
+    : impl_(std::make_unique<Impl>(writer, capacity, max_bytes)) {}
 
 QueuedWriter::~QueuedWriter() { (void)finish(); }
 
 Status QueuedWriter::push(StoredTile&& tile) {
   std::unique_lock lock(impl_->mutex);
+  const std::size_t bytes = tile.compressed.size();
   impl_->space.wait(lock, [&] {
-    return impl_->queue.size() < impl_->capacity || !impl_->failure.ok() || impl_->closed;
+    const bool room = impl_->queue.empty() ||
+                      (impl_->queue.size() < impl_->capacity &&
+                       bytes <= impl_->max_bytes - std::min(impl_->queued_bytes, impl_->max_bytes));
+    return room || !impl_->failure.ok() || impl_->closed;
   });
   if (!impl_->failure.ok()) return impl_->failure;
   if (impl_->closed) return invalid_argument("QueuedWriter: push() after finish()");
   impl_->queue.push_back(std::move(tile));
+  impl_->queued_bytes += bytes;
   impl_->ready.notify_one();
   return {};
 }

@@ -384,34 +384,43 @@ StoredTile prepared(const TinTile& t) {
 }
 
 TEST(QueuedWriter, TilesPushedFromSeveralThreadsAreAllStored) {
-  TempDir dir;
-  auto store = open_rw(dir / "a.tinstream");
   std::vector<TinTile> tiles;
   std::mt19937_64 rng(51);
   for (std::uint32_t i = 0; i < 300; ++i) {
     tiles.push_back(make_grid_tile({10, i % 32, i / 32}, 2 + i % 3, 2, rng));
   }
-  auto writer = store.begin_layer(basic_info("q"));
-  ASSERT_TRUE(writer.ok());
-  {
-    QueuedWriter queue(**writer, 3);  // smaller than the tiles in flight: push() waits
-    std::vector<std::thread> workers;
-    for (std::size_t w = 0; w < 3; ++w) {
-      workers.emplace_back([&, w] {
-        for (std::size_t i = w; i < tiles.size(); i += 3) {
-          ASSERT_TRUE(queue.push(prepared(tiles[i])).ok());
-        }
-      });
+  const std::size_t one_tile = prepared(tiles[0]).compressed.size();
+  // (tiles, bytes) bounds smaller than the tiles in flight, so push() waits on each: the count;
+  // a byte budget below one tile (one tile at a time, let in once the queue is empty); about
+  // three tiles' bytes.
+  const std::pair<std::size_t, std::size_t> bounds[] = {
+      {3, static_cast<std::size_t>(-1)}, {1000, 1}, {1000, 3 * one_tile}};
+  for (const auto& [capacity, max_bytes] : bounds) {
+    SCOPED_TRACE("capacity " + std::to_string(capacity) + ", bytes " + std::to_string(max_bytes));
+    TempDir dir;
+    auto store = open_rw(dir / "a.tinstream");
+    auto writer = store.begin_layer(basic_info("q"));
+    ASSERT_TRUE(writer.ok());
+    {
+      QueuedWriter queue(**writer, capacity, max_bytes);
+      std::vector<std::thread> workers;
+      for (std::size_t w = 0; w < 3; ++w) {
+        workers.emplace_back([&, w] {
+          for (std::size_t i = w; i < tiles.size(); i += 3) {
+            ASSERT_TRUE(queue.push(prepared(tiles[i])).ok());
+          }
+        });
+      }
+      for (auto& t : workers) t.join();
+      ASSERT_TRUE(queue.finish().ok());
+      EXPECT_EQ(queue.stored(), tiles.size());
+      EXPECT_EQ(queue.push(prepared(tiles[0])).error().code,
+                ErrorCode::invalid_argument);  // after finish()
     }
-    for (auto& t : workers) t.join();
-    ASSERT_TRUE(queue.finish().ok());
-    EXPECT_EQ(queue.stored(), tiles.size());
-    EXPECT_EQ(queue.push(prepared(tiles[0])).error().code,
-              ErrorCode::invalid_argument);  // after finish()
+    ASSERT_TRUE((*writer)->publish(basic_info("q")).ok());
+    EXPECT_EQ(store.layer("q")->tile_count, tiles.size());
+    for (const auto& t : tiles) EXPECT_TRUE(same_tile(**store.read_tile("q", t.id), t));
   }
-  ASSERT_TRUE((*writer)->publish(basic_info("q")).ok());
-  EXPECT_EQ(store.layer("q")->tile_count, tiles.size());
-  for (const auto& t : tiles) EXPECT_TRUE(same_tile(**store.read_tile("q", t.id), t));
 }
 
 TEST(QueuedWriter, TheFirstStoreErrorStopsItAndIsReturned) {

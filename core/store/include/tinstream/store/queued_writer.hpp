@@ -3,8 +3,10 @@
 //
 // Workers prepare tiles (store::prepare_tile: encoding and compression, the CPU-heavy part) and
 // push() them; the queue's thread put()s them into the LayerWriter, so no worker waits while
-// SQLite commits a batch (and checkpoints the WAL). push() waits only while `capacity` tiles are
-// queued. The first store error stops the queue: the next push() and finish() return it.
+// SQLite commits a batch (and checkpoints the WAL). push() waits only while `capacity` tiles, or
+// `max_bytes` of compressed tiles, are queued (a tile larger than max_bytes alone still goes in
+// once the queue is empty). The first store error stops the queue: the next push() and finish()
+// return it.
 #pragma once
 
 #include <cstdint>
@@ -18,7 +20,8 @@ namespace tinstream::store {
 class QueuedWriter {
  public:
   // `writer` must outlive the QueuedWriter and not be used by others until finish() returned.
-  QueuedWriter(LayerWriter& writer, std::size_t capacity);
+  QueuedWriter(LayerWriter& writer, std::size_t capacity,
+               std::size_t max_bytes = static_cast<std::size_t>(-1));
   QueuedWriter(const QueuedWriter&) = delete;
   QueuedWriter& operator=(const QueuedWriter&) = delete;
   ~QueuedWriter();  // finish()es
