@@ -3,8 +3,10 @@
 # mountains, 4 points/m², flight strips) of several sizes through `tinstream ingest` with default
 # options; records points/s and peak RSS for each size and prints a markdown table.
 #   SIZES="1e7 3e7 1e8" BUILD_DIR=build-bench WORK=/tmp/tinstream-ingest-bench bench/ingest/run.sh
-# Needs free disk: about 60 bytes per point for the LAS file plus ~40 bytes per point of
-# temporary run files during the ingest.
+# EXTRA=--no-pyramid measures the finest level only (passes 1–3 and the store: issue #4's end to
+# end); without it the default ingest also builds the LOD pyramid.
+# Needs free disk: about 20 bytes per point for the LAS file (point format 0), ~40 bytes per point
+# of temporary run files during the ingest and ~20 for the store.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 SIZES=${SIZES:-"1e7 3e7 1e8"}
