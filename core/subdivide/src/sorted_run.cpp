@@ -116,22 +116,17 @@ class FileSet {
 // cache then runs beside the merge instead of after it).
 class RunWriter {
  public:
-  // With `overwrite`, an existing file at `path` is written over from its start and cut to size
-  // at close(): its cached pages are rewritten instead of new ones being allocated, which on the
-  // benchmark VM costs ~4 ms per MB (a first touch of a page the host has taken back) against
-  // ~0.2 ms. Without, or with no file there, the file is created empty.
-  // `keyed`: SortedPoints as they are, key included (the sorted run, which pass 3 reads many
-  // times over); else StoredRecords (the temporary runs, read once).
+  // Creates the file (an existing one is cut to empty). `keyed`: SortedPoints as they are, key
+  // included (the sorted run, which pass 3 reads many times over); else StoredRecords (the
+  // temporary runs, read once).
   static Result<RunWriter> create(const std::filesystem::path& path, std::size_t buffer_records,
-                                  bool background = false, bool overwrite = false,
-                                  bool keyed = false) {
-    FilePtr f(overwrite ? std::fopen(path.c_str(), "r+b") : nullptr);
-    if (!f) f.reset(std::fopen(path.c_str(), "wb"));
+                                  bool background = false, bool keyed = false) {
+    FilePtr f(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
     return RunWriter(std::move(f), path, buffer_records, background, keyed);
   }
   // Writes keyed records into the region of an existing file that starts at record `first` (one
-  // of the parallel merge's halves of the sorted run); close() leaves the file's size alone.
+  // of the parallel merge's halves of the sorted run).
   static Result<RunWriter> create_region(const std::filesystem::path& path, std::uint64_t first,
                                          std::size_t buffer_records) {
     FilePtr f(std::fopen(path.c_str(), "r+b"));
@@ -139,7 +134,6 @@ class RunWriter {
       return io_failure("cannot open", path);
     }
     RunWriter w(std::move(f), path, buffer_records, /*background=*/true, /*keyed=*/true);
-    w.cut_at_close_ = false;
     return w;
   }
   RunWriter(FilePtr f, const std::filesystem::path& path, std::size_t buffer_records,
@@ -181,11 +175,7 @@ class RunWriter {
     if (Status s = flush(); !s) return s;
     if (Status s = wait_background(); !s) return s;
     background_.reset();  // joins the writer thread before the file goes
-    if (std::fflush(file_.get()) != 0 ||
-        (cut_at_close_ &&
-         ::ftruncate(fileno(file_.get()), static_cast<off_t>(written_ * record_bytes_)) != 0)) {
-      return io_failure("cannot write", path_);
-    }
+    if (std::fflush(file_.get()) != 0) return io_failure("cannot write", path_);
     if (std::fclose(file_.release()) != 0) return io_failure("cannot close", path_);
     return {};
   }
@@ -264,7 +254,6 @@ class RunWriter {
   std::size_t capacity_ = 0;  // bytes
   std::vector<unsigned char> buffer_;
   std::uint64_t written_ = 0;
-  bool cut_at_close_ = true;
   std::unique_ptr<Background> background_;  // after file_: destroyed (joined) before it
 };
 
@@ -1019,8 +1008,7 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   TileTally tally(options.max_level, options.min_level,
                   split.low.empty() ? tally_entries : tally_entries / 2);
   if (split.low.empty()) {
-    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*overwrite=*/true,
-                               /*keyed=*/true);
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*keyed=*/true);
     if (!w) return w.error();
     if (Status s = merge_runs(whole_runs(runs), merge_buffer, *w, &levels, &tally,
                               result.duplicates_merged, tick);
@@ -1033,8 +1021,7 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
     // The upper half on its own thread (the cursors, buffers and writers of both halves share the
     // merge's budget: half the buffer each).
     {
-      FilePtr f(std::fopen(result.path.c_str(), "r+b"));  // an existing file is written over
-      if (!f) f.reset(std::fopen(result.path.c_str(), "wb"));
+      FilePtr f(std::fopen(result.path.c_str(), "wb"));  // the halves write into it (regions)
       if (!f) return io_failure("cannot create", result.path);
     }
     const std::size_t half_buffer = std::max<std::size_t>(merge_buffer / 2, 256);

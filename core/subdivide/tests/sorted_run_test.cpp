@@ -275,8 +275,8 @@ TEST(Subdivide, TileIndexSameWhetherTalliedOrReRead) {
   }
 }
 
-// A file already at the output path (the ingest leaves pass 1's run file there) is written over
-// and cut to the run's size, whether it was longer or shorter.
+// A file already at the output path is replaced: the sorted run has exactly the run's size,
+// whether the old file was longer or shorter.
 TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
   const auto pts = clustered_points(5000, 14);
   const auto expected = reference_run(pts);

@@ -1,6 +1,6 @@
-// tinstream/ingest/ingest.hpp — the whole ingest (DESIGN.md §3): sources → run file (pass 1) →
-// Morton-sorted run (pass 2) → finest TIN tiles (pass 3) → LOD pyramid (pass 4) → SQLite store,
-// published atomically.
+// tinstream/ingest/ingest.hpp — the whole ingest (DESIGN.md §3): sources → sorted runs of
+// transformed points (pass 1) → one Morton-sorted run (pass 2) → finest TIN tiles (pass 3) → LOD
+// pyramid (pass 4) → SQLite store, published atomically.
 //
 // Contract
 //  * Memory is bounded by `memory_bytes` and the thread count, never by input size: every pass
