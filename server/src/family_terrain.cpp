@@ -204,17 +204,34 @@ Response serve(const Request& req, Context& ctx, const TerrainRoute& r) {
     if (auto not_modified = terrain_not_modified(req, ctx.config, body->etag, normals)) {
       return std::move(*not_modified);
     }
-    res.prebuilt = body->gzip_head;
+    res.prebuilt = body->head;
     res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
     return res;
   }
-  // The client takes no gzip: the inflated body is another representation with its own tag.
+  // The client takes no gzip: the inflated body is another representation with its own tag,
+  // cached beside the gzip one (inflated once, not on every request).
   const std::string etag = representation_etag(body->etag, "id");
   if (auto not_modified = terrain_not_modified(req, ctx.config, etag, normals)) {
     return std::move(*not_modified);
   }
-  set_terrain_headers(res, ctx.config, etag, normals, true);
-  send_maybe_gzip(req, res, body);
+  key.append("|id");
+  std::shared_ptr<const CachedBody> inflated =
+      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!inflated) {
+    const std::string& gz = body->bytes;
+    auto raw = terrain::gzip_decompress(
+        std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()), kMaxTileBytes);
+    if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
+    Response head;
+    set_terrain_headers(head, ctx.config, etag, normals, true);
+    add_cors(head, ctx.config);
+    inflated = std::make_shared<const CachedBody>(
+        CachedBody{etag, std::string(raw->begin(), raw->end()),
+                   std::make_shared<const HeaderBlock>(std::move(head.headers), raw->size())});
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, inflated);
+  }
+  res.prebuilt = inflated->head;
+  res.shared_body = std::shared_ptr<const std::string>(inflated, &inflated->bytes);
   return res;
 }
 
