@@ -60,6 +60,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
                                 "max_header_bytes",
                                 "max_body_bytes",
                                 "max_connections",
+                                "max_connections_per_ip",
+                                "linger_ms",
                                 "read_timeout_ms",
                                 "write_timeout_ms",
                                 "cache_max_age_s",
@@ -93,6 +95,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "max_header_bytes", c.max_header_bytes))) return st.error();
   if (!(st = read_uint(j, "max_body_bytes", c.max_body_bytes))) return st.error();
   if (!(st = read_uint(j, "max_connections", c.max_connections))) return st.error();
+  if (!(st = read_uint(j, "max_connections_per_ip", c.max_connections_per_ip))) return st.error();
+  if (!(st = read_uint(j, "linger_ms", c.linger_ms))) return st.error();
   if (!(st = read_uint(j, "read_timeout_ms", c.read_timeout_ms))) return st.error();
   if (!(st = read_uint(j, "write_timeout_ms", c.write_timeout_ms))) return st.error();
   if (!(st = read_uint(j, "cache_max_age_s", c.cache_max_age_s))) return st.error();

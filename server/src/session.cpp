@@ -21,6 +21,11 @@ namespace {
 
 // Bytes asked of the socket per read when the buffer has less room: a few requests' worth.
 constexpr std::size_t kReadSize = 4096;
+// Buffers larger than this (a big request body, a big answer) are released after the response,
+// so that an idle keep-alive connection holds no more.
+constexpr std::size_t kKeptBufferBytes = 64u << 10;
+// What a closing connection drains at most before it is closed hard.
+constexpr std::size_t kMaxDrainBytes = 64u << 10;
 
 std::string random_hex(std::size_t n) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
@@ -39,8 +44,9 @@ std::size_t whole_buffers(const beast::error_code& ec, std::size_t) {
 
 }  // namespace
 
-Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener)
-    : socket_(std::move(socket)), server_(server), shard_(shard) {
+Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener,
+                 bool counted)
+    : socket_(std::move(socket)), server_(server), shard_(shard), counted_(counted) {
   server_.metrics.connection_opened();
   server_.live_sessions.fetch_add(1);
   beast::error_code ec;
@@ -56,17 +62,21 @@ Session::~Session() {
     std::error_code ec;
     std::filesystem::remove(upload_path_, ec);
   }
+  if (counted_) server_.addresses.release(req_.remote);
+  if (lingering_) server_.lingering.fetch_sub(1);
   server_.live_sessions.fetch_sub(1);
 }
 
-void Session::start(bool reject) {
+void Session::start(std::string refusal) {
   shard_.sessions.insert(this);
   beast::error_code ec;
   socket_.native_non_blocking(true, ec);  // the sendfile writer calls send/sendfile itself
-  if (!reject) return do_read();
+  if (refusal.empty()) return do_read();
   start_ = Clock::now();
   reset_request();
-  do_write(json_error(503, "too many connections"), true);
+  do_write(json_error(503, refusal), true);
+  // A refused client gets a second at most to take its 503.
+  expires_after(std::min<std::uint32_t>(cfg().write_timeout_ms, 1000));
 }
 
 // The wait for a next request is cancelled, not closed: the reactor may already have read the
@@ -351,7 +361,7 @@ void Session::on_write(beast::error_code ec, std::size_t) {
   }
   prebuilt_.reset();
   shared_body_.reset();
-  body_.clear();
+  release_large_buffers();
   if (ec) return close_now();
   if (close_after_) return do_close();
   // Stopping or not, the client was told the connection stays open and may already have sent
@@ -362,19 +372,41 @@ void Session::on_write(beast::error_code ec, std::size_t) {
 
 // ---- 3. Closing ----------------------------------------------------------------------------
 
+void Session::release_large_buffers() {
+  if (body_.capacity() > kKeptBufferBytes) {
+    std::string().swap(body_);
+  } else {
+    body_.clear();
+  }
+  if (req_.body.capacity() > kKeptBufferBytes) std::string().swap(req_.body);
+  if (buffer_.size() == 0 && buffer_.capacity() > kKeptBufferBytes) buffer_.shrink_to_fit();
+}
+
+// ---- 3. Closing ----------------------------------------------------------------------------
+
 void Session::do_close() {
   beast::error_code ec;
   socket_.shutdown(tcp::socket::shutdown_send, ec);
+  const std::int64_t most = std::max<std::int64_t>(1, cfg().max_connections / 4);
+  if (server_.lingering.fetch_add(1) >= most) {
+    server_.lingering.fetch_sub(1);
+    return close_now();
+  }
+  lingering_ = true;
   drained_ = 0;
-  on_drain({}, 0);
+  expires_after(cfg().linger_ms);  // once: the bytes that come do not extend it
+  do_drain();
+}
+
+void Session::do_drain() {
+  socket_.async_read_some(net::buffer(drain_buffer_),
+                          beast::bind_front_handler(&Session::on_drain, shared_from_this()));
 }
 
 void Session::on_drain(beast::error_code ec, std::size_t n) {
   drained_ += n;
-  if (ec || drained_ > (4u << 20)) return close_now();
-  expires_after(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000));
-  socket_.async_read_some(net::buffer(drain_buffer_),
-                          beast::bind_front_handler(&Session::on_drain, shared_from_this()));
+  if (ec || drained_ > kMaxDrainBytes) return close_now();
+  do_drain();
 }
 
 }  // namespace tinstream::server

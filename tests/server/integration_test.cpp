@@ -1,15 +1,19 @@
 // The server library on a real loopback socket (port 0), against a real SQLite store.
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <netinet/in.h>
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <csignal>
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -1274,6 +1278,211 @@ TEST_F(ServerTest, AdminAndMetricsAnswerOnlyOnTheAdminListener) {
   EXPECT_EQ(http_get(admin, "/healthz").status, 200);
   EXPECT_EQ(http_get(admin, "/tiles/lux/" + kTile.quadkey()).status, 404);
   EXPECT_EQ(http_get(port_, "/layers/lux").status, 200);
+}
+
+// ---- Connection slots (#22 finding 1) ---------------------------------------------------------
+
+// Sends one byte every `every` until the server has closed the connection (a send fails) or
+// `limit` has passed; true when it closed.
+bool trickle_until_closed(HttpConnection& c, std::chrono::milliseconds every,
+                          std::chrono::milliseconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    if (!c.send_raw("x")) return true;
+    std::this_thread::sleep_for(every);
+  }
+  return false;
+}
+
+// After `Connection: close` the server drains what the client still sends, so that it reads the
+// answer rather than a reset — for at most linger_ms in all, however the bytes trickle in. (The
+// drain's deadline was renewed by every byte, for up to 4 MiB: a byte every 1.9 s held the
+// connection, and its slot, for days.)
+TEST_F(ServerTest, LingeringCloseHasAHardTotalDeadline) {
+  stop();
+  start([](ServerConfig& c) { c.linger_ms = 500; });
+  HttpConnection c(port_);
+  ASSERT_TRUE(c.send_raw("GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"));
+  EXPECT_EQ(c.read_response().status, 200);
+  EXPECT_TRUE(trickle_until_closed(c, std::chrono::milliseconds(50), std::chrono::seconds(8)));
+}
+
+// 20 clients that each take a 400 (the connection ends) and then trickle bytes into its
+// lingering close cannot keep a normal client out for long: lingering is bounded in time and
+// in number (a quarter of max_connections; beyond that a connection closes at once).
+TEST_F(ServerTest, CloseTricklersCannotHoldEverySlot) {
+  stop();
+  start([](ServerConfig& c) {
+    c.max_connections = 20;
+    c.max_connections_per_ip = 0;
+    c.linger_ms = 60000;  // the count bound alone must let the normal client in
+  });
+  std::vector<std::unique_ptr<HttpConnection>> tricklers;
+  for (int i = 0; i < 20; ++i) {
+    tricklers.push_back(std::make_unique<HttpConnection>(port_));
+    ASSERT_TRUE(tricklers.back()->send_raw("BROKEN\r\n\r\n"));
+    EXPECT_EQ(tricklers.back()->read_response().status, 400) << i;
+    tricklers.back()->send_raw("x");
+  }
+  // Keep trickling while a normal client asks, a few times, for a tile.
+  std::atomic<bool> done{false};
+  std::thread trickle([&] {
+    while (!done) {
+      for (auto& t : tricklers) t->send_raw("x");
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  });
+  int status = 0;
+  for (int attempt = 0; attempt < 50 && status != 200; ++attempt) {
+    status = http_get(port_, "/tiles/lux/" + kTile.quadkey()).status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  done = true;
+  trickle.join();
+  EXPECT_EQ(status, 200);
+}
+
+// At most max_connections_per_ip connections from one address; the others are answered 503 and
+// closed. Another address (127.0.0.2 is loopback too) is served meanwhile.
+TEST_F(ServerTest, ConnectionsPerAddressAreCapped) {
+  stop();
+  start([](ServerConfig& c) { c.max_connections_per_ip = 3; });
+  std::vector<std::unique_ptr<HttpConnection>> held;
+  for (int i = 0; i < 3; ++i) {
+    held.push_back(std::make_unique<HttpConnection>(port_));
+    ASSERT_EQ(held.back()->request("GET", "/healthz").status, 200) << i;
+  }
+  HttpConnection fourth(port_);
+  const auto refused = fourth.request("GET", "/healthz");
+  EXPECT_EQ(refused.status, 503);
+  EXPECT_NE(refused.body.find("this address"), std::string::npos) << refused.body;
+  HttpConnection other(port_, 0, "127.0.0.2");
+  EXPECT_EQ(other.request("GET", "/healthz").status, 200);
+  held.pop_back();  // one slot of 127.0.0.1 frees up once the server sees the close
+  int status = 0;
+  for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+    HttpConnection again(port_);
+    status = again.request("GET", "/healthz").status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(status, 200);
+}
+
+// The open-files limit is raised to its hard limit at start, and max_connections is kept well
+// below it (the store, the body files, the listeners and the ingest need descriptors too).
+TEST_F(ServerTest, OpenFilesLimitIsRaisedAndConnectionsStayBelowIt) {
+  stop();
+  rlimit low{256, 512};  // this test's own process: ctest runs every test in one
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  start([](ServerConfig& c) { c.max_connections = 100000; });
+  rlimit now{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &now), 0);
+  EXPECT_EQ(now.rlim_cur, 512u);
+  EXPECT_LE(server_->max_connections(), 512u - 128u);
+  EXPECT_GE(server_->max_connections(), 256u);
+}
+
+std::size_t open_descriptors() {
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
+}
+
+std::uint64_t metric(std::uint16_t port, const std::string& name) {
+  const auto body = http_get(port, "/metrics").body;
+  const auto at = body.find("\n" + name + " ");
+  return at == std::string::npos ? ~std::uint64_t{0}
+                                 : std::stoull(body.substr(at + name.size() + 2));
+}
+
+// Out of file descriptors, accept() fails with EMFILE while the connection waits in the backlog:
+// the listener waits a moment before trying again instead of retrying at once (a loop at 100 %
+// CPU writing a warning each time), and serves again once descriptors are free.
+TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+  struct Restore {
+    rlimit limit;
+    ~Restore() { ::setrlimit(RLIMIT_NOFILE, &limit); }
+  } restore{before};
+  ASSERT_EQ(http_get(port_, "/healthz").status, 200);
+  const std::uint64_t errors_before = metric(port_, "tinstream_accept_errors_total");
+  rlimit tight = before;
+  tight.rlim_cur = open_descriptors() + 16;
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  // The clients live in a child process (its own descriptor table), which connects once this
+  // process has used up its descriptors: their connections wait in the listener's backlog.
+  int go[2];
+  ASSERT_EQ(::pipe(go), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    char c;
+    if (::read(go[0], &c, 1) != 1) ::_exit(1);
+    for (int i = 0; i < 4; ++i) {
+      const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+      sockaddr_in addr{};
+      addr.sin_family = AF_INET;
+      addr.sin_port = htons(port_);
+      ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+      if (fd >= 0) ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+    }
+    ::pause();
+    ::_exit(0);
+  }
+  std::vector<int> filler;
+  for (int fd; (fd = ::dup(go[1])) >= 0;) filler.push_back(fd);
+  ASSERT_EQ(::write(go[1], "g", 1), 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // the window being measured
+  for (int fd : filler) ::close(fd);
+  ::setrlimit(RLIMIT_NOFILE, &before);
+  ::kill(child, SIGKILL);
+  ::waitpid(child, nullptr, 0);
+  ::close(go[0]);
+  ::close(go[1]);
+  int status = 0;
+  for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+    status = http_get(port_, "/healthz").status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_EQ(status, 200);
+  const std::uint64_t errors = metric(port_, "tinstream_accept_errors_total");
+  ASSERT_NE(errors, ~std::uint64_t{0}) << "no tinstream_accept_errors_total in /metrics";
+  EXPECT_GE(errors - errors_before, 1u);
+  EXPECT_LE(errors - errors_before, 40u) << "accept retried without waiting";
+}
+
+long resident_kib() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return resident * (::sysconf(_SC_PAGESIZE) / 1024);
+}
+
+// A keep-alive connection between requests holds no large buffer: not the 900 KiB of its last
+// request body, not the 500 KiB of its last answer (40 idle connections would hold 56 MiB).
+TEST_F(ServerTest, IdleConnectionsKeepNoLargeBuffers) {
+  stop();
+  testing::write_test_layer(store_path_, "dense", geo::Projection::spherical, 129);
+  start([](ServerConfig& c) {
+    c.max_body_bytes = 1u << 20;
+    c.terrain_cache_bytes = 0;
+  });
+  const std::string big(900u << 10, ' ');
+  const std::string native = "/tiles/dense/" + kTile.quadkey();
+  ASSERT_GT(http_get(port_, native).body.size(), 400u << 10);
+  ::malloc_trim(0);
+  const long before = resident_kib();
+  std::vector<std::unique_ptr<HttpConnection>> idle;
+  for (int i = 0; i < 40; ++i) {
+    idle.push_back(std::make_unique<HttpConnection>(port_));
+    EXPECT_EQ(idle.back()->request("POST", "/admin/ingest", kAdmin, big).status, 400);
+    EXPECT_EQ(idle.back()->request("GET", native).status, 200);
+  }
+  ::malloc_trim(0);
+  const long grown = resident_kib() - before;
+  EXPECT_LT(grown, 16 * 1024) << "KiB held by 40 idle connections";
+  for (auto& c : idle) EXPECT_EQ(c->request("GET", "/healthz").status, 200);
 }
 
 }  // namespace

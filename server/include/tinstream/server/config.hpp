@@ -25,8 +25,10 @@ struct ServerConfig {
   std::filesystem::path upload_dir;  // uploaded sources are streamed here; empty: off
   std::uint64_t max_upload_bytes = 1ull << 30;
   std::uint32_t max_header_bytes = 8192;
-  std::uint64_t max_body_bytes = 1u << 20;  // non-upload request bodies
-  std::uint32_t max_connections = 1024;
+  std::uint64_t max_body_bytes = 1u << 20;     // non-upload request bodies
+  std::uint32_t max_connections = 1024;        // kept below the open-files limit (Server::create)
+  std::uint32_t max_connections_per_ip = 256;  // 0: no per-address cap
+  std::uint32_t linger_ms = 1000;  // closing: at most this long draining what the client sends
   std::uint32_t read_timeout_ms = 30000;   // per request header (then body), idle time included
   std::uint32_t write_timeout_ms = 30000;  // per response write
   std::uint32_t cache_max_age_s = 86400;   // Cache-Control max-age for tiles

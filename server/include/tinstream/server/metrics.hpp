@@ -34,6 +34,7 @@ class Metrics {
     return open_connections_.load(std::memory_order_relaxed);
   }
   void connection_rejected() { rejected_connections_.fetch_add(1, std::memory_order_relaxed); }
+  void accept_failed() { accept_errors_.fetch_add(1, std::memory_order_relaxed); }
 
   std::string render(const JobCounts& jobs) const;
 
@@ -48,6 +49,7 @@ class Metrics {
   std::atomic<std::uint64_t> bytes_sent_{0};
   std::atomic<std::int64_t> open_connections_{0};
   std::atomic<std::uint64_t> rejected_connections_{0};
+  std::atomic<std::uint64_t> accept_errors_{0};
 };
 
 }  // namespace tinstream::server
