@@ -32,6 +32,7 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   }
   ingest::IngestOptions out;
   out.store_path = job.store_path;
+  out.tmp_dir = job.scratch_dir;  // private to the server; empty: the system's
   out.layer = job.layer;
   try {
     if (o.contains("projection")) {

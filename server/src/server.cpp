@@ -17,6 +17,7 @@
 
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <atomic>
@@ -66,6 +67,34 @@ std::uint32_t connection_limit(std::uint32_t configured) {
   spdlog::warn("max_connections {} lowered to {}: the open-files limit is {}", configured, room,
                static_cast<std::uint64_t>(files.rlim_cur));
   return static_cast<std::uint32_t>(room);
+}
+
+// Upload files of an earlier run (a crash mid-upload or mid-job): the server's own names,
+// upload-<16 hex> with or without "-<name>".
+void remove_orphan_uploads(const std::filesystem::path& folder) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool ours = name.size() >= 23 && name.rfind("upload-", 0) == 0 &&
+                      name.find_first_not_of("0123456789abcdef", 7) >= 23 &&
+                      (name.size() == 23 || name[23] == '-');
+    std::error_code type_ec;
+    if (!ours || !e.is_regular_file(type_ec)) continue;
+    std::error_code rm;
+    std::filesystem::remove(e.path(), rm);
+    if (!rm) spdlog::info("removed an upload left by an earlier run: {}", name);
+  }
+}
+
+// The folder for ingest jobs' temporary files: .tinstream-scratch beside the store, 0700 (the
+// system temp folder is shared with every user of the machine).
+std::filesystem::path private_scratch_dir(const std::filesystem::path& store) {
+  const auto dir = (store.has_parent_path() ? store.parent_path() : std::filesystem::path(".")) /
+                   ".tinstream-scratch";
+  ::mkdir(dir.c_str(), 0700);
+  ::chmod(dir.c_str(), 0700);
+  std::error_code ec;
+  return std::filesystem::is_directory(dir, ec) ? dir : std::filesystem::path();
 }
 
 // Each io thread's own read-only store, opened on first use, keyed by the server's serial number
@@ -342,6 +371,8 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   ctx.layer_cache = &impl->layers;
   ctx.store = [raw] { return thread_store(raw->serial, raw->state.config.store); };
   ctx.path_redactions = server_path_redactions(config);
+  ctx.scratch_dir = private_scratch_dir(config.store);
+  if (!config.upload_dir.empty()) remove_orphan_uploads(config.upload_dir);
   impl->state.blocking = &impl->blocking;
 
   if (Status listening = listen(impl->acceptor, config.address, config.port); !listening)

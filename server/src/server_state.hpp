@@ -70,7 +70,8 @@ struct ServerState {
   Context ctx;  // the handler's view of the server (handler.hpp)
   std::atomic<bool> stopping{false};
   std::atomic<std::int64_t> live_sessions{0};
-  std::atomic<std::int64_t> lingering{0};  // sessions draining before their close
+  std::atomic<std::int64_t> lingering{0};   // sessions draining before their close
+  std::atomic<std::uint64_t> uploading{0};  // bytes reserved by uploads in progress
   AddressCounts addresses;
   BlockingWorker* blocking = nullptr;  // runs deferred answers (Response::deferred)
 };

@@ -1,6 +1,9 @@
 #include "session.hpp"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
 
 #include <algorithm>
 #include <array>
@@ -10,6 +13,8 @@
 #include <boost/asio/write.hpp>
 #include <boost/beast/core/bind_handler.hpp>
 #include <boost/beast/http/error.hpp>
+#include <cerrno>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -63,6 +68,7 @@ Session::~Session() {
     std::filesystem::remove(upload_path_, ec);
   }
   if (counted_) server_.addresses.release(req_.remote);
+  release_upload_space();
   if (lingering_) server_.lingering.fetch_sub(1);
   server_.live_sessions.fetch_sub(1);
 }
@@ -155,7 +161,10 @@ void Session::parse_buffered() {
     }
     if (ec) break;
   }
-  if (!ec && !complete()) return do_read_some();
+  if (!ec && !complete()) {
+    if (!reading_header_ && upload_file_.is_open()) extend_upload_deadline(Clock::now());
+    return do_read_some();
+  }
   on_parsed(ec);
 }
 
@@ -239,17 +248,77 @@ std::optional<Response> Session::begin_upload(const boost::optional<std::uint64_
     return json_error(
         413, "upload larger than max_upload_bytes = " + std::to_string(cfg().max_upload_bytes));
   }
+  if (auto refused = reserve_upload_space(length ? *length : cfg().max_upload_bytes))
+    return refused;
+  // The folder and the file are the server's own: 0700 and 0600, never through a symlink.
   std::error_code fs_ec;
-  std::filesystem::create_directories(cfg().upload_dir, fs_ec);
-  upload_path_ = cfg().upload_dir / ("upload-" + random_hex(16));
-  beast::error_code open_ec;
-  upload_file_.open(upload_path_.c_str(), beast::file_mode::write_new, open_ec);
-  if (open_ec) {
-    upload_path_.clear();
-    return json_error(500, "upload: cannot create a file in upload_dir: " + open_ec.message());
+  if (!std::filesystem::exists(cfg().upload_dir, fs_ec)) {
+    std::filesystem::create_directories(cfg().upload_dir.parent_path(), fs_ec);
+    ::mkdir(cfg().upload_dir.c_str(), 0700);
   }
+  upload_path_ = cfg().upload_dir / ("upload-" + random_hex(16));
+  const int fd =
+      ::open(upload_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (fd < 0) {
+    const std::string why = std::strerror(errno);
+    upload_path_.clear();
+    return json_error(500, "upload: cannot create a file in upload_dir: " + why);
+  }
+  upload_file_.native_handle(fd);
   parser_->write_body_to(upload_file_);
+  upload_start_ = Clock::now();
   return std::nullopt;
+}
+
+// Room for an upload of `bytes`: within max_upload_total_bytes together with the uploads in
+// progress and the upload files waiting for their jobs, and leaving upload_min_free_bytes on
+// the disk. Reserved until the body is complete (or the session ends); 507 otherwise.
+std::optional<Response> Session::reserve_upload_space(std::uint64_t bytes) {
+  std::uint64_t waiting = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(cfg().upload_dir, ec)) {
+    std::error_code size_ec;
+    if (e.path().filename().string().rfind("upload-", 0) == 0 && e.is_regular_file(size_ec))
+      waiting += e.file_size(size_ec);
+  }
+  const std::uint64_t before = server_.uploading.fetch_add(bytes);
+  upload_reserved_ = bytes;
+  if (before + waiting + bytes > cfg().max_upload_total_bytes) {
+    release_upload_space();
+    return json_error(507,
+                      "upload: uploads in progress and waiting for their jobs would exceed "
+                      "max_upload_total_bytes = " +
+                          std::to_string(cfg().max_upload_total_bytes));
+  }
+  struct statvfs disk {};
+  const auto& where = std::filesystem::exists(cfg().upload_dir, ec)
+                          ? cfg().upload_dir
+                          : cfg().upload_dir.parent_path();
+  if (::statvfs(where.empty() ? "." : where.c_str(), &disk) == 0) {
+    const std::uint64_t free_bytes =
+        static_cast<std::uint64_t>(disk.f_bavail) * static_cast<std::uint64_t>(disk.f_frsize);
+    if (free_bytes < bytes || free_bytes - bytes < cfg().upload_min_free_bytes) {
+      release_upload_space();
+      return json_error(507, "upload: not enough free disk space (upload_min_free_bytes = " +
+                                 std::to_string(cfg().upload_min_free_bytes) + ")");
+    }
+  }
+  return std::nullopt;
+}
+
+void Session::release_upload_space() {
+  server_.uploading.fetch_sub(upload_reserved_);
+  upload_reserved_ = 0;
+}
+
+// An upload's body has read_timeout_ms without a byte, and in all read_timeout_ms plus the time
+// its bytes so far take at upload_min_bytes_per_s.
+void Session::extend_upload_deadline(Clock::time_point now) {
+  const std::uint64_t rate = std::max<std::uint32_t>(1, cfg().upload_min_bytes_per_s);
+  const auto earned = std::chrono::milliseconds(parser_->body_bytes() * 1000 / rate);
+  const auto idle = now + std::chrono::milliseconds(cfg().read_timeout_ms);
+  deadline_ =
+      std::min(idle, upload_start_ + std::chrono::milliseconds(cfg().read_timeout_ms) + earned);
 }
 
 // Reads the body (on_body once complete) within read_timeout_ms, after a 100 Continue when the
@@ -257,6 +326,7 @@ std::optional<Response> Session::begin_upload(const boost::optional<std::uint64_
 void Session::read_body(bool expect_continue) {
   if (!expect_continue) {
     expires_after(cfg().read_timeout_ms);
+    upload_start_ = Clock::now();
     return parse_buffered();
   }
   static const std::string kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
@@ -281,6 +351,7 @@ void Session::on_body(beast::error_code ec) {
   if (upload) {
     upload_file_.close(ec);
     if (ec) return do_write(json_error(500, "upload: " + ec.message()), true);
+    release_upload_space();  // the file now counts as waiting for its job
     req_.body_file_size = parser_->body_bytes();
     req_.body_file = std::move(upload_path_);  // handle() owns the file from here
     upload_path_.clear();

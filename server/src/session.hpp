@@ -70,6 +70,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_parsed(beast::error_code ec);
   void on_header(beast::error_code ec);
   std::optional<Response> begin_upload(const boost::optional<std::uint64_t>& length);
+  std::optional<Response> reserve_upload_space(std::uint64_t bytes);
+  void release_upload_space();
+  void extend_upload_deadline(Clock::time_point now);
   void read_body(bool expect_continue);
   void on_body(beast::error_code ec);
 
@@ -102,6 +105,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<const HeaderBlock> prebuilt_;            // holds a shared head being written
   SendfileJob sendfile_;               // sendfile path: what is left (head in head_/prebuilt_)
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
+  std::uint64_t upload_reserved_ = 0;  // of ServerState::uploading, until the body is complete
+  Clock::time_point upload_start_;
   Request req_;
   Clock::time_point start_;
   std::string route_ = "other";

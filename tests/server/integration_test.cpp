@@ -49,6 +49,8 @@ struct RunnerState {
   bool mid_write_open = true;
   bool paused = false;
   std::vector<std::uintmax_t> source_sizes;
+  std::vector<std::string> source_contents;  // read once the gate opened
+  std::filesystem::path scratch_dir;         // of the last job
   int runs = 0;
 };
 
@@ -60,7 +62,13 @@ IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
       for (const auto& s : job.sources)
         state->source_sizes.push_back(std::filesystem::file_size(s));
       ++state->runs;
+      state->scratch_dir = job.scratch_dir;
       state->cv.wait(lock, [&] { return state->open; });
+      for (const auto& s : job.sources) {
+        std::ifstream in(s, std::ios::binary);
+        state->source_contents.emplace_back(std::istreambuf_iterator<char>(in),
+                                            std::istreambuf_iterator<char>());
+      }
     }
     if (!progress({"read", 1, 3, "steps"})) return Error(ErrorCode::cancelled, "cancelled");
     auto st = store::TileStore::open(job.store_path, store::TileStore::Mode::read_write);
@@ -122,6 +130,7 @@ class ServerTest : public ::testing::Test {
     c.max_header_bytes = 2048;
     c.max_body_bytes = 4096;
     c.max_upload_bytes = 100000;
+    c.upload_min_free_bytes = 0;  // whatever the build disk has left
     c.read_timeout_ms = 5000;
     c.write_timeout_ms = 5000;
     c.log_level = "warn";
@@ -1483,6 +1492,148 @@ TEST_F(ServerTest, IdleConnectionsKeepNoLargeBuffers) {
   const long grown = resident_kib() - before;
   EXPECT_LT(grown, 16 * 1024) << "KiB held by 40 idle connections";
   for (auto& c : idle) EXPECT_EQ(c->request("GET", "/healthz").status, 200);
+}
+
+// ---- Uploads, sources and scratch files (#22 finding 7) ----------------------------------------
+
+// Upload files left by a server that died mid-upload or mid-job are removed at start (only the
+// server's own upload-<16 hex>… names).
+TEST_F(ServerTest, OrphanUploadsAreRemovedAtStart) {
+  stop();
+  const auto uploads = dir_.path / "uploads";
+  std::filesystem::create_directories(uploads);
+  std::ofstream(uploads / "upload-0123456789abcdef") << "partial";
+  std::ofstream(uploads / "upload-fedcba9876543210-points.xyz") << "1 2 3\n";
+  std::ofstream(uploads / "keep.txt") << "not ours";
+  start({});
+  EXPECT_FALSE(std::filesystem::exists(uploads / "upload-0123456789abcdef"));
+  EXPECT_FALSE(std::filesystem::exists(uploads / "upload-fedcba9876543210-points.xyz"));
+  EXPECT_TRUE(std::filesystem::exists(uploads / "keep.txt"));
+}
+
+const std::map<std::string, std::string> kUpload = {{"Authorization", "Bearer tok"},
+                                                    {"Content-Type", "application/octet-stream"}};
+
+std::string upload_head(const std::string& layer, std::size_t length) {
+  return "POST /admin/ingest?layer=" + layer +
+         "&filename=p.xyz HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+         "Content-Type: application/octet-stream\r\nContent-Length: " +
+         std::to_string(length) + "\r\n\r\n";
+}
+
+// Uploads in progress and upload files waiting for their job share max_upload_total_bytes:
+// beyond it an upload is refused (507) before a byte is written; once the space is free again
+// it is accepted. The upload file is private to the server (0600, in a 0700 directory).
+TEST_F(ServerTest, UploadsShareATotalQuotaAndArePrivate) {
+  stop();
+  start([](ServerConfig& c) { c.max_upload_total_bytes = 150000; });
+  HttpConnection first(port_);
+  ASSERT_TRUE(first.send_raw(upload_head("a", 100000) + std::string(50000, 'x')));
+  // The first upload's file exists once its body is being written.
+  const auto uploads = dir_.path / "uploads";
+  std::filesystem::path file;
+  for (int i = 0; i < 500 && file.empty(); ++i) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(uploads, ec)) file = e.path();
+    if (file.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(file.empty());
+  EXPECT_EQ(std::filesystem::status(file).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_EQ(std::filesystem::status(uploads).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_all);
+  const auto refused =
+      http_request(port_, "POST", "/admin/ingest?layer=b", kUpload, std::string(100000, 'y'));
+  EXPECT_EQ(refused.status, 507) << refused.body;
+  ASSERT_TRUE(first.send_raw(std::string(50000, 'x')));
+  const auto accepted = first.read_response();
+  ASSERT_EQ(accepted.status, 202) << accepted.body;
+  EXPECT_EQ(wait_for_submitted(accepted)["state"], "succeeded");
+  const auto again =
+      http_request(port_, "POST", "/admin/ingest?layer=b", kUpload, std::string(100000, 'y'));
+  EXPECT_EQ(again.status, 202) << again.body;
+}
+
+// An upload that would leave less than upload_min_free_bytes on the upload directory's file
+// system is refused (507) before a byte is written.
+TEST_F(ServerTest, UploadsRefusedWhenTheDiskWouldFillUp) {
+  stop();
+  start([](ServerConfig& c) { c.upload_min_free_bytes = 1ull << 62; });
+  const auto r =
+      http_request(port_, "POST", "/admin/ingest?layer=big", kUpload, std::string(1000, 'x'));
+  EXPECT_EQ(r.status, 507) << r.body;
+  EXPECT_TRUE(!std::filesystem::exists(dir_.path / "uploads") ||
+              std::filesystem::is_empty(dir_.path / "uploads"));
+}
+
+// An upload's body may take longer than read_timeout_ms as long as it keeps coming (no pause
+// of read_timeout_ms, at least upload_min_bytes_per_s on average); a stalled one is cut off.
+TEST_F(ServerTest, UploadDeadlineFollowsProgress) {
+  stop();
+  start([](ServerConfig& c) {
+    c.read_timeout_ms = 1000;
+    c.upload_min_bytes_per_s = 1000;
+  });
+  HttpConnection steady(port_);
+  ASSERT_TRUE(steady.send_raw(upload_head("steady", 30000)));
+  for (int i = 0; i < 15; ++i) {  // 2,000 bytes every 150 ms: 2.25 s in all
+    ASSERT_TRUE(steady.send_raw(std::string(2000, 'x'))) << i;
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  }
+  const auto done = steady.read_response();
+  EXPECT_EQ(done.status, 202) << done.body;
+  HttpConnection stalled(port_);
+  ASSERT_TRUE(stalled.send_raw(upload_head("stalled", 30000) + std::string(1000, 'x')));
+  EXPECT_TRUE(stalled.closed_by_peer());  // within the client's 10 s receive timeout
+}
+
+// A source is resolved and opened once, when the job is submitted: renaming its folder and
+// putting a symlink out of the data root in its place before the job runs changes nothing —
+// the job reads the file that was checked.
+TEST_F(ServerTest, SourceSwappedForASymlinkAfterTheCheckIsNotFollowed) {
+  const auto data = dir_.path / "data";
+  std::filesystem::create_directories(dir_.path / "outside");
+  std::ofstream(dir_.path / "outside" / "points.xyz") << "secret\n";
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = false;
+  }
+  const auto submitted =
+      http_request(port_, "POST", "/admin/ingest", kAdmin,
+                   json{{"layer", "swap"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(submitted.status, 202) << submitted.body;
+  for (int i = 0; i < 2000; ++i) {  // the job has started and waits at the gate
+    {
+      std::lock_guard lock(runner_->mutex);
+      if (runner_->runs == 1) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::filesystem::rename(data / "sub", data / "sub-moved");
+  std::filesystem::create_directory_symlink(dir_.path / "outside", data / "sub");
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = true;
+  }
+  runner_->cv.notify_all();
+  EXPECT_EQ(wait_for_submitted(submitted)["state"], "succeeded");
+  std::lock_guard lock(runner_->mutex);
+  ASSERT_EQ(runner_->source_contents.size(), 1u);
+  EXPECT_EQ(runner_->source_contents[0], "6.1 49.6 300\n6.2 49.7 310\n");
+}
+
+// Ingest jobs get a private scratch directory (0700, under the store's folder), not the shared
+// system temp directory.
+TEST_F(ServerTest, IngestScratchFilesArePrivate) {
+  const auto r = http_request(port_, "POST", "/admin/ingest", kAdmin,
+                              json{{"layer", "s"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(wait_for_submitted(r)["state"], "succeeded");
+  std::lock_guard lock(runner_->mutex);
+  ASSERT_FALSE(runner_->scratch_dir.empty());
+  EXPECT_TRUE(std::filesystem::is_directory(runner_->scratch_dir));
+  EXPECT_EQ(
+      std::filesystem::status(runner_->scratch_dir).permissions() & std::filesystem::perms::all,
+      std::filesystem::perms::owner_all);
 }
 
 }  // namespace

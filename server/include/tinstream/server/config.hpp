@@ -24,6 +24,13 @@ struct ServerConfig {
   std::filesystem::path data_root;   // server-side ingest sources must be under it; empty: off
   std::filesystem::path upload_dir;  // uploaded sources are streamed here; empty: off
   std::uint64_t max_upload_bytes = 1ull << 30;
+  // Uploads in progress plus upload files waiting for their job, all together (507 beyond).
+  std::uint64_t max_upload_total_bytes = 4ull << 30;
+  // An upload must leave this much free on upload_dir's file system (507 otherwise).
+  std::uint64_t upload_min_free_bytes = 256ull << 20;
+  // An upload body may take longer than read_timeout_ms while it arrives at this average rate
+  // (and never pauses for read_timeout_ms).
+  std::uint32_t upload_min_bytes_per_s = 16384;
   std::uint32_t max_header_bytes = 8192;
   std::uint64_t max_body_bytes = 1u << 20;     // non-upload request bodies
   std::uint32_t max_connections = 1024;        // kept below the open-files limit (Server::create)
