@@ -166,13 +166,11 @@ class ArithmeticDecoder {
       const std::uint32_t slot = scaled >> m.table_bits_shift_;
       symbol = m.table_[slot];
       std::uint32_t above = m.table_[slot + 1] + 1;
-      while (above > symbol + 1) {  // bisection inside the slot's symbol range
+      while (above > symbol + 1) {  // bisection inside the slot's symbol range, branch-free
         const std::uint32_t mid = (symbol + above) >> 1;
-        if (m.cumulative_[mid] > scaled) {
-          above = mid;
-        } else {
-          symbol = mid;
-        }
+        const bool below = m.cumulative_[mid] > scaled;
+        above = below ? mid : above;
+        symbol = below ? symbol : mid;
       }
       low = m.cumulative_[symbol] * length_;
       if (symbol != m.last_symbol_) high = m.cumulative_[symbol + 1] * length_;
@@ -180,15 +178,13 @@ class ArithmeticDecoder {
       low = symbol = 0;
       std::uint32_t above = m.symbols_;
       std::uint32_t mid = above >> 1;
-      do {
+      do {  // bisection, branch-free
         const std::uint32_t bound = length_ * m.cumulative_[mid];
-        if (bound > value_) {
-          above = mid;
-          high = bound;
-        } else {
-          symbol = mid;
-          low = bound;
-        }
+        const bool below = bound > value_;
+        above = below ? mid : above;
+        high = below ? bound : high;
+        symbol = below ? symbol : mid;
+        low = below ? low : bound;
       } while ((mid = (symbol + above) >> 1) != symbol);
     }
     value_ -= low;
