@@ -149,7 +149,7 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
     }
     header_bytes_ = record_length_;
     window_.open(fd_, chunk.offset + record_length_, chunk.offset + chunk.bytes);
-    dec_.start(ByteStream(nullptr, nullptr, &window_));
+    dec_.start(ByteStream(&window_));
     return stream_health();
   }
 
@@ -190,7 +190,7 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
       layer.active = item.wanted(i) && layer.size > 0;
       if (layer.active) {
         layer_windows_[index].open(fd_, pos, pos + layer.size);
-        layer.dec.start(ByteStream(nullptr, nullptr, &layer_windows_[index]));
+        layer.dec.start(ByteStream(&layer_windows_[index]));
       }
       pos += layer.size;
     }

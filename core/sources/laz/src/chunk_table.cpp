@@ -72,7 +72,7 @@ TableRead read_table(int fd, const PointDataLayout& layout, const LaszipVlr& vlr
   FileWindow window;
   window.open(fd, table + 8, layout.file_size);
   ArithmeticDecoder dec;
-  dec.start(ByteStream(nullptr, nullptr, &window));
+  dec.start(ByteStream(&window));
   IntegerDecoder ic(32, 2);
   const bool variable = vlr.variable_chunks();
   std::int32_t prev_points = 0, prev_bytes = 0;

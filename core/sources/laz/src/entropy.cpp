@@ -5,12 +5,13 @@
 namespace tinstream::laz::detail {
 
 std::uint8_t ByteStream::next_slow() {
+  before_window_ += static_cast<std::uint64_t>(cur_ - window_);
+  window_ = cur_;
   while (refill_ != nullptr && refill_->next_window(&cur_, &end_)) {
-    if (cur_ != end_) {
-      ++consumed_;
-      return *cur_++;
-    }
+    window_ = cur_;
+    if (cur_ != end_) return *cur_++;
   }
+  cur_ = end_ = window_ = nullptr;
   ++overrun_;  // past the end: the encoder never needs these, a damaged stream does
   return 0;
 }
@@ -32,8 +33,11 @@ void BitModel::update() {
 SymbolModel::SymbolModel(std::uint32_t symbols) : symbols_(symbols), last_symbol_(symbols - 1) {
   assert(symbols >= 2 && symbols <= 2048);
   if (symbols > 16) {
-    std::uint32_t bits = 3;
-    while (symbols > (1u << (bits + 2))) ++bits;
+    // LASzip's table has about one slot per 4 symbols; ours has 2 per symbol (at most 1024), so
+    // that a slot nearly always holds one symbol and the search after the lookup ends at once.
+    // Any table size finds the same symbol: it only brackets the bisection.
+    std::uint32_t bits = 2;
+    while ((1u << bits) < 2 * symbols && bits < 10) ++bits;
     table_size_ = 1u << bits;
     table_bits_shift_ = kSymbolLengthShift - bits;
   }

@@ -15,6 +15,7 @@
 // Threads: none of these types is shared; each chunk decoder owns its own.
 #pragma once
 
+#include <bit>
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
@@ -34,22 +35,39 @@ class StreamRefill {
   virtual bool failed() const = 0;
 };
 
-// The bytes of one stream. The common case is one window holding the whole stream.
+// The bytes of one stream, window by window. Bytes are counted by position, not one by one:
+// consumed = bytes of earlier windows + (cur - window start).
 class ByteStream {
  public:
   ByteStream() = default;
-  ByteStream(const std::uint8_t* begin, const std::uint8_t* end, StreamRefill* refill = nullptr)
-      : cur_(begin), end_(end), refill_(refill) {}
+  explicit ByteStream(StreamRefill* refill) : refill_(refill) {}
+  ByteStream(const std::uint8_t* begin, const std::uint8_t* end)
+      : cur_(begin), end_(end), window_(begin) {}
 
   std::uint8_t next() {
-    if (cur_ != end_) [[likely]] {
-      ++consumed_;
+    if (cur_ != end_) [[likely]]
       return *cur_++;
-    }
     return next_slow();
   }
-  std::uint64_t consumed() const { return consumed_; }  // bytes taken from the stream
-  std::uint64_t overrun() const { return overrun_; }    // bytes asked for past its end
+  // Shifts the next `bytes` (0..3) bytes into `value`, big-endian first, with one 4-byte load
+  // when at least 4 bytes remain in the window.
+  std::uint32_t shift_in(std::uint32_t value, std::uint32_t bytes) {
+    if (end_ - cur_ >= 4) [[likely]] {
+      const std::uint32_t next4 = (static_cast<std::uint32_t>(cur_[0]) << 24) |
+                                  (static_cast<std::uint32_t>(cur_[1]) << 16) |
+                                  (static_cast<std::uint32_t>(cur_[2]) << 8) | cur_[3];
+      cur_ += bytes;
+      const std::uint32_t bits = 8 * bytes;
+      return static_cast<std::uint32_t>((static_cast<std::uint64_t>(value) << bits) |
+                                        (static_cast<std::uint64_t>(next4) >> (32 - bits)));
+    }
+    for (std::uint32_t i = 0; i < bytes; ++i) value = (value << 8) | next();
+    return value;
+  }
+  std::uint64_t consumed() const {
+    return before_window_ + static_cast<std::uint64_t>(cur_ - window_);
+  }
+  std::uint64_t overrun() const { return overrun_; }  // bytes asked for past its end
   bool io_failed() const { return refill_ != nullptr && refill_->failed(); }
 
  private:
@@ -57,8 +75,9 @@ class ByteStream {
 
   const std::uint8_t* cur_ = nullptr;
   const std::uint8_t* end_ = nullptr;
+  const std::uint8_t* window_ = nullptr;  // start of the current window
   StreamRefill* refill_ = nullptr;
-  std::uint64_t consumed_ = 0;
+  std::uint64_t before_window_ = 0;
   std::uint64_t overrun_ = 0;
 };
 
@@ -227,10 +246,12 @@ class ArithmeticDecoder {
   void mark_corrupt() { corrupt_ = true; }
 
  private:
+  // Brings length back to >= 2^24 a byte at a time: 1, 2 or 3 bytes for lengths in
+  // [2^16, 2^24), [2^8, 2^16), [1, 2^8) (length is never 0), i.e. clz(length) / 8 bytes.
   void renormalise() {
-    do {
-      value_ = (value_ << 8) | in_.next();
-    } while ((length_ <<= 8) < kRenormBelow);
+    const auto bytes = static_cast<std::uint32_t>(std::countl_zero(length_)) >> 3;
+    value_ = in_.shift_in(value_, bytes);
+    length_ <<= 8 * bytes;
   }
 
   std::uint32_t value_ = 0;
