@@ -125,6 +125,34 @@ TEST(FaultPoints, AnArmedPointFailsOnceAfterItsSkipAndOnlyWhileArmed) {
   }
 }
 
+TEST(FaultPoints, ErrorKindFailsTimesPassesThroughErrorAtNamingEachPass) {
+  if (!fault::enabled()) GTEST_FAIL() << "fault points are not compiled into this test build";
+  EXPECT_FALSE(fault::error_at("test.read").has_value());
+  const fault::Arm arm("test.read", 1, fault::Kind::error, 2);
+  EXPECT_FALSE(fault::error_at("test.read").has_value());
+  EXPECT_EQ(fault::error_at("test.read"), "injected error at test.read (pass 2)");
+  EXPECT_EQ(fault::error_at("test.read"), "injected error at test.read (pass 3)");
+  EXPECT_FALSE(fault::error_at("test.read").has_value());
+  EXPECT_EQ(arm.fired_times(), 2u);
+}
+
+TEST(FaultPoints, PauseHoldsTheThreadAtThePointUntilReleased) {
+  if (!fault::enabled()) GTEST_FAIL() << "fault points are not compiled into this test build";
+  fault::Arm hold("test.pause", 1, fault::Kind::pause);
+  std::atomic<int> passed{0};
+  std::jthread worker([&] {
+    fault::point("test.pause");  // skipped
+    ++passed;
+    fault::point("test.pause");  // held here
+    ++passed;
+  });
+  ASSERT_TRUE(hold.wait_paused());
+  EXPECT_EQ(passed.load(), 1);  // held: it cannot have gone on
+  hold.release();
+  worker.join();
+  EXPECT_EQ(passed.load(), 2);
+}
+
 // A child process armed through TINSTREAM_FAULT: the stop kind stops it at the point (the parent
 // sees it stopped), and it continues from there when resumed.
 TEST(FaultPoints, TheEnvironmentArmsAChildProcessAndStopStopsItThere) {
