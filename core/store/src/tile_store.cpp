@@ -25,6 +25,7 @@
 #include <unordered_map>
 
 #include "schema.hpp"
+#include "tinstream/base/fault.hpp"
 #include "tinstream/store/etag.hpp"
 #include "tinstream/tile/codec.hpp"
 #include "writer_test_access.hpp"
@@ -713,6 +714,7 @@ Status LayerWriter::Impl::flush() {
   if (s) {
     pending.clear();
     pending_bytes = 0;
+    fault::point("store.commit");  // a batch of the new version is committed (crash tests)
   }
   return s;
 }

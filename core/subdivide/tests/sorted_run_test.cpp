@@ -1,6 +1,7 @@
 #include "tinstream/subdivide/sorted_run.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -19,8 +20,7 @@ class TempDir {
  public:
   TempDir() {
     path_ = fs::temp_directory_path() /
-            ("tinstream-subdivide-test-" +
-             std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+            ("tinstream-subdivide-test-" + std::to_string(::getpid()) + "-" +
              ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(path_);
     fs::create_directories(path_);

@@ -37,6 +37,11 @@ struct IngestJobSpec {
   std::vector<std::filesystem::path> sources;  // canonical, existing, under data_root or uploads
   nlohmann::json options = nlohmann::json::object();  // passed through from the request
   std::filesystem::path store_path;                   // the server's store (open it read-write)
+  // Ingest confinement (sources::RasterPolicy): every file the ingest reads, a VRT's sources
+  // included, lies under `root` — the data root, or the upload directory for an upload (which
+  // may not be a VRT: its sources could not have been uploaded with it).
+  std::filesystem::path root;
+  bool allow_vrt = true;
 };
 
 using IngestRunner = std::function<Status(const IngestJobSpec&, const ProgressSink&)>;
