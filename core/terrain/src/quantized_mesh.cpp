@@ -100,21 +100,25 @@ std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& tr
   for (std::size_t k = 0; k < m; ++k) base[k] = rotated[rank[k]];
 
   // Neighbours: the triangle holding the reverse of each directed edge, found among the edges
-  // leaving the edge's end vertex (compressed rows by start vertex).
+  // leaving the edge's end vertex (compressed rows by start vertex, each row sorted by end vertex
+  // then triangle, so a lookup is a binary search: a vertex shared by many triangles — say, a
+  // hostile tile repeating one triangle 100k times — costs log of its degree, not its degree).
   std::vector<std::uint32_t> row(vertices + 1, 0);
   for (const auto& t : base) {
     for (std::uint32_t v : t) ++row[v + 1];
   }
   for (std::size_t v = 0; v < vertices; ++v) row[v + 1] += row[v];
   std::vector<std::uint32_t> fill(row.begin(), row.end() - 1);
-  std::vector<std::uint32_t> edge_to(3 * m), edge_triangle(3 * m);  // by row position
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edge(3 * m);  // (to, triangle) by row
   for (std::size_t k = 0; k < m; ++k) {
     const auto& t = base[k];
     for (int e = 0; e < 3; ++e) {
-      const std::uint32_t at = fill[t[static_cast<std::size_t>(e)]]++;
-      edge_to[at] = t[static_cast<std::size_t>((e + 1) % 3)];
-      edge_triangle[at] = static_cast<std::uint32_t>(k);
+      edge[fill[t[static_cast<std::size_t>(e)]]++] = {t[static_cast<std::size_t>((e + 1) % 3)],
+                                                      static_cast<std::uint32_t>(k)};
     }
+  }
+  for (std::size_t v = 0; v < vertices; ++v) {
+    std::sort(edge.begin() + row[v], edge.begin() + row[v + 1]);
   }
   std::vector<std::array<std::uint32_t, 3>> across(m);
   for (std::size_t k = 0; k < m; ++k) {
@@ -122,11 +126,11 @@ std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& tr
     for (int e = 0; e < 3; ++e) {
       const std::uint32_t from = t[static_cast<std::size_t>((e + 1) % 3)];
       const std::uint32_t to = t[static_cast<std::size_t>(e)];
-      std::uint32_t found = kNo;
-      for (std::uint32_t at = row[from]; at < row[from + 1]; ++at) {
-        if (edge_to[at] == to) found = std::min(found, edge_triangle[at]);
-      }
-      across[k][static_cast<std::size_t>(e)] = found;
+      // The first (to, ·) in the row: the smallest triangle holding the edge from → to.
+      const auto first = std::lower_bound(edge.begin() + row[from], edge.begin() + row[from + 1],
+                                          std::pair<std::uint32_t, std::uint32_t>{to, 0});
+      across[k][static_cast<std::size_t>(e)] =
+          first != edge.begin() + row[from + 1] && first->first == to ? first->second : kNo;
     }
   }
 
