@@ -90,6 +90,10 @@ struct LazReader::State {
     while (produced < max) {
       if (!in_chunk) {
         if (points_done >= layout.point_count) break;
+        if (chunks.discover && chunk >= kMaxChunks) {
+          return fail(chunk, unsupported("more than " + std::to_string(kMaxChunks) +
+                                         " chunks without a chunk table"));
+        }
         if (!decoder) decoder = std::make_unique<ChunkDecoder>(vlr, rl, options.layers, fd);
         if (Status st = decoder->begin(extent(chunk)); !st.ok()) return fail(chunk, st.error());
         in_chunk = true;
