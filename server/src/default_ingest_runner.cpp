@@ -51,6 +51,10 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
     for (const auto& path : job.sources) {
       transform::InputSpec in;
       in.path = path;
+      // The strict policy (#22): GDAL reads only under the job's root, CRSs are authority codes.
+      in.source.raster = sources::RasterPolicy::confined(
+          job.root.empty() ? path.parent_path() : job.root, job.allow_vrt);
+      in.reproject.confined = true;
       in.reproject.crs = o.value("crs", std::string());
       in.reproject.vertical_datum = o.value("vertical", std::string("ellipsoidal"));
       if (o.contains("z_units")) {

@@ -92,6 +92,8 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
     }
     spec.sources.push_back(final_path);
     spec.source_names.push_back(name);
+    spec.root = final_path.parent_path();
+    spec.allow_vrt = false;
     delete_after.push_back(final_path);
     if (auto o = r.query.find("options"); o != r.query.end()) {
       json opts = json::parse(o->second, nullptr, false);
@@ -125,6 +127,7 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
                         "ingest: server-side paths are disabled (no data_root configured); upload "
                         "the file instead");
     }
+    spec.root = ctx.config.data_root;
     for (const auto& s : body["sources"]) {
       if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
       auto held = HeldSource::open(ctx.config.data_root, s.get<std::string>());

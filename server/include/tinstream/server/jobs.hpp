@@ -44,6 +44,11 @@ struct IngestJobSpec {
   std::vector<std::string> source_names;
   // Sources opened when the job was submitted (ingest_paths.hpp), held until the job is gone.
   std::vector<std::shared_ptr<const HeldSource>> held;
+  // Ingest confinement (sources::RasterPolicy): every file the ingest reads, a VRT's sources
+  // included, lies under `root` — the data root, or the upload directory for an upload (which
+  // may not be a VRT: its sources could not have been uploaded with it).
+  std::filesystem::path root;
+  bool allow_vrt = true;
 };
 
 using IngestRunner = std::function<Status(const IngestJobSpec&, const ProgressSink&)>;
