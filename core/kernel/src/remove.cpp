@@ -597,6 +597,12 @@ Result<bool> Triangulation::plan_removal(VertexId v, Hole& hole, bool any_order)
 Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) const {
   Hole& hole = hole_;
   planned_vertex_ = kNone;  // hole_ is overwritten below, even when planning fails
+  // A vertex kept while the set is not yet triangulated (dimension < 2): remove_vertex drops it,
+  // and no triangle replaces it (found by kernel_fuzzer: the preview refused what removal did).
+  if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
+      mesh_.vertex_triangle(v) == kPendingTriangle) {
+    return std::vector<VertexTriple>{};
+  }
   Result<bool> planned = plan_removal(v, hole);
   if (!planned.ok()) return planned.error();
   planned_vertex_ = v;  // remove_vertex(v) right after this preview reuses the plan

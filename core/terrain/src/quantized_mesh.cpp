@@ -183,7 +183,9 @@ std::uint16_t zigzag(int v) {
 }
 
 std::uint16_t quantise(double t) {
-  const double q = std::round(std::clamp(t, 0.0, 1.0) * kQuantMax);
+  // NaN (a flat tile's 0/0 height range, a NaN coordinate of a corrupt blob) is 0, not a NaN
+  // cast to an integer (undefined; found by qmesh_fuzzer).
+  const double q = std::round((t > 0 ? std::min(t, 1.0) : 0.0) * kQuantMax);
   return static_cast<std::uint16_t>(q);
 }
 
