@@ -6,6 +6,7 @@
 //   pyramid (bool), memory_mb, threads, attribution, crs, vertical, z_units, skip_invalid (bool).
 // Runs on the job worker thread (jobs.hpp); run_ingest opens its own read-write store and
 // publishes the layer atomically; a sink returning false (shutdown) cancels it.
+#include "tinstream/server/ingest_options.hpp"
 #include "tinstream/server/server.hpp"
 
 #ifdef TINSTREAM_SERVER_WITH_INGEST
@@ -19,6 +20,8 @@ namespace {
 
 Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   const nlohmann::json& o = job.options;
+  // The admin API checked them before queueing the job; a runner called another way checks too.
+  if (Status valid = validate_ingest_options(o); !valid) return valid.error();
   static const char* kKeys[] = {"projection", "max_points", "max_level",   "min_level",   "epsilon",
                                 "pyramid",    "memory_mb",  "threads",     "attribution", "crs",
                                 "vertical",   "z_units",    "skip_invalid"};

@@ -275,9 +275,9 @@ TEST(Subdivide, TileIndexSameWhetherTalliedOrReRead) {
   }
 }
 
-// A file already at the output path is replaced: the sorted run has exactly the run's size,
-// whether the old file was longer or shorter.
-TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
+// A file already at the output path is replaced by the sorted run (the merge creates its output):
+// the file then has exactly the run's size, whether the old one was longer or shorter.
+TEST(Subdivide, ExistingOutputFileIsReplaced) {
   const auto pts = clustered_points(5000, 14);
   const auto expected = reference_run(pts);
   for (std::size_t garbage : {std::size_t{1} << 20, std::size_t{1000}}) {

@@ -159,6 +159,8 @@ struct SourceOptions {
   InvalidPolicy invalid = InvalidPolicy::fail;
   TextLayout text;
   int raster_band = 1;  // 1-based GDAL band
+  // LAZ: threads decoding chunks ahead of read() (0: one per core, at most 8; 1: none).
+  unsigned decode_threads = 0;
   RasterPolicy raster;  // what GDAL may open (rasters only)
 };
 
@@ -179,9 +181,10 @@ class PointSource {
   PointSource() = default;
 };
 
-// Opens a source. Format: SourceOptions::format, else by extension (.las; .laz is refused
-// with `unsupported`; .xyz .csv .txt .pts → text), else by magic ("LASF"), else any raster GDAL
-// opens. Errors name the file.
+// Opens a source. Format: SourceOptions::format, else by extension (.las, .laz and .copc.laz;
+// .xyz .csv .txt .pts → text), else by magic ("LASF"), else any raster GDAL opens. LAZ files
+// (LASzip-compressed LAS, any point format, COPC included) read exactly like LAS. Errors name
+// the file.
 Result<std::unique_ptr<PointSource>> open_source(const std::filesystem::path& path,
                                                  const SourceOptions& options = {});
 
