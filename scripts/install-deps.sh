@@ -14,6 +14,7 @@ packages=(
   libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only
   libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
   clang-format clang-tidy curl
+  libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
 )
 if [[ ${1:-} == --bench ]]; then
   packages+=(wrk nginx time)
