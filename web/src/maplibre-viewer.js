@@ -97,8 +97,9 @@ async function start() {
     container: 'map',
     style: styleFor(layer, imagery, encoding),
     bounds: [[b.west, b.south], [b.east, b.north]],
-    fitBoundsOptions: { padding: 40 },
-    pitch: 55,
+    // Room for the panel on the left; pitched after fitting, so the layer fills the view.
+    fitBoundsOptions: { padding: { top: 60, bottom: 60, left: 300, right: 60 } },
+    pitch: 50,
     maxPitch: 80,
   });
   app.map = map;

@@ -34,10 +34,6 @@ std::array<double, 3> barycentric(const tile::Vertex& a, const tile::Vertex& b,
   return {1.0 - wb - wc, wb, wc};
 }
 
-bool is_nodata(const tile::TinTile& t, std::uint32_t index) {
-  return index < 4 && t.corner_nodata[index];
-}
-
 // The height at a pixel centre of a NODATA triangle: interpolated over its data vertices only
 // (weights renormalised), their mean when those weights vanish, the tile's lowest height when
 // the triangle has no data vertex at all.
@@ -46,7 +42,7 @@ double nodata_height(const tile::TinTile& t, const tile::Triangle& tri,
   double sum = 0, weight = 0, plain = 0;
   int count = 0;
   for (std::size_t k = 0; k < 3; ++k) {
-    if (is_nodata(t, tri[k])) continue;
+    if (t.is_nodata_vertex(tri[k])) continue;
     const double wk = std::max(0.0, w[k]);
     sum += wk * v[k]->z;
     weight += wk;
@@ -105,7 +101,8 @@ Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding
     return static_cast<std::int64_t>(std::clamp(v, -1.0, static_cast<double>(size)));
   };
 
-  for (const tile::Triangle& tri : t.triangles) {
+  for (std::size_t ti = 0; ti < t.triangles.size(); ++ti) {
+    const tile::Triangle& tri = t.triangles[ti];
     if (tri[0] >= vertices.size() || tri[1] >= vertices.size() || tri[2] >= vertices.size()) {
       return corrupt_data("tile " + t.id.to_string() + ": a triangle index is out of range");
     }
@@ -122,7 +119,7 @@ Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding
     const std::int64_t j0 = std::max<std::int64_t>(0, clamp_index(std::floor(row_of(max_y))));
     const std::int64_t j1 = std::min<std::int64_t>(size - 1, clamp_index(std::ceil(row_of(min_y))));
     const kernel::XY a{v[0]->x, v[0]->y}, b{v[1]->x, v[1]->y}, c{v[2]->x, v[2]->y};
-    const bool nodata = is_nodata(t, tri[0]) || is_nodata(t, tri[1]) || is_nodata(t, tri[2]);
+    const bool nodata = t.is_nodata_triangle(ti);
     for (std::int64_t j = j0; j <= j1; ++j) {
       const double py = r.max_y - (static_cast<double>(j) + 0.5) * dy;
       for (std::int64_t i = i0; i <= i1; ++i) {

@@ -11,9 +11,10 @@
 //   terrarium  h = R·256 + G + B/256 − 32768          step 1/256 m, range [−32768, 32768)
 //   mapbox     h = −10000 + (R·65536 + G·256 + B)·0.1  step 0.1 m,   range [−10000, 1667721.5]
 // rounded to the nearest step (so a decoded height is within step/2 of the TIN's) and clamped to
-// the range. Alpha is 255 where the triangle has data and 0 in NODATA triangles (those with a
-// NODATA corner): there the height is interpolated over the triangle's data vertices only, so a
-// client that ignores alpha sees no wall down to a NODATA corner's placeholder height.
+// the range. Alpha is 255 in the data footprint and 0 in NODATA triangles (those with a NODATA
+// corner, TinTile::is_nodata_triangle; docs/tile-format.md §2.1): there the height is
+// interpolated over the triangle's data vertices only, so a client that ignores alpha sees no
+// wall, even in tiles written when NODATA corners still sat at height 0.
 //
 // Pure functions, thread-safe.
 #pragma once
