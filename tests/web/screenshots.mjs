@@ -29,7 +29,7 @@ const server = await startServer(path.resolve(store));
 const browser = await launchBrowser();
 try {
   fs.mkdirSync(out, { recursive: true });
-  const viewport = { width: 1200, height: 700 };
+  const viewport = { width: 1100, height: 640 };
   {
     const { page, log } = await recordedPage(browser, viewport);
     await page.goto(`${server.base}/?layer=${encodeURIComponent(layer)}&fly=0`);

@@ -99,7 +99,7 @@ async function start() {
     bounds: [[b.west, b.south], [b.east, b.north]],
     // Room for the panel on the left; pitched after fitting, so the layer fills the view.
     fitBoundsOptions: { padding: { top: 60, bottom: 60, left: 300, right: 60 } },
-    pitch: 50,
+    pitch: 45,
     maxPitch: 80,
   });
   app.map = map;

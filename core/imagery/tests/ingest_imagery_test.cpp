@@ -3,6 +3,7 @@
 #include "tinstream/imagery/ingest_imagery.hpp"
 
 #include <gdal.h>
+#include <gdal_utils.h>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <stdlib.h>
@@ -369,6 +370,51 @@ TEST(IngestImagery, RealUtmOrthophotoLandsWhereTheSourceHasIt) {
     EXPECT_LT(error[0], 0.6 * error[k]) << "shift " << shifts[k][0] << "," << shifts[k][1] << ": "
                                         << error[0] << " vs " << error[k];
   }
+}
+
+// Two files side by side form one mosaic: the tiles are those of the single file they were cut
+// from — no transparent seam, no shift — up to resampling at the cut.
+TEST(IngestImagery, AdjacentFilesFormOneMosaicWithoutSeam) {
+  TempDir dir;
+  const Orthophoto whole =
+      testing::write_marker_orthophoto(dir / "whole.tif", 32611, 390000, 3800000, 4.0, 400, 300);
+  GDALAllRegister();
+  GDALDatasetH src = GDALOpen(whole.path.c_str(), GA_ReadOnly);
+  ASSERT_NE(src, nullptr);
+  for (const auto& [name, x0] : {std::pair{"west.tif", 0}, std::pair{"east.tif", 200}}) {
+    std::string x = std::to_string(x0);
+    char* argv[] = {const_cast<char*>("-srcwin"), x.data(),
+                    const_cast<char*>("0"),       const_cast<char*>("200"),
+                    const_cast<char*>("300"),     nullptr};
+    GDALTranslateOptions* o = GDALTranslateOptionsNew(argv, nullptr);
+    GDALDatasetH part = GDALTranslate((dir / name).c_str(), src, o, nullptr);
+    GDALTranslateOptionsFree(o);
+    ASSERT_NE(part, nullptr);
+    GDALClose(part);
+  }
+  GDALClose(src);
+  const ImagerySummary one = ingest_ok(options_for(dir / "one.db", "o", {whole.path}));
+  const ImagerySummary two =
+      ingest_ok(options_for(dir / "two.db", "o", {dir / "west.tif", dir / "east.tif"}));
+  ASSERT_EQ(two.sources.size(), 2u);
+  ASSERT_EQ(two.max_level, one.max_level);
+  EXPECT_EQ(two.levels.back().tiles, one.levels.back().tiles);
+  auto a = store::TileStore::open(dir / "one.db", store::TileStore::Mode::read_only);
+  auto b = store::TileStore::open(dir / "two.db", store::TileStore::Mode::read_only);
+  const Canvas ca = paste_level(*a, "o", one.max_level);
+  const Canvas cb = paste_level(*b, "o", one.max_level);
+  ASSERT_EQ(ca.image.rgba.size(), cb.image.rgba.size());
+  int differ = 0, max_diff = 0, holes = 0;
+  for (std::size_t i = 0; i < ca.image.rgba.size(); ++i) {
+    const int d = std::abs(int(ca.image.rgba[i]) - int(cb.image.rgba[i]));
+    max_diff = std::max(max_diff, d);
+    differ += d > 2 ? 1 : 0;
+    if (i % 4 == 3) holes += ca.image.rgba[i] == 255 && cb.image.rgba[i] < 255 ? 1 : 0;
+  }
+  EXPECT_EQ(holes, 0) << "pixels the single file covers that the mosaic leaves (partly) open";
+  // The cut is one source column: at most a few hundred channel values along it may differ.
+  EXPECT_LT(differ, 4 * 300) << "max difference " << max_diff;
+  expect_markers_in_place(whole, cb, 0.6, 40);
 }
 
 TEST(IngestImagery, BadSourcesGetClearErrors) {
