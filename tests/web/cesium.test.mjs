@@ -16,7 +16,7 @@ const HEIGHT_TOLERANCE = 0.25;  // metres: quantized-mesh keeps about 1 cm on th
 
 await run('web_cesium', async ({ server, browser }) => {
   const { points } = fixture();
-  const { page, log } = await recordedPage(browser);
+  const { page, log } = await recordedPage(browser, { width: 800, height: 520 });
   const t0 = Date.now();
   const mark = (what) => console.log(`web_cesium: ${what} after ${((Date.now() - t0) / 1000).toFixed(1)} s`);
   await page.goto(`${server.base}/?layer=demo&fly=0`, { waitUntil: 'load', timeout: 60000 });
@@ -60,7 +60,7 @@ await run('web_cesium', async ({ server, browser }) => {
 
   // The panel: a click in the middle of the view gives a height within the layer's range.
   const layer = await page.evaluate(() => window.tinstream.layer);
-  await page.mouse.click(512, 380);
+  await page.mouse.click(400, 300);
   const picked = Number(await waitFor('a picked height', () => page.getAttribute('#pick-height', 'data-height'), 30000));
   check(picked >= layer.min_z - 1 && picked <= layer.max_z + 1,
         `picked height ${picked} m outside ${layer.min_z}–${layer.max_z} m`);
