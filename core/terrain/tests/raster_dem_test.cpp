@@ -125,8 +125,8 @@ TEST(RasterDem, IrregularTinsWithNodataCornersDecodeToTheTinAtPixelCentres) {
   }
 }
 
-// A 33 × 33 vertex grid on a 128-pixel raster: every cell spans 4 × 4 pixels and its diagonal passes through pixel
-// centres, which therefore lie on edges shared by two triangles.
+// A 33 × 33 vertex grid on a 128-pixel raster: every cell spans 4 × 4 pixels and its diagonal
+// passes through pixel centres, which therefore lie on edges shared by two triangles.
 TEST(RasterDem, PixelCentresOnSharedEdgesTakeTheCommonValue) {
   const tile::TinTile t = testing::make_grid_tile({12, 2145, 1434}, 33, testing::synthetic_height);
   expect_raster_matches_tin(t, DemEncoding::terrarium, 128);
