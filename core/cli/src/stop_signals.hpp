@@ -23,7 +23,7 @@ class StopOnSignals {
     struct sigaction sa {};
     sa.sa_handler = tinstream_cli_request_stop;
     sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESETHAND;
+    sa.sa_flags = static_cast<int>(SA_RESETHAND);
     sigaction(SIGINT, &sa, &old_int_);
     sigaction(SIGTERM, &sa, &old_term_);
   }

@@ -41,7 +41,8 @@ class FinestTiles {
       if (!covered(t)) continue;
       if (t.z == level_) return t;
       const auto children = t.children();
-      for (auto it = children.rbegin(); it != children.rend(); ++it) stack_.push_back(*it);
+      // Pushed last to first, so the first (north-west) child comes out next.
+      stack_.insert(stack_.end(), children.rbegin(), children.rend());
     }
     return std::nullopt;
   }
@@ -93,7 +94,7 @@ class RenderPool {
   void submit(std::uint64_t seq, const geo::TileId& id) {
     {
       std::lock_guard lock(mutex_);
-      jobs_.push_back({seq, id});
+      jobs_.emplace_back(seq, id);
     }
     jobs_ready_.notify_one();
   }

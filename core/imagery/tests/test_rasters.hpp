@@ -61,7 +61,7 @@ struct DecodedImage {
   int width = 0, height = 0;
   std::vector<std::uint8_t> rgba;
   const std::uint8_t* at(int x, int y) const {
-    return rgba.data() + (static_cast<std::size_t>(y) * width + x) * 4;
+    return rgba.data() + static_cast<std::size_t>(y * width + x) * 4;
   }
 };
 DecodedImage gdal_decode(const std::vector<std::uint8_t>& bytes);

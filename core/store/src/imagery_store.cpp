@@ -7,6 +7,7 @@
 // a terrain table, so imagery and terrain layers are replaced independently.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -360,9 +361,10 @@ Status ImageryWriter::flush() {
 
 Result<std::optional<StoredImage>> ImageryWriter::get(const geo::TileId& id) {
   if (Status s = impl_->usable(); !s) return s.error();
-  for (auto it = impl_->pending.rbegin(); it != impl_->pending.rend(); ++it) {
-    if (it->id == id) return std::optional<StoredImage>(*it);
-  }
+  // The latest put of the id wins: the pending batch is searched newest first.
+  const auto pending = std::find_if(impl_->pending.rbegin(), impl_->pending.rend(),
+                                    [&](const StoredImage& t) { return t.id == id; });
+  if (pending != impl_->pending.rend()) return std::optional<StoredImage>(*pending);
   auto q = impl_->store->query(
       "SELECT data, etag FROM imagery_tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
   if (!q) return q.error();
