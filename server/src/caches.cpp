@@ -64,7 +64,7 @@ struct TerrainCache::Impl {
 
 std::uint64_t TerrainCache::cost(std::string_view key, const CachedBody& value) {
   return Impl::kEntryOverhead + (key.size() + 1) + value.bytes.capacity() + 1 +
-         heap_bytes(value.etag) + (value.gzip_head ? value.gzip_head->memory_bytes() : 0);
+         heap_bytes(value.etag) + (value.head ? value.head->memory_bytes() : 0);
 }
 
 TerrainCache::TerrainCache(std::uint64_t max_bytes) : impl_(std::make_unique<Impl>(max_bytes)) {}

@@ -1,9 +1,14 @@
 // Route family "admin": ingest jobs (from paths under the data root or uploads), their status,
 // and layer removal. Every route needs the bearer token (check_admin).
+#include <openssl/crypto.h>
+#include <openssl/sha.h>
+
+#include <array>
 #include <nlohmann/json.hpp>
 
 #include "families.hpp"
 #include "negotiation.hpp"
+#include "tinstream/server/ingest_options.hpp"
 #include "tinstream/server/ingest_paths.hpp"
 
 namespace tinstream::server {
@@ -21,16 +26,16 @@ std::optional<Response> check_admin(const Request& request, const Context& conte
     r.set("WWW-Authenticate", "Bearer realm=\"tinstream-admin\"");
     return r;
   }
-  const std::string_view given = trim(auth.substr(7));
-  const std::string& want = context.admin_token;
-  // Constant time in the token's content: always walk the longer of the two.
-  const std::size_t n = std::max(given.size(), want.size());
-  unsigned diff = given.size() == want.size() ? 0u : 1u;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto a = static_cast<unsigned char>(i < given.size() ? given[i] : 0);
-    const auto b = static_cast<unsigned char>(i < want.size() ? want[i] : 0);
-    diff |= static_cast<unsigned>(a ^ b);
-  }
+  // Compared as SHA-256 digests, in constant time: the time depends on neither token's
+  // content nor its length (a byte-by-byte walk told the length of the real one).
+  const auto digest = [](std::string_view text) {
+    std::array<unsigned char, SHA256_DIGEST_LENGTH> d{};
+    SHA256(reinterpret_cast<const unsigned char*>(text.data()), text.size(), d.data());
+    return d;
+  };
+  const auto given = digest(trim(auth.substr(7)));
+  const auto want = digest(context.admin_token);
+  const int diff = CRYPTO_memcmp(given.data(), want.data(), given.size());
   if (diff != 0) return json_error(403, "admin API: wrong token");
   return std::nullopt;
 }
@@ -85,12 +90,18 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
                         "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
     }
     spec.sources.push_back(final_path);
+    spec.root = final_path.parent_path();
+    spec.allow_vrt = false;
     delete_after.push_back(final_path);
     if (auto o = r.query.find("options"); o != r.query.end()) {
       json opts = json::parse(o->second, nullptr, false);
       if (opts.is_discarded() || !opts.is_object()) {
         remove_quietly(final_path);
         return json_error(400, "upload: options= must be a JSON object");
+      }
+      if (Status valid = validate_ingest_options(opts); !valid) {
+        remove_quietly(final_path);
+        return json_error(400, "upload: " + valid.error().message);
       }
       spec.options = std::move(opts);
     }
@@ -114,6 +125,7 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
                         "ingest: server-side paths are disabled (no data_root configured); upload "
                         "the file instead");
     }
+    spec.root = ctx.config.data_root;
     for (const auto& s : body["sources"]) {
       if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
       auto p = resolve_source(ctx.config.data_root, s.get<std::string>());
@@ -127,6 +139,8 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
     if (body.contains("options")) {
       if (!body["options"].is_object())
         return json_error(400, "ingest: \"options\" must be an object");
+      if (Status valid = validate_ingest_options(body["options"]); !valid)
+        return json_error(400, "ingest: " + valid.error().message);
       spec.options = body["options"];
     }
   }
@@ -141,15 +155,20 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
   return res;
 }
 
+// Deleting is one write transaction that may wait up to the store's busy timeout (10 s) for the
+// write lock: it runs on the blocking worker (Response::deferred), never on an io thread.
 Response serve(const Request& req, Context& ctx, const DeleteLayerRoute& r) {
   if (auto denied = check_admin(req, ctx)) return *denied;
-  // A short-lived read-write connection on this io thread: deleting is one transaction.
-  auto rw = store::TileStore::open(ctx.config.store, store::TileStore::Mode::read_write);
-  if (!rw) return error_response(rw.error());
-  Status st = rw->delete_layer(r.layer);
-  if (ctx.layer_cache) ctx.layer_cache->clear();
-  if (!st) return error_response(st.error());
-  return json_response(200, json{{"deleted", r.layer}}.dump());
+  Response res;
+  res.deferred = [store = ctx.config.store, layers = ctx.layer_cache, name = r.layer] {
+    auto rw = store::TileStore::open(store, store::TileStore::Mode::read_write);
+    if (!rw) return error_response(rw.error());
+    Status st = rw->delete_layer(name);
+    if (layers) layers->clear();
+    if (!st) return error_response(st.error());
+    return json_response(200, json{{"deleted", name}}.dump());
+  };
+  return res;
 }
 
 Response serve(const Request& req, Context& ctx, const JobsRoute&) {

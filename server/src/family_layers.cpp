@@ -1,4 +1,5 @@
 // Route family "layers": metadata of the published layers.
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "families.hpp"
@@ -7,6 +8,34 @@ namespace tinstream::server {
 namespace {
 
 using nlohmann::json;
+
+// An input's path as anyone may see it: its file name. Uploads are stored as
+// upload-<16 hex>-<name>: the name the uploader gave. (Paths as the ingest recorded them are
+// server paths: absolute, under the data root or the upload directory, or /proc/self/fd/N/….)
+std::string public_source_name(const std::string& path) {
+  std::string name = std::filesystem::path(path).filename().string();
+  constexpr std::size_t kPrefix = 7, kHex = 16;  // "upload-", then 16 hex digits and '-'
+  if (name.rfind("upload-", 0) == 0 && name.size() > kPrefix + kHex + 1 &&
+      name[kPrefix + kHex] == '-' &&
+      name.find_first_not_of("0123456789abcdef", kPrefix) == kPrefix + kHex) {
+    name.erase(0, kPrefix + kHex + 1);
+  }
+  return name;
+}
+
+// The ingest options as stored, each input named by public_source_name().
+json public_options(const std::string& stored) {
+  json opts = json::parse(stored, nullptr, false);
+  if (opts.is_discarded() || !opts.is_object()) return json::object();
+  if (auto inputs = opts.find("inputs"); inputs != opts.end() && inputs->is_array()) {
+    for (auto& input : *inputs) {
+      if (!input.is_object()) continue;
+      if (auto path = input.find("path"); path != input.end() && path->is_string())
+        *path = public_source_name(path->get<std::string>());
+    }
+  }
+  return opts;
+}
 
 json layer_to_json(const store::LayerInfo& l) {
   json j = {
@@ -36,8 +65,7 @@ json layer_to_json(const store::LayerInfo& l) {
       {"created_unix", l.created_unix},
       {"version", l.version},
   };
-  json opts = json::parse(l.options_json, nullptr, false);
-  j["options"] = opts.is_discarded() ? json::object() : opts;
+  j["options"] = public_options(l.options_json);
   j["tiles"] = "/tiles/" + l.name + "/{quadkey}";
   if (l.projection == geo::Projection::spherical) {
     j["terrain"] = "/tiles/" + l.name + "/layer.json";

@@ -22,12 +22,15 @@ Response serve(const Request&, Context& ctx, const MetricsRoute&) {
   return res;
 }
 
-Response serve(const Request&, Context&, const PreflightRoute&) {
+// CORS preflight: public routes are readable from any origin (cors_allow_origin), the admin API
+// and the metrics from none (their preflight carries no CORS header, so a browser refuses the
+// cross-origin call).
+Response serve(const Request&, Context&, const PreflightRoute& r) {
   Response res;
   res.status = 204;
-  res.set("Access-Control-Allow-Methods", "GET, HEAD, POST, DELETE, OPTIONS");
-  res.set("Access-Control-Allow-Headers",
-          "Authorization, Content-Type, If-None-Match, Accept, Accept-Encoding");
+  if (r.admin) return res;
+  res.set("Access-Control-Allow-Methods", "GET, HEAD, OPTIONS");
+  res.set("Access-Control-Allow-Headers", "If-None-Match, Accept, Accept-Encoding");
   res.set("Access-Control-Max-Age", "86400");
   return res;
 }

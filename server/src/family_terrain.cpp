@@ -5,6 +5,7 @@
 
 #include "families.hpp"
 #include "negotiation.hpp"
+#include "stored_tiles.hpp"
 #include "tinstream/store/etag.hpp"
 #include "tinstream/terrain/gzip.hpp"
 #include "tinstream/terrain/layer_json.hpp"
@@ -13,6 +14,11 @@
 
 namespace tinstream::server {
 namespace {
+
+// Closed rectangles that share at least a point.
+bool overlaps(const geo::MercatorRect& a, const geo::MercatorRect& b) {
+  return a.min_x <= b.max_x && b.min_x <= a.max_x && a.min_y <= b.max_y && b.min_y <= a.max_y;
+}
 
 // Terrain only for spherical layers; a JSON 409 explains why otherwise.
 std::optional<Response> refuse_ellipsoidal(const store::LayerInfo& info) {
@@ -80,13 +86,15 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   if (!st) return error_response(st.error());
   auto stored = (*st)->tile(r.layer, r.id);
   if (!stored) return error_response(stored.error());
+  // Flat filler tiles: only the ancestors of the coarsest stored level, i.e. tiles above the
+  // layer's data (what layer.json lists), so their number is bounded by the layer's extent.
   const bool synthetic = !stored->has_value();
-  if (synthetic && r.id.z >= info.min_level) {
+  if (synthetic && (r.id.z >= info.min_level || !overlaps(r.id.bounds(), info.mercator_bounds))) {
     return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
                                std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
   }
-  std::string base_tag =
-      synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info.version) : (**stored).etag;
+  std::string base_tag = synthetic ? "flat-" + r.id.quadkey() + "-" + std::to_string(info.version)
+                                   : safe_etag(**stored);
   base_tag.erase(std::remove(base_tag.begin(), base_tag.end(), '"'), base_tag.end());
   const std::string etag = "\"qm2-" + base_tag + (normals ? "-n" : "") + "\"";
   const std::string sent_etag =
@@ -98,8 +106,8 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   if (synthetic) {
     tin = terrain::flat_tile(r.id);
   } else {
-    auto raw = tile::decompress((**stored).compressed);
-    if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
+    auto raw = inflate_blob(**stored, r.id);
+    if (!raw) return error_response(raw.error());
     auto decoded = tile::decode(*raw);
     if (!decoded)
       return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
@@ -128,6 +136,7 @@ Response serve(const Request& req, Context& ctx, const LayerJsonRoute& r) {
   if (!found) return error_response(found.error());
   const store::LayerInfo* info = found->get();
   if (auto refusal = refuse_ellipsoidal(*info)) return *refusal;
+  if (Status row = check_layer_row(*info); !row) return error_response(row.error());
   const std::string key = "layer.json|" + r.layer + "|" + std::to_string(info->version);
   std::shared_ptr<const CachedBody> body =
       ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
@@ -175,6 +184,7 @@ Response serve(const Request& req, Context& ctx, const TerrainRoute& r) {
   if (!found) return error_response(found.error());
   const store::LayerInfo& info = **found;
   if (auto refusal = refuse_ellipsoidal(info)) return *refusal;
+  if (Status row = check_layer_row(info); !row) return error_response(row.error());
   const bool normals = accept_wants_extension(req.accept, "octvertexnormals");
   thread_local std::string key;  // handle_terrain never runs nested on one thread
   terrain_key(key, r, info.version, normals);
@@ -194,17 +204,34 @@ Response serve(const Request& req, Context& ctx, const TerrainRoute& r) {
     if (auto not_modified = terrain_not_modified(req, ctx.config, body->etag, normals)) {
       return std::move(*not_modified);
     }
-    res.prebuilt = body->gzip_head;
+    res.prebuilt = body->head;
     res.shared_body = std::shared_ptr<const std::string>(body, &body->bytes);
     return res;
   }
-  // The client takes no gzip: the inflated body is another representation with its own tag.
+  // The client takes no gzip: the inflated body is another representation with its own tag,
+  // cached beside the gzip one (inflated once, not on every request).
   const std::string etag = representation_etag(body->etag, "id");
   if (auto not_modified = terrain_not_modified(req, ctx.config, etag, normals)) {
     return std::move(*not_modified);
   }
-  set_terrain_headers(res, ctx.config, etag, normals, true);
-  send_maybe_gzip(req, res, body);
+  key.append("|id");
+  std::shared_ptr<const CachedBody> inflated =
+      ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
+  if (!inflated) {
+    const std::string& gz = body->bytes;
+    auto raw = terrain::gzip_decompress(
+        std::span(reinterpret_cast<const std::uint8_t*>(gz.data()), gz.size()), kMaxTileBytes);
+    if (!raw) return json_error(500, "tile " + r.id.to_string() + ": " + raw.error().message);
+    Response head;
+    set_terrain_headers(head, ctx.config, etag, normals, true);
+    add_cors(head, ctx.config);
+    inflated = std::make_shared<const CachedBody>(
+        CachedBody{etag, std::string(raw->begin(), raw->end()),
+                   std::make_shared<const HeaderBlock>(std::move(head.headers), raw->size())});
+    if (ctx.terrain_cache) ctx.terrain_cache->put(key, inflated);
+  }
+  res.prebuilt = inflated->head;
+  res.shared_body = std::shared_ptr<const std::string>(inflated, &inflated->bytes);
   return res;
 }
 

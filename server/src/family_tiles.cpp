@@ -1,13 +1,13 @@
 // Route family "tiles", native part: /tiles/{layer}/{quadkey}, the stored blob.
 #include "families.hpp"
 #include "negotiation.hpp"
-#include "tinstream/terrain/gzip.hpp"
-#include "tinstream/tile/codec.hpp"
+#include "stored_tiles.hpp"
 
 namespace tinstream::server {
 
 // The stored zlib bytes with `Content-Encoding: deflate` when accepted (preferred at equal
-// quality), else rewrapped as gzip, else inflated; one ETag per encoding.
+// quality), else rewrapped as gzip, else inflated; one ETag per encoding. The blob's header is
+// checked first (stored_tiles.hpp): it names this tile and a bounded size.
 Response serve(const Request& req, Context& ctx, const NativeTileRoute& r) {
   auto st = get_store(ctx);
   if (!st) return error_response(st.error());
@@ -21,7 +21,9 @@ Response serve(const Request& req, Context& ctx, const NativeTileRoute& r) {
   const double q_deflate = accept_quality(req.accept_encoding, "deflate");
   const double q_gzip = accept_quality(req.accept_encoding, "gzip");
   const bool deflate = q_deflate > 0 && q_deflate >= q_gzip;
-  const std::string etag = representation_etag(tile.etag, deflate ? "" : q_gzip > 0 ? "gz" : "id");
+  const std::string etag = representation_etag(safe_etag(tile), deflate      ? ""
+                                                                : q_gzip > 0 ? "gz"
+                                                                             : "id");
   Response res;
   res.set("ETag", etag);
   res.set("Cache-Control", cache_control(ctx.config));
@@ -32,16 +34,17 @@ Response serve(const Request& req, Context& ctx, const NativeTileRoute& r) {
   }
   res.set("Content-Type", "application/vnd.tinstream.tile");
   if (deflate) {
+    if (auto checked = check_blob(tile, r.id); !checked) return error_response(checked.error());
     res.set("Content-Encoding", "deflate");
     res.body.assign(tile.compressed.begin(), tile.compressed.end());
   } else if (q_gzip > 0) {
-    auto gz = terrain::zlib_to_gzip(tile.compressed);
-    if (!gz) return json_error(500, "tile " + r.id.quadkey() + ": " + gz.error().message);
+    auto gz = blob_as_gzip(tile, r.id);
+    if (!gz) return error_response(gz.error());
     res.set("Content-Encoding", "gzip");
     res.body.assign(gz->begin(), gz->end());
   } else {
-    auto raw = tile::decompress(tile.compressed);
-    if (!raw) return json_error(500, "tile " + r.id.quadkey() + ": " + raw.error().message);
+    auto raw = inflate_blob(tile, r.id);
+    if (!raw) return error_response(raw.error());
     res.body.assign(raw->begin(), raw->end());
   }
   return res;

@@ -79,6 +79,21 @@ std::string_view route_name(const Route& route) {
   return std::visit([](const auto& r) { return std::decay_t<decltype(r)>::kName; }, route);
 }
 
+bool is_admin_route(const Route& route) {
+  return std::visit(
+      [](const auto& r) {
+        using R = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<R, PreflightRoute>) {
+          return r.admin;
+        } else if constexpr (requires { R::kAdmin; }) {
+          return R::kAdmin;
+        } else {
+          return false;
+        }
+      },
+      route);
+}
+
 namespace {
 
 // The decoded path segments of a request target (`/a/b` → {"a", "b"}; `/` → {""}).
@@ -332,7 +347,9 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
     }
   }
 
-  if (method == "OPTIONS") return Route{PreflightRoute{}};
+  if (method == "OPTIONS") {
+    return Route{PreflightRoute{seg[0] == "admin" || seg[0] == "metrics"}};
+  }
   for (const Family& family : kFamilies) {
     if (seg[0] == family.first_segment) return family.parse(method, seg, query);
   }

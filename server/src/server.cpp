@@ -60,6 +60,23 @@ Result<store::TileStore*> thread_store(std::uint64_t serial, const std::filesyst
   return slot.get();
 }
 
+// Opens, binds and listens; errors name the address and port.
+Status listen(tcp::acceptor& acceptor, const std::string& address_text, std::uint16_t port) {
+  beast::error_code ec;
+  const auto address = net::ip::make_address(address_text, ec);
+  if (ec) return invalid_argument("address \"" + address_text + "\": " + ec.message());
+  const tcp::endpoint endpoint{address, port};
+  acceptor.open(endpoint.protocol(), ec);
+  if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor.bind(endpoint, ec);
+  if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return io_error("cannot listen on " + address_text + ":" + std::to_string(port) + ": " +
+                    ec.message());
+  }
+  return {};
+}
+
 }  // namespace
 
 struct Server::Impl {
@@ -69,6 +86,7 @@ struct Server::Impl {
         state(c),
         shards(make_shards(c, n_shards)),
         acceptor(shards.front()->ioc),
+        admin_acceptor(shards.front()->ioc),
         signals(shards.front()->ioc, SIGINT, SIGTERM),
         grace(shards.front()->ioc) {}
 
@@ -93,12 +111,15 @@ struct Server::Impl {
   Clock::time_point stop_deadline;
   std::vector<std::unique_ptr<Shard>> shards;  // at least one; shard 0 also runs what follows
   tcp::acceptor acceptor;
+  tcp::acceptor admin_acceptor;  // open when config.admin_address is set
   net::signal_set signals;
   net::steady_timer grace;
-  std::size_t next_shard = 0;  // round robin; the accept handler only
+  std::size_t next_shard = 0;  // round robin; the accept handlers only (shard 0's thread)
+  // Deferred answers (layer deletes). Declared after the shards: stopped first (~Impl).
+  BlockingWorker blocking;
 
-  void do_accept();
-  void on_accept(Shard& target, beast::error_code ec, tcp::socket socket);
+  void do_accept(tcp::acceptor& from);
+  void on_accept(tcp::acceptor& from, Shard& target, beast::error_code ec, tcp::socket socket);
   void sweep(Shard& shard);
   void stop();
   void watch_drain();
@@ -110,8 +131,10 @@ Server::Impl::~Impl() {
   // let those handlers finish before any member goes away.
   beast::error_code ec;
   acceptor.close(ec);
+  admin_acceptor.close(ec);
   signals.cancel(ec);
   grace.cancel();
+  blocking.stop();  // a deferred answer still running finishes first
   for (auto& shard : shards) {
     shard->work.reset();
     shard->sweep.cancel();
@@ -121,28 +144,30 @@ Server::Impl::~Impl() {
   }
 }
 
-void Server::Impl::do_accept() {
+void Server::Impl::do_accept(tcp::acceptor& from) {
   Shard& target = *shards[next_shard];
   next_shard = (next_shard + 1) % shards.size();
-  acceptor.async_accept(target.ioc, [this, &target](beast::error_code ec, tcp::socket socket) {
-    on_accept(target, ec, std::move(socket));
+  from.async_accept(target.ioc, [this, &from, &target](beast::error_code ec, tcp::socket socket) {
+    on_accept(from, target, ec, std::move(socket));
   });
 }
 
-void Server::Impl::on_accept(Shard& target, beast::error_code ec, tcp::socket socket) {
+void Server::Impl::on_accept(tcp::acceptor& from, Shard& target, beast::error_code ec,
+                             tcp::socket socket) {
   if (ec) {
-    if (!acceptor.is_open() || state.stopping) return;
+    if (!from.is_open() || state.stopping) return;
     spdlog::warn("accept failed: {}", ec.message());
   } else if (!state.stopping) {
     beast::error_code nd;
     socket.set_option(tcp::no_delay(true), nd);  // responses go out in one write; no Nagle wait
-    auto session = std::make_shared<Session>(std::move(socket), state, target);
+    auto session =
+        std::make_shared<Session>(std::move(socket), state, target, &from == &admin_acceptor);
     const bool reject =
         state.metrics.open_connections() > static_cast<std::int64_t>(state.config.max_connections);
     if (reject) state.metrics.connection_rejected();
     net::post(target.ioc, [session = std::move(session), reject] { session->start(reject); });
   }
-  if (!state.stopping) do_accept();
+  if (!state.stopping) do_accept(from);
 }
 
 void Server::Impl::sweep(Shard& shard) {
@@ -164,6 +189,7 @@ void Server::Impl::stop() {
   net::post(acceptor.get_executor(), [this] {
     beast::error_code ec;
     acceptor.close(ec);
+    admin_acceptor.close(ec);
     signals.cancel(ec);
   });
   for (auto& shard : shards) {
@@ -224,18 +250,15 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   ctx.terrain_cache = impl->cache.get();
   ctx.layer_cache = &impl->layers;
   ctx.store = [raw] { return thread_store(raw->serial, raw->state.config.store); };
+  ctx.path_redactions = server_path_redactions(config);
+  impl->state.blocking = &impl->blocking;
 
-  beast::error_code ec;
-  const auto address = net::ip::make_address(config.address, ec);
-  if (ec) return invalid_argument("address \"" + config.address + "\": " + ec.message());
-  const tcp::endpoint endpoint{address, config.port};
-  impl->acceptor.open(endpoint.protocol(), ec);
-  if (!ec) impl->acceptor.set_option(net::socket_base::reuse_address(true), ec);
-  if (!ec) impl->acceptor.bind(endpoint, ec);
-  if (!ec) impl->acceptor.listen(net::socket_base::max_listen_connections, ec);
-  if (ec) {
-    return io_error("cannot listen on " + config.address + ":" + std::to_string(config.port) +
-                    ": " + ec.message());
+  if (Status listening = listen(impl->acceptor, config.address, config.port); !listening)
+    return listening.error();
+  if (!config.admin_address.empty()) {
+    if (Status listening = listen(impl->admin_acceptor, config.admin_address, config.admin_port);
+        !listening)
+      return listening.error();
   }
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
@@ -243,6 +266,12 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
 std::uint16_t Server::port() const {
   beast::error_code ec;
   return impl_->acceptor.local_endpoint(ec).port();
+}
+
+std::uint16_t Server::admin_port() const {
+  if (!impl_->admin_acceptor.is_open()) return 0;
+  beast::error_code ec;
+  return impl_->admin_acceptor.local_endpoint(ec).port();
 }
 
 void Server::run(bool handle_signals) {
@@ -258,7 +287,8 @@ void Server::run(bool handle_signals) {
     });
   }
   if (!s.state.stopping) {
-    s.do_accept();
+    s.do_accept(s.acceptor);
+    if (s.admin_acceptor.is_open()) s.do_accept(s.admin_acceptor);
     for (auto& shard : s.shards) {
       net::post(shard->ioc, [&s, sh = shard.get()] { s.sweep(*sh); });
     }
@@ -274,6 +304,7 @@ void Server::run(bool handle_signals) {
     threads.emplace_back(serve_shard, std::ref(*s.shards[i]));
   serve_shard(*s.shards.front());
   for (auto& t : threads) t.join();
+  s.blocking.stop();
   s.jobs->shutdown();
   spdlog::info("tinstream-server stopped");
 }

@@ -14,6 +14,7 @@
 #include <optional>
 #include <unordered_set>
 
+#include "blocking_worker.hpp"
 #include "body_file.hpp"
 #include "tinstream/server/config.hpp"
 #include "tinstream/server/handler.hpp"
@@ -53,6 +54,7 @@ struct ServerState {
   Context ctx;  // the handler's view of the server (handler.hpp)
   std::atomic<bool> stopping{false};
   std::atomic<std::int64_t> live_sessions{0};
+  BlockingWorker* blocking = nullptr;  // runs deferred answers (Response::deferred)
 };
 
 }  // namespace tinstream::server

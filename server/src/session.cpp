@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <boost/asio/buffer.hpp>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
 #include <boost/beast/core/bind_handler.hpp>
 #include <boost/beast/http/error.hpp>
@@ -37,10 +39,14 @@ std::size_t whole_buffers(const beast::error_code& ec, std::size_t) {
 
 }  // namespace
 
-Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard)
+Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener)
     : socket_(std::move(socket)), server_(server), shard_(shard) {
   server_.metrics.connection_opened();
   server_.live_sessions.fetch_add(1);
+  beast::error_code ec;
+  const auto peer = socket_.remote_endpoint(ec);
+  if (!ec) req_.remote = peer.address().to_string();
+  req_.admin_listener = admin_listener;
 }
 
 Session::~Session() {
@@ -94,7 +100,8 @@ bool Session::idle() {
   return buffer_.size() == 0 && socket_.available(ec) == 0;
 }
 
-// The request fields are reused from one request to the next (their capacity with them).
+// The request fields are reused from one request to the next (their capacity with them); the
+// peer's address and the listener stay.
 void Session::reset_request() {
   req_.method.assign("-");
   req_.target.assign("-");
@@ -273,7 +280,25 @@ void Session::on_body(beast::error_code ec) {
 
 // ---- 2. Answering it -----------------------------------------------------------------------
 
-void Session::respond() { do_write(handle(req_, server_.ctx), !keep_alive_); }
+void Session::respond() {
+  Response res = handle(req_, server_.ctx);
+  if (res.deferred && server_.blocking) return defer(std::move(res.deferred));
+  if (res.deferred) res = res.deferred();  // no worker (never in a running server)
+  do_write(std::move(res), !keep_alive_);
+}
+
+// The work runs on the blocking worker; its answer comes back to this shard's thread. The work
+// guard keeps the shard's io_context running until it has (a graceful stop waits for it).
+void Session::defer(std::function<Response()> work) {
+  deadline_ = Clock::time_point::max();  // no socket operation is pending meanwhile
+  server_.blocking->post([self = shared_from_this(), work = std::move(work),
+                          guard = net::make_work_guard(shard_.ioc)]() mutable {
+    Response res = work();
+    net::post(self->shard_.ioc, [self, res = std::move(res), guard = std::move(guard)]() mutable {
+      self->do_write(std::move(res), !self->keep_alive_);
+    });
+  });
+}
 
 void Session::do_write(Response res, bool close_after) {
   close_after_ = close_after || server_.stopping;

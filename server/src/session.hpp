@@ -25,6 +25,7 @@
 #include <boost/beast/core/file.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,7 +40,8 @@ class Session : public std::enable_shared_from_this<Session> {
  public:
   using tcp = boost::asio::ip::tcp;
 
-  Session(tcp::socket&& socket, ServerState& server, Shard& shard);
+  // `admin_listener`: accepted on the admin listener (config admin_address).
+  Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener = false);
   ~Session();
 
   // On the shard's thread. `reject`: answer 503 and close (over max_connections).
@@ -68,8 +70,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void read_body(bool expect_continue);
   void on_body(beast::error_code ec);
 
-  // 2. Answering it.
+  // 2. Answering it (an answer the handler defers is computed on the blocking worker).
   void respond();
+  void defer(std::function<Response()> work);
   void do_write(Response res, bool close_after);
   void on_write(beast::error_code ec, std::size_t n);
 

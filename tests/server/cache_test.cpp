@@ -33,11 +33,11 @@ TEST(TerrainCache, ChargesTheSharedHeaderBlockOfEachTile) {
   TerrainCache cache(1 << 20);
   const auto body = tile_body(1000);
   cache.put(key_of(0), body);
-  const std::size_t wire = body->gzip_head->wire.size();
+  const std::size_t wire = body->head->wire.size();
   ASSERT_GT(wire, 300u);
   // At least: the bytes, the ETag, the key, the header fields, `wire` and the keep-alive head.
   std::size_t fields = 0;
-  for (const auto& [k, v] : body->gzip_head->fields) fields += k.size() + v.size();
+  for (const auto& [k, v] : body->head->fields) fields += k.size() + v.size();
   EXPECT_GE(cache.bytes(),
             body->bytes.size() + body->etag.size() + key_of(0).size() + fields + 2 * wire);
 }

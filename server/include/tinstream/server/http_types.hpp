@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -23,6 +24,8 @@ struct Request {
   std::string body;                 // small bodies (JSON)
   std::filesystem::path body_file;  // an upload streamed to disk; empty otherwise
   std::uint64_t body_file_size = 0;
+  std::string remote;           // the peer's address ("127.0.0.1", "::1"); empty when unknown
+  bool admin_listener = false;  // received on the admin listener (config admin_address)
 };
 
 // Header fields shared by every identical answer (the 200 of a cached tile), built once, with the
@@ -64,6 +67,10 @@ struct Response {
   std::shared_ptr<const std::string> shared_body;
   std::string_view payload() const { return shared_body ? std::string_view(*shared_body) : body; }
   std::string route = "other";  // metrics label of the matched route
+  // When set, the answer is not ready yet: the session runs `deferred` on the server's blocking
+  // worker (never on an io thread) and sends what it returns instead. For work that may wait on
+  // a lock or a disk (removing a layer). Callers without a session (tests) call it themselves.
+  std::function<Response()> deferred;
 
   // Case-insensitive, in `headers` then `prebuilt`; nullptr if absent.
   const std::string* header(std::string_view name) const;

@@ -42,7 +42,8 @@ namespace tinstream::server {
 // is a struct below, named `<What>Route`, with `kName` (its metrics label) and the fields the
 // handler needs, already validated. To add a family (say `/imagery/{layer}/{z}/{x}/{y}.png`):
 //   1. its route structs here, and each in the `Route` variant below (the metrics labels follow
-//      from it: kRouteLabels);
+//      from it: kRouteLabels; `static constexpr bool kAdmin = true` puts a route behind the
+//      admin allow-list and listener);
 //   2. a `parse_<family>(method, segments, query)` in src/routes.cpp and one line in its
 //      kFamilies table naming the first segment it owns ("" is the root path `/`);
 //   3. `Response serve(const Request&, Context&, const <What>Route&)` for each struct in a new
@@ -57,6 +58,7 @@ struct HealthRoute {
   static constexpr std::string_view kName = "healthz";
 };
 struct MetricsRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
   static constexpr std::string_view kName = "metrics";
 };
 // Family "layers": layer metadata (src/family_layers.cpp).
@@ -84,22 +86,27 @@ struct NativeTileRoute {
 };
 // Family "admin": ingest jobs and layer removal, bearer token (src/family_admin.cpp).
 struct IngestRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
   static constexpr std::string_view kName = "ingest";
   std::map<std::string, std::string> query;
 };
 struct JobsRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
   static constexpr std::string_view kName = "jobs";
 };
 struct JobRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
   static constexpr std::string_view kName = "job";
   std::string id;
 };
 struct DeleteLayerRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
   static constexpr std::string_view kName = "delete_layer";
   std::string layer;
 };
 struct PreflightRoute {
   static constexpr std::string_view kName = "preflight";
+  bool admin = false;  // for a path of an admin route (/admin/…, /metrics): no CORS
 };
 // Family "tiles", raster-DEM part, and family "imagery" (src/family_imagery.cpp).
 struct DemTileRoute {
@@ -155,6 +162,11 @@ RouteResult parse_route(std::string_view method, std::string_view target);
 
 // Metrics label of a route ("tile", "terrain", …): its kName.
 std::string_view route_name(const Route& route);
+
+// True for the admin API and the metrics: routes whose struct says `kAdmin = true`, and their
+// preflights. They answer only addresses in admin_allow, only on the admin listener when there
+// is one, and never carry CORS headers.
+bool is_admin_route(const Route& route);
 
 // Percent-decoding of one path segment or query component; nullopt on a malformed escape or a
 // decoded NUL. `plus_is_space` for query strings.

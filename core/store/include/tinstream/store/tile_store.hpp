@@ -178,7 +178,6 @@ class LayerWriter {
 
  private:
   std::unique_ptr<Impl> impl_;
-  friend struct LayerWriterTestAccess;  // core/store/src/writer_test_access.hpp, tests only
 };
 
 // Writes one new imagery version; the LayerWriter contract (batched transactions, invisible until
