@@ -92,6 +92,16 @@ Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding
   const geo::MercatorRect r = t.id.bounds();
   const double dx = r.width() / size, dy = r.height() / size;
   const std::vector<tile::Vertex> vertices = t.vertices();
+  for (const tile::Vertex& v : vertices) {
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
+      return corrupt_data("tile " + t.id.to_string() + ": a vertex is not finite");
+    }
+  }
+  // Pixel visits over all triangles' bounding boxes: a valid tile needs a few times the pixel
+  // count (long border fans included); a corrupt one of overlapping whole-tile triangles is cut
+  // off here instead of costing triangles × pixels.
+  const std::uint64_t visit_budget = 256ull * size * size;
+  std::uint64_t visits = 0;
   std::vector<double> height(static_cast<std::size_t>(size) * size, 0.0);
   // 0: not yet claimed, 1: data, 2: NODATA.
   std::vector<std::uint8_t> state(height.size(), 0);
@@ -120,6 +130,13 @@ Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding
     const std::int64_t j1 = std::min<std::int64_t>(size - 1, clamp_index(std::ceil(row_of(min_y))));
     const kernel::XY a{v[0]->x, v[0]->y}, b{v[1]->x, v[1]->y}, c{v[2]->x, v[2]->y};
     const bool nodata = t.is_nodata_triangle(ti);
+    if (j1 >= j0 && i1 >= i0) {
+      visits += static_cast<std::uint64_t>(j1 - j0 + 1) * static_cast<std::uint64_t>(i1 - i0 + 1);
+    }
+    if (visits > visit_budget) {
+      return corrupt_data("tile " + t.id.to_string() +
+                          ": its triangles overlap (they cover the raster hundreds of times)");
+    }
     for (std::int64_t j = j0; j <= j1; ++j) {
       const double py = r.max_y - (static_cast<double>(j) + 0.5) * dy;
       for (std::int64_t i = i0; i <= i1; ++i) {

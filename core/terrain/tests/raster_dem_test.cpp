@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "grid_tile.hpp"
@@ -142,6 +143,19 @@ TEST(RasterDem, MalformedTilesAreRefused) {
   t.triangles.push_back({0, 1, 999});
   EXPECT_FALSE(render_raster_dem(t, DemEncoding::mapbox, 256).ok());
   EXPECT_FALSE(render_raster_dem(t, DemEncoding::mapbox, 0).ok());
+  // A hostile tile: thousands of copies of a triangle over the whole tile (bounded work).
+  tile::TinTile hostile = tile::testing::make_grid_tile({5, 3, 4}, 1, 1, rng, false);
+  const auto whole = hostile.triangles;
+  for (int i = 0; i < 20000; ++i)
+    hostile.triangles.push_back(whole[static_cast<std::size_t>(i % 2)]);
+  auto refused = render_raster_dem(hostile, DemEncoding::terrarium, 256);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("overlap"), std::string::npos);
+  // Non-finite coordinates.
+  tile::TinTile nan = tile::testing::make_grid_tile({5, 3, 4}, 2, 2, rng, false);
+  nan.interior[0].x = std::nan("");
+  EXPECT_EQ(render_raster_dem(nan, DemEncoding::terrarium, 64).error().code,
+            ErrorCode::corrupt_data);
 }
 
 }  // namespace

@@ -46,8 +46,10 @@ struct DemRaster {
   std::uint64_t nodata_pixels = 0;
 };
 
-// Requires: 1 ≤ size ≤ 4096. A tile whose triangles leave a pixel centre uncovered (a malformed
-// tile) is an error naming the tile.
+// Requires: 1 ≤ size ≤ 4096 (else invalid_argument). A malformed tile — an index out of range, a
+// non-finite vertex, a pixel centre no triangle covers, triangles overlapping so much that their
+// bounding boxes cover the raster more than 256 times (the work is bounded by that) — is a
+// corrupt_data error naming the tile, never a crash.
 Result<DemRaster> render_raster_dem(const tile::TinTile& tile, DemEncoding encoding,
                                     std::uint32_t size = 256);
 
