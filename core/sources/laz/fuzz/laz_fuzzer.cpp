@@ -1,5 +1,6 @@
-// libFuzzer target for the LAZ decoder (clang only; see core/sources/laz/CMakeLists.txt).
-// Each input is a whole file: the seeds are the real LAZ files of ../shared/data (run.sh).
+// libFuzzer target for the LAZ decoder (declared in core/sources/fuzz/CMakeLists.txt).
+// Each input is a whole file: the seeds are the real LAZ files of ../shared/data (run.sh) and
+// the one-point files of corpus/ (make_seeds.py), which the replay test runs in every build.
 //   core/sources/laz/fuzz/run.sh build/bin/laz_fuzzer 300      # seconds
 // The reader takes paths, so the input is written to a private temp file. The last byte picks
 // one or two decoding threads. Properties: open/read never crash, hang or allocate without
@@ -17,9 +18,9 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
-  static const std::string path =
-      (std::filesystem::temp_directory_path() / ("tinstream_laz_fuzz_" + std::to_string(::getpid())))
-          .string();
+  static const std::string path = (std::filesystem::temp_directory_path() /
+                                   ("tinstream_laz_fuzz_" + std::to_string(::getpid())))
+                                      .string();
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) return 0;
   std::fwrite(data, 1, size, f);

@@ -90,6 +90,10 @@ struct LazReader::State {
     while (produced < max) {
       if (!in_chunk) {
         if (points_done >= layout.point_count) break;
+        if (chunks.discover && chunk >= kMaxChunks) {
+          return fail(chunk, unsupported("more than " + std::to_string(kMaxChunks) +
+                                         " chunks without a chunk table"));
+        }
         if (!decoder) decoder = std::make_unique<ChunkDecoder>(vlr, rl, options.layers, fd);
         if (Status st = decoder->begin(extent(chunk)); !st.ok()) return fail(chunk, st.error());
         in_chunk = true;
@@ -190,13 +194,17 @@ Result<std::unique_ptr<LazReader>> LazReader::open(const std::filesystem::path& 
   }
   s->threads = std::min<unsigned>(
       threads, static_cast<unsigned>(std::max<std::size_t>(1, s->chunks.chunks.size())));
-  if (s->threads > 1) s->start_pipeline();
+  // The workers start with the first read(): a reader opened only to look at the header (the
+  // ingest's record count) decodes nothing.
   return std::unique_ptr<LazReader>(new LazReader(std::move(s)));
 }
 
 Result<std::size_t> LazReader::read(std::uint8_t* out, std::size_t max_records) {
   if (s_->failure) return *s_->failure;
-  if (s_->pipeline) return s_->read_parallel(out, max_records);
+  if (s_->threads > 1) {
+    if (!s_->pipeline) s_->start_pipeline();
+    return s_->read_parallel(out, max_records);
+  }
   return s_->read_sequential(out, max_records);
 }
 
@@ -207,10 +215,7 @@ Status LazReader::rewind() {
   s_->in_chunk = false;
   s_->slot = {};
   s_->slot_pos = 0;
-  if (s_->pipeline) {
-    s_->pipeline.reset();
-    s_->start_pipeline();
-  }
+  s_->pipeline.reset();  // joins the workers; the next read() starts them again
   return {};
 }
 

@@ -113,6 +113,33 @@ INSTANTIATE_TEST_SUITE_P(SharedData, LazReference, ::testing::ValuesIn(kReferenc
                            return n;
                          });
 
+// Layered files read with only the layers a terrain needs give the same coordinates, returns,
+// flags and classes as a full decode (what the ingest reads; the skipped fields may differ).
+TEST(LazDecode, GeometryAndClassLayersMatchAFullDecode) {
+  for (const char* name : {"laz_las_with_several_extra_byte_bloc.laz", "laz_simple.copc.laz",
+                           "laz_1_4_w_evlr.laz", "laz_append-bug.laz"}) {
+    SKIP_WITHOUT_DATA(name);
+    RecordOptions partial;
+    partial.geometry_and_class_only = true;
+    const Decoded all = decode_all(kData / name, {}, 5000, true);
+    const Decoded part = decode_all(kData / name, partial, 5000, true);
+    ASSERT_EQ(all.bytes.size(), part.bytes.size()) << name;
+    ASSERT_GT(all.records, 0u);
+    const std::size_t rl = all.bytes.size() / all.records;
+    std::size_t differing_other_fields = 0;
+    for (std::size_t i = 0; i < all.records; ++i) {
+      const std::uint8_t* a = all.bytes.data() + i * rl;
+      const std::uint8_t* b = part.bytes.data() + i * rl;
+      // x, y, z (0-11); returns (14); flags + channel (15); classification (16).
+      ASSERT_EQ(std::memcmp(a, b, 12), 0) << name << " record " << i;
+      ASSERT_EQ(std::memcmp(a + 14, b + 14, 3), 0) << name << " record " << i;
+      if (std::memcmp(a, b, rl) != 0) ++differing_other_fields;
+    }
+    // The skipped layers really were skipped (they vary in these files).
+    EXPECT_GT(differing_other_fields, 0u) << name;
+  }
+}
+
 // Files whose reference is their uncompressed twin.
 TEST(LazDecode, PointwiseVersion1MatchesItsLasTwin) {
   SKIP_WITHOUT_DATA("laz_point-version-1-point-wise.laz");

@@ -19,8 +19,9 @@
 //   after an Error returns the same Error.
 // - Layers not asked for (LayerSelection) are skipped in layered chunks (compressor 3): their
 //   fields keep the value of the chunk's first point. Pointwise chunks are always fully decoded.
-// Threads: a LazReader is used from one thread at a time; it owns its worker threads and its file
-// descriptor, and joins the workers in rewind() and its destructor.
+// Threads: a LazReader is used from one thread at a time; it owns its worker threads (started by
+// the first read()) and its file descriptor, and joins the workers in rewind() and its
+// destructor.
 #pragma once
 
 #include <cstddef>
