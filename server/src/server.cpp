@@ -31,6 +31,7 @@
 #include "server_state.hpp"
 #include "session.hpp"
 #include "tinstream/store/tile_store.hpp"
+#include "tls.hpp"
 
 namespace tinstream::server {
 
@@ -182,7 +183,8 @@ struct Server::Impl {
   Clock::time_point stop_deadline;
   std::vector<std::unique_ptr<Shard>> shards;  // at least one; shard 0 also runs what follows
   tcp::acceptor acceptor;
-  tcp::acceptor admin_acceptor;  // open when config.admin_address is set
+  tcp::acceptor admin_acceptor;            // open when config.admin_address is set
+  std::shared_ptr<net::ssl::context> tls;  // set when config.tls_cert is: every listener is HTTPS
   net::signal_set signals;
   net::steady_timer grace;
   std::size_t next_shard = 0;  // round robin; the accept handlers only (shard 0's thread)
@@ -280,9 +282,24 @@ void Server::Impl::admit(tcp::acceptor& from, Shard& target, tcp::socket socket)
     counted = !ec && state.addresses.acquire(peer.address().to_string(), c.max_connections_per_ip);
     if (!counted) refusal = "too many connections from this address (max_connections_per_ip)";
   }
+  std::string peer;
+  if (tls) {
+    // The session serves the plain end of a socket pair; TLS is terminated beside it (tls.hpp).
+    const auto endpoint = socket.remote_endpoint(ec);
+    if (!ec) peer = endpoint.address().to_string();
+    auto plain = start_tls_pump(std::move(socket), tls, target.ioc,
+                                std::chrono::milliseconds(c.read_timeout_ms));
+    if (!plain) {
+      state.metrics.connection_rejected();
+      if (counted) state.addresses.release(peer);
+      spdlog::warn("connection refused: {}", plain.error().message);
+      return;
+    }
+    socket = std::move(*plain);
+  }
   if (!refusal.empty()) state.metrics.connection_rejected();
   auto session = std::make_shared<Session>(std::move(socket), state, target,
-                                           &from == &admin_acceptor, counted);
+                                           &from == &admin_acceptor, counted, std::move(peer));
   net::post(target.ioc, [session = std::move(session), refusal = std::move(refusal)]() mutable {
     session->start(std::move(refusal));
   });
@@ -375,6 +392,11 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   if (!config.upload_dir.empty()) remove_orphan_uploads(config.upload_dir);
   impl->state.blocking = &impl->blocking;
 
+  if (!config.tls_cert.empty()) {
+    auto tls = make_tls_context(config);
+    if (!tls) return tls.error();
+    impl->tls = std::move(*tls);
+  }
   if (Status listening = listen(impl->acceptor, config.address, config.port); !listening)
     return listening.error();
   if (!config.admin_address.empty()) {
@@ -417,8 +439,9 @@ void Server::run(bool handle_signals) {
       net::post(shard->ioc, [&s, sh = shard.get()] { s.sweep(*sh); });
     }
   }
-  spdlog::info("tinstream-server listening on {}:{} with {} threads, store {}",
-               s.state.config.address, port(), s.shards.size(), s.state.config.store.string());
+  spdlog::info("tinstream-server listening on {}:{} ({}) with {} threads, store {}",
+               s.state.config.address, port(), s.tls ? "HTTPS" : "HTTP", s.shards.size(),
+               s.state.config.store.string());
   std::vector<std::thread> threads;
   auto serve_shard = [&s](Shard& shard) {
     shard.ioc.run();

@@ -50,13 +50,17 @@ std::size_t whole_buffers(const beast::error_code& ec, std::size_t) {
 }  // namespace
 
 Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener,
-                 bool counted)
+                 bool counted, std::string peer)
     : socket_(std::move(socket)), server_(server), shard_(shard), counted_(counted) {
   server_.metrics.connection_opened();
   server_.live_sessions.fetch_add(1);
-  beast::error_code ec;
-  const auto peer = socket_.remote_endpoint(ec);
-  if (!ec) req_.remote = peer.address().to_string();
+  if (!peer.empty()) {
+    req_.remote = std::move(peer);
+  } else {
+    beast::error_code ec;
+    const auto endpoint = socket_.remote_endpoint(ec);
+    if (!ec) req_.remote = endpoint.address().to_string();
+  }
   req_.admin_listener = admin_listener;
 }
 

@@ -42,8 +42,10 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // `admin_listener`: accepted on the admin listener (config admin_address). `counted`: the
   // connection holds one of its address's slots (AddressCounts), released by the destructor.
+  // `peer`: the client's address when `socket` is not the client's own (the plain end of a TLS
+  // connection, tls.hpp); empty: the socket's remote address.
   Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener = false,
-          bool counted = false);
+          bool counted = false, std::string peer = {});
   ~Session();
 
   // On the shard's thread. `refusal` non-empty: answer 503 with it and close (over

@@ -54,8 +54,13 @@ struct ServerConfig {
   bool sendfile = true;
   std::uint32_t max_queued_jobs = 8;        // ingest jobs waiting or running
   std::uint32_t shutdown_grace_ms = 10000;  // in-flight responses get this long on SIGTERM
-  std::string log_level = "info";           // trace, debug, info, warn, error, critical, off
-  bool access_log = true;                   // one line per request at info level
+  // HTTPS: with both set, every listener (the admin one included) speaks TLS 1.2 or later with
+  // this certificate chain and private key (PEM files); both empty: plain HTTP/1.1 (loopback,
+  // or behind a proxy that terminates TLS).
+  std::filesystem::path tls_cert;
+  std::filesystem::path tls_key;
+  std::string log_level = "info";  // trace, debug, info, warn, error, critical, off
+  bool access_log = true;          // one line per request at info level
 };
 
 // Parses configuration JSON over the defaults. Errors name the key.
