@@ -124,7 +124,8 @@ TINSTREAM_LAZ_INLINE void decode_rgb(ArithmeticDecoder& dec, RgbModels& m,
   }
   // Green and blue of one byte half (h 0: low bytes, 1: high), each changed byte predicted from
   // red's change in that half (blue from the mean of red's and green's).
-  auto green_blue = [&](std::uint32_t h, std::int32_t r_now, std::int32_t& g, std::int32_t& b) {
+  auto green_blue = [&](std::uint32_t h, std::int32_t r_now, std::int32_t & g, std::int32_t & b)
+      __attribute__((always_inline)) {
     auto part = [h](std::uint16_t v) { return static_cast<std::int32_t>((v >> (8 * h)) & 0xFF); };
     std::int32_t diff = r_now - part(last[0]);
     g = part(last[1]);
