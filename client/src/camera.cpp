@@ -116,6 +116,7 @@ CameraPose Camera::pose() const {
                              : std::atan2(-dot(right_, north), dot(right_, east));
   p.heading = heading / kDeg;
   if (p.heading < 0) p.heading += 360;
+  if (p.heading >= 360) p.heading -= 360;
   return p;
 }
 

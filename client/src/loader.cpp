@@ -45,8 +45,14 @@ void TileLoader::submit(std::vector<TileRequest> wanted) {
 
 std::vector<LoadResult> TileLoader::take_results() {
   std::vector<LoadResult> out;
-  std::lock_guard lock(results_mutex_);
-  out.swap(results_);
+  {
+    std::lock_guard lock(results_mutex_);
+    out.swap(results_);
+  }
+  std::vector<TileKey> keys;
+  keys.reserve(out.size());
+  for (const LoadResult& r : out) keys.push_back(r.key);
+  queue_.finish(keys);
   return out;
 }
 
@@ -75,6 +81,7 @@ LoaderCounters TileLoader::counters() const {
   c.decode_seconds = static_cast<double>(get(counters_.decode_micros)) * 1e-6;
   c.queued = queue_.queued();
   c.in_flight = queue_.in_flight();
+  c.in_flight_levels = queue_.in_flight_per_level();
   return c;
 }
 
@@ -99,7 +106,8 @@ void TileLoader::run_worker(std::size_t index) {
     }
     if (result.status == LoadStatus::failed)
       counters_.failed.fetch_add(1, std::memory_order_relaxed);
-    queue_.finish(request->key);
+    // The key stays in flight until the render thread takes the result (take_results), so a
+    // frame that looked for it before it was ready cannot queue it again.
     {
       std::lock_guard lock(results_mutex_);
       results_.push_back(std::move(result));

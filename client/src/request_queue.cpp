@@ -46,9 +46,9 @@ std::optional<TileRequest> RequestQueue::pop(std::size_t worker) {
   }
 }
 
-void RequestQueue::finish(const TileKey& key) {
+void RequestQueue::finish(std::span<const TileKey> keys) {
   std::lock_guard lock(mutex_);
-  in_flight_.erase(key);
+  for (const TileKey& k : keys) in_flight_.erase(k);
 }
 
 void RequestQueue::set_active_workers(std::size_t n) {
@@ -83,6 +83,13 @@ std::size_t RequestQueue::queued() const {
 std::size_t RequestQueue::in_flight() const {
   std::lock_guard lock(mutex_);
   return in_flight_.size();
+}
+
+std::array<std::uint32_t, 31> RequestQueue::in_flight_per_level() const {
+  std::array<std::uint32_t, 31> levels{};
+  std::lock_guard lock(mutex_);
+  for (const TileKey& k : in_flight_) ++levels[k.tile.z];
+  return levels;
 }
 
 }  // namespace tinstream::client

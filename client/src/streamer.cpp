@@ -28,6 +28,19 @@ std::vector<geo::TileId> root_tiles(const LayerDescription& l) {
 
 }  // namespace
 
+Obb unloaded_tile_bounds(const LayerDescription& l, const geo::TileId& id) {
+  // Every drawn vertex lies inside the data's bounding rectangle and height range.
+  geo::MercatorRect r = id.bounds();
+  r.min_x = std::max(r.min_x, l.mercator_bounds.min_x);
+  r.max_x = std::min(r.max_x, l.mercator_bounds.max_x);
+  r.min_y = std::max(r.min_y, l.mercator_bounds.min_y);
+  r.max_y = std::min(r.max_y, l.mercator_bounds.max_y);
+  const geo::NormalisedMercator m(l.projection);
+  const geo::LonLatRect ll{geo::NormalisedMercator::lon_from_x(r.min_x), m.lat_from_y(r.min_y),
+                           geo::NormalisedMercator::lon_from_x(r.max_x), m.lat_from_y(r.max_y)};
+  return rectangle_obb(ll, l.min_z, l.max_z);
+}
+
 struct TileStreamer::View {
   const Camera& camera;
   Frustum frustum;
@@ -82,33 +95,19 @@ void TileStreamer::take_results() {
   }
 }
 
-Obb TileStreamer::estimate_bounds(std::uint16_t layer, const geo::TileId& id) const {
-  // Every drawn vertex lies inside the data's bounding rectangle and height range.
-  const LayerDescription& l = layers_[layer];
-  geo::MercatorRect r = id.bounds();
-  r.min_x = std::max(r.min_x, l.mercator_bounds.min_x);
-  r.max_x = std::min(r.max_x, l.mercator_bounds.max_x);
-  r.min_y = std::max(r.min_y, l.mercator_bounds.min_y);
-  r.max_y = std::min(r.max_y, l.mercator_bounds.max_y);
-  const geo::NormalisedMercator m(l.projection);
-  const geo::LonLatRect ll{geo::NormalisedMercator::lon_from_x(r.min_x), m.lat_from_y(r.min_y),
-                           geo::NormalisedMercator::lon_from_x(r.max_x), m.lat_from_y(r.max_y)};
-  return rectangle_obb(ll, l.min_z, l.max_z);
-}
-
 TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
                                         const geo::TileId& id, double priority) {
   const TileKey key{TileKind::terrain, layer, id};
   if (!layers_[layer].may_contain(id) || absent_.contains(key) || failed_recently(key)) return {};
   ResidentTile* resident = gpu_.peek(key);
-  const Obb box = resident ? resident->bounds : estimate_bounds(layer, id);
+  const Obb box = resident ? resident->bounds : unloaded_tile_bounds(layers_[layer], id);
   if (!view.frustum.intersects(box) || occluder_.hides_all(view.eye, box.corners()))
     return {State::culled, nullptr, 0};
   const double distance = box.distance_to(view.eye);
   if (resident) {
     gpu_.find(key);  // a hit, promoted
     gpu_.pin(key, frame_);
-    ram_.pin(key, frame_);
+    // Its RAM copy is not pinned: the GPU holds it, the RAM tier may give it up first.
     return {State::ready, resident, distance};
   }
   gpu_.find(key);  // a miss

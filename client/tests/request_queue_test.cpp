@@ -49,7 +49,7 @@ TEST(RequestQueue, ATileInFlightIsNotHandedOutTwice) {
   q.replace({{key(6, 1), 1, 1}, {key(6, 2), 1, 1}});
   EXPECT_EQ(q.queued(), 1u);
   EXPECT_EQ(q.pop(0)->key, key(6, 2));
-  q.finish(a->key);
+  q.finish(std::span(&a->key, 1));
   q.replace({{key(6, 1), 1, 1}});
   EXPECT_EQ(q.pop(0)->key, key(6, 1));
 }

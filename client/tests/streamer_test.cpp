@@ -199,6 +199,27 @@ TEST(TileStreamer, MovingTheCameraDropsTheOldViewsQueuedRequests) {
   s.release_all(gpu);
 }
 
+TEST(TileLoader, AResultNotYetTakenIsNotRequestedAgain) {
+  // A frame may look for a tile just before its worker finishes and submit it just after: the
+  // tile must stay "in flight" until the render thread has taken its result.
+  Fixture fx("loader_untaken");
+  const TileKey root{TileKind::terrain, 0, {10, 530, 350}};
+  fx.loader->submit({{root, 1, 1}});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  bool ready = false;
+  while (!ready && std::chrono::steady_clock::now() < until)
+    ready = fx.loader->wait_for_results(std::chrono::milliseconds(50));
+  ASSERT_TRUE(ready);
+  fx.loader->submit({{root, 1, 1}});  // the result is ready but not taken
+  EXPECT_EQ(fx.loader->counters().queued, 0u);
+  EXPECT_EQ(fx.loader->counters().in_flight, 1u);
+  const std::vector<LoadResult> results = fx.loader->take_results();
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_EQ(results[0].status, LoadStatus::loaded);
+  EXPECT_EQ(fx.loader->counters().in_flight, 0u);
+  EXPECT_EQ(fx.loader->counters().requests, 1u);
+}
+
 TEST(TileStreamer, AbsentChildrenAreCoveredByTheirParentsQuadrant) {
   SyntheticLayer layer = testing::default_layer();
   // Leave out the south-east 2×2 block: the level-11 tile 11/1061/701 does not exist.

@@ -9,6 +9,7 @@
 #include "process.hpp"
 #include "synthetic_store.hpp"
 #include "tinstream/client/loader.hpp"
+#include "tinstream/client/streamer.hpp"
 #include "tinstream/client/tile_source.hpp"
 #include "tinstream/store/tile_store.hpp"
 #include "tinstream/tile/codec.hpp"
@@ -288,6 +289,46 @@ TEST(Loader, StoreAndHttpSourcesGiveTheSameMeshes) {
                              x.vertices.size() * sizeof(MeshVertex)));
     EXPECT_EQ(x.indices16, y.indices16);
   }
+}
+
+class NoGpu final : public GpuUploader {
+ public:
+  GpuMesh upload(const TileMesh& m) override {
+    return GpuMesh{1, 0, 0, 0, 0, false, m.byte_size()};
+  }
+  void release(GpuMesh&) override {}
+};
+
+TEST(Streaming, MovingTheCameraDropsTheOldViewsQueuedRequestsOverHttp) {
+  ServedStore served("stream_drop");
+  auto source = http(served.server->url());
+  TileLoader loader(source, *source->layers({}), nullptr, LoaderOptions{1});
+  TileStreamer streamer(loader, StreamerOptions{});
+  NoGpu gpu;
+  // The root, then the close view's tiles queued while the worker is held.
+  const geo::MercatorRect r = geo::TileId{10, 530, 350}.bounds();
+  const geo::LonLat c =
+      geo::NormalisedMercator().inverse({(r.min_x + r.max_x) / 2, (r.min_y + r.max_y) / 2});
+  Camera camera(1280, 720, 60);
+  camera.set_pose({c.lon, c.lat, 400000, 0, -90});
+  for (int i = 0; i < 2000 && !streamer.update(camera, gpu).complete; ++i)
+    loader.wait_for_results(std::chrono::milliseconds(20));
+  ASSERT_TRUE(streamer.last_frame().complete);
+  loader.set_paused(true);
+  const LoaderCounters before = loader.counters();
+  camera.set_pose({c.lon, c.lat, 1500, 0, -90});
+  const std::size_t queued = streamer.update(camera, gpu).wanted;
+  ASSERT_GT(queued, 0u);
+  camera.set_pose({c.lon + 90, c.lat, 1500, 0, -90});  // far away: nothing of the layer in view
+  EXPECT_EQ(streamer.update(camera, gpu).wanted, 0u);
+  loader.set_paused(false);
+  for (int i = 0; i < 10; ++i) {
+    streamer.update(camera, gpu);
+    loader.wait_for_results(std::chrono::milliseconds(20));
+  }
+  const LoaderCounters after = loader.counters();
+  EXPECT_EQ(after.dropped - before.dropped, queued);
+  EXPECT_EQ(after.requests, before.requests) << "a dropped request reached the server";
 }
 
 }  // namespace

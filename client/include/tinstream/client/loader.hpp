@@ -11,6 +11,7 @@
 // The thread count can change at run time (set_threads): extra workers are parked, not joined.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -53,6 +54,7 @@ struct LoaderCounters {
   std::uint64_t decoded = 0, decode_errors = 0;
   std::uint64_t dropped = 0;  // queued requests dropped because the view moved on
   std::uint64_t queued = 0, in_flight = 0;
+  std::array<std::uint32_t, 31> in_flight_levels{};
   double decode_seconds = 0;  // worker time spent inflating, decoding and building meshes
 };
 

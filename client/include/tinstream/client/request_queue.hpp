@@ -5,17 +5,21 @@
 // Workers pop the most urgent request: the highest priority (the screen-space error of the tile
 // that asks for it, so larger errors and nearer tiles first, and an ancestor always before its
 // descendants, which are only asked for once it is drawn), then the nearest, then the key. A tile
-// popped by one worker is "in flight" until finish(); pop() never hands out a tile in flight.
+// popped by one worker is "in flight" until finish(), which the loader calls when the render
+// thread takes the tile's result; pop() never hands out a tile in flight, and replace() leaves
+// it out.
 //
-// Threads: replace() from one thread (the render thread), pop()/finish() from workers. The lock
+// Threads: replace() and finish() from one thread (the render thread), pop() from workers. The lock
 // is held for a swap, a hash lookup per queued request or a pop, never during I/O.
 #pragma once
 
+#include <array>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <unordered_set>
 #include <vector>
 
@@ -40,7 +44,8 @@ class RequestQueue {
   // Blocks until worker `worker` may run (worker < active workers, not paused) and a request is
   // queued; returns it, now in flight. nullopt once close() was called.
   std::optional<TileRequest> pop(std::size_t worker);
-  void finish(const TileKey& key);
+  // The tiles are no longer in flight (their results reached the render thread).
+  void finish(std::span<const TileKey> keys);
 
   void set_active_workers(std::size_t n);
   void set_paused(bool paused);
@@ -48,6 +53,8 @@ class RequestQueue {
 
   std::size_t queued() const;
   std::size_t in_flight() const;
+  // Tiles in flight per quadtree level (index: level).
+  std::array<std::uint32_t, 31> in_flight_per_level() const;
 
  private:
   mutable std::mutex mutex_;

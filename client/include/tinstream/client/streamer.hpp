@@ -33,6 +33,10 @@
 
 namespace tinstream::client {
 
+// The box selection uses for a tile not loaded yet: its rectangle clipped to the layer's data
+// bounds, over the layer's height range (every drawn vertex lies inside both), as rectangle_obb.
+Obb unloaded_tile_bounds(const LayerDescription& layer, const geo::TileId& id);
+
 // GL object names of one uploaded mesh (0 = none), as the renderer made them.
 struct GpuMesh {
   std::uint32_t vao = 0, vbo = 0, ibo = 0;
@@ -132,7 +136,6 @@ class TileStreamer {
   void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
   void upload(GpuUploader& gpu);
-  Obb estimate_bounds(std::uint16_t layer, const geo::TileId& id) const;
   bool failed_recently(const TileKey& key);
 
   TileLoader& loader_;
