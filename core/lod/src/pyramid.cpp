@@ -16,6 +16,7 @@
 #include <string>
 #include <thread>
 
+#include "tinstream/base/worker_threads.hpp"
 #include "tinstream/lod/error.hpp"
 #include "tinstream/lod/parent.hpp"
 
@@ -30,8 +31,14 @@ class TilePool {
  public:
   using Job = std::function<Result<store::StoredTile>()>;
 
-  explicit TilePool(unsigned threads) {
-    for (unsigned i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
+  TilePool() = default;
+  // Starts the workers; an Error when one cannot be started (the destructor stops and joins
+  // those that were).
+  Status start(unsigned threads) {
+    for (unsigned i = 0; i < threads; ++i) {
+      if (Status s = workers_.start([this] { work(); }); !s) return s;
+    }
+    return {};
   }
   ~TilePool() {
     {
@@ -39,7 +46,7 @@ class TilePool {
       stop_ = true;
     }
     cv_work_.notify_all();
-    for (auto& w : workers_) w.join();
+    (void)workers_.join();
   }
   TilePool(const TilePool&) = delete;
   TilePool& operator=(const TilePool&) = delete;
@@ -75,10 +82,14 @@ class TilePool {
         jobs_.pop_front();
       }
       Result<store::StoredTile> r = Error(ErrorCode::internal, "lod: job did not run");
-      try {
-        r = job();
-      } catch (const std::exception& e) {
-        r = Error(ErrorCode::internal, std::string("lod: ") + e.what());
+      // The exception barrier: a job that throws is a failed tile. Fault point "lod.tile".
+      if (Status s = guarded("lod",
+                             [&] {
+                               fault::point("lod.tile");
+                               r = job();
+                             });
+          !s) {
+        r = s.error();
       }
       {
         std::lock_guard lock(m_);
@@ -93,7 +104,7 @@ class TilePool {
   std::deque<Job> jobs_;
   std::deque<Result<store::StoredTile>> done_;
   bool stop_ = false;
-  std::vector<std::thread> workers_;
+  WorkerThreads workers_{"lod worker", "lod.tile"};  // last: joined before the rest goes
 };
 
 class Throttle {
@@ -142,7 +153,8 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     summary.level_vertices[t.id.z] += t.vertex_count;
   };
 
-  TilePool pool(threads);
+  TilePool pool;
+  if (Status s = pool.start(threads); !s) return s.error();
   std::uint64_t done = 0;
   std::uint64_t total = 0;
   Throttle throttle;

@@ -2,8 +2,8 @@
 """Writes the version-2 seed tiles of core/tile/fuzz/corpus/ from docs/tile-format.md alone.
 
 An encoder independent of core/tile/src/codec.cpp: it reads the version-1 seeds with the layout of
-§3, re-encodes them as version 2 following §4, and adds a tile of adversarial doubles and the
-worked example of §5. The values the C++ test (core/tile/tests/codec_v2_seed_test.cpp) checks are
+§3, re-encodes them as version 2 following §4, and adds a tile of adversarial doubles, the
+worked example of §5 and a data-edge tile with a NODATA corner (§2.1). The values the C++ test (core/tile/tests/codec_v2_seed_test.cpp) checks are
 printed by this script; run it from the repository root:
 
     python3 core/tile/fuzz/make_v2_seeds.py
@@ -121,6 +121,32 @@ def main():
     print("  min_z %r max_z %r" % (min(zs), max(zs)))
     for k, v in enumerate(vertices):
         print("  vertex %d bits %s" % (k, " ".join("%016x" % bits(c) for c in v)))
+
+    # 4. A tile at the data's edge (§2.1): the NW corner is NODATA and carries a height continued
+    #    from the data (not 0). Level 12, column 100, row 200, bounds from §1; one north and one
+    #    west edge point at the sides' midpoints, one interior point at the centre. The two
+    #    triangles using vertex 0 are NODATA triangles, the other four the data footprint.
+    n = 1 << 12
+    min_x, max_x = -1 + 2 * 100 / n, -1 + 2 * 101 / n
+    max_y, min_y = 1 - 2 * 200 / n, 1 - 2 * 201 / n
+    mid_x, mid_y = (min_x + max_x) / 2, (min_y + max_y) / 2
+    vertices = [
+        (min_x, max_y, 3105.25, 0.0),  # 0 NW, NODATA: the nearest input point's height
+        (max_x, max_y, 3131.0, 0.0),   # 1 NE
+        (min_x, min_y, 3140.5, 0.0),   # 2 SW
+        (max_x, min_y, 3150.0, 0.0),   # 3 SE
+        (mid_x, max_y, 3120.0, 0.0),   # 4 north edge point
+        (min_x, mid_y, 3122.0, 0.0),   # 5 west edge point
+        (mid_x, mid_y, 3125.5, 1.0),   # 6 interior
+    ]
+    triangles = [(0, 5, 6), (0, 6, 4), (4, 6, 1), (6, 3, 1), (5, 2, 6), (2, 3, 6)]
+    footprint = [0 if 0 in t else 1 for t in triangles]  # §2.1: no NODATA vertex
+    zs = [v[2] for k, v in enumerate(vertices) if k != 0]
+    blob = write_v2(header(12, 100, 200, (1, 0, 0, 1, 1), len(triangles), min(zs), max(zs),
+                           nodata=0b0001, source_points=1, errors=(0.0, 0.0)),
+                    vertices, [i for t in triangles for i in t])
+    save("v2_nodata_footprint.tint", blob)
+    print("  footprint (1 = data triangle):", footprint)
 
 
 if __name__ == "__main__":

@@ -113,6 +113,27 @@ void TinTile::update_z_range() {
   max_z = hi;
 }
 
+bool TinTile::is_nodata_triangle(std::size_t t) const {
+  const Triangle& tri = triangles[t];
+  return is_nodata_vertex(tri[0]) || is_nodata_vertex(tri[1]) || is_nodata_vertex(tri[2]);
+}
+
+std::vector<std::uint8_t> TinTile::footprint_mask() const {
+  std::vector<std::uint8_t> mask(triangles.size());
+  for (std::size_t t = 0; t < triangles.size(); ++t) mask[t] = is_nodata_triangle(t) ? 0 : 1;
+  return mask;
+}
+
+bool TinTile::has_nodata_triangles() const {
+  if (!corner_nodata[0] && !corner_nodata[1] && !corner_nodata[2] && !corner_nodata[3]) {
+    return false;
+  }
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    if (is_nodata_triangle(t)) return true;
+  }
+  return false;
+}
+
 Status check_structure(const TinTile& tile) {
   const std::string name = "tile " + tile.id.to_string();
   if (!tile.id.valid()) return invalid_argument(name + ": invalid tile id");
@@ -141,7 +162,8 @@ Status check_structure(const TinTile& tile) {
     return invalid_argument(name + ": negative error statistics");
   }
 
-  // Corners: exactly at the tile corners; NODATA corners at z = 0.
+  // Corners: exactly at the tile corners. (A NODATA corner's height is continued from the data:
+  // any finite value. Tiles written before that rule hold 0 there.)
   const std::array<std::array<double, 2>, 4> corner_xy{
       {{r.min_x, r.max_y}, {r.max_x, r.max_y}, {r.min_x, r.min_y}, {r.max_x, r.min_y}}};
   static constexpr const char* kCornerNames[4] = {"NW", "NE", "SW", "SE"};
@@ -151,9 +173,6 @@ Status check_structure(const TinTile& tile) {
       return invalid_argument(name + ": " + kCornerNames[c] + " corner at " + point_text(v) +
                               " is not the exact tile corner " +
                               point_text({corner_xy[c][0], corner_xy[c][1], 0, 0}));
-    }
-    if (tile.corner_nodata[c] && v.z != 0) {
-      return invalid_argument(name + ": NODATA " + kCornerNames[c] + " corner has z != 0");
     }
   }
 

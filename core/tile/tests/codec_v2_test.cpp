@@ -341,6 +341,20 @@ TEST(CodecV2, PythonAdversarialSeedDecodesToTheValuesThePythonScriptWrote) {
   EXPECT_EQ(encode(t), raw);
 }
 
+// A data-edge tile written by make_v2_seeds.py from docs/tile-format.md §2.1 and §4: NW is a
+// NODATA corner with a continued height; the footprint printed by the script.
+TEST(CodecV2, PythonDataEdgeSeedHasTheSpecifiedFootprint) {
+  const TinTile t = decode_or_fail(read_seed("v2_nodata_footprint.tint"));
+  EXPECT_EQ(t.id, (geo::TileId{12, 100, 200}));
+  EXPECT_EQ(t.corner_nodata, (std::array<bool, 4>{true, false, false, false}));
+  EXPECT_EQ(t.corners[0].z, 3105.25);
+  EXPECT_EQ(t.min_z, 3120.0);  // the data vertices' range: the NODATA corner is left out
+  EXPECT_EQ(t.max_z, 3150.0);
+  EXPECT_EQ(t.footprint_mask(), (std::vector<std::uint8_t>{0, 0, 1, 1, 1, 1}));
+  const Status s = check_structure(t);
+  EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+}
+
 }  // namespace
 }  // namespace tinstream::tile
 

@@ -80,6 +80,41 @@ TEST(TinTile, ZRangeSkipsNodataCorners) {
   EXPECT_EQ(t.max_z, 0);
 }
 
+// Triangles (2, 3, 1) and (2, 1, 0) of two_triangle_tile: NW (0) is only in the second, SE (3)
+// only in the first, SW (2) and NE (1) in both.
+TEST(Footprint, ATriangleWithANodataCornerIsOutsideTheFootprint) {
+  TinTile t = two_triangle_tile({6, 20, 33});
+  EXPECT_FALSE(t.has_nodata_triangles());
+  EXPECT_EQ(t.footprint_mask(), (std::vector<std::uint8_t>{1, 1}));
+  t.corner_nodata[0] = true;
+  EXPECT_TRUE(t.is_nodata_vertex(0));
+  EXPECT_FALSE(t.is_nodata_vertex(1));
+  EXPECT_FALSE(t.is_nodata_triangle(0));
+  EXPECT_TRUE(t.is_nodata_triangle(1));
+  EXPECT_EQ(t.footprint_mask(), (std::vector<std::uint8_t>{1, 0}));
+  EXPECT_TRUE(t.has_nodata_triangles());
+  t.corner_nodata = {false, false, true, false};  // SW: in both triangles
+  EXPECT_EQ(t.footprint_mask(), (std::vector<std::uint8_t>{0, 0}));
+}
+
+TEST(Footprint, OnlyCornersCanBeNodata) {
+  std::mt19937_64 rng(11);
+  TinTile t = make_grid_tile({9, 300, 200}, 3, 3, rng, false);
+  t.corner_nodata = {true, true, true, true};
+  for (std::size_t i = 4; i < t.vertex_count(); ++i) EXPECT_FALSE(t.is_nodata_vertex(i)) << i;
+  const auto mask = t.footprint_mask();
+  std::size_t data = 0;
+  for (std::size_t k = 0; k < t.triangles.size(); ++k) {
+    const auto& tr = t.triangles[k];
+    const bool corner = tr[0] < 4 || tr[1] < 4 || tr[2] < 4;
+    EXPECT_EQ(mask[k], corner ? 0 : 1) << k;
+    data += mask[k];
+  }
+  EXPECT_GT(data, 0u);  // the interior of the grid is footprint
+  t.corner_nodata = {false, false, false, false};
+  EXPECT_FALSE(t.has_nodata_triangles());
+}
+
 TEST(CheckStructure, AcceptsGeneratedTilesAtEveryLevel) {
   std::mt19937_64 rng(3);
   for (std::uint32_t z = 0; z <= 30; ++z) {
@@ -160,13 +195,14 @@ TEST(CheckStructure, RejectsEdgePointsOffTheBorderOrOutOfOrder) {
   }
 }
 
-TEST(CheckStructure, RejectsNodataCornerWithHeightAndBadValues) {
+TEST(CheckStructure, AcceptsNodataCornerWithContinuedHeightRejectsBadValues) {
   TinTile t = two_triangle_tile({2, 2, 2});
-  t.corner_nodata[2] = true;  // z = 3
-  EXPECT_FALSE(check_structure(t).ok());
-  t.corners[2].z = 0;
+  t.corner_nodata[2] = true;  // z = 3: a height continued from the data (tin_tile.hpp)
   t.update_z_range();
   EXPECT_TRUE(check_structure(t).ok());
+  t.corners[2].z = std::nan("");
+  EXPECT_FALSE(check_structure(t).ok());
+  t.corners[2].z = 3;
   t.corners[0].weight = -1;
   EXPECT_FALSE(check_structure(t).ok());
   t.corners[0].weight = 0;

@@ -24,6 +24,21 @@
 // (x or y equal to the exact tile bound). Triangles are counter-clockwise seen from above
 // (positive orientation in x-east, y-north) and cover the tile rectangle exactly.
 //
+// NODATA and the data footprint (docs/tile-format.md §2.1). Only corners can be NODATA: a corner
+// outside the data keeps the tile a rectangle. It is flagged (corner_nodata) and carries a height
+// continued from the data — the height of the input point nearest to it, never 0 — so that no
+// triangle drops to the ellipsoid. The tile's *data footprint* is the set of its triangles none
+// of whose vertices is NODATA; the others (the fans towards NODATA corners) are *NODATA
+// triangles*: they stay in the tile (clients need whole rectangles), a client may leave them out
+// or fill them from another layer, and errors are measured over the data only.
+//
+//        NW (NODATA) ───────── edge points ── NE
+//        │  ╲   NODATA triangles  /           │
+//        │    ╲       (fan)     /   footprint │
+//        │      ● ─── ● ─── ● ─── ● ─── ●     │      ● data vertices
+//        │      footprint: triangles of data vertices only
+//        SW ──────────────────────────────── SE
+//
 // Value type; no invariants are enforced on construction — `check_structure` tests them.
 #pragma once
 
@@ -51,7 +66,7 @@ using Triangle = std::array<std::uint32_t, 3>;
 struct TinTile {
   geo::TileId id;
   std::array<Vertex, 4> corners{};               // 0 NW, 1 NE, 2 SW, 3 SE
-  std::array<bool, 4> corner_nodata{};           // true: no data there, z = 0
+  std::array<bool, 4> corner_nodata{};           // true: no data there (z continued, see above)
   std::vector<Vertex> north, east, south, west;  // ordered as drawn above, corners excluded
   std::vector<Vertex> interior;
   std::vector<Triangle> triangles;  // indices in the numbering above, CCW
@@ -72,6 +87,16 @@ struct TinTile {
   std::vector<Vertex> border(geo::Direction side) const;
   // Recomputes min_z / max_z from the vertices (NODATA corners excluded).
   void update_z_range();
+
+  // The data footprint (see the top of this file). Requires: i < vertex_count().
+  bool is_nodata_vertex(std::size_t i) const { return i < 4 && corner_nodata[i]; }
+  // Whether triangle t has a NODATA vertex, i.e. lies outside the footprint.
+  // Requires: t < triangles.size(), its indices < vertex_count().
+  bool is_nodata_triangle(std::size_t t) const;
+  // One flag per triangle, 1 for a footprint (data) triangle, 0 for a NODATA triangle.
+  std::vector<std::uint8_t> footprint_mask() const;
+  // Whether any triangle is a NODATA triangle (the tile lies at the data's edge).
+  bool has_nodata_triangles() const;
 };
 
 // Cheap structural checks: indices in range, edge points exactly on their border and strictly

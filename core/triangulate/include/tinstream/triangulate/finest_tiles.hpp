@@ -24,7 +24,7 @@
 // tiles around them.
 //
 // Threads: PointCells is read-only after construction and may be shared; each thread needs its
-// own CellReader (it owns a file handle).
+// own subdivide::SortedRunReader (it owns a file handle).
 #pragma once
 
 #include <array>
