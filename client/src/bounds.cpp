@@ -63,7 +63,7 @@ Aabb rectangle_aabb(const geo::LonLatRect& rect, double min_h, double max_h) {
 // d²/(8R) for a chord d on a sphere of radius R; the ellipsoid's smallest radius of curvature is
 // b²/a (at the equator, along the meridian), lowered by the depth of the lowest height.
 Obb rectangle_obb(const geo::LonLatRect& rect, double min_h, double max_h) {
-  constexpr int kSteps = 4;
+  constexpr std::size_t kSteps = 4;
   if (rect.east - rect.west > 30 || rect.north - rect.south > 30)
     return Obb::from_aabb(rectangle_aabb(rect, min_h, max_h));
   const double lon0 = (rect.west + rect.east) / 2, lat0 = (rect.south + rect.north) / 2;
@@ -71,10 +71,12 @@ Obb rectangle_obb(const geo::LonLatRect& rect, double min_h, double max_h) {
   std::vector<Vec3> samples;
   samples.reserve(2 * (kSteps + 1) * (kSteps + 1));
   double diagonal = 0;
-  for (int j = 0; j <= kSteps; ++j) {
-    const double lat = rect.south + (rect.north - rect.south) * j / kSteps;
-    for (int i = 0; i <= kSteps; ++i) {
-      const double lon = rect.west + (rect.east - rect.west) * i / kSteps;
+  for (std::size_t j = 0; j <= kSteps; ++j) {
+    const double lat = rect.south + (rect.north - rect.south) * static_cast<double>(j) /
+                                        static_cast<double>(kSteps);
+    for (std::size_t i = 0; i <= kSteps; ++i) {
+      const double lon = rect.west + (rect.east - rect.west) * static_cast<double>(i) /
+                                         static_cast<double>(kSteps);
       for (const double h : {min_h, max_h}) {
         const geo::Ecef e = geo::to_ecef({lon, lat, h});
         samples.push_back({e.x, e.y, e.z});

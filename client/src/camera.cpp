@@ -1,6 +1,7 @@
 #include "tinstream/client/camera.hpp"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <numbers>
@@ -124,8 +125,8 @@ void Camera::update_near() { near_ = 0.1; }
 
 Mat4 Camera::view_rotation() const {
   Mat4 r = Mat4::identity();
-  const Vec3 rows[3] = {right_, up_, -forward_};
-  for (int row = 0; row < 3; ++row) {
+  const std::array<Vec3, 3> rows{right_, up_, -forward_};
+  for (std::size_t row = 0; row < 3; ++row) {
     r.m[0][row] = rows[row].x;
     r.m[1][row] = rows[row].y;
     r.m[2][row] = rows[row].z;

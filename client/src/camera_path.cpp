@@ -39,7 +39,8 @@ Result<CameraPath> parse_camera_path(std::string_view text) {
           std::from_chars(first.data(), first.data() + first.size(), step.seconds);
       if (ec != std::errc() || ptr != first.data() + first.size() || !std::isfinite(step.seconds) ||
           step.seconds < 0)
-        return invalid_argument(where + "\"" + first + "\" is not a duration in seconds");
+        return invalid_argument(std::string(where).append("\"").append(first).append(
+            "\" is not a duration in seconds"));
       auto pose = parse_camera_pose(second);
       if (!pose) return invalid_argument(where + pose.error().message);
       step.pose = *pose;

@@ -114,12 +114,6 @@ std::size_t TileMesh::byte_size() const {
   return vertices.size() * sizeof(MeshVertex) + indices16.size() * 2 + indices32.size() * 4;
 }
 
-bool is_nodata_triangle(const tile::TinTile& tile, const tile::Triangle& t) {
-  for (const std::uint32_t v : t)
-    if (v < 4 && tile.corner_nodata[v]) return true;
-  return false;
-}
-
 double skirt_depth(const tile::TinTile& tile, const LayerDescription& layer) {
   const geo::MercatorRect r = tile.id.bounds();
   const double lat = geo::NormalisedMercator(layer.projection).lat_from_y((r.min_y + r.max_y) / 2);
@@ -144,8 +138,10 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
   std::vector<tile::Triangle> drawn;
   drawn.reserve(tile.triangles.size());
   std::vector<bool> used(vertices.size(), false);
-  for (const tile::Triangle& t : tile.triangles) {
-    if (is_nodata_triangle(tile, t)) {
+  const std::vector<std::uint8_t> footprint = tile.footprint_mask();
+  for (std::size_t i = 0; i < tile.triangles.size(); ++i) {
+    const tile::Triangle& t = tile.triangles[i];
+    if (!footprint[i]) {
       ++mesh.nodata_triangles;
       continue;
     }

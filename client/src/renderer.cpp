@@ -377,15 +377,20 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
   return stats;
 }
 
-std::vector<std::uint8_t> GlobeRenderer::read_rgba() {
-  const auto w = static_cast<std::size_t>(width_), h = static_cast<std::size_t>(height_);
+std::vector<std::uint8_t> read_framebuffer_rgba(std::uint32_t framebuffer, int width, int height) {
+  const auto w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
   std::vector<std::uint8_t> flipped(w * h * 4), rows(w * h * 4);
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, impl_->resolve_fbo);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+  if (framebuffer == 0) glReadBuffer(GL_BACK);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, flipped.data());
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, flipped.data());
   for (std::size_t y = 0; y < h; ++y)
     std::copy_n(flipped.data() + (h - 1 - y) * w * 4, w * 4, rows.data() + y * w * 4);
   return rows;
+}
+
+std::vector<std::uint8_t> GlobeRenderer::read_rgba() {
+  return read_framebuffer_rgba(impl_->resolve_fbo, width_, height_);
 }
 
 void GlobeRenderer::present(int framebuffer_width, int framebuffer_height) {

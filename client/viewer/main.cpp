@@ -71,15 +71,17 @@ int main(int argc, char** argv) {
                  "clockwise from north, pitch −90 = down (default: framing the layers)");
   app.add_option("--fov", o.fov, "vertical field of view in degrees (default 60)")
       ->check(CLI::Range(5.0, 120.0));
-  app.add_option("--out", o.out, "headless: the PNG to write");
+  app.add_option("--out", o.out,
+                 "the PNG to write once the view is complete (window mode: the window, panel "
+                 "included, then it closes)");
   app.add_option("--camera-path", o.camera_path,
-                 "headless: fly this scripted path, one JSON statistics line per frame");
+                 "fly this scripted path (headless: one JSON statistics line per frame)");
   app.add_option("--fps", o.fps,
                  "camera path: advance 1/fps seconds per frame instead of real time")
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--stats", o.stats, "headless: write the JSON statistics here instead of stdout");
   app.add_option("--timeout", o.timeout_s,
-                 "headless: seconds to wait for a complete view (default 120)")
+                 "with --out: seconds to wait for a complete view (default 120)")
       ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--wireframe", o.wireframe, "draw the triangle edges over the terrain");
   app.add_option("--msaa", o.msaa, "multisampling samples, 0 for none (default 4)")
@@ -119,10 +121,6 @@ int main(int argc, char** argv) {
   if (o.url.empty() && o.store.empty()) {
     std::cerr << "tinstream-viewer: give a tile source: --url http://HOST:PORT or --store FILE "
                  "(--help)\n";
-    return 2;
-  }
-  if (!o.headless && (!o.out.empty() || !o.camera_path.empty())) {
-    std::cerr << "tinstream-viewer: --out and --camera-path need --headless\n";
     return 2;
   }
   return o.headless ? tinstream::client::run_headless(o) : tinstream::client::run_window(o);

@@ -5,6 +5,9 @@
 // orbits around the point under the cursor (horizontal: heading, vertical: tilt), wheel zooms
 // towards the cursor. Keys: W/S/A/D fly, Q/E down/up, arrows look around, Shift ×4 speed,
 // F flies to the selected layer, R frames every layer.
+// Scripted use: --camera-path flies the path in the window (input is ignored meanwhile); --out
+// writes the window (panel and legend included) to a PNG once the view is complete and the path
+// is flown, and closes it (exit status 3 when --timeout passed first).
 #include "window.hpp"
 
 // clang-format off
@@ -23,7 +26,9 @@
 #include <deque>
 #include <iostream>
 
+#include "tinstream/client/camera_path.hpp"
 #include "tinstream/client/navigation.hpp"
+#include "tinstream/client/png.hpp"
 #include "tinstream/geo/ecef.hpp"
 
 namespace tinstream::client {
@@ -272,17 +277,38 @@ int run_window(const ViewerOptions& o) {
 
   Camera camera(fb_w, fb_h, o.fov);
   camera.log_depth = (*renderer)->log_depth();
-  // Start from far out and fly to the layers (or straight to --camera).
-  camera.set_pose(
-      {s.extent.west / 2 + s.extent.east / 2, (s.extent.south + s.extent.north) / 2, 2e7, 0, -90});
-  FlyTo flight(camera.pose(), o.camera ? *o.camera : s.framing(camera), o.camera ? 0.01 : 3.0);
+  // Start at --camera, or far out and fly to the layers.
+  FlyTo flight;
+  if (o.camera) {
+    camera.set_pose(*o.camera);
+  } else {
+    camera.set_pose(
+        {(s.extent.west + s.extent.east) / 2, (s.extent.south + s.extent.north) / 2, 2e7, 0, -90});
+    flight = FlyTo(camera.pose(), s.framing(camera), 3.0);
+  }
+  std::optional<PathPlayer> path;
+  double path_s = 0;  // the path's flight time, waits excluded
+  if (!o.camera_path.empty()) {
+    auto p = load_camera_path(o.camera_path);
+    if (!p) {
+      std::cerr << "tinstream-viewer: " << p.error().message << '\n';
+      return 2;
+    }
+    path_s = p->duration();
+    path.emplace(std::move(*p));
+    flight = FlyTo();
+  }
   PanelState ps;
   ps.wireframe = o.wireframe;
   ps.max_sse = static_cast<float>(o.max_sse);
   ps.threads = s.loader->threads();
   DragState drag;
-  auto last = Clock::now();
+  const auto start = Clock::now();
+  auto last = start;
   double frame_ms = 0;
+  bool complete = false;
+  int complete_frames = 0;  // frames in a row with a complete view (the panel needs two to lay out)
+  int status = 0;
 
   while (!glfwWindowShouldClose(glfw.window)) {
     glfwPollEvents();
@@ -303,7 +329,10 @@ int run_window(const ViewerOptions& o) {
 
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
-    if (flight.active()) {
+    const bool scripted = path && !path->finished();
+    if (scripted) {
+      camera.set_pose(path->advance(dt, complete));
+    } else if (flight.active()) {
       camera.set_pose(flight.advance(dt));
     } else {
       handle_mouse(glfw.window, **renderer, camera, drag, scale);
@@ -330,6 +359,28 @@ int run_window(const ViewerOptions& o) {
     draw_panel(s, camera, ps, flight, frame_ms);
     draw_legend(s.legend);
     (*overlay)->render(fb_w, fb_h);
+    complete = f.complete;
+    complete_frames = f.complete ? complete_frames + 1 : 0;
+    if (!o.out.empty()) {
+      const bool settled = complete_frames >= 3 && !flight.active() && !(path && !path->finished());
+      const bool timed_out =
+          std::chrono::duration<double>(Clock::now() - start).count() > o.timeout_s + path_s;
+      if (settled || timed_out) {
+        const Image shot{fb_w, fb_h, read_framebuffer_rgba(0, fb_w, fb_h)};
+        if (Status st = write_png(o.out, shot); !st) {
+          std::cerr << "tinstream-viewer: " << st.error().message << '\n';
+          status = 1;
+        } else {
+          std::cerr << "tinstream-viewer: wrote " << o.out.string() << '\n';
+          if (!settled) {
+            std::cerr << "tinstream-viewer: the view was not complete after " << o.timeout_s
+                      << " s (--timeout); the window shows what had arrived\n";
+            status = 3;
+          }
+        }
+        glfwSetWindowShouldClose(glfw.window, GLFW_TRUE);
+      }
+    }
     glfwSwapBuffers(glfw.window);
     frame_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   }
@@ -337,7 +388,7 @@ int run_window(const ViewerOptions& o) {
   ImGui_ImplGlfw_Shutdown();
   renderer->reset();
   overlay->reset();
-  return 0;
+  return status;
 }
 
 }  // namespace tinstream::client

@@ -407,9 +407,9 @@ TEST_F(Viewer, BoundingVolumesHoldEveryVertexOfRealTiles) {
       const Aabb exact = rectangle_aabb(id.lonlat_bounds(merc), tile.min_z, tile.max_z);
       const auto all = tile.vertices();
       std::vector<bool> drawn(all.size(), false);
-      for (const tile::Triangle& tri : tile.triangles)
-        if (!is_nodata_triangle(tile, tri))
-          for (std::uint32_t v : tri) drawn[v] = true;
+      for (std::size_t k = 0; k < tile.triangles.size(); ++k)
+        if (!tile.is_nodata_triangle(k))
+          for (std::uint32_t v : tile.triangles[k]) drawn[v] = true;
       for (std::size_t i = 0; i < all.size(); ++i) {
         if (!drawn[i]) continue;
         const geo::LonLat ll = merc.inverse({all[i].x, all[i].y});

@@ -5,8 +5,9 @@
 // vertex normalised Mercator → lon/lat → double ECEF (GeographicLib) and store it as float
 // relative to the tile's centre (millimetres survive even at level 30). Each vertex gets an
 // area-weighted normal, its height (for the colour ramp) and its position in the tile (for the
-// quadrant masks that stand in for absent children). NODATA triangles are left out
-// (is_nodata_triangle); skirts hang from every border segment of a drawn triangle.
+// quadrant masks that stand in for absent children). Only the tile's data footprint is drawn:
+// NODATA triangles are left out (TinTile::footprint_mask, docs/tile-format.md §2.1); skirts hang
+// from every border segment of a drawn triangle.
 //
 //   surface vertices (tile numbering)  skirt vertices (one per border vertex that is drawn)
 //   indices: surface triangles, then skirt quads as triangle pairs
@@ -70,11 +71,6 @@ struct TileMesh {
   // What the mesh costs in RAM and on the GPU (vertex + index bytes).
   std::size_t byte_size() const;
 };
-
-// The one place that decides which triangles are NODATA (not drawn as terrain): today, a triangle
-// with a NODATA corner among its vertices (the header's corner_nodata bits). When core/tile gains
-// its data-footprint helper (issue #20) this function calls it instead.
-bool is_nodata_triangle(const tile::TinTile& tile, const tile::Triangle& t);
 
 // How far the skirts hang below the border: the tile's own error plus the largest error of the
 // level above (the gap to a coarser neighbour, the usual case of a crack), plus 1e-3 of the

@@ -92,4 +92,8 @@ class GlobeRenderer final : public GpuUploader {
   bool log_depth_ = false;
 };
 
+// The pixels of a framebuffer object (0: the window's back buffer), rows top to bottom, RGBA8.
+// glReadPixels: waits for the GPU.
+std::vector<std::uint8_t> read_framebuffer_rgba(std::uint32_t framebuffer, int width, int height);
+
 }  // namespace tinstream::client

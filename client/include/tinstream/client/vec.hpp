@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstddef>
 
 namespace tinstream::client {
 
@@ -43,32 +44,31 @@ struct Mat4 {
 
   static Mat4 identity() {
     Mat4 r;
-    for (int i = 0; i < 4; ++i) r.m[i][i] = 1;
+    for (std::size_t i = 0; i < 4; ++i) r.m[i][i] = 1;
     return r;
   }
   friend Mat4 operator*(const Mat4& a, const Mat4& b) {
     Mat4 r;
-    for (int c = 0; c < 4; ++c)
-      for (int row = 0; row < 4; ++row) {
+    for (std::size_t c = 0; c < 4; ++c)
+      for (std::size_t row = 0; row < 4; ++row) {
         double s = 0;
-        for (int k = 0; k < 4; ++k) s += a.m[k][row] * b.m[c][k];
+        for (std::size_t k = 0; k < 4; ++k) s += a.m[k][row] * b.m[c][k];
         r.m[c][row] = s;
       }
     return r;
   }
   friend Vec4 operator*(const Mat4& a, Vec4 v) {
-    const double in[4] = {v.x, v.y, v.z, v.w};
-    double out[4] = {0, 0, 0, 0};
-    for (int row = 0; row < 4; ++row)
-      for (int k = 0; k < 4; ++k) out[row] += a.m[k][row] * in[k];
+    const std::array<double, 4> in{v.x, v.y, v.z, v.w};
+    std::array<double, 4> out{};
+    for (std::size_t row = 0; row < 4; ++row)
+      for (std::size_t k = 0; k < 4; ++k) out[row] += a.m[k][row] * in[k];
     return {out[0], out[1], out[2], out[3]};
   }
   // Column-major floats for glUniformMatrix4fv (the only place doubles become floats).
   std::array<float, 16> to_float() const {
     std::array<float, 16> f{};
-    for (int c = 0; c < 4; ++c)
-      for (int row = 0; row < 4; ++row)
-        f[static_cast<std::size_t>(c * 4 + row)] = static_cast<float>(m[c][row]);
+    for (std::size_t c = 0; c < 4; ++c)
+      for (std::size_t row = 0; row < 4; ++row) f[c * 4 + row] = static_cast<float>(m[c][row]);
     return f;
   }
 };
