@@ -3,6 +3,7 @@
 // SOURCES.md, or the records of the uncompressed twin the file was made from.
 #include <gtest/gtest.h>
 #include <openssl/evp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -221,7 +222,7 @@ class DamagedLaz : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("tinstream_laz_" +
+           ("tinstream_laz_" + std::to_string(::getpid()) + "_" +
             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::create_directories(dir_);
   }
