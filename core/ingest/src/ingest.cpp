@@ -328,7 +328,7 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
     popt.lod.max_points = options.max_points;
     popt.lod.epsilon = options.epsilon;
     popt.reduce_finest = reduce;
-    popt.finest_heights = {pass1->header.min_z, pass1->header.max_z};
+    popt.scratch = scratch->path();
     const std::uint32_t coarsest = options.pyramid ? info.min_level : sorted->finest_level;
     auto pyramid =
         lod::build_pyramid(**writer, sorted->finest_level, coarsest, popt, threads, progress);
