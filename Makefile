@@ -1,12 +1,21 @@
 # tinstream — the two set-up commands and the developer targets.
 #   make demo     install deps, build, ingest the built-in sample, serve it, show it
-#   make test     install deps, build, run every test (what CI runs)
-# Developer targets: build, check (tests without install), asan, tsan, format, format-check, tidy, bench.
+#   make test     install deps, then everything CI checks (.ci/pipeline.sh): the Release (-O3)
+#                 build and the whole suite, the ASan+UBSan build and the whole suite, the TSan
+#                 build and the threaded suites, format-check, clang-tidy, the fuzzers 60 s each
+# Developer targets: build, check (the suite in $(BUILD), no install), release, asan, tsan, fuzz,
+# format, format-check, tidy, crash (the crash-safety harnesses, 200 kills), bench.
 BUILD ?= build
 JOBS  ?= $(shell nproc)
 CMAKE_FLAGS ?=
+# Sanitizer builds: optimised (-O1) with debug info and the asserts on (no NDEBUG).
+SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+            -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g"
+# The suites with threads of their own (worker pools, the store queue, the server's io threads).
+TSAN_TARGETS = base_tests store_tests transform_tests subdivide_tests triangulate_tests \
+               lod_tests ingest_tests server_tests
 
-.PHONY: all deps build test check demo asan tsan format format-check tidy bench clean
+.PHONY: all deps build test check demo release asan tsan fuzz format format-check tidy crash bench clean
 
 all: build
 
@@ -23,16 +32,27 @@ check: build
 	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
 
 test: deps
-	$(MAKE) check
+	bash .ci/pipeline.sh
 
 demo: deps build
 	bash scripts/demo.sh $(BUILD)
 
-asan:
-	$(MAKE) check BUILD=build-asan CMAKE_FLAGS="-DTINSTREAM_ASAN=ON -DCMAKE_BUILD_TYPE=Debug"
+# What docker/ ships: Release (-O3), and the whole suite on it.
+release:
+	$(MAKE) check BUILD=build-release CMAKE_FLAGS="-DCMAKE_BUILD_TYPE=Release"
 
-tsan:
-	$(MAKE) check BUILD=build-tsan CMAKE_FLAGS="-DTINSTREAM_TSAN=ON"
+asan:
+	$(MAKE) check BUILD=build-asan CMAKE_FLAGS='-DTINSTREAM_ASAN=ON $(SAN_FLAGS)'
+
+tsan: build-tsan/build.ninja
+	cmake --build build-tsan -j $(JOBS) --target $(TSAN_TARGETS) tinstream tinstream-server
+	bash .ci/run_tests.sh build-tsan $(TSAN_TARGETS)
+
+build-tsan/build.ninja:
+	cmake -S . -B build-tsan -G Ninja -DTINSTREAM_TSAN=ON $(SAN_FLAGS)
+
+fuzz:
+	bash scripts/fuzz.sh --seconds $${FUZZ_SECONDS:-60}
 
 format: $(BUILD)/build.ninja
 	cmake --build $(BUILD) --target format
@@ -43,8 +63,12 @@ format-check: $(BUILD)/build.ninja
 tidy: $(BUILD)/build.ninja
 	bash scripts/tidy.sh $(BUILD)
 
+crash: build
+	bash tests/cli/crash_safety.sh --build $(BUILD) --kills $${KILLS:-200}
+	bash tests/cli/admin_crash_safety.sh --build $(BUILD) --kills $${KILLS:-200}
+
 bench:
 	bash bench/run.sh
 
 clean:
-	rm -rf $(BUILD) build-asan build-tsan
+	rm -rf $(BUILD) build-release build-asan build-tsan build-fuzz

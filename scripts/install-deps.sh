@@ -9,6 +9,7 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config git
   libboost-dev                     # Beast/Asio (header-only, 1.74; CGAL needs this one)
   libgeographiclib-dev libproj-dev proj-data libgdal-dev gdal-bin
+  libssl-dev                       # libcrypto: sha256 of decoded LAZ records (las-info, tests)
   libsqlite3-dev sqlite3 zlib1g-dev libdeflate-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only

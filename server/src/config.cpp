@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "address_ranges.hpp"
+
 namespace tinstream::server {
 namespace {
 
@@ -62,6 +64,9 @@ Result<ServerConfig> config_from_json(std::string_view text) {
                                 "write_timeout_ms",
                                 "cache_max_age_s",
                                 "cors_allow_origin",
+                                "admin_address",
+                                "admin_port",
+                                "admin_allow",
                                 "terrain_cache_bytes",
                                 "sendfile",
                                 "sendfile_min_bytes",
@@ -92,6 +97,19 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "write_timeout_ms", c.write_timeout_ms))) return st.error();
   if (!(st = read_uint(j, "cache_max_age_s", c.cache_max_age_s))) return st.error();
   if (!(st = read_string(j, "cors_allow_origin", c.cors_allow_origin))) return st.error();
+  if (!(st = read_string(j, "admin_address", c.admin_address))) return st.error();
+  if (!(st = read_uint(j, "admin_port", c.admin_port))) return st.error();
+  if (j.contains("admin_allow")) {
+    const json& list = j["admin_allow"];
+    if (!list.is_array()) return invalid_argument("config key \"admin_allow\": expected an array");
+    for (const json& item : list) {
+      if (!item.is_string())
+        return invalid_argument("config key \"admin_allow\": expected IP addresses or ranges");
+      auto range = AddressRange::parse(item.get<std::string>());
+      if (!range) return invalid_argument("config key \"admin_allow\": " + range.error().message);
+      c.admin_allow.push_back(item.get<std::string>());
+    }
+  }
   if (!(st = read_uint(j, "terrain_cache_bytes", c.terrain_cache_bytes))) return st.error();
   if (!(st = read_uint(j, "sendfile_min_bytes", c.sendfile_min_bytes))) return st.error();
   if (!(st = read_uint(j, "max_queued_jobs", c.max_queued_jobs))) return st.error();

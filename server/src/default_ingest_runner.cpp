@@ -6,6 +6,7 @@
 //   pyramid (bool), memory_mb, threads, attribution, crs, vertical, z_units, skip_invalid (bool).
 // Runs on the job worker thread (jobs.hpp); run_ingest opens its own read-write store and
 // publishes the layer atomically; a sink returning false (shutdown) cancels it.
+#include "tinstream/server/ingest_options.hpp"
 #include "tinstream/server/server.hpp"
 
 #ifdef TINSTREAM_SERVER_WITH_INGEST
@@ -19,6 +20,8 @@ namespace {
 
 Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   const nlohmann::json& o = job.options;
+  // The admin API checked them before queueing the job; a runner called another way checks too.
+  if (Status valid = validate_ingest_options(o); !valid) return valid.error();
   static const char* kKeys[] = {"projection", "max_points", "max_level",   "min_level",   "epsilon",
                                 "pyramid",    "memory_mb",  "threads",     "attribution", "crs",
                                 "vertical",   "z_units",    "skip_invalid"};
@@ -47,6 +50,10 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
     for (const auto& path : job.sources) {
       transform::InputSpec in;
       in.path = path;
+      // The strict policy (#22): GDAL reads only under the job's root, CRSs are authority codes.
+      in.source.raster = sources::RasterPolicy::confined(
+          job.root.empty() ? path.parent_path() : job.root, job.allow_vrt);
+      in.reproject.confined = true;
       in.reproject.crs = o.value("crs", std::string());
       in.reproject.vertical_datum = o.value("vertical", std::string("ellipsoidal"));
       if (o.contains("z_units")) {

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <chrono>
 #include <system_error>
 
@@ -73,17 +74,18 @@ Result<std::string> JobManager::submit(IngestJobSpec spec,
                                              std::to_string(max_pending_) + ")");
   }
   auto job = std::make_shared<Job>();
-  job->status.id = std::to_string(next_id_++);
+  const std::uint64_t id = next_id_++;
+  job->status.id = std::to_string(id);
   spec.job_id = job->status.id;
   job->status.layer = spec.layer;
   job->status.created_unix = now_unix();
   for (const auto& s : spec.sources) job->status.sources.push_back(s.filename().string());
   job->spec = std::move(spec);
   job->delete_after = std::move(delete_after);
-  jobs_[job->status.id] = job;
+  jobs_[id] = job;
   queue_.push_back(job);
-  // Keep the table bounded: forget the oldest finished jobs beyond 1000.
-  while (jobs_.size() > 1000) {
+  // Keep the table bounded: forget the oldest finished jobs beyond kKeptJobs.
+  while (jobs_.size() > kKeptJobs) {
     auto oldest = jobs_.end();
     for (auto it = jobs_.begin(); it != jobs_.end(); ++it) {
       const auto st = it->second->status.state;
@@ -100,9 +102,12 @@ Result<std::string> JobManager::submit(IngestJobSpec spec,
 }
 
 std::optional<JobStatus> JobManager::get(const std::string& id) const {
+  std::uint64_t number = 0;
+  const auto [end, ec] = std::from_chars(id.data(), id.data() + id.size(), number);
+  if (ec != std::errc() || end != id.data() + id.size()) return std::nullopt;
   std::lock_guard lock(mutex_);
-  auto it = jobs_.find(id);
-  if (it == jobs_.end()) return std::nullopt;
+  auto it = jobs_.find(number);
+  if (it == jobs_.end() || it->second->status.id != id) return std::nullopt;  // "012" is no id
   return it->second->status;
 }
 

@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <optional>
+#include <type_traits>
 #include <vector>
 
 namespace tinstream::server {
@@ -75,22 +76,142 @@ bool is_valid_layer_name(std::string_view name) {
 }
 
 std::string_view route_name(const Route& route) {
-  struct Namer {
-    std::string_view operator()(const HealthRoute&) const { return "healthz"; }
-    std::string_view operator()(const MetricsRoute&) const { return "metrics"; }
-    std::string_view operator()(const LayersRoute&) const { return "layers"; }
-    std::string_view operator()(const LayerRoute&) const { return "layer"; }
-    std::string_view operator()(const LayerJsonRoute&) const { return "layer_json"; }
-    std::string_view operator()(const TerrainRoute&) const { return "terrain"; }
-    std::string_view operator()(const NativeTileRoute&) const { return "tile"; }
-    std::string_view operator()(const IngestRoute&) const { return "ingest"; }
-    std::string_view operator()(const JobsRoute&) const { return "jobs"; }
-    std::string_view operator()(const JobRoute&) const { return "job"; }
-    std::string_view operator()(const DeleteLayerRoute&) const { return "delete_layer"; }
-    std::string_view operator()(const PreflightRoute&) const { return "preflight"; }
-  };
-  return std::visit(Namer{}, route);
+  return std::visit([](const auto& r) { return std::decay_t<decltype(r)>::kName; }, route);
 }
+
+bool is_admin_route(const Route& route) {
+  return std::visit(
+      [](const auto& r) {
+        using R = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<R, PreflightRoute>) {
+          return r.admin;
+        } else if constexpr (requires { R::kAdmin; }) {
+          return R::kAdmin;
+        } else {
+          return false;
+        }
+      },
+      route);
+}
+
+namespace {
+
+// The decoded path segments of a request target (`/a/b` → {"a", "b"}; `/` → {""}).
+using Segments = std::vector<std::string>;
+
+RouteError layer_error(const std::string& name, std::string_view route) {
+  return error(400,
+               "invalid layer name \"" + name.substr(0, 80) +
+                   "\": use 1-64 characters from [A-Za-z0-9_.-], not starting with '.'",
+               std::string(route));
+}
+
+// Family "service": /healthz, /metrics.
+RouteResult parse_service(std::string_view method, const Segments& seg, std::string_view) {
+  if (seg.size() != 1) return error(404, "no such resource");
+  if (seg[0] == "healthz") {
+    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", "healthz");
+    return Route{HealthRoute{}};
+  }
+  if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", "metrics");
+  return Route{MetricsRoute{}};
+}
+
+// Family "layers": /layers, /layers/{layer}.
+RouteResult parse_layers(std::string_view method, const Segments& seg, std::string_view) {
+  const std::size_t n = seg.size();
+  if (n > 2) return error(404, "no such resource");
+  const std::string_view name = n == 1 ? LayersRoute::kName : LayerRoute::kName;
+  if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", std::string(name));
+  if (n == 1) return Route{LayersRoute{}};
+  if (!is_valid_layer_name(seg[1])) return layer_error(seg[1], name);
+  return Route{LayerRoute{seg[1]}};
+}
+
+// Family "tiles": /tiles/{layer}/layer.json, /tiles/{layer}/{z}/{x}/{y}.terrain,
+// /tiles/{layer}/{quadkey}.
+RouteResult parse_tiles(std::string_view method, const Segments& seg, std::string_view) {
+  const std::size_t n = seg.size();
+  if (n != 3 && n != 5) return error(404, "no such resource");
+  const std::string_view name = n == 5                   ? TerrainRoute::kName
+                                : seg[2] == "layer.json" ? LayerJsonRoute::kName
+                                                         : NativeTileRoute::kName;
+  if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", std::string(name));
+  if (!is_valid_layer_name(seg[1])) return layer_error(seg[1], name);
+  if (n == 3) {
+    if (seg[2] == "layer.json") return Route{LayerJsonRoute{seg[1]}};
+    auto id = geo::TileId::from_quadkey(seg[2]);
+    if (!id) return error(400, id.error().message, "tile");
+    return Route{NativeTileRoute{seg[1], *id}};
+  }
+  constexpr std::string_view kExt = ".terrain";
+  std::string_view ys = seg[4];
+  if (ys.size() <= kExt.size() || ys.substr(ys.size() - kExt.size()) != kExt) {
+    return error(404, "no such resource; terrain tiles are /tiles/{layer}/{z}/{x}/{y}.terrain",
+                 "terrain");
+  }
+  ys.remove_suffix(kExt.size());
+  const auto z = parse_number(seg[2]), x = parse_number(seg[3]), y = parse_number(ys);
+  if (!z || !x || !y)
+    return error(400, "terrain tile: z, x and y must be decimal numbers", "terrain");
+  auto id = geo::TileId::from_tms(*z, *x, *y);
+  if (!id) return error(400, id.error().message, "terrain");
+  return Route{TerrainRoute{seg[1], *id}};
+}
+
+// The query of POST /admin/ingest: key=value pairs, percent-decoded ('+' is a space); the last
+// value of a repeated key counts.
+RouteResult parse_ingest_query(std::string_view query) {
+  IngestRoute r;
+  while (!query.empty()) {
+    const auto amp = query.find('&');
+    std::string_view kv = query.substr(0, amp);
+    const auto eq = kv.find('=');
+    auto k = percent_decode(kv.substr(0, eq), true);
+    auto v =
+        percent_decode(eq == std::string_view::npos ? std::string_view{} : kv.substr(eq + 1), true);
+    if (!k || !v) return error(400, "malformed percent-encoding in query", "ingest");
+    if (!k->empty()) r.query[*k] = *v;
+    if (amp == std::string_view::npos) break;
+    query = query.substr(amp + 1);
+  }
+  return Route{std::move(r)};
+}
+
+// Family "admin": /admin/ingest, /admin/jobs[/{id}], /admin/layers/{layer}.
+RouteResult parse_admin(std::string_view method, const Segments& seg, std::string_view query) {
+  const std::size_t n = seg.size();
+  if (n == 2 && seg[1] == "ingest") {
+    if (method != "POST") return wrong_method("POST, OPTIONS", "ingest");
+    return parse_ingest_query(query);
+  }
+  if (n >= 2 && n <= 3 && seg[1] == "jobs") {
+    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", n == 2 ? "jobs" : "job");
+    if (n == 2) return Route{JobsRoute{}};
+    if (!parse_number(seg[2])) return error(400, "job ids are decimal numbers", "job");
+    return Route{JobRoute{seg[2]}};
+  }
+  if (n == 3 && seg[1] == "layers") {
+    if (method != "DELETE") return wrong_method("DELETE, OPTIONS", "delete_layer");
+    if (!is_valid_layer_name(seg[2])) return layer_error(seg[2], "delete_layer");
+    return Route{DeleteLayerRoute{seg[2]}};
+  }
+  return error(404, "no such resource");
+}
+
+// The registration table of route families (routes.hpp, "Route families"): the first path
+// segment each one owns, and its parser (given the method, every decoded segment — the first
+// included — and the raw query).
+struct Family {
+  std::string_view first_segment;
+  RouteResult (*parse)(std::string_view method, const Segments& segments, std::string_view query);
+};
+constexpr Family kFamilies[] = {
+    {"healthz", parse_service}, {"metrics", parse_service}, {"layers", parse_layers},
+    {"tiles", parse_tiles},     {"admin", parse_admin},
+};
+
+}  // namespace
 
 RouteResult parse_route(std::string_view method, std::string_view target) {
   if (target.empty() || target.front() != '/') {
@@ -105,7 +226,7 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
   if (auto h = path.find('#'); h != std::string_view::npos) path = path.substr(0, h);
 
   // Split and decode segments.
-  std::vector<std::string> seg;
+  Segments seg;
   seg.reserve(8);  // one allocation for any route's segments
   std::string_view rest = path.substr(1);
   while (true) {
@@ -122,83 +243,11 @@ RouteResult parse_route(std::string_view method, std::string_view target) {
     }
   }
 
-  if (method == "OPTIONS") return Route{PreflightRoute{}};
-
-  auto layer_error = [](const std::string& name, std::string route) {
-    return error(400,
-                 "invalid layer name \"" + name.substr(0, 80) +
-                     "\": use 1-64 characters from [A-Za-z0-9_.-], not starting with '.'",
-                 std::move(route));
-  };
-
-  const std::size_t n = seg.size();
-  if (n == 1 && seg[0] == "healthz") {
-    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", "healthz");
-    return Route{HealthRoute{}};
+  if (method == "OPTIONS") {
+    return Route{PreflightRoute{seg[0] == "admin" || seg[0] == "metrics"}};
   }
-  if (n == 1 && seg[0] == "metrics") {
-    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", "metrics");
-    return Route{MetricsRoute{}};
-  }
-  if (seg[0] == "layers" && n <= 2) {
-    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", n == 1 ? "layers" : "layer");
-    if (n == 1) return Route{LayersRoute{}};
-    if (!is_valid_layer_name(seg[1])) return layer_error(seg[1], "layer");
-    return Route{LayerRoute{seg[1]}};
-  }
-  if (seg[0] == "tiles" && (n == 3 || n == 5)) {
-    const char* name = n == 5 ? "terrain" : (seg[2] == "layer.json" ? "layer_json" : "tile");
-    if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", name);
-    if (!is_valid_layer_name(seg[1])) return layer_error(seg[1], name);
-    if (n == 3) {
-      if (seg[2] == "layer.json") return Route{LayerJsonRoute{seg[1]}};
-      auto id = geo::TileId::from_quadkey(seg[2]);
-      if (!id) return error(400, id.error().message, "tile");
-      return Route{NativeTileRoute{seg[1], *id}};
-    }
-    constexpr std::string_view kExt = ".terrain";
-    std::string_view ys = seg[4];
-    if (ys.size() <= kExt.size() || ys.substr(ys.size() - kExt.size()) != kExt) {
-      return error(404, "no such resource; terrain tiles are /tiles/{layer}/{z}/{x}/{y}.terrain",
-                   "terrain");
-    }
-    ys.remove_suffix(kExt.size());
-    const auto z = parse_number(seg[2]), x = parse_number(seg[3]), y = parse_number(ys);
-    if (!z || !x || !y)
-      return error(400, "terrain tile: z, x and y must be decimal numbers", "terrain");
-    auto id = geo::TileId::from_tms(*z, *x, *y);
-    if (!id) return error(400, id.error().message, "terrain");
-    return Route{TerrainRoute{seg[1], *id}};
-  }
-  if (seg[0] == "admin") {
-    if (n == 2 && seg[1] == "ingest") {
-      if (method != "POST") return wrong_method("POST, OPTIONS", "ingest");
-      IngestRoute r;
-      while (!query.empty()) {
-        const auto amp = query.find('&');
-        std::string_view kv = query.substr(0, amp);
-        const auto eq = kv.find('=');
-        auto k = percent_decode(kv.substr(0, eq), true);
-        auto v = percent_decode(
-            eq == std::string_view::npos ? std::string_view{} : kv.substr(eq + 1), true);
-        if (!k || !v) return error(400, "malformed percent-encoding in query", "ingest");
-        if (!k->empty()) r.query[*k] = *v;
-        if (amp == std::string_view::npos) break;
-        query = query.substr(amp + 1);
-      }
-      return Route{std::move(r)};
-    }
-    if (n >= 2 && n <= 3 && seg[1] == "jobs") {
-      if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", n == 2 ? "jobs" : "job");
-      if (n == 2) return Route{JobsRoute{}};
-      if (!parse_number(seg[2])) return error(400, "job ids are decimal numbers", "job");
-      return Route{JobRoute{seg[2]}};
-    }
-    if (n == 3 && seg[1] == "layers") {
-      if (method != "DELETE") return wrong_method("DELETE, OPTIONS", "delete_layer");
-      if (!is_valid_layer_name(seg[2])) return layer_error(seg[2], "delete_layer");
-      return Route{DeleteLayerRoute{seg[2]}};
-    }
+  for (const Family& family : kFamilies) {
+    if (seg[0] == family.first_segment) return family.parse(method, seg, query);
   }
   return error(404, "no such resource");
 }

@@ -107,10 +107,13 @@ class Cli : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return run(args);
   }
-  // Starts `tinstream ingest` of `input` into layer `layer` in the background (stderr to `err`).
-  pid_t spawn_ingest(const std::string& layer, const fs::path& input, const fs::path& err) {
+  // Starts `tinstream ingest` of `input` into layer `layer` in the background (stderr to `err`),
+  // with the fault points `fault` armed (TINSTREAM_FAULT, base/fault.hpp) when not empty.
+  pid_t spawn_ingest(const std::string& layer, const fs::path& input, const fs::path& err,
+                     const std::string& fault = {}) {
     const pid_t pid = ::fork();
     if (pid == 0) {
+      if (!fault.empty()) ::setenv("TINSTREAM_FAULT", fault.c_str(), 1);
       std::freopen("/dev/null", "w", stdout);
       std::freopen(err.c_str(), "w", stderr);
       const std::string s = store_.string(), t = (dir_ / "tmp").string(), b = input.string();
@@ -418,6 +421,22 @@ std::size_t scratch_dirs(const fs::path& tmp) {
   return n;
 }
 
+// Kills and reaps a child the test leaves early (a failed ASSERT), so none outlives it.
+struct ChildGuard {
+  pid_t pid = 0;
+  ~ChildGuard() {
+    if (pid > 0) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
 TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
   const fs::path small = dir_ / "small.xyz";
   write_xyz(small, 2000, 2);
@@ -434,34 +453,23 @@ TEST_F(Cli, KilledIngestLeavesThePreviousLayerReadableAndCanBeRerun) {
 
   const fs::path big = dir_ / "big.xyz";
   write_xyz(big, 400000, 3);
-  // Start a replacing ingest and kill it once it has started writing tiles.
-  const pid_t pid = spawn_ingest("k", big, dir_ / "killed.err");
-  // Wait until the new version is being built (a 'building' row; tiles of it once a batch is
-  // flushed), then SIGKILL the ingest.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  bool killed_mid_write = false;
-  auto building_seen = std::chrono::steady_clock::time_point::max();
-  while (std::chrono::steady_clock::now() < deadline) {
-    int wstatus = 0;
-    if (::waitpid(pid, &wstatus, WNOHANG) == pid) break;  // finished before we could kill it
-    const std::string tiles = sql_value(
-        store_, "SELECT count(*) FROM tiles WHERE version NOT IN (SELECT version FROM layers)");
-    const std::string building =
-        sql_value(store_, "SELECT count(*) FROM layer_versions WHERE status = 'building'");
-    if (building_seen == std::chrono::steady_clock::time_point::max() && !building.empty() &&
-        std::stoll(building) > 0) {
-      building_seen = std::chrono::steady_clock::now();
-    }
-    if ((!tiles.empty() && std::stoll(tiles) > 0) ||
-        std::chrono::steady_clock::now() - building_seen > std::chrono::milliseconds(300)) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, &wstatus, 0);
-      killed_mid_write = true;
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  ASSERT_TRUE(killed_mid_write) << "the ingest finished before it could be killed";
+  // A replacing ingest stops itself (SIGSTOP, fault point store.commit) right after committing
+  // its first batch of tiles; it is SIGKILLed there. (Before: a poll of the store that could kill
+  // before any tile was written, or let the ingest finish first.)
+  const pid_t pid = spawn_ingest("k", big, dir_ / "killed.err", "store.commit@0:stop");
+  ChildGuard guard{pid};
+  int wstatus = 0;
+  ASSERT_EQ(::waitpid(pid, &wstatus, WUNTRACED), pid);
+  ASSERT_TRUE(WIFSTOPPED(wstatus))
+      << "the ingest ended before committing a batch: " << slurp(dir_ / "killed.err");
+  EXPECT_EQ(
+      sql_value(store_,
+                "SELECT count(*) FROM tiles WHERE version NOT IN (SELECT version FROM layers)"),
+      "256");  // one batch of the new version, unpublished
+  ::kill(pid, SIGKILL);
+  ASSERT_EQ(::waitpid(pid, &wstatus, 0), pid);
+  guard.pid = 0;
+  ASSERT_TRUE(WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == SIGKILL);
 
   // The previous version is intact, byte for byte, and the file is consistent.
   EXPECT_EQ(sql_value(store_, "PRAGMA integrity_check"), "ok");
@@ -510,28 +518,20 @@ TEST_F(Cli, StoredErrorsBoundTheFinestSurfaceAtTheDataEdge) {
 TEST_F(Cli, InterruptedIngestCancelsCleanly) {
   const fs::path big = dir_ / "big.xyz";
   write_xyz(big, 400000, 4);
-  const pid_t pid = spawn_ingest("i", big, dir_ / "interrupted.err");
-  // Interrupt once the ingest has its temporary directory and files in it.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  bool interrupted = false;
+  // The ingest stops itself as its first sorted spill starts (it has its temporary directory);
+  // SIGINT arrives while it is stopped and is handled once it continues. (Before: a poll of the
+  // temporary directory, racing the ingest.)
+  const pid_t pid = spawn_ingest("i", big, dir_ / "interrupted.err", "pass2.spill@0:stop");
+  ChildGuard guard{pid};
   int wstatus = 0;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (::waitpid(pid, &wstatus, WNOHANG) == pid) break;
-    std::size_t files = 0;
-    std::error_code ec;
-    for (fs::recursive_directory_iterator it(dir_ / "tmp", ec), end; !ec && it != end;
-         it.increment(ec)) {
-      files += it->is_regular_file(ec) && it->path().filename() != ".lock" ? 1 : 0;
-    }
-    if (files > 0) {
-      ::kill(pid, SIGINT);
-      ::waitpid(pid, &wstatus, 0);
-      interrupted = true;
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(interrupted) << "the ingest finished before it could be interrupted";
+  ASSERT_EQ(::waitpid(pid, &wstatus, WUNTRACED), pid);
+  ASSERT_TRUE(WIFSTOPPED(wstatus))
+      << "the ingest ended before its first spill: " << slurp(dir_ / "interrupted.err");
+  EXPECT_EQ(scratch_dirs(dir_ / "tmp"), 1u);
+  ::kill(pid, SIGINT);
+  ::kill(pid, SIGCONT);
+  ASSERT_EQ(::waitpid(pid, &wstatus, 0), pid);
+  guard.pid = 0;
   // A clean exit with 128 + SIGINT, a message, nothing published, nothing left behind.
   ASSERT_TRUE(WIFEXITED(wstatus)) << "killed by the signal instead of cancelling";
   EXPECT_EQ(WEXITSTATUS(wstatus), 128 + SIGINT);

@@ -22,22 +22,22 @@ std::shared_ptr<const CachedBody> tile_body(std::size_t bytes, char fill = 'x') 
       {"Access-Control-Expose-Headers", "ETag, Content-Encoding, Content-Length, Location"}};
   return std::make_shared<const CachedBody>(
       CachedBody{"\"qm-0123456789abcdef0123456789abcdef-n\"", std::string(bytes, fill),
-                 std::make_shared<const HeaderBlock>(std::move(fields))});
+                 std::make_shared<const HeaderBlock>(std::move(fields), bytes)});
 }
 
 std::string key_of(int i) { return "qm|lux|1|03112" + std::to_string(i) + "|n"; }
 
 // The shared header block is held for as long as its tile is cached: once as fields, once as
-// `wire` and once more in the keep-alive head the session formats from it. The budget counts it.
+// `wire` and once more in its keep-alive head (HeaderBlock::keep_alive_head). The budget counts it.
 TEST(TerrainCache, ChargesTheSharedHeaderBlockOfEachTile) {
   TerrainCache cache(1 << 20);
   const auto body = tile_body(1000);
   cache.put(key_of(0), body);
-  const std::size_t wire = body->gzip_head->wire.size();
+  const std::size_t wire = body->head->wire.size();
   ASSERT_GT(wire, 300u);
   // At least: the bytes, the ETag, the key, the header fields, `wire` and the keep-alive head.
   std::size_t fields = 0;
-  for (const auto& [k, v] : body->gzip_head->fields) fields += k.size() + v.size();
+  for (const auto& [k, v] : body->head->fields) fields += k.size() + v.size();
   EXPECT_GE(cache.bytes(),
             body->bytes.size() + body->etag.size() + key_of(0).size() + fields + 2 * wire);
 }

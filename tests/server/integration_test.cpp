@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <spdlog/spdlog.h>
+#include <sqlite3.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -948,6 +949,9 @@ TEST_F(ServerTest, FailedIngestNamesTheBadSourceAndKeepsThePreviousLayer) {
   const json gone_status = wait_for_submitted(vanished);
   EXPECT_EQ(gone_status["state"], "failed") << gone_status.dump();
   EXPECT_NE(job_error(gone_status).find("gone.xyz"), std::string::npos) << gone_status.dump();
+  // Named relative to the data root: no server path in an answer (#22 finding 3).
+  for (const std::string& error : {bad_error, job_error(gone_status)})
+    EXPECT_EQ(error.find(dir_.path.string()), std::string::npos) << error;
   EXPECT_NE(http_get(port_, "/metrics").body.find("tinstream_ingest_jobs{state=\"failed\"} 2"),
             std::string::npos);
 
@@ -1212,6 +1216,64 @@ TEST_F(ServerTest, ConnectionsBeyondTheLimitGet503) {
   HttpConnection c(port_);
   EXPECT_EQ(c.request("GET", "/healthz").status, 503);
   EXPECT_EQ(a.request("GET", "/healthz").status, 200);
+}
+
+// Finding 6 of #22: DELETE /admin/layers/… waits for the store's write lock (up to the store's
+// 10 s busy timeout) on the server's blocking worker, not on an io thread. With one io thread
+// and the lock held by another connection, the delete stays pending while other requests are
+// answered; it completes once the lock is released.
+TEST_F(ServerTest, LayerDeleteWaitsForTheWriteLockOffTheIoThread) {
+  stop();
+  testing::write_test_layer(store_path_, "gone");
+  start([](ServerConfig& c) { c.threads = 1; });
+  sqlite3* lock = nullptr;
+  ASSERT_EQ(sqlite3_open(store_path_.c_str(), &lock), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(lock, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  struct Release {
+    sqlite3* db;
+    ~Release() {
+      sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+      sqlite3_close(db);
+    }
+  } release{lock};
+  HttpConnection del(port_);
+  ASSERT_TRUE(
+      del.send_raw("DELETE /admin/layers/gone HTTP/1.1\r\nHost: x\r\n"
+                   "Authorization: Bearer tok\r\n\r\n"));
+  // Not a condition to wait for (the test only makes the old behaviour visible): give the io
+  // thread time to take the delete before the next request comes.
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  HttpConnection other(port_);
+  EXPECT_EQ(other.request("GET", "/healthz").status, 200);
+  EXPECT_EQ(other.request("GET", "/tiles/lux/" + kTile.quadkey()).status, 200);
+  EXPECT_FALSE(del.readable(0)) << "the delete finished while the write lock was held";
+  ASSERT_EQ(sqlite3_exec(lock, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  const auto r = del.read_response();
+  EXPECT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(http_get(port_, "/layers/gone").status, 404);
+}
+
+// Finding 7 of #22: with admin_address set, the admin API and the metrics answer only on the
+// admin listener (404 on the public one), and the admin listener serves nothing else.
+TEST_F(ServerTest, AdminAndMetricsAnswerOnlyOnTheAdminListener) {
+  stop();
+  start([](ServerConfig& c) {
+    c.admin_address = "127.0.0.1";
+    c.admin_port = 0;
+  });
+  const std::uint16_t admin = server_->admin_port();
+  ASSERT_NE(admin, 0);
+  ASSERT_NE(admin, port_);
+  EXPECT_EQ(http_get(port_, "/admin/jobs", kAdmin).status, 404);
+  EXPECT_EQ(http_get(port_, "/metrics").status, 404);
+  EXPECT_EQ(http_request(port_, "DELETE", "/admin/layers/lux", kAdmin).status, 404);
+  EXPECT_EQ(http_get(port_, "/tiles/lux/" + kTile.quadkey()).status, 200);
+  EXPECT_EQ(http_get(admin, "/admin/jobs", kAdmin).status, 200);
+  EXPECT_EQ(http_get(admin, "/admin/jobs").status, 401);
+  EXPECT_EQ(http_get(admin, "/metrics").status, 200);
+  EXPECT_EQ(http_get(admin, "/healthz").status, 200);
+  EXPECT_EQ(http_get(admin, "/tiles/lux/" + kTile.quadkey()).status, 404);
+  EXPECT_EQ(http_get(port_, "/layers/lux").status, 200);
 }
 
 }  // namespace

@@ -113,8 +113,8 @@ TEST(ServerProcess, ServesAndStopsOnSigterm) {
   EXPECT_EQ(testing::http_get(port, "/healthz").status, 200);
   const auto tile = *geo::TileId::from_zxy(12, 2121, 1401);
   EXPECT_EQ(testing::http_get(port, "/tiles/lux/" + tile.quadkey()).status, 200);
-  // The stock executable has no ingest pipeline linked in unless the lead plugs it in; either
-  // way the job is accepted or refused cleanly, never a crash. Admin is disabled without token.
+  // The server runs without an admin token, so the admin API is disabled: a request with any
+  // bearer token is refused with 403 (never started, never a crash).
   EXPECT_EQ(
       testing::http_request(port, "POST", "/admin/ingest", {{"Authorization", "Bearer x"}}, "{}")
           .status,

@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/time.h>
 #include <unistd.h>
@@ -167,6 +168,13 @@ bool HttpConnection::closed_by_peer() {
   char c;
   const ssize_t n = ::recv(fd_, &c, 1, 0);
   return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK);
+}
+
+bool HttpConnection::readable(int timeout_ms) {
+  if (!buffer_.empty()) return true;
+  if (fd_ < 0) return true;
+  pollfd p{fd_, POLLIN, 0};
+  return ::poll(&p, 1, timeout_ms) > 0;
 }
 
 HttpResponse HttpConnection::request(const std::string& method, const std::string& target,

@@ -49,6 +49,8 @@ class HttpConnection {
   HttpResponse read_response(bool head_request = false);
   // True when the server closed the connection (EOF within the timeout).
   bool closed_by_peer();
+  // True when bytes (or the end of the stream) can be read within `timeout_ms`.
+  bool readable(int timeout_ms);
   HttpResponse request(const std::string& method, const std::string& target,
                        const std::map<std::string, std::string>& headers = {},
                        const std::string& body = {});

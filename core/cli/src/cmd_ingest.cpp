@@ -62,6 +62,7 @@ Result<ingest::IngestOptions> to_options(const IngestArgs& a) {
     transform::InputSpec in;
     in.path = path;
     in.reproject.crs = a.crs;
+    in.source.decode_threads = a.threads;  // LAZ chunk decoding (0 = one per core)
     in.reproject.vertical_datum = a.vertical;
     if (!a.z_units.empty()) {
       auto unit = sources::parse_linear_unit(a.z_units);

@@ -185,7 +185,7 @@ const CommandRegistration kRegistration{
              "--in", opts->in,
              "Input points: .xyz text, one point per line as 'x y z' (blanks or commas; "
              "extra columns ignored; blank and '#' lines skipped) or a LAS file (all classes, "
-             "coordinates as stored, no reprojection; .laz is refused: no decoder).")
+             "coordinates as stored, no reprojection; LAZ reads like LAS).")
           ->required();
       sub.add_option(
              "--out", opts->out,

@@ -18,13 +18,11 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/queued_writer.hpp"
 #include "tinstream/subdivide/sorted_run.hpp"
 #include "tinstream/transform/run_file.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
-#ifdef TINSTREAM_HAVE_LOD
-#include "tinstream/lod/pyramid.hpp"
-#endif
 
 namespace tinstream::ingest {
 namespace {
@@ -176,12 +174,11 @@ class PhaseClock {
   double cpu_ = 0;
 };
 
-}  // namespace
+// ── The ingest, one step per pass. Each step fills its part of the summary; `run_ingest` only
+// strings them together and times them. ──
 
-Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSink& progress) {
-  bound_heap_retention();
-  const auto start = std::chrono::steady_clock::now();
-  if (Status s = store::validate_layer_name(options.layer); !s) return s.error();
+Status check_options(const IngestOptions& options) {
+  if (Status s = store::validate_layer_name(options.layer); !s) return s;
   if (options.inputs.empty()) return invalid_argument("no input files given");
   if (options.max_points < 3 || options.max_points > 65535) {
     return invalid_argument("max_points " + std::to_string(options.max_points) +
@@ -193,42 +190,48 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
                             std::to_string(options.max_level) + ")");
   }
   if (!(options.epsilon >= 0.0)) return invalid_argument("epsilon must be ≥ 0 metres");
-  const unsigned threads =
-      options.threads != 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  return {};
+}
 
-  // Open the store first: a bad store path fails before hours of work.
-  auto store = store::TileStore::open(options.store_path, store::TileStore::Mode::read_write);
-  if (!store) return store.error();
+// What passes 1 and 2 leave: pass 1's header (count, boxes, z range) and per-input summaries, and
+// pass 2's sorted run (a file in the scratch directory) with its tile index.
+struct SortedPoints {
+  transform::RunSummary pass1;
+  subdivide::SortedRun sorted;
+};
 
-  auto scratch = ScratchDir::create(options.tmp_dir, options.layer);
-  if (!scratch) return scratch.error();
-
-  IngestSummary summary;
-  summary.layer = options.layer;
-  PhaseClock clock(summary.phases);
-  clock.next("transform");
-
-  // ── Passes 1 and 2 overlap: pass 1 hands every batch to pass 2's builder, whose spill thread
-  // sorts and writes chunks (the run files of transformed points) while pass 1 goes on; pass 1
-  // itself writes no run file, only its header (counts, boxes) is kept. The merge (all points
-  // needed) starts when pass 1 is done. ──
-  subdivide::SubdivideOptions sopt;
-  sopt.max_points = options.max_points;
-  sopt.max_level = options.max_level;
-  sopt.min_level = options.min_level;
-  // Pass 1's batches in flight (threads + 1 of them, each point as read, reprojected, in the run
-  // file's form, with its lon/lat and as handed over) live beside pass 2's sort buffers: they
-  // come out of the same budget. (The batch size stays pass 1's default: it decides whether a
-  // read error or an earlier bad record of the same batch is reported, as before.)
+// Pass 2's share of `memory_bytes`: pass 1's batches in flight (threads + 1 of them, each point
+// as read, reprojected, in the run record's form, with its lon/lat and as handed over) live
+// beside pass 2's sort buffers, so they come out of the same budget. (The batch size stays pass
+// 1's default: it decides whether a read error or an earlier bad record of the same batch is
+// reported.)
+std::size_t sort_memory(std::size_t memory_bytes, unsigned threads) {
   const std::size_t in_flight =
       (threads + 1) * transform::TransformOptions{}.batch_size *
       (sizeof(sources::SourcePoint) + sizeof(transform::GeoPoint) + sizeof(transform::RunPoint) +
        sizeof(geo::LonLat) + sizeof(subdivide::InputPoint));
-  sopt.memory_bytes = options.memory_bytes > 2 * in_flight ? options.memory_bytes - in_flight
-                                                           : options.memory_bytes / 2;
+  return memory_bytes > 2 * in_flight ? memory_bytes - in_flight : memory_bytes / 2;
+}
+
+// Passes 1 and 2, which overlap: pass 1 reads and transforms the inputs and hands every batch to
+// pass 2's builder, whose spill thread sorts and writes chunks (the run files of the transformed
+// points) while pass 1 goes on; pass 1 itself writes no run file, only its header is kept. When
+// pass 1 is done (phase "sort" begins), the chunks are merged into one Morton-sorted run in
+// `scratch`, duplicates merged, the finest level chosen and the tile index tallied.
+// Fills the summary's input counts, duplicates, points and finest level.
+// Errors: a bad input (named by file and record), inputs without a usable point, a failed spill
+// or merge, cancellation.
+Result<SortedPoints> transform_and_sort(const IngestOptions& options, unsigned threads,
+                                        const fs::path& scratch, PhaseClock& clock,
+                                        IngestSummary& summary, const ProgressSink& progress) {
+  subdivide::SubdivideOptions sopt;
+  sopt.max_points = options.max_points;
+  sopt.max_level = options.max_level;
+  sopt.min_level = options.min_level;
+  sopt.memory_bytes = sort_memory(options.memory_bytes, threads);
   sopt.merge_threads = threads >= 2 ? 2 : 1;  // --threads 1: one thread throughout
-  sopt.tmp_dir = scratch->path();
-  sopt.output = scratch->path() / "sorted.run";
+  sopt.tmp_dir = scratch;
+  sopt.output = scratch / "sorted.run";
   auto builder = subdivide::SortedRunBuilder::create(sopt);
   if (!builder) return builder.error();
   std::vector<subdivide::InputPoint> handed;
@@ -254,7 +257,6 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
         " records read, all rejected by the class filter, NODATA or as invalid)");
   }
 
-  // ── Pass 2: merge the sorted chunks, finest level, tile index ──
   clock.next("sort");
   const std::uint64_t handed_points = builder->input_points();
   if (progress && !progress({"sort", handed_points, handed_points, "points"})) {
@@ -265,78 +267,92 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
   summary.duplicates_merged = sorted->duplicates_merged;
   summary.points = sorted->points;
   summary.finest_level = sorted->finest_level;
+  return SortedPoints{std::move(*pass1), std::move(*sorted)};
+}
 
-  // ── Store: a new, invisible layer version ──
+// The layer's record as far as it is known before pass 3: bounds, heights, levels, counts and the
+// options (tile count and per-level errors are filled in by the later passes).
+store::LayerInfo layer_info(const IngestOptions& options, const SortedPoints& in,
+                            std::uint64_t points_accepted) {
   store::LayerInfo info;
   info.name = options.layer;
   info.projection = options.projection;
   info.vertical_datum = options.inputs.front().reproject.vertical_datum;
-  const auto& h = pass1->header;
+  const auto& h = in.pass1.header;
   info.mercator_bounds = {h.mercator.min_x, h.mercator.min_y, h.mercator.max_x, h.mercator.max_y};
   info.bounds = {h.lonlat.min_x, h.lonlat.min_y, h.lonlat.max_x, h.lonlat.max_y};
   info.min_z = h.min_z;
   info.max_z = h.max_z;
-  info.max_level = sorted->finest_level;
-  info.min_level =
-      options.pyramid ? std::min(options.min_level, sorted->finest_level) : sorted->finest_level;
+  const std::uint32_t finest = in.sorted.finest_level;
+  info.max_level = finest;
+  info.min_level = options.pyramid ? std::min(options.min_level, finest) : finest;
   info.max_points = options.max_points;
-  info.point_count = sorted->points;
-  info.source_points = summary.points_accepted;
+  info.point_count = in.sorted.points;
+  info.source_points = points_accepted;
   info.options_json = options_json(options).dump();
   info.attribution = options.attribution;
-  auto writer = store->begin_layer(info);
-  if (!writer) return writer.error();
+  return info;
+}
 
-  // ── Pass 3: finest tiles on the workers, each encoding its own; a writer thread stores them,
-  // so no worker waits while another commits a batch (and its WAL checkpoint) ──
-  clock.next("triangulate");
+// Pass 3: the finest tiles, triangulated on `threads` workers, each encoding and compressing its
+// own; a writer thread stores them, so no worker waits while another commits a batch (and its WAL
+// checkpoint). Removes the sorted run's file when done (its disk is free for pass 4).
+// Fills the summary's finest level entry, tile count and halo overhead.
+// Errors: a tile that fails (named), a store error, cancellation.
+Status build_finest_level(const subdivide::SortedRun& sorted, store::LayerWriter& writer,
+                          unsigned threads, IngestSummary& summary, const ProgressSink& progress) {
   // Room for the writer's stalls (a batch commit, a WAL checkpoint, pages under writeback): with
   // 4 tiles per worker the workers waited on it 11 % of pass 3 (1e7 points); 64 per worker,
   // bounded to 32 MB of compressed tiles, keeps them busy.
-  store::QueuedWriter queue(**writer, 64 * threads, std::size_t{32} << 20);
+  store::QueuedWriter queue(writer, 64 * threads, std::size_t{32} << 20);
   auto pass3 = triangulate::build_finest_tiles(
-      *sorted, threads,
+      sorted, threads,
       [&](tile::TinTile&& t) -> Status {
         auto prepared = store::prepare_tile(t);
         if (!prepared) return prepared.error();
         return queue.push(std::move(*prepared));
       },
       {}, progress);
-  if (Status s = queue.finish(); pass3 && !s) return s.error();
+  if (Status s = queue.finish(); pass3 && !s) return s;
   const std::uint64_t finest_tiles = queue.stored();
   if (!pass3) return pass3.error();
   summary.halo_overhead = static_cast<double>(pass3->gathered_points) /
-                          static_cast<double>(std::max<std::uint64_t>(sorted->points, 1));
-  {
-    std::error_code ec;
-    fs::remove(sorted->path, ec);
-  }
-  summary.levels.push_back({sorted->finest_level, finest_tiles, 0.0});
+                          static_cast<double>(std::max<std::uint64_t>(sorted.points, 1));
+  std::error_code ec;
+  fs::remove(sorted.path, ec);
+  summary.levels.push_back({sorted.finest_level, finest_tiles, 0.0});
   summary.tiles = finest_tiles;
+  return {};
+}
 
-  // ── Pass 4: the LOD pyramid ──
-  clock.next("lod");
-  info.level_max_error.assign(sorted->finest_level + 1, 0.0);
-#ifdef TINSTREAM_HAVE_LOD
-  // Gridded inputs become "reduced TINs" at the finest level when an epsilon is given.
+// Pass 4: the LOD pyramid, levels finest − 1 … info.min_level built from their children (none
+// when the pyramid is off), and the finest tiles of gridded inputs reduced when an epsilon is
+// given ("reduced TINs"); what a level hands to the next beside its tiles goes to a file under
+// `scratch`. Requires: build_finest_level done (summary.levels holds the finest
+// level). Fills info.level_max_error and the summary's levels (sorted, coarsest first), tile
+// count and min_level; sets info.min_level to the coarsest level built.
+Status build_lod(const IngestOptions& options, const SortedPoints& in, const fs::path& scratch,
+                 unsigned threads, store::LayerWriter& writer, store::LayerInfo& info,
+                 IngestSummary& summary, const ProgressSink& progress) {
+  const std::uint32_t finest = in.sorted.finest_level;
+  info.level_max_error.assign(finest + 1, 0.0);
   const bool gridded = std::any_of(
       summary.inputs.begin(), summary.inputs.end(),
-      [](const transform::InputSummary& in) { return in.format.rfind("GDAL", 0) == 0; });
+      [](const transform::InputSummary& input) { return input.format.rfind("GDAL", 0) == 0; });
   const bool reduce = gridded && options.epsilon > 0.0;
-  if ((options.pyramid && info.min_level < sorted->finest_level) || reduce) {
+  if ((options.pyramid && info.min_level < finest) || reduce) {
     lod::PyramidOptions popt;
     popt.lod.max_points = options.max_points;
     popt.lod.epsilon = options.epsilon;
     popt.reduce_finest = reduce;
-    popt.scratch = scratch->path();
-    const std::uint32_t coarsest = options.pyramid ? info.min_level : sorted->finest_level;
-    auto pyramid =
-        lod::build_pyramid(**writer, sorted->finest_level, coarsest, popt, threads, progress);
+    popt.scratch = scratch;
+    const std::uint32_t coarsest = options.pyramid ? info.min_level : finest;
+    auto pyramid = lod::build_pyramid(writer, finest, coarsest, popt, threads, progress);
     if (!pyramid) return pyramid.error();
-    for (std::uint32_t z = coarsest; z <= sorted->finest_level; ++z) {
+    for (std::uint32_t z = coarsest; z <= finest; ++z) {
       const double err = z < pyramid->level_max_error.size() ? pyramid->level_max_error[z] : 0.0;
       info.level_max_error[z] = err;
-      if (z == sorted->finest_level) {
+      if (z == finest) {
         summary.levels.front().max_error = err;
         continue;
       }
@@ -345,23 +361,66 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
       summary.tiles += tiles;
     }
   }
-#else
-  info.min_level = sorted->finest_level;
-#endif
   std::sort(summary.levels.begin(), summary.levels.end(),
             [](const LevelSummary& a, const LevelSummary& b) { return a.level < b.level; });
   summary.min_level = summary.levels.front().level;
   info.min_level = summary.min_level;
+  return {};
+}
 
-  // ── Publish ──
-  clock.next("publish");
-  if (progress && !progress({"publish", 0, 1, "steps"})) return cancelled("publish").error();
+// Publish: the new layer version becomes visible in one transaction; the summary gets the layer
+// as the store now records it.
+Status publish(store::TileStore& store, store::LayerWriter& writer, store::LayerInfo& info,
+               IngestSummary& summary, const ProgressSink& progress) {
+  if (progress && !progress({"publish", 0, 1, "steps"})) return cancelled("publish");
   info.tile_count = summary.tiles;
-  if (Status s = (*writer)->publish(info); !s) return s.error();
+  if (Status s = writer.publish(info); !s) return s;
   if (progress) progress({"publish", 1, 1, "steps"});
-  auto published = store->layer(options.layer);
+  auto published = store.layer(info.name);
   if (!published) return published.error();
   summary.layer_info = *published;
+  return {};
+}
+
+}  // namespace
+
+Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSink& progress) {
+  bound_heap_retention();
+  const auto start = std::chrono::steady_clock::now();
+  if (Status s = check_options(options); !s) return s.error();
+  const unsigned threads =
+      options.threads != 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+
+  // Open the store first: a bad store path fails before hours of work.
+  auto store = store::TileStore::open(options.store_path, store::TileStore::Mode::read_write);
+  if (!store) return store.error();
+  auto scratch = ScratchDir::create(options.tmp_dir, options.layer);
+  if (!scratch) return scratch.error();
+
+  IngestSummary summary;
+  summary.layer = options.layer;
+  PhaseClock clock(summary.phases);
+  clock.next("transform");
+  auto sorted = transform_and_sort(options, threads, scratch->path(), clock, summary, progress);
+  if (!sorted) return sorted.error();
+
+  // A new, invisible layer version.
+  store::LayerInfo info = layer_info(options, *sorted, summary.points_accepted);
+  auto writer = store->begin_layer(info);
+  if (!writer) return writer.error();
+
+  clock.next("triangulate");
+  if (Status s = build_finest_level(sorted->sorted, **writer, threads, summary, progress); !s) {
+    return s.error();
+  }
+  clock.next("lod");
+  if (Status s =
+          build_lod(options, *sorted, scratch->path(), threads, **writer, info, summary, progress);
+      !s) {
+    return s.error();
+  }
+  clock.next("publish");
+  if (Status s = publish(*store, **writer, info, summary, progress); !s) return s.error();
   clock.stop();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.peak_rss_bytes = peak_rss_bytes();

@@ -173,7 +173,6 @@ void Triangulation::clear() {
   pending_.clear();
   segments_.clear();
   ++revision_;  // no removal plan survives
-  planned_vertex_ = kNone;
   hint_ = kNone;
   randomize_walk_ = false;
   has_constraints_ = false;

@@ -132,6 +132,32 @@ TEST(Removal, PreviewEqualsTheTrianglesThatRemovalCreates) {
   }
 }
 
+TEST(Removal, CopiesAndMovesRemoveLikeTheOriginal) {
+  // The removal scratch (with the plan a preview leaves) belongs to one object: a copy made or
+  // assigned right after a preview, and a moved-from object given a new value, must remove
+  // exactly as the original does, whatever plan the original holds.
+  Triangulation t;
+  const auto ids = t.insert_bulk(test::uniform_points(300, 21));
+  const VertexId v = ids[7].vertex, w = ids[8].vertex;
+  ASSERT_TRUE(t.removal_preview(v).ok());
+  Triangulation copied = t;
+  Triangulation assigned;
+  assigned.insert_bulk(test::uniform_points(50, 22));
+  ASSERT_TRUE(assigned.removal_preview(3).ok());
+  assigned = t;
+  Triangulation moved_from = t;
+  Triangulation moved = std::move(moved_from);
+  moved_from = t;
+  for (Triangulation* u : {&t, &copied, &assigned, &moved, &moved_from}) {
+    ASSERT_TRUE(u->remove_vertex(w).ok());  // not the previewed vertex
+    ASSERT_TRUE(u->remove_vertex(v).ok());
+    expect_valid(*u);
+  }
+  for (const Triangulation* u : {&copied, &assigned, &moved, &moved_from}) {
+    EXPECT_EQ(triangle_set(*u), triangle_set(t));
+  }
+}
+
 TEST(Removal, EditsBetweenPreviewAndRemovalAreHonoured) {
   // remove_vertex reuses the plan of an immediately preceding removal_preview; any edit or other
   // preview in between must invalidate it.

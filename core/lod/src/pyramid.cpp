@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "side_store.hpp"
+#include "tinstream/base/worker_threads.hpp"
 #include "tinstream/lod/error.hpp"
 #include "tinstream/lod/parent.hpp"
 
@@ -39,8 +40,14 @@ class TilePool {
  public:
   using Job = std::function<Result<Built>()>;
 
-  explicit TilePool(unsigned threads) {
-    for (unsigned i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
+  TilePool() = default;
+  // Starts the workers; an Error when one cannot be started (the destructor stops and joins
+  // those that were).
+  Status start(unsigned threads) {
+    for (unsigned i = 0; i < threads; ++i) {
+      if (Status s = workers_.start([this] { work(); }); !s) return s;
+    }
+    return {};
   }
   ~TilePool() {
     {
@@ -48,7 +55,7 @@ class TilePool {
       stop_ = true;
     }
     cv_work_.notify_all();
-    for (auto& w : workers_) w.join();
+    (void)workers_.join();
   }
   TilePool(const TilePool&) = delete;
   TilePool& operator=(const TilePool&) = delete;
@@ -84,10 +91,14 @@ class TilePool {
         jobs_.pop_front();
       }
       Result<Built> r = Error(ErrorCode::internal, "lod: job did not run");
-      try {
-        r = job();
-      } catch (const std::exception& e) {
-        r = Error(ErrorCode::internal, std::string("lod: ") + e.what());
+      // The exception barrier: a job that throws is a failed tile. Fault point "lod.tile".
+      if (Status s = guarded("lod",
+                             [&] {
+                               fault::point("lod.tile");
+                               r = job();
+                             });
+          !s) {
+        r = s.error();
       }
       {
         std::lock_guard lock(m_);
@@ -102,7 +113,7 @@ class TilePool {
   std::deque<Job> jobs_;
   std::deque<Result<Built>> done_;
   bool stop_ = false;
-  std::vector<std::thread> workers_;
+  WorkerThreads workers_{"lod worker", "lod.tile"};  // last: joined before the rest goes
 };
 
 class Throttle {
@@ -256,7 +267,8 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   };
   detail::SideStore side(options.scratch);
 
-  TilePool pool(threads);
+  TilePool pool;
+  if (Status s = pool.start(threads); !s) return s.error();
   std::uint64_t done = 0;
   std::uint64_t total = 0;
   Throttle throttle;

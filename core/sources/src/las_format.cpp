@@ -72,14 +72,9 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
   } else {
     h.point_count = legacy_count;
   }
-  if ((raw_format & 0xC0) != 0) {
-    return unsupported(where +
-                       "the points are LAZ-compressed (compression bit set in the point data "
-                       "format byte); no LASzip decoder is available in this build (Debian 12 "
-                       "packages none): decompress to .las first, e.g. `pdal translate in.laz "
-                       "out.las` or `las2las -i in.laz -o out.las`");
-  }
-  h.point_format = raw_format;
+  // LASzip sets bit 7 of the format byte (some writers bit 6): the records are LAZ-compressed.
+  h.compressed = (raw_format & 0xC0) != 0;
+  h.point_format = static_cast<std::uint8_t>(raw_format & 0x3F);
   if (h.point_format > 10) {
     return unsupported(where + "point data format " + std::to_string(h.point_format) +
                        " is not defined (0–10 are)");
@@ -103,8 +98,10 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
   if (h.evlr_count > 0 && h.evlr_start >= h.offset_to_points && h.evlr_start <= file_size) {
     points_end = h.evlr_start;
   }
+  h.points_end = points_end;
   const std::uint64_t available = points_end - h.offset_to_points;
-  if (h.point_count > available / h.record_length) {
+  // Compressed records have no fixed size: the LAZ chunk table and decoder check their count.
+  if (!h.compressed && h.point_count > available / h.record_length) {
     return corrupt_data(where + "the header announces " + std::to_string(h.point_count) +
                         " points of " + std::to_string(h.record_length) + " bytes, but only " +
                         std::to_string(available) + " bytes lie between the offset to point data " +

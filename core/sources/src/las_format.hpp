@@ -27,12 +27,14 @@ struct Header {
   std::uint32_t offset_to_points = 0;
   std::uint32_t vlr_count = 0;
   std::uint8_t point_format = 0;  // with the compression bits masked off
+  bool compressed = false;        // bit 7 (or 6) of the format byte: LAZ point data
   std::uint16_t record_length = 0;
   std::uint64_t point_count = 0;  // 64-bit count for 1.4, legacy count otherwise
   std::array<double, 3> scale{}, offset{};
   double max_x = 0, min_x = 0, max_y = 0, min_y = 0, max_z = 0, min_z = 0;
   std::uint64_t evlr_start = 0;
   std::uint32_t evlr_count = 0;
+  std::uint64_t points_end = 0;  // first byte after the point records: the EVLRs or the file's end
 };
 
 // Decodes and checks the public header. `bytes` holds the first min(375, file_size) bytes.

@@ -1,5 +1,6 @@
-// Streaming LAS 1.0–1.4 reader: header + VLR/EVLR scan at open, then fixed-size records read in
-// chunks of at most kChunkBytes. Memory is O(chunk), independent of the point count.
+// Streaming LAS 1.0–1.4 / LAZ reader: header + VLR/EVLR scan at open, then records read (LAS) or
+// decoded (LAZ, tinstream::laz) in chunks of at most kChunkBytes. Memory is O(chunk),
+// independent of the point count.
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -9,6 +10,8 @@
 
 #include "binary_io.hpp"
 #include "las_format.hpp"
+#include "tinstream/laz/laz_reader.hpp"
+#include "tinstream/sources/las_records.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::sources {
@@ -36,15 +39,16 @@ std::string trim_c_string(const unsigned char* p, std::size_t n) {
 
 class LasSource final : public PointSource {
  public:
-  LasSource(FilePtr file, las::Header header, SourceInfo info, SourceOptions options,
-            std::optional<std::vector<bool>> keep)
-      : file_(std::move(file)),
+  LasSource(std::unique_ptr<LasRecordReader::Impl> records, las::Header header, SourceInfo info,
+            SourceOptions options, std::optional<std::vector<bool>> keep)
+      : records_(std::move(records)),
         h_(header),
         info_(std::move(info)),
         options_(std::move(options)),
         keep_(std::move(keep)) {
     chunk_records_ = std::max<std::size_t>(1, kChunkBytes / h_.record_length);
   }
+  ~LasSource() override;
 
   const SourceInfo& info() const override { return info_; }
   const SourceCounters& counters() const override { return counters_; }
@@ -126,33 +130,12 @@ class LasSource final : public PointSource {
     // Rewind to the first record.
     next_record_ = 0;
     buf_pos_ = buf_count_ = 0;
-    return {};
+    return rewind_records();
   }
 
  private:
-  Status refill() {
-    const std::uint64_t remaining = h_.point_count - next_record_;
-    const std::size_t n =
-        static_cast<std::size_t>(std::min<std::uint64_t>(remaining, chunk_records_));
-    buffer_.resize(n * h_.record_length);
-    const std::uint64_t offset = h_.offset_to_points + next_record_ * h_.record_length;
-    if (!seek(file_.get(), offset)) {
-      return io_error(info_.path + ": point record " + std::to_string(next_record_ + 1) +
-                      ": cannot seek to byte " + std::to_string(offset));
-    }
-    const std::size_t got = std::fread(buffer_.data(), 1, buffer_.size(), file_.get());
-    if (got != buffer_.size()) {
-      const std::uint64_t bad = next_record_ + got / h_.record_length + 1;
-      return corrupt_data(info_.path + ": point record " + std::to_string(bad) +
-                          ": file ends inside the record (truncated while being read; " +
-                          std::to_string(h_.point_count) + " records announced)");
-    }
-    buf_first_record_ = next_record_;
-    buf_pos_ = 0;
-    buf_count_ = n;
-    next_record_ += n;
-    return {};
-  }
+  Status refill();
+  Status rewind_records();
 
   Result<std::size_t> fail(Error e) {
     failed_ = true;
@@ -160,7 +143,7 @@ class LasSource final : public PointSource {
     return e;
   }
 
-  FilePtr file_;
+  std::unique_ptr<LasRecordReader::Impl> records_;
   las::Header h_;
   SourceInfo info_;
   SourceOptions options_;
@@ -175,17 +158,26 @@ class LasSource final : public PointSource {
   Error failure_;
 };
 
+// What the VLR/EVLR scan keeps: the CRS records, the LASzip VLR body, and the directory.
 struct CrsRecords {
   std::string wkt;  // from LASF_Projection 2112 (or another user's 2112 as a fallback)
   std::string wkt_fallback;
   std::optional<las::GeoKeys> geokeys;
+  std::optional<std::vector<unsigned char>> laszip;  // "laszip encoded" 22204 body
+  std::vector<VlrEntry> directory;
 };
 
 Status inspect_record(std::FILE* f, const std::string& path, const std::string& what,
                       std::string_view user, std::uint16_t id, std::uint64_t body_offset,
                       std::uint64_t body_length, CrsRecords& out) {
   const bool projection = user == "LASF_Projection";
-  if (id == 2112 && body_length <= kMaxWktBytes) {
+  if (user == laz::kLaszipUserId && id == laz::kLaszipRecordId && body_length <= 65535) {
+    std::vector<unsigned char> body(static_cast<std::size_t>(body_length));
+    if (!seek(f, body_offset) || !read_exact(f, body.data(), body.size())) {
+      return corrupt_data(path + ": " + what + ": cannot read the LASzip VLR body");
+    }
+    out.laszip = std::move(body);
+  } else if (id == 2112 && body_length <= kMaxWktBytes) {
     std::vector<unsigned char> body(static_cast<std::size_t>(body_length));
     if (!seek(f, body_offset) || !read_exact(f, body.data(), body.size())) {
       return corrupt_data(path + ": " + what + ": cannot read the WKT body");
@@ -232,6 +224,7 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
     if (auto st = inspect_record(f, path, what, user, id, pos + 54, length, out); !st.ok()) {
       return st;
     }
+    out.directory.push_back(VlrEntry{false, user, id, length, trim_c_string(vh + 22, 32)});
     pos += 54 + length;
   }
   if (h.version_minor >= 4 && h.evlr_count > 0) {
@@ -258,6 +251,7 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
       if (auto st = inspect_record(f, path, what, user, id, pos + 60, length, out); !st.ok()) {
         return st;
       }
+      out.directory.push_back(VlrEntry{true, user, id, length, trim_c_string(vh + 28, 32)});
       pos += 60 + length;
     }
   }
@@ -266,33 +260,194 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
 
 }  // namespace
 
+// The records of one LAS or LAZ file: the header, what the VLR scan found, and where records
+// come from (the FILE for LAS, a LazReader for LAZ).
+struct LasRecordReader::Impl {
+  FilePtr file;
+  las::Header header;
+  CrsRecords crs;
+  LasFileSummary summary;
+  std::unique_ptr<laz::LazReader> laz;
+  std::uint64_t next_record = 0;  // LAS: first record not read yet (0-based)
+  std::optional<Error> failure;
+
+  Result<std::size_t> read(std::uint8_t* out, std::size_t max_records) {
+    if (failure) return *failure;
+    if (laz) {
+      auto got = laz->read(out, max_records);
+      if (!got.ok()) failure = got.error();
+      return got;
+    }
+    const std::uint16_t rl = header.record_length;
+    const auto n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(header.point_count - next_record, max_records));
+    if (n == 0) return std::size_t{0};
+    const std::uint64_t offset = header.offset_to_points + next_record * rl;
+    if (!seek(file.get(), offset)) {
+      failure = io_error(summary.path + ": point record " + std::to_string(next_record + 1) +
+                         ": cannot seek to byte " + std::to_string(offset));
+      return *failure;
+    }
+    const std::size_t got = std::fread(out, 1, n * rl, file.get());
+    if (got != n * rl) {
+      const std::uint64_t bad = next_record + got / rl + 1;
+      failure = corrupt_data(summary.path + ": point record " + std::to_string(bad) +
+                             ": file ends inside the record (truncated while being read; " +
+                             std::to_string(header.point_count) + " records announced)");
+      return *failure;
+    }
+    next_record += n;
+    return n;
+  }
+
+  Status rewind() {
+    failure.reset();
+    next_record = 0;
+    if (laz) return laz->rewind();
+    return {};
+  }
+};
+
+namespace {
+
+RecordOptions record_options(const SourceOptions& options) {
+  RecordOptions r;
+  r.threads = options.decode_threads;
+  r.geometry_and_class_only = true;  // x, y, z, class, withheld and returns are all a source uses
+  return r;
+}
+
+Result<std::unique_ptr<LasRecordReader::Impl>> open_records(const std::filesystem::path& fs_path,
+                                                            const RecordOptions& options) {
+  const std::string path = fs_path.string();
+  std::error_code ec;
+  const std::uint64_t file_size = std::filesystem::file_size(fs_path, ec);
+  if (ec) return not_found(path + ": cannot open: " + ec.message());
+  auto r = std::make_unique<LasRecordReader::Impl>();
+  r->file.reset(std::fopen(path.c_str(), "rb"));
+  if (!r->file) return io_error(path + ": cannot open: " + std::strerror(errno));
+
+  std::vector<unsigned char> head(
+      static_cast<std::size_t>(std::min<std::uint64_t>(375, file_size)));
+  if (!read_exact(r->file.get(), head.data(), head.size())) {
+    return io_error(path + ": cannot read the LAS header");
+  }
+  auto header = las::parse_header(head, file_size, path);
+  if (!header.ok()) return header.error();
+  r->header = *header;
+  const las::Header& h = r->header;
+  if (auto st = scan_vlrs(r->file.get(), h, file_size, path, r->crs); !st.ok()) return st.error();
+
+  LasFileSummary& s = r->summary;
+  s.path = path;
+  s.file_size = file_size;
+  s.version_major = h.version_major;
+  s.version_minor = h.version_minor;
+  s.header_size = h.header_size;
+  s.offset_to_points = h.offset_to_points;
+  s.point_format = h.point_format;
+  s.record_length = h.record_length;
+  s.point_count = h.point_count;
+  s.scale = h.scale;
+  s.offset = h.offset;
+  s.min = {h.min_x, h.min_y, h.min_z};
+  s.max = {h.max_x, h.max_y, h.max_z};
+  s.vlrs = r->crs.directory;
+
+  if (h.compressed) {
+    if (!r->crs.laszip) {
+      return corrupt_data(path +
+                          ": the point data format byte marks the points as LAZ-compressed, "
+                          "but the file has no LASzip VLR (\"laszip encoded\" 22204)");
+    }
+    auto vlr = laz::parse_laszip_vlr(*r->crs.laszip, h.point_format, h.record_length,
+                                     path + ": LASzip VLR");
+    if (!vlr.ok()) return vlr.error();
+    s.laszip = *vlr;
+    laz::PointDataLayout layout;
+    layout.offset_to_points = h.offset_to_points;
+    layout.point_count = h.point_count;
+    layout.points_end = h.points_end;
+    layout.file_size = file_size;
+    layout.point_format = h.point_format;
+    layout.record_length = h.record_length;
+    laz::ReaderOptions lo;
+    lo.threads = options.threads;
+    if (options.geometry_and_class_only) lo.layers = laz::LayerSelection::geometry_and_class();
+    auto reader = laz::LazReader::open(fs_path, layout, *vlr, lo);
+    if (!reader.ok()) return reader.error();
+    r->laz = std::move(*reader);
+  }
+  return r;
+}
+
+}  // namespace
+
+LasSource::~LasSource() = default;
+
+Status LasSource::refill() {
+  const std::uint64_t remaining = h_.point_count - next_record_;
+  const std::size_t n =
+      static_cast<std::size_t>(std::min<std::uint64_t>(remaining, chunk_records_));
+  buffer_.resize(n * h_.record_length);
+  std::size_t have = 0;
+  while (have < n) {
+    auto got = records_->read(buffer_.data() + have * h_.record_length, n - have);
+    if (!got.ok()) return got.error();
+    if (*got == 0) {
+      return corrupt_data(info_.path + ": point record " + std::to_string(next_record_ + have + 1) +
+                          ": the point data ends after " + std::to_string(next_record_ + have) +
+                          " of the " + std::to_string(h_.point_count) + " records announced");
+    }
+    have += *got;
+  }
+  buf_first_record_ = next_record_;
+  buf_pos_ = 0;
+  buf_count_ = n;
+  next_record_ += n;
+  return {};
+}
+
+Status LasSource::rewind_records() { return records_->rewind(); }
+
+LasRecordReader::LasRecordReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+LasRecordReader::~LasRecordReader() = default;
+
+Result<std::unique_ptr<LasRecordReader>> LasRecordReader::open(const std::filesystem::path& path,
+                                                               const RecordOptions& options) {
+  auto impl = open_records(path, options);
+  if (!impl.ok()) return impl.error();
+  return std::unique_ptr<LasRecordReader>(new LasRecordReader(std::move(*impl)));
+}
+
+const LasFileSummary& LasRecordReader::summary() const { return impl_->summary; }
+Result<std::size_t> LasRecordReader::read(std::uint8_t* out, std::size_t max_records) {
+  return impl_->read(out, max_records);
+}
+Status LasRecordReader::rewind() { return impl_->rewind(); }
+const laz::LazReader* LasRecordReader::laz() const { return impl_->laz.get(); }
+
 PointSource::~PointSource() = default;
 
 Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_path,
                                               const SourceOptions& options) {
   const std::string path = fs_path.string();
-  std::error_code ec;
-  const std::uint64_t file_size = std::filesystem::file_size(fs_path, ec);
-  if (ec) return not_found(path + ": cannot open: " + ec.message());
-  FilePtr file(std::fopen(path.c_str(), "rb"));
-  if (!file) return io_error(path + ": cannot open: " + std::strerror(errno));
-
-  std::vector<unsigned char> head(
-      static_cast<std::size_t>(std::min<std::uint64_t>(375, file_size)));
-  if (!read_exact(file.get(), head.data(), head.size())) {
-    return io_error(path + ": cannot read the LAS header");
-  }
-  auto header = las::parse_header(head, file_size, path);
-  if (!header.ok()) return header.error();
-  const las::Header& h = *header;
-
-  CrsRecords crs;
-  if (auto st = scan_vlrs(file.get(), h, file_size, path, crs); !st.ok()) return st.error();
+  auto opened = open_records(fs_path, record_options(options));
+  if (!opened.ok()) return opened.error();
+  std::unique_ptr<LasRecordReader::Impl> records = std::move(*opened);
+  const las::Header& h = records->header;
+  CrsRecords& crs = records->crs;
 
   SourceInfo info;
   info.path = path;
-  info.format = "LAS " + std::to_string(h.version_major) + "." + std::to_string(h.version_minor) +
-                " PDF " + std::to_string(h.point_format);
+  info.format = std::string(h.compressed ? "LAZ" : "LAS") + " " + std::to_string(h.version_major) +
+                "." + std::to_string(h.version_minor) + " PDF " + std::to_string(h.point_format);
+  if (const laz::LazReader* lz = records->laz.get()) {
+    info.notes.push_back("LAZ: " + laz::to_string(lz->vlr().compressor) + " compressor, " +
+                         std::to_string(lz->chunks().size()) + " chunk(s), decoded on " +
+                         std::to_string(lz->threads()) + " thread(s)");
+    for (const std::string& note : lz->notes()) info.notes.push_back("LAZ: " + note);
+  }
   info.record_count = h.point_count;
   if (h.min_x <= h.max_x && h.min_y <= h.max_y && h.min_z <= h.max_z &&
       std::isfinite(h.min_x + h.max_x + h.min_y + h.max_y + h.min_z + h.max_z)) {
@@ -340,8 +495,9 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
     for (std::uint8_t c : *options.class_filter.classes) k[c] = true;
     keep = std::move(k);
   }
-  auto source =
-      std::make_unique<LasSource>(std::move(file), h, std::move(info), options, std::move(keep));
+  const las::Header header = h;
+  auto source = std::make_unique<LasSource>(std::move(records), header, std::move(info), options,
+                                            std::move(keep));
   if (!options.class_filter.classes) {
     if (auto st = source->choose_default_filter(); !st.ok()) return st.error();
   }

@@ -35,13 +35,7 @@ Result<std::unique_ptr<PointSource>> open_source(const std::filesystem::path& pa
     return not_found(path.string() + ": cannot open: no such file");
   }
   const std::string ext = lower(path.extension().string());
-  if (ext == ".laz") {
-    return unsupported(path.string() +
-                       ": LAZ (LASzip-compressed LAS) cannot be read: no LASzip decoder is "
-                       "available in this build (Debian 12 packages none); decompress to .las "
-                       "first, e.g. `pdal translate in.laz out.las` or `las2las`");
-  }
-  if (ext == ".las") return open_las(path, options);
+  if (ext == ".las" || ext == ".laz") return open_las(path, options);
   if (ext == ".xyz" || ext == ".csv" || ext == ".txt" || ext == ".pts") {
     return open_xyz(path, options);
   }

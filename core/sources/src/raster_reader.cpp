@@ -1,15 +1,24 @@
-// Any GDAL raster as points: one point per cell centre of one band, NODATA and NaN cells
+// A GDAL raster as points: one point per cell centre of one band, NODATA and NaN cells
 // skipped, read a strip of block-height rows at a time (memory: width × block height doubles).
+// What GDAL may open, and how big, is the caller's RasterPolicy (point_source.hpp): checked here
+// before GDAL opens a file (the driver, a VRT's XML and every file it names) and before any buffer
+// is allocated (the raster's and its blocks' sizes).
 #include <cpl_conv.h>
 #include <cpl_error.h>
+#include <cpl_minixml.h>
 #include <gdal.h>
 #include <ogr_srs_api.h>
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <limits>
 #include <mutex>
+#include <set>
+#include <string_view>
 
 #include "tinstream/sources/point_source.hpp"
 
@@ -54,10 +63,63 @@ std::optional<LinearUnit> unit_from_gdal(const char* unit) {
   return std::nullopt;
 }
 
+// NODATA compared the way GDAL's own nodata mask does: in the band's data type. A Float32 band
+// whose NODATA is stored as the text -3.399999952144364e+38 (gdal_translate -of VRT of
+// -3.4e38) holds cells equal to that value rounded to float, never to the double itself.
+class NodataMatch {
+ public:
+  NodataMatch() = default;
+  NodataMatch(GDALRasterBandH band, GDALDataType type) {
+    int has = 0;
+    if (type == GDT_Int64 || type == GDT_UInt64) {
+      const double v = type == GDT_Int64
+                           ? static_cast<double>(GDALGetRasterNoDataValueAsInt64(band, &has))
+                           : static_cast<double>(GDALGetRasterNoDataValueAsUInt64(band, &has));
+      if (has != 0) kind_ = Kind::exact, value_ = v;
+      return;
+    }
+    const double nd = GDALGetRasterNoDataValue(band, &has);
+    if (has == 0 || std::isnan(nd)) return;  // NaN cells are skipped anyway
+    if (type == GDT_Float64) {
+      kind_ = Kind::exact, value_ = nd;
+      return;
+    }
+    // Out of the type's range (or, for integers, not an integer) no cell can hold it: nothing
+    // matches, as in GDAL's mask. Float32 compares with the value rounded to float.
+    int clamped = 0, rounded = 0;
+    const double in_type = GDALAdjustValueToDataType(type, nd, &clamped, &rounded);
+    if (clamped != 0) return;
+    if (type == GDT_Float32) {
+      kind_ = Kind::as_float, float_ = static_cast<float>(in_type);
+    } else if (rounded == 0) {
+      kind_ = Kind::exact, value_ = nd;
+    }
+  }
+  // `v`: the cell as read (GDT_Float64, exact for every type but 64-bit integers).
+  bool operator()(double v) const {
+    switch (kind_) {
+      case Kind::none:
+        return false;
+      case Kind::exact:
+        return v == value_;
+      case Kind::as_float:
+        return static_cast<float>(v) == float_;
+    }
+    return false;
+  }
+  bool any() const { return kind_ != Kind::none; }
+
+ private:
+  enum class Kind { none, exact, as_float };
+  Kind kind_ = Kind::none;
+  double value_ = 0;
+  float float_ = 0;
+};
+
 class RasterSource final : public PointSource {
  public:
-  RasterSource(DatasetPtr ds, GDALRasterBandH band, std::array<double, 6> gt,
-               std::optional<double> nodata, SourceInfo info, SourceOptions options)
+  RasterSource(DatasetPtr ds, GDALRasterBandH band, std::array<double, 6> gt, NodataMatch nodata,
+               SourceInfo info, SourceOptions options)
       : ds_(std::move(ds)),
         band_(band),
         gt_(gt),
@@ -96,7 +158,7 @@ class RasterSource final : public PointSource {
       const int col = static_cast<int>(i % static_cast<std::size_t>(width_));
       ++counters_.records_read;
       const double v = strip_[i];
-      if (std::isnan(v) || (nodata_ && v == *nodata_)) {
+      if (std::isnan(v) || nodata_(v)) {
         ++counters_.rejected_nodata;
         continue;
       }
@@ -145,7 +207,7 @@ class RasterSource final : public PointSource {
   DatasetPtr ds_;
   GDALRasterBandH band_;
   std::array<double, 6> gt_;
-  std::optional<double> nodata_;  // compared with the raw value, before scale/offset
+  NodataMatch nodata_;  // compared with the raw value, before scale/offset
   double scale_ = 1, offset_ = 0;
   SourceInfo info_;
   SourceOptions options_;
@@ -180,17 +242,284 @@ std::string crs_of(GDALDatasetH ds) {
 
 }  // namespace
 
+namespace {
+
+namespace fs = std::filesystem;
+
+// Once per process: every driver registered (the per-open allow-list picks among them), GDAL's
+// network file systems limited to no extension at all, Python in VRTs off.
+void register_gdal() {
+  static std::once_flag registered;
+  std::call_once(registered, [] {
+    GDALAllRegister();
+    CPLSetConfigOption("CPL_VSIL_CURL_ALLOWED_EXTENSIONS", ".tinstream-no-network");
+    CPLSetConfigOption("GDAL_VRT_ENABLE_PYTHON", "NO");
+  });
+}
+
+// A null-terminated list of C strings over `names` (for GDALOpenEx / GDALIdentifyDriverEx).
+class DriverList {
+ public:
+  DriverList(const std::vector<std::string>& names, bool with_vrt) {
+    for (const auto& n : names) {
+      if (with_vrt || n != "VRT") names_.push_back(n.c_str());
+    }
+    names_.push_back(nullptr);
+  }
+  const char* const* get() const { return names_.data(); }
+  bool empty() const { return names_.size() == 1; }
+  std::string joined() const {
+    std::string out;
+    for (const char* n : names_) {
+      if (n != nullptr) out += (out.empty() ? "" : ", ") + std::string(n);
+    }
+    return out;
+  }
+
+ private:
+  std::vector<const char*> names_;
+};
+
+bool starts_with(std::string_view s, std::string_view prefix) {
+  return s.substr(0, prefix.size()) == prefix;
+}
+
+// `file` resolved (symlinks followed) to a regular file, under policy.root when it is set.
+// `what` names the file in errors ("ingest source", "VRT source 'x'").
+Result<fs::path> confined_file(const fs::path& file, const RasterPolicy& policy,
+                               const std::string& what) {
+  const std::string text = file.string();
+  if (starts_with(text, "/vsi") || text.find("://") != std::string::npos) {
+    return unsupported(what + " " + text +
+                       ": GDAL virtual file systems and URLs (/vsi…, …://) are not read");
+  }
+  std::error_code ec;
+  const fs::path real = fs::canonical(file, ec);
+  if (ec) return not_found(what + " " + text + ": cannot open: no such file");
+  if (!fs::is_regular_file(real, ec)) return unsupported(what + " " + text + ": not a file");
+  if (!policy.root.empty()) {
+    const fs::path root = fs::canonical(policy.root, ec);
+    if (ec) return not_found("data root " + policy.root.string() + " does not exist");
+    auto r = root.begin();
+    auto p = real.begin();
+    for (; r != root.end(); ++r, ++p) {
+      if (p == real.end() || *p != *r) {
+        return unsupported(what + " " + text + " lies outside the data root");
+      }
+    }
+  }
+  return real;
+}
+
+// The raster's and its band's sizes against the policy, before anything is allocated for them.
+Status check_size(GDALDatasetH ds, const RasterPolicy& policy, const std::string& what) {
+  const int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+  if (w < 1 || h < 1) return unsupported(what + ": the raster is empty");
+  if (w > policy.max_width || h > policy.max_height ||
+      static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h) > policy.max_cells) {
+    return unsupported(what + ": " + std::to_string(w) + " × " + std::to_string(h) +
+                       " cells exceed the raster limits (" + std::to_string(policy.max_width) +
+                       " × " + std::to_string(policy.max_height) + ", " +
+                       std::to_string(policy.max_cells) + " cells)");
+  }
+  for (int b = 1; b <= GDALGetRasterCount(ds); ++b) {
+    GDALRasterBandH band = GDALGetRasterBand(ds, b);
+    const GDALDataType type = GDALGetRasterDataType(band);
+    if (type == GDT_Unknown || GDALDataTypeIsComplex(type) != 0) {
+      return unsupported(what + ": band " + std::to_string(b) + " holds " +
+                         GDALGetDataTypeName(type) + " values, not heights");
+    }
+    int bx = 0, by = 0;
+    GDALGetBlockSize(band, &bx, &by);
+    const auto bytes = static_cast<std::uint64_t>(std::max(bx, 0)) *
+                       static_cast<std::uint64_t>(std::max(by, 0)) *
+                       static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(type));
+    if (bytes > policy.max_block_bytes) {
+      return unsupported(what + ": band " + std::to_string(b) + " has blocks of " +
+                         std::to_string(bx) + " × " + std::to_string(by) + " cells (" +
+                         std::to_string(bytes) + " bytes; the limit is " +
+                         std::to_string(policy.max_block_bytes) + ")");
+    }
+  }
+  return {};
+}
+
+struct XmlCloser {
+  void operator()(CPLXMLNode* n) const { CPLDestroyXMLNode(n); }
+};
+using XmlPtr = std::unique_ptr<CPLXMLNode, XmlCloser>;
+
+// The VRT elements a mosaic or a subset of DEM tiles needs (what gdal_translate -of VRT and
+// gdalbuildvrt write); any other element refuses the VRT.
+const std::set<std::string, std::less<>>& vrt_elements() {
+  static const std::set<std::string, std::less<>> allowed = {
+      // dataset
+      "VRTDataset", "SRS", "GeoTransform", "Metadata", "MDI", "VRTRasterBand", "OverviewList",
+      "BlockXSize", "BlockYSize",
+      // band
+      "NoDataValue", "HideNoDataValue", "ColorInterp", "Description", "UnitType", "Offset", "Scale",
+      "CategoryNames", "Category", "ColorTable", "Entry", "SimpleSource", "ComplexSource",
+      "AveragedSource",
+      // source
+      "SourceFilename", "SourceBand", "SourceProperties", "SrcRect", "DstRect", "NODATA",
+      "UseMaskBand", "ScaleOffset", "ScaleRatio", "Exponent", "SrcMin", "SrcMax", "DstMin",
+      "DstMax", "LUT", "ColorTableComponent"};
+  return allowed;
+}
+
+// A VRT SRS element: WKT or an authority code, nothing GDAL would read as a file name or a
+// PROJ string with init files and grids.
+bool plain_srs(std::string_view srs) {
+  const auto bracket = srs.find('[');
+  bool wkt = bracket != std::string_view::npos && bracket > 0;
+  for (std::size_t i = 0; wkt && i < bracket; ++i) {
+    const char c = srs[i];
+    wkt = (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+  }
+  std::string upper(srs);
+  for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (wkt) return upper.find("EXTENSION[") == std::string::npos;
+  const auto colon = srs.find(':');
+  if (colon == std::string_view::npos || colon == 0) return false;
+  for (std::size_t i = 0; i < srs.size(); ++i) {
+    const char c = srs[i];
+    if (i != colon && !std::isalnum(static_cast<unsigned char>(c)) && c != '+') return false;
+  }
+  return true;
+}
+
+class VrtCheck {
+ public:
+  VrtCheck(const fs::path& vrt, const RasterPolicy& policy)
+      : vrt_(vrt), policy_(policy), sources_(policy.drivers, false) {}
+
+  Status run() {
+    std::error_code ec;
+    const auto bytes = fs::file_size(vrt_, ec);
+    if (ec) return io_error(name() + ": cannot read: " + ec.message());
+    if (bytes > policy_.max_vrt_bytes) {
+      return unsupported(name() + ": a VRT of " + std::to_string(bytes) + " bytes (the limit is " +
+                         std::to_string(policy_.max_vrt_bytes) + ")");
+    }
+    std::ifstream in(vrt_, std::ios::binary);
+    std::string text(static_cast<std::size_t>(bytes), '\0');
+    if (!in.read(text.data(), static_cast<std::streamsize>(text.size()))) {
+      return io_error(name() + ": cannot read");
+    }
+    if (text.find('\0') != std::string::npos) return unsupported(name() + ": not a VRT (NUL)");
+    XmlPtr root(CPLParseXMLString(text.c_str()));
+    if (!root) return corrupt_data(name() + ": not valid XML: " + last_gdal_error());
+    bool dataset = false;
+    for (const CPLXMLNode* n = root.get(); n != nullptr; n = n->psNext) {
+      if (n->eType == CXT_Element && std::strcmp(n->pszValue, "?xml") == 0) continue;
+      if (n->eType == CXT_Comment) continue;
+      if (n->eType != CXT_Element || std::strcmp(n->pszValue, "VRTDataset") != 0 || dataset) {
+        return unsupported(name() + ": a VRT holds one VRTDataset and nothing else");
+      }
+      dataset = true;
+      if (Status s = element(n); !s) return s;
+    }
+    if (!dataset) return unsupported(name() + ": no VRTDataset element");
+    return {};
+  }
+
+ private:
+  std::string name() const { return vrt_.string(); }
+
+  Status element(const CPLXMLNode* e) {
+    const std::string_view tag = e->pszValue;
+    if (!vrt_elements().contains(tag)) {
+      return unsupported(name() + ": VRT element <" + std::string(tag) +
+                         "> is not accepted for ingest (only plain mosaics and subsets: no raw, "
+                         "derived, warped or pansharpened bands, masks, overviews, GCPs or open "
+                         "options)");
+    }
+    for (const CPLXMLNode* c = e->psChild; c != nullptr; c = c->psNext) {
+      if (c->eType == CXT_Attribute) {
+        if (std::strcmp(c->pszValue, "subClass") == 0) {
+          return unsupported(name() + ": VRT <" + std::string(tag) + " subClass=\"" +
+                             CPLGetXMLValue(c, nullptr, "") +
+                             "\"> is not accepted for ingest (only plain VRT bands)");
+        }
+      } else if (c->eType == CXT_Element) {
+        if (Status s = element(c); !s) return s;
+      } else if (c->eType == CXT_Literal) {
+        return unsupported(name() + ": VRT holds a literal (<!DOCTYPE …>) ");
+      }
+    }
+    if (tag == "SRS" && !plain_srs(CPLGetXMLValue(e, nullptr, ""))) {
+      return unsupported(name() + ": VRT <SRS> must be WKT without EXTENSION or an authority code");
+    }
+    if (tag == "SourceFilename") return source(e);
+    return {};
+  }
+
+  Status source(const CPLXMLNode* e) {
+    const std::string text = CPLGetXMLValue(e, nullptr, "");
+    const bool relative = std::strcmp(CPLGetXMLValue(e, "relativeToVRT", "0"), "1") == 0;
+    const std::string what = name() + ": VRT source '" + text + "'";
+    if (text.empty() || starts_with(text, "/vsi") || text.find("://") != std::string::npos ||
+        text.find('<') != std::string::npos) {
+      return unsupported(what + ": VRT sources are local files (no /vsi…, URL or inline VRT)");
+    }
+    fs::path file(text);
+    if (relative) {
+      file = vrt_.parent_path() / file;
+    } else if (!file.is_absolute()) {
+      return unsupported(what + ": a source not relative to the VRT must be an absolute path");
+    }
+    auto real = confined_file(file, policy_, what + ":");
+    if (!real) return real.error();
+    // GDAL opens the source with every registered driver: the first that recognises it must be
+    // one of ours (not VRT: sources are never VRTs themselves).
+    QuietGdalErrors quiet;
+    GDALDriverH ours = GDALIdentifyDriverEx(real->c_str(), GDAL_OF_RASTER, sources_.get(), nullptr);
+    GDALDriverH any = GDALIdentifyDriverEx(real->c_str(), GDAL_OF_RASTER, nullptr, nullptr);
+    if (ours == nullptr || ours != any) {
+      return unsupported(what + ": not a raster of the formats allowed for ingest (" +
+                         sources_.joined() + ")");
+    }
+    DatasetPtr ds(GDALOpenEx(real->c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, sources_.get(),
+                             nullptr, nullptr));
+    if (!ds) return unsupported(what + ": GDAL cannot open it: " + last_gdal_error());
+    return check_size(static_cast<GDALDatasetH>(ds.get()), policy_, what);
+  }
+
+  fs::path vrt_;
+  const RasterPolicy& policy_;
+  DriverList sources_;  // the policy's drivers but VRT
+};
+
+}  // namespace
+
 Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs_path,
                                                  const SourceOptions& options) {
-  static std::once_flag registered;
-  std::call_once(registered, [] { GDALAllRegister(); });
+  register_gdal();
   const std::string path = fs_path.string();
-  std::error_code ec;
-  if (!std::filesystem::exists(fs_path, ec)) return not_found(path + ": cannot open: no such file");
+  const RasterPolicy& policy = options.raster;
+  auto real = confined_file(fs_path, policy, "raster");
+  if (!real) {
+    // Keep the plain message for the common case of a missing file.
+    if (real.error().code == ErrorCode::not_found) {
+      return not_found(path + ": cannot open: no such file");
+    }
+    return Error(real.error().code, path + ": " + real.error().message);
+  }
+  const DriverList drivers(policy.drivers, true);
+  if (drivers.empty()) return unsupported(path + ": no GDAL driver is allowed for ingest");
 
   QuietGdalErrors quiet;
-  DatasetPtr ds(
-      GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
+  GDALDriverH driver = GDALIdentifyDriverEx(real->c_str(), GDAL_OF_RASTER, drivers.get(), nullptr);
+  if (driver == nullptr) {
+    return unsupported(path +
+                       ": not a LAS file, and not a raster of the formats allowed for ingest (" +
+                       drivers.joined() + ")");
+  }
+  if (std::strcmp(GDALGetDriverShortName(driver), "VRT") == 0) {
+    if (Status s = VrtCheck(*real, policy).run(); !s) return s.error();
+  }
+  DatasetPtr ds(GDALOpenEx(real->c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, drivers.get(), nullptr,
+                           nullptr));
   if (!ds) {
     return unsupported(
         path + ": not a LAS file, and GDAL cannot open it as a raster: " + last_gdal_error());
@@ -201,20 +530,18 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
     return invalid_argument(path + ": band " + std::to_string(options.raster_band) +
                             " requested, the raster has " + std::to_string(bands));
   }
+  if (Status s = check_size(h, policy, path); !s) return s.error();
   GDALRasterBandH band = GDALGetRasterBand(h, options.raster_band);
   std::array<double, 6> gt{};
   if (GDALGetGeoTransform(h, gt.data()) != CE_None) {
     return unsupported(path + ": the raster has no geotransform (not georeferenced)");
   }
-  int has_nodata = 0;
-  const double nd = GDALGetRasterNoDataValue(band, &has_nodata);
-  std::optional<double> nodata;
-  if (has_nodata != 0 && !std::isnan(nd)) nodata = nd;
+  const NodataMatch nodata(band, GDALGetRasterDataType(band));
 
   SourceInfo info;
   info.path = path;
-  GDALDriverH driver = GDALGetDatasetDriver(h);
-  info.format = std::string("GDAL ") + (driver ? GDALGetDriverShortName(driver) : "raster");
+  GDALDriverH opened = GDALGetDatasetDriver(h);
+  info.format = std::string("GDAL ") + (opened ? GDALGetDriverShortName(opened) : "raster");
   info.crs = crs_of(h);
   if (!info.crs.empty()) {
     info.crs_origin = "GDAL";

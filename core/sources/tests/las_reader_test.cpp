@@ -366,11 +366,11 @@ TEST_F(LasFile, UnknownVersionAndFormatAreUnsupported) {
   expect_error(open_las(p2), ErrorCode::unsupported, "format 11", p2);
 }
 
-TEST_F(LasFile, CompressedPointsAreUnsupportedWithAClearMessage) {
+TEST_F(LasFile, CompressionBitWithoutLaszipVlrIsCorrupt) {
   auto b = build_las(small_spec());
   b[104] = static_cast<unsigned char>(b[104] | 0x80);  // how LASzip marks compressed points
   auto p = write(b);
-  expect_error(open_las(p), ErrorCode::unsupported, "LASzip", p);
+  expect_error(open_las(p), ErrorCode::corrupt_data, "no LASzip VLR", p);
 }
 
 TEST_F(LasFile, ZeroOrNanScaleIsRejected) {
@@ -578,18 +578,34 @@ TEST(LasRealData, NewMexicoGeoKeysGiveEpsgAndUsSurveyFeet) {
   }
 }
 
-TEST(LasRealData, LazIsRefusedWithAClearError) {
-  const auto path = kData / "autzen_trim.laz";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
-  auto src = open_source(path);
-  ASSERT_FALSE(src.ok());
-  EXPECT_EQ(src.error().code, ErrorCode::unsupported);
-  EXPECT_NE(src.error().message.find("LASzip"), std::string::npos);
-  EXPECT_NE(src.error().message.find("autzen_trim.laz"), std::string::npos);
-  // Forced through the LAS reader, the compression bit in the format byte is caught too.
-  auto forced = open_las(path);
-  ASSERT_FALSE(forced.ok());
-  EXPECT_EQ(forced.error().code, ErrorCode::unsupported);
+// LAZ reads exactly like LAS: the same points, records, classes and counters, with the default
+// class filter and with every class.
+TEST(LasRealData, AutzenLazReadsLikeAutzenLas) {
+  const auto laz = kData / "autzen_trim.laz";
+  const auto las = kData / "autzen_trim.las";
+  if (!std::filesystem::exists(laz)) GTEST_SKIP() << "missing " << laz;
+  for (bool every_class : {false, true}) {
+    SourceOptions o = every_class ? all_classes() : SourceOptions{};
+    auto a = open_source(laz, o);
+    auto b = open_source(las, o);
+    ASSERT_TRUE(a.ok()) << a.error().message;
+    ASSERT_TRUE(b.ok()) << b.error().message;
+    EXPECT_EQ((*a)->info().crs, (*b)->info().crs);
+    EXPECT_EQ((*a)->info().record_count, (*b)->info().record_count);
+    EXPECT_EQ((*a)->info().format, "LAZ 1.2 PDF 3");
+    auto pa = read_all(**a, 4321);
+    auto pb = read_all(**b, 4321);
+    ASSERT_TRUE(pa.ok() && pb.ok());
+    ASSERT_EQ(pa->size(), pb->size());
+    EXPECT_EQ(pa->size(), every_class ? 110000u : 26107u);
+    for (std::size_t i = 0; i < pa->size(); ++i) {
+      const SourcePoint &p = (*pa)[i], &q = (*pb)[i];
+      ASSERT_TRUE(p.x == q.x && p.y == q.y && p.z == q.z && p.record == q.record &&
+                  p.classification == q.classification)
+          << "point " << i;
+    }
+    EXPECT_EQ((*a)->counters().rejected_class, (*b)->counters().rejected_class);
+  }
 }
 
 }  // namespace

@@ -6,9 +6,12 @@
 #include <mutex>
 #include <thread>
 
+#include "tinstream/base/worker_threads.hpp"
+
 namespace tinstream::store {
 
 struct QueuedWriter::Impl {
+  using Occupancy = QueuedWriter::Occupancy;
   LayerWriter& writer;
   const std::size_t capacity;
   const std::size_t max_bytes;
@@ -19,10 +22,14 @@ struct QueuedWriter::Impl {
   bool closed = false;
   Status failure;
   std::uint64_t stored = 0;
-  std::thread thread;  // last: started once the members above exist
+  Occupancy peak;                                      // the most ever queued
+  WorkerThreads thread{"store queue", "store.queue"};  // last: started once the rest exists
 
   Impl(LayerWriter& w, std::size_t c, std::size_t b)
-      : writer(w), capacity(std::max<std::size_t>(c, 1)), max_bytes(b), thread([this] { run(); }) {}
+      : writer(w), capacity(std::max<std::size_t>(c, 1)), max_bytes(b) {
+    // A thread that cannot start is the queue's first error: push() and finish() return it.
+    if (Status s = thread.start([this] { run(); }); !s) failure = std::move(s);
+  }
 
   void run() {
     for (;;) {
@@ -36,7 +43,12 @@ struct QueuedWriter::Impl {
         queued_bytes -= tile.compressed.size();
         space.notify_all();  // a freed byte budget may let several pushes in
       }
-      Status s = writer.put(std::move(tile));
+      // The exception barrier: whatever put() throws is the queue's error like a store error.
+      // Fault point "store.queue": one put.
+      Status s = guarded("store queue", [&]() -> Status {
+        fault::point("store.queue");
+        return writer.put(std::move(tile));
+      });
       std::lock_guard lock(mutex);
       if (!s.ok()) {
         failure = std::move(s);
@@ -68,6 +80,8 @@ Status QueuedWriter::push(StoredTile&& tile) {
   if (impl_->closed) return invalid_argument("QueuedWriter: push() after finish()");
   impl_->queue.push_back(std::move(tile));
   impl_->queued_bytes += bytes;
+  impl_->peak.tiles = std::max(impl_->peak.tiles, impl_->queue.size());
+  impl_->peak.bytes = std::max(impl_->peak.bytes, impl_->queued_bytes);
   impl_->ready.notify_one();
   return {};
 }
@@ -79,9 +93,19 @@ Status QueuedWriter::finish() {
     impl_->ready.notify_one();
     impl_->space.notify_all();
   }
-  if (impl_->thread.joinable()) impl_->thread.join();
+  (void)impl_->thread.join();  // run() keeps its own failures
   std::lock_guard lock(impl_->mutex);
   return impl_->failure;
+}
+
+QueuedWriter::Occupancy QueuedWriter::queued() const {
+  std::lock_guard lock(impl_->mutex);
+  return {impl_->queue.size(), impl_->queued_bytes};
+}
+
+QueuedWriter::Occupancy QueuedWriter::peak() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->peak;
 }
 
 std::uint64_t QueuedWriter::stored() const {

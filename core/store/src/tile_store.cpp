@@ -25,9 +25,9 @@
 #include <unordered_map>
 
 #include "schema.hpp"
+#include "tinstream/base/fault.hpp"
 #include "tinstream/store/etag.hpp"
 #include "tinstream/tile/codec.hpp"
-#include "writer_test_access.hpp"
 
 namespace tinstream::store {
 
@@ -597,8 +597,6 @@ struct LayerWriter::Impl {
   // puts (other writers and publishes on the same file wait at most one flush).
   std::vector<StoredTile> pending;  // prepared by put(), waiting for the next flush
   std::size_t pending_bytes = 0;
-  // Testing only (LayerWriterTestAccess): called inside the flush transaction after each row.
-  std::function<void(std::size_t rows_in_transaction)> after_row_written;
 
   std::string what() const { return "layer '" + name + "' version " + std::to_string(version); }
   Status usable() const {
@@ -706,13 +704,13 @@ Status LayerWriter::Impl::flush() {
       if (!TileStore::Impl::done(*q))
         return db.sql_error("writing " + what() + " tile " + t.id.to_string());
       q->reset();
-      if (after_row_written) after_row_written(i + 1);
     }
     return {};
   });
   if (s) {
     pending.clear();
     pending_bytes = 0;
+    fault::point("store.commit");  // a batch of the new version is committed (crash tests)
   }
   return s;
 }
@@ -911,15 +909,6 @@ Status validate_layer_name(std::string_view name) {
     }
   }
   return {};
-}
-
-}  // namespace tinstream::store
-
-namespace tinstream::store {
-
-void LayerWriterTestAccess::set_after_row_written(LayerWriter& writer,
-                                                  std::function<void(std::size_t)> hook) {
-  writer.impl_->after_row_written = std::move(hook);
 }
 
 }  // namespace tinstream::store

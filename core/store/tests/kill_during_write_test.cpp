@@ -2,15 +2,16 @@
 // version intact and the file uncorrupted; the next writer cleans up and publishes.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstring>
 #include <map>
 #include <random>
 
 #include "store_test_util.hpp"
 #include "tinstream/tile/codec.hpp"
-#include "writer_test_access.hpp"
 
 namespace tinstream::store {
 namespace {
@@ -47,31 +48,54 @@ std::map<geo::TileId, std::vector<std::uint8_t>> snapshot(TileStore& store,
 
 enum class Death { sigkill, exit_in_transaction };
 
-// The child: opens the store, starts a new version of `layer` and writes tiles. Two batches
-// (512 tiles) are committed; inside the third batch's transaction, after 100 rows, it tells the
-// parent through the pipe and then either blocks there until SIGKILLed or _exits on the spot.
+// Where the child dies, found through SQLite's own statement trace (installed on every
+// connection the child opens, with sqlite3_auto_extension), so the store needs no test hook: it
+// counts the tile rows of each write transaction, and when the third transaction that writes
+// tiles starts its 101st row (100 rows written, the transaction open) it tells the parent
+// through the pipe and then either blocks until SIGKILLed or _exits on the spot.
+struct DeathPoint {
+  int pipe_fd = -1;
+  Death death = Death::sigkill;
+  int tile_transactions = 0;
+  int rows = 0;  // tile rows in the current transaction
+};
+DeathPoint death_point;  // set in the child only
+
+int on_statement(unsigned, void*, void*, void* sql_text) {
+  const char* sql = static_cast<const char*>(sql_text);  // SQLITE_TRACE_STMT: the SQL text
+  if (std::strncmp(sql, "BEGIN", 5) == 0) death_point.rows = 0;
+  if (std::strstr(sql, "INSERT OR REPLACE INTO tiles") == nullptr) return 0;
+  if (++death_point.rows == 1) ++death_point.tile_transactions;
+  if (death_point.tile_transactions == 3 && death_point.rows == 101) {
+    const char byte = 'w';
+    if (write(death_point.pipe_fd, &byte, 1) != 1) _exit(13);
+    if (death_point.death == Death::exit_in_transaction) _exit(0);  // no destructors, tx open
+    for (;;) pause();  // hold the transaction until killed
+  }
+  return 0;
+}
+
+extern "C" int trace_tile_rows(sqlite3* db, const char**, const sqlite3_api_routines*) {
+  sqlite3_trace_v2(db, SQLITE_TRACE_STMT, on_statement, nullptr);
+  return SQLITE_OK;
+}
+
+// The child: opens the store, starts a new version of `layer` and writes tiles; two batches
+// (512 tiles) are committed before the death point in the third.
 [[noreturn]] void child_writer(const std::filesystem::path& path, int pipe_fd, Death death) {
+  death_point = {pipe_fd, death, 0, 0};
+  if (sqlite3_auto_extension(reinterpret_cast<void (*)()>(trace_tile_rows)) != SQLITE_OK) _exit(9);
   auto store = TileStore::open(path, TileStore::Mode::read_write);
   if (!store) _exit(10);
   auto writer = store->begin_layer(basic_info("dem"));
   if (!writer) _exit(11);
-  int flushes = 0;
-  LayerWriterTestAccess::set_after_row_written(**writer, [&](std::size_t row) {
-    if (row == 1) ++flushes;
-    if (flushes == 3 && row == 100) {
-      const char byte = 'w';
-      if (write(pipe_fd, &byte, 1) != 1) _exit(13);
-      if (death == Death::exit_in_transaction) _exit(0);  // no destructors, transaction open
-      for (;;) pause();                                   // hold the transaction until killed
-    }
-  });
   std::mt19937_64 rng(99);
   for (std::size_t i = 0; i < 5000; ++i) {
     const auto k = static_cast<std::uint32_t>(i);
     const TinTile t = make_grid_tile({14, k % 16384, (k / 16384) % 16384}, 3, 3, rng);
     if (!(*writer)->put(t).ok()) _exit(12);
   }
-  _exit(14);  // never reached: the hook fires at the third batch
+  _exit(14);  // never reached: the death point is in the third batch
 }
 
 // Kills and reaps the child if the parent leaves the test early (a failed ASSERT).

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "store_test_util.hpp"
+#include "tinstream/base/fault.hpp"
 #include "tinstream/store/queued_writer.hpp"
 #include "tinstream/tile/codec.hpp"
 
@@ -332,13 +333,12 @@ TEST(TileStore, PreparedTilesOnOtherThreadsStoreAsPutDoes) {
   // Prepared on worker threads, put by this one: the same rows as put(TinTile) writes.
   std::vector<Result<StoredTile>> prepared(tiles.size(), Error(ErrorCode::internal, "unset"));
   {
-    std::vector<std::thread> workers;
+    std::vector<std::jthread> workers;  // joined at the end of the block
     for (std::size_t w = 0; w < 2; ++w) {
       workers.emplace_back([&, w] {
         for (std::size_t i = w; i < tiles.size(); i += 2) prepared[i] = prepare_tile(tiles[i]);
       });
     }
-    for (auto& t : workers) t.join();
   }
   write_layer(store, "direct", tiles);
   auto writer = store.begin_layer(basic_info("prepared"));
@@ -403,16 +403,24 @@ TEST(QueuedWriter, TilesPushedFromSeveralThreadsAreAllStored) {
     ASSERT_TRUE(writer.ok());
     {
       QueuedWriter queue(**writer, capacity, max_bytes);
-      std::vector<std::thread> workers;
-      for (std::size_t w = 0; w < 3; ++w) {
-        workers.emplace_back([&, w] {
-          for (std::size_t i = w; i < tiles.size(); i += 3) {
-            ASSERT_TRUE(queue.push(prepared(tiles[i])).ok());
-          }
-        });
+      // Each worker keeps its first failure; the test asserts on this thread once all are joined
+      // (an ASSERT in a worker would only end that worker).
+      std::vector<Status> results(3);
+      {
+        std::vector<std::jthread> workers;  // joined however this block is left
+        for (std::size_t w = 0; w < 3; ++w) {
+          workers.emplace_back([&, w] {
+            for (std::size_t i = w; i < tiles.size() && results[w].ok(); i += 3) {
+              auto p = prepare_tile(tiles[i]);
+              results[w] = p ? queue.push(std::move(*p)) : Status(p.error());
+            }
+          });
+        }
       }
-      for (auto& t : workers) t.join();
+      for (const Status& r : results) ASSERT_TRUE(r.ok()) << r.error().message;
       ASSERT_TRUE(queue.finish().ok());
+      EXPECT_LE(queue.peak().tiles, capacity);
+      EXPECT_LE(queue.peak().bytes, std::max(max_bytes, one_tile * 2));
       EXPECT_EQ(queue.stored(), tiles.size());
       EXPECT_EQ(queue.push(prepared(tiles[0])).error().code,
                 ErrorCode::invalid_argument);  // after finish()
@@ -420,6 +428,74 @@ TEST(QueuedWriter, TilesPushedFromSeveralThreadsAreAllStored) {
     ASSERT_TRUE((*writer)->publish(basic_info("q")).ok());
     EXPECT_EQ(store.layer("q")->tile_count, tiles.size());
     for (const auto& t : tiles) EXPECT_TRUE(same_tile(**store.read_tile("q", t.id), t));
+  }
+}
+
+// The bounds, observed: the queue's thread is held at its first put (fault point "store.queue",
+// pause) while one thread pushes; the queue fills to exactly its bound and no further, whichever
+// (tiles or bytes) binds first. Before, the bounds were only set, never seen to hold.
+TEST(QueuedWriter, TheQueueFillsToItsBoundAndNoFurtherWhileTheStoreIsBusy) {
+  ASSERT_TRUE(fault::enabled()) << "fault points are not compiled into this test build";
+  std::vector<StoredTile> tiles;
+  std::mt19937_64 rng(53);
+  for (std::uint32_t i = 0; i < 12; ++i) {
+    tiles.push_back(prepared(make_grid_tile({10, i, 7}, 2 + i % 4, 2, rng)));
+  }
+  std::vector<std::size_t> sizes;
+  for (const auto& t : tiles) sizes.push_back(t.compressed.size());
+  // Tiles after the first (held by the paused thread) that fit `max_bytes` one after another.
+  auto fitting = [&](std::size_t capacity, std::size_t max_bytes) {
+    std::size_t n = 0, bytes = 0;
+    while (1 + n < tiles.size() && n < capacity && (n == 0 || bytes + sizes[1 + n] <= max_bytes)) {
+      bytes += sizes[1 + n];
+      ++n;
+    }
+    return std::pair{n, bytes};
+  };
+  const std::size_t two_to_four = sizes[1] + sizes[2] + sizes[3];
+  const std::pair<std::size_t, std::size_t> bounds[] = {
+      {4, static_cast<std::size_t>(-1)}, {1000, two_to_four}, {1000, 1}, {2, two_to_four}};
+  for (const auto& [capacity, max_bytes] : bounds) {
+    SCOPED_TRACE("capacity " + std::to_string(capacity) + ", bytes " + std::to_string(max_bytes));
+    const auto [expect_tiles, expect_bytes] = fitting(capacity, max_bytes);
+    TempDir dir;
+    auto store = open_rw(dir / "a.tinstream");
+    auto writer = store.begin_layer(basic_info("q"));
+    ASSERT_TRUE(writer.ok());
+    fault::Arm hold("store.queue", 0, fault::Kind::pause);
+    QueuedWriter queue(**writer, capacity, max_bytes);
+    std::atomic<std::size_t> pushed{0};
+    Status result;
+    {
+      std::jthread producer([&] {
+        for (const auto& t : tiles) {
+          result = queue.push(StoredTile(t));
+          if (!result.ok()) return;
+          // The rest only once the thread holds the first: the queue then fills from empty.
+          if (++pushed == 1 && !hold.wait_paused()) return;
+        }
+      });
+      ASSERT_TRUE(hold.wait_paused()) << "the queue's thread never took a tile";
+      // The producer pushes until the bound stops it; wait for that state (no sleep-and-assert:
+      // it must come, and with the thread held nothing can leave the queue).
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+      while (pushed.load() < 1 + expect_tiles && std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::yield();
+      }
+      EXPECT_EQ(pushed.load(), 1 + expect_tiles);
+      EXPECT_EQ(queue.queued().tiles, expect_tiles);
+      EXPECT_EQ(queue.queued().bytes, expect_bytes);
+      EXPECT_EQ(queue.peak().tiles, expect_tiles);  // never more, on the way there
+      EXPECT_EQ(queue.peak().bytes, expect_bytes);
+      hold.release();
+    }  // the producer finishes once the thread goes on
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    ASSERT_TRUE(queue.finish().ok());
+    EXPECT_EQ(queue.stored(), tiles.size());
+    // Draining and refilling, the bounds held throughout (a tile above the byte bound goes alone).
+    EXPECT_LE(queue.peak().tiles, capacity);
+    EXPECT_LE(queue.peak().bytes,
+              std::max(max_bytes, *std::max_element(sizes.begin(), sizes.end())));
   }
 }
 

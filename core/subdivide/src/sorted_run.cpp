@@ -16,6 +16,8 @@
 #include <string>
 #include <thread>
 
+#include "tinstream/base/worker_threads.hpp"
+
 namespace tinstream::subdivide {
 namespace {
 
@@ -123,7 +125,11 @@ class RunWriter {
                                   bool background = false, bool keyed = false) {
     FilePtr f(std::fopen(path.c_str(), "wb"));
     if (!f) return io_failure("cannot create", path);
-    return RunWriter(std::move(f), path, buffer_records, background, keyed);
+    RunWriter w(std::move(f), path, buffer_records, keyed);
+    if (background) {
+      if (Status s = w.start_background(); !s) return s.error();
+    }
+    return w;
   }
   // Writes keyed records into the region of an existing file that starts at record `first` (one
   // of the parallel merge's halves of the sorted run).
@@ -133,17 +139,23 @@ class RunWriter {
     if (!f || fseeko(f.get(), static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0) {
       return io_failure("cannot open", path);
     }
-    RunWriter w(std::move(f), path, buffer_records, /*background=*/true, /*keyed=*/true);
+    RunWriter w(std::move(f), path, buffer_records, /*keyed=*/true);
+    if (Status s = w.start_background(); !s) return s.error();
     return w;
   }
-  RunWriter(FilePtr f, const std::filesystem::path& path, std::size_t buffer_records,
-            bool background, bool keyed)
+  RunWriter(FilePtr f, const std::filesystem::path& path, std::size_t buffer_records, bool keyed)
       : file_(std::move(f)),
         path_(path),
         record_bytes_(keyed ? sizeof(SortedPoint) : sizeof(StoredRecord)),
         capacity_(std::max<std::size_t>(buffer_records, 256) * record_bytes_) {
     buffer_.reserve(capacity_);
-    if (background) background_ = std::make_unique<Background>(file_.get(), capacity_);
+  }
+  // Starts the writer thread; an Error (nothing started) when it cannot be created.
+  Status start_background() {
+    auto background = std::make_unique<Background>(file_.get(), capacity_);
+    if (Status s = background->thread.start([b = background.get()] { b->run(); }); !s) return s;
+    background_ = std::move(background);
+    return {};
   }
   Status push(const SortedPoint& p) {
     const std::size_t at = buffer_.size();
@@ -185,10 +197,7 @@ class RunWriter {
   // The writer thread and the buffer it writes. `writing`, `pending`, `stop` and `error` are
   // guarded by `mutex`; the thread touches the FILE only while `pending`.
   struct Background {
-    Background(std::FILE* f, std::size_t capacity) : file(f) {
-      writing.reserve(capacity);
-      thread = std::thread([this] { run(); });
-    }
+    Background(std::FILE* f, std::size_t capacity) : file(f) { writing.reserve(capacity); }
     Background(const Background&) = delete;
     Background& operator=(const Background&) = delete;
     ~Background() {
@@ -197,7 +206,7 @@ class RunWriter {
         stop = true;
       }
       wake.notify_all();
-      thread.join();
+      (void)thread.join();
     }
     // Swaps `buffer` (full) with the written one (emptied). Requires: !pending.
     void hand_over(std::vector<unsigned char>& buffer) {
@@ -221,9 +230,15 @@ class RunWriter {
         wake.wait(lock, [&] { return pending || stop; });
         if (!pending) return;
         lock.unlock();
-        const bool ok = writing.empty() ||
-                        std::fwrite(writing.data(), 1, writing.size(), file) == writing.size();
-        const int err = ok ? 0 : (errno != 0 ? errno : EIO);
+        bool ok = false;
+        // The barrier keeps `pending` honest: an exception here is a failed write, not a thread
+        // gone with the caller waiting on it. Fault point "pass2.writer".
+        const bool ran = guarded("pass 2 run writer", [&] {
+                           fault::point("pass2.writer");
+                           ok = writing.empty() || std::fwrite(writing.data(), 1, writing.size(),
+                                                               file) == writing.size();
+                         }).ok();
+        const int err = ok ? 0 : (!ran || errno == 0 ? EIO : errno);
         lock.lock();
         if (err != 0 && error == 0) error = err;
         pending = false;
@@ -236,7 +251,8 @@ class RunWriter {
     std::vector<unsigned char> writing;
     bool pending = false, stop = false;
     int error = 0;
-    std::thread thread;  // last: started when the rest exists
+    WorkerThreads thread{"pass 2 run writer",
+                         "pass2.writer"};  // last: started when the rest exists
   };
 
   Status wait_background() {
@@ -854,9 +870,7 @@ struct SortedRunBuilder::State {
   explicit State(const SubdivideOptions& o) : options(o) {}
   State(const State&) = delete;
   State& operator=(const State&) = delete;
-  ~State() {
-    if (spill_thread.joinable()) spill_thread.join();
-  }
+  ~State() { (void)spill_thread.join(); }
 
   SubdivideOptions options;
   std::size_t budget_records = 0, sort_capacity = 0, merge_buffer = 0;
@@ -871,8 +885,7 @@ struct SortedRunBuilder::State {
 
   // Owned by the spill thread while it runs (spilling, order, scratch, spill_*).
   std::vector<KeyIndex> order, scratch;
-  std::thread spill_thread;
-  Status spill_status;
+  WorkerThreads spill_thread{"pass 2 spill", "pass2.spill"};  // one spill at a time
   std::uint64_t spill_duplicates = 0;
 
   std::filesystem::path temp_path() {
@@ -881,9 +894,9 @@ struct SortedRunBuilder::State {
     return p;
   }
   Status join_spill() {
-    if (spill_thread.joinable()) spill_thread.join();
+    Status s = spill_thread.join();  // the spill's Status (or the exception it threw)
     duplicates += std::exchange(spill_duplicates, 0);
-    return std::exchange(spill_status, Status{});
+    return s;
   }
   // Hands the full buffer to the spill thread (after the previous spill finished) and continues
   // with the other buffer.
@@ -894,10 +907,10 @@ struct SortedRunBuilder::State {
     buffer.reserve(sort_capacity);
     auto path = temp_path();
     runs.push_back(path);
-    spill_thread = std::thread([this, path] {
-      spill_status = write_run(spilling, order, scratch, path, spill_duplicates);
+    return spill_thread.start([this, path] {
+      fault::point("pass2.spill");
+      return write_run(spilling, order, scratch, path, spill_duplicates);
     });
-    return {};
   }
 };
 
@@ -1034,15 +1047,20 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
     std::uint64_t high_duplicates = 0;
     std::atomic<std::uint64_t> high_done{0};
     std::atomic<bool> stop{false};
-    Status high_status;
-    std::thread high([&] {
-      high_status = merge_runs(split.high, half_buffer, *high_writer, &high_levels, &high_tally,
-                               high_duplicates, [&](std::uint64_t done) {
-                                 high_done = done;
-                                 return !stop;
-                               });
-      if (high_status) high_status = high_writer->close();
-    });
+    WorkerThreads high("pass 2 merge", "pass2.merge");
+    if (Status s = high.start([&]() -> Status {
+          fault::point("pass2.merge");
+          Status merged = merge_runs(split.high, half_buffer, *high_writer, &high_levels,
+                                     &high_tally, high_duplicates, [&](std::uint64_t done) {
+                                       high_done = done;
+                                       return !stop;
+                                     });
+          if (!merged) return merged;
+          return high_writer->close();
+        });
+        !s) {
+      return s.error();
+    }
     Status low_status = merge_runs(split.low, half_buffer, *low_writer, &levels, &tally,
                                    result.duplicates_merged, [&](std::uint64_t done) {
                                      if (tick(done + high_done)) return true;
@@ -1051,7 +1069,7 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
                                    });
     if (low_status) low_status = low_writer->close();
     if (!low_status) stop = true;
-    high.join();
+    const Status high_status = high.join();
     if (!low_status) return low_status.error();
     if (!high_status) return high_status.error();
     result.duplicates_merged += high_duplicates;
@@ -1162,6 +1180,9 @@ Status SortedRunReader::read(std::uint64_t first, std::uint64_t count,
   }
   out.resize(count);
   if (count == 0) return {};
+  if (auto injected = fault::error_at("sorted_run.read")) {
+    return io_error("cannot read " + path_.string() + ": " + *injected);
+  }
   if (fseeko(file_, static_cast<off_t>(first * sizeof(SortedPoint)), SEEK_SET) != 0 ||
       std::fread(out.data(), sizeof(SortedPoint), count, file_) != count) {
     return io_failure("cannot read", path_);

@@ -1,6 +1,7 @@
 #include "tinstream/subdivide/sorted_run.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -19,8 +20,7 @@ class TempDir {
  public:
   TempDir() {
     path_ = fs::temp_directory_path() /
-            ("tinstream-subdivide-test-" +
-             std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+            ("tinstream-subdivide-test-" + std::to_string(::getpid()) + "-" +
              ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(path_);
     fs::create_directories(path_);
@@ -275,9 +275,9 @@ TEST(Subdivide, TileIndexSameWhetherTalliedOrReRead) {
   }
 }
 
-// A file already at the output path is replaced: the sorted run has exactly the run's size,
-// whether the old file was longer or shorter.
-TEST(Subdivide, ExistingOutputFileIsOverwrittenAndCutToSize) {
+// A file already at the output path is replaced by the sorted run (the merge creates its output):
+// the file then has exactly the run's size, whether the old one was longer or shorter.
+TEST(Subdivide, ExistingOutputFileIsReplaced) {
   const auto pts = clustered_points(5000, 14);
   const auto expected = reference_run(pts);
   for (std::size_t garbage : {std::size_t{1} << 20, std::size_t{1000}}) {

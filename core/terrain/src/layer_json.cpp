@@ -66,12 +66,14 @@ std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& sto
 
 std::string layer_json(const LayerJsonInput& in) {
   using nlohmann::json;
+  // A corrupt layer row may say min_level > max_level: by_level is sized by max_level, so the
+  // ancestors must stay above it.
+  const std::uint32_t min_level = std::min(in.min_level, in.max_level);
   std::vector<std::vector<geo::TileId>> by_level(in.max_level + 1);
   for (const auto& id : in.tile_ids) {
-    if (id.z <= in.max_level && id.z >= in.min_level) by_level[id.z].push_back(id);
+    if (id.z <= in.max_level && id.z >= min_level) by_level[id.z].push_back(id);
   }
-  for (const auto& id : synthetic_ancestors(in.tile_ids, in.min_level))
-    by_level[id.z].push_back(id);
+  for (const auto& id : synthetic_ancestors(in.tile_ids, min_level)) by_level[id.z].push_back(id);
   json available = json::array();
   for (std::uint32_t z = 0; z <= in.max_level; ++z) {
     json level = json::array();

@@ -100,21 +100,25 @@ std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& tr
   for (std::size_t k = 0; k < m; ++k) base[k] = rotated[rank[k]];
 
   // Neighbours: the triangle holding the reverse of each directed edge, found among the edges
-  // leaving the edge's end vertex (compressed rows by start vertex).
+  // leaving the edge's end vertex (compressed rows by start vertex, each row sorted by end vertex
+  // then triangle, so a lookup is a binary search: a vertex shared by many triangles — say, a
+  // hostile tile repeating one triangle 100k times — costs log of its degree, not its degree).
   std::vector<std::uint32_t> row(vertices + 1, 0);
   for (const auto& t : base) {
     for (std::uint32_t v : t) ++row[v + 1];
   }
   for (std::size_t v = 0; v < vertices; ++v) row[v + 1] += row[v];
   std::vector<std::uint32_t> fill(row.begin(), row.end() - 1);
-  std::vector<std::uint32_t> edge_to(3 * m), edge_triangle(3 * m);  // by row position
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edge(3 * m);  // (to, triangle) by row
   for (std::size_t k = 0; k < m; ++k) {
     const auto& t = base[k];
     for (int e = 0; e < 3; ++e) {
-      const std::uint32_t at = fill[t[static_cast<std::size_t>(e)]]++;
-      edge_to[at] = t[static_cast<std::size_t>((e + 1) % 3)];
-      edge_triangle[at] = static_cast<std::uint32_t>(k);
+      edge[fill[t[static_cast<std::size_t>(e)]]++] = {t[static_cast<std::size_t>((e + 1) % 3)],
+                                                      static_cast<std::uint32_t>(k)};
     }
+  }
+  for (std::size_t v = 0; v < vertices; ++v) {
+    std::sort(edge.begin() + row[v], edge.begin() + row[v + 1]);
   }
   std::vector<std::array<std::uint32_t, 3>> across(m);
   for (std::size_t k = 0; k < m; ++k) {
@@ -122,11 +126,11 @@ std::vector<tile::Triangle> locality_order(const std::vector<tile::Triangle>& tr
     for (int e = 0; e < 3; ++e) {
       const std::uint32_t from = t[static_cast<std::size_t>((e + 1) % 3)];
       const std::uint32_t to = t[static_cast<std::size_t>(e)];
-      std::uint32_t found = kNo;
-      for (std::uint32_t at = row[from]; at < row[from + 1]; ++at) {
-        if (edge_to[at] == to) found = std::min(found, edge_triangle[at]);
-      }
-      across[k][static_cast<std::size_t>(e)] = found;
+      // The first (to, ·) in the row: the smallest triangle holding the edge from → to.
+      const auto first = std::lower_bound(edge.begin() + row[from], edge.begin() + row[from + 1],
+                                          std::pair<std::uint32_t, std::uint32_t>{to, 0});
+      across[k][static_cast<std::size_t>(e)] =
+          first != edge.begin() + row[from + 1] && first->first == to ? first->second : kNo;
     }
   }
 
@@ -291,6 +295,289 @@ tile::TinTile flat_tile(const geo::TileId& id) {
   return t;
 }
 
+namespace {
+
+// ---- encode_quantized_mesh, step by step ----------------------------------------------------
+
+// Border sides a vertex lies on (bits, a corner has two).
+constexpr std::uint8_t kWest = 1, kSouth = 2, kEast = 4, kNorth = 8;
+
+// The tile's vertices in the tile numbering (tin_tile.hpp), each with its border sides.
+struct SidedVertices {
+  std::vector<tile::Vertex> vertices;
+  std::vector<std::uint8_t> sides;
+};
+
+// Errors: more vertices than 32-bit indices can count, a triangle index out of range.
+Result<SidedVertices> gather_vertices(const tile::TinTile& tile) {
+  SidedVertices out;
+  out.vertices.assign(tile.corners.begin(), tile.corners.end());
+  out.sides = {kNorth | kWest, kNorth | kEast, kSouth | kWest, kSouth | kEast};
+  auto append = [&](const std::vector<tile::Vertex>& list, std::uint8_t bits) {
+    for (const auto& v : list) {
+      out.vertices.push_back(v);
+      out.sides.push_back(bits);
+    }
+  };
+  append(tile.north, kNorth);
+  append(tile.east, kEast);
+  append(tile.south, kSouth);
+  append(tile.west, kWest);
+  append(tile.interior, 0);
+  const std::size_t n = out.vertices.size();
+  if (n > std::numeric_limits<std::uint32_t>::max() / 2) {
+    return invalid_argument("tile " + tile.id.to_string() + ": too many vertices");
+  }
+  for (const auto& t : tile.triangles) {
+    for (std::uint32_t i : t) {
+      if (i >= n) {
+        return invalid_argument("tile " + tile.id.to_string() + ": triangle index " +
+                                std::to_string(i) + " out of range");
+      }
+    }
+  }
+  return out;
+}
+
+// The height range the tile's heights are quantised in (and the header's min/max height).
+struct HeightRange {
+  double min = 0, max = 0;
+  double span() const { return max - min; }
+};
+
+// Errors: a non-finite height.
+Result<HeightRange> height_range(const tile::TinTile& tile,
+                                 const std::vector<tile::Vertex>& vertices) {
+  HeightRange h{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const auto& v : vertices) {
+    h.min = std::min(h.min, v.z);
+    h.max = std::max(h.max, v.z);
+  }
+  if (!std::isfinite(h.min) || !std::isfinite(h.max)) {
+    return invalid_argument("tile " + tile.id.to_string() + ": non-finite height");
+  }
+  return h;
+}
+
+// u, v, height of each vertex on the 15-bit grid (0 … 32767).
+struct QuantisedVertices {
+  std::vector<std::uint16_t> u, v, h;
+};
+
+// Quantises in the tile's numbering: u and v linear in longitude and latitude over `rect`,
+// heights over `heights`. Border vertices are pinned to their sides, so rounding cannot move
+// them off and neighbours share their edge vertices.
+QuantisedVertices quantise_vertices(const SidedVertices& in, const geo::NormalisedMercator& merc,
+                                    const geo::LonLatRect& rect, const HeightRange& heights) {
+  const std::size_t n = in.vertices.size();
+  QuantisedVertices q{std::vector<std::uint16_t>(n), std::vector<std::uint16_t>(n),
+                      std::vector<std::uint16_t>(n)};
+  const double h_range = heights.span();
+  for (std::size_t k = 0; k < n; ++k) {
+    const tile::Vertex& v = in.vertices[k];
+    const std::uint8_t bits = in.sides[k];
+    const double lon = geo::NormalisedMercator::lon_from_x(v.x);
+    const double lat = merc.lat_from_y(v.y);
+    double u = (lon - rect.west) / (rect.east - rect.west);
+    double vv = (lat - rect.south) / (rect.north - rect.south);
+    if (bits & kWest) u = 0;
+    if (bits & kEast) u = 1;
+    if (bits & kSouth) vv = 0;
+    if (bits & kNorth) vv = 1;
+    q.u[k] = quantise(u);
+    q.v[k] = quantise(vv);
+    q.h[k] = h_range > 0 ? quantise((v.z - heights.min) / h_range) : 0;
+  }
+  return q;
+}
+
+// The triangles without those that rounding to the 15-bit grid turns clockwise: they are slivers
+// thinner than one quantum (coarse tiles over dense data, where several vertices share a grid
+// cell), and drawn clockwise they would fold over their neighbours. Degenerate (zero-area) ones
+// are kept; they draw nothing.
+std::vector<tile::Triangle> drop_flipped(const std::vector<tile::Triangle>& triangles,
+                                         const QuantisedVertices& q) {
+  std::vector<tile::Triangle> kept;
+  kept.reserve(triangles.size());
+  for (const auto& t : triangles) {
+    const double cross =
+        (static_cast<double>(q.u[t[1]]) - q.u[t[0]]) *
+            (static_cast<double>(q.v[t[2]]) - q.v[t[0]]) -
+        (static_cast<double>(q.v[t[1]]) - q.v[t[0]]) * (static_cast<double>(q.u[t[2]]) - q.u[t[0]]);
+    if (cross >= 0) kept.push_back(t);
+  }
+  return kept;
+}
+
+// The output numbering: vertices in order of first use by the triangle list (the high-water-mark
+// code needs it), unused vertices last.
+struct Renumbering {
+  std::vector<std::uint32_t> new_index;  // old → new
+  std::vector<std::uint32_t> order;      // new → old
+};
+
+Renumbering renumber_by_first_use(const std::vector<tile::Triangle>& triangles, std::size_t n) {
+  constexpr std::uint32_t kUnset = std::numeric_limits<std::uint32_t>::max();
+  Renumbering r{std::vector<std::uint32_t>(n, kUnset), {}};
+  r.order.reserve(n);
+  auto number = [&](std::uint32_t i) {
+    if (r.new_index[i] == kUnset) {
+      r.new_index[i] = static_cast<std::uint32_t>(r.order.size());
+      r.order.push_back(i);
+    }
+  };
+  for (const auto& t : triangles) {
+    for (std::uint32_t i : t) number(i);
+  }
+  for (std::uint32_t i = 0; i < n; ++i) number(i);
+  return r;
+}
+
+QuantisedVertices reorder(const QuantisedVertices& q, const std::vector<std::uint32_t>& order) {
+  const std::size_t n = order.size();
+  QuantisedVertices out{std::vector<std::uint16_t>(n), std::vector<std::uint16_t>(n),
+                        std::vector<std::uint16_t>(n)};
+  for (std::size_t k = 0; k < n; ++k) {
+    out.u[k] = q.u[order[k]];
+    out.v[k] = q.v[order[k]];
+    out.h[k] = q.h[order[k]];
+  }
+  return out;
+}
+
+// ECEF of the positions Cesium will reconstruct (quantised lon/lat/height), so that bounding
+// volumes and normals match what is drawn.
+std::vector<Vec3> reconstructed_ecef(const QuantisedVertices& q, const geo::LonLatRect& rect,
+                                     const HeightRange& heights) {
+  std::vector<Vec3> ecef(q.u.size());
+  for (std::size_t k = 0; k < ecef.size(); ++k) {
+    const double dlon = rect.west + (rect.east - rect.west) * q.u[k] / kQuantMax;
+    const double dlat = rect.south + (rect.north - rect.south) * q.v[k] / kQuantMax;
+    const double dh = heights.min + heights.span() * q.h[k] / kQuantMax;
+    const geo::Ecef e = geo::to_ecef({dlon, dlat, dh});
+    ecef[k] = {e.x, e.y, e.z};
+  }
+  return ecef;
+}
+
+// The header's centre: the rectangle's middle at the middle height, in ECEF.
+Vec3 tile_centre(const geo::LonLatRect& rect, const HeightRange& heights) {
+  const geo::Ecef c = geo::to_ecef({(rect.west + rect.east) / 2, (rect.south + rect.north) / 2,
+                                    (heights.min + heights.max) / 2});
+  return {c.x, c.y, c.z};
+}
+
+// QuantizedMeshHeader: centre, height range, bounding sphere, horizon occlusion point.
+void write_header(Writer& w, const Vec3& centre, const HeightRange& heights,
+                  const std::vector<Vec3>& ecef) {
+  const Sphere sphere = bounding_sphere(ecef);
+  const std::optional<Vec3> hop = horizon_occlusion_point(ecef, sphere.centre);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  w.f64(centre.x);
+  w.f64(centre.y);
+  w.f64(centre.z);
+  w.f32(static_cast<float>(heights.min));
+  w.f32(static_cast<float>(heights.max));
+  w.f64(sphere.centre.x);
+  w.f64(sphere.centre.y);
+  w.f64(sphere.centre.z);
+  w.f64(sphere.radius);
+  w.f64(hop ? hop->x : nan);
+  w.f64(hop ? hop->y : nan);
+  w.f64(hop ? hop->z : nan);
+}
+
+// vertexCount, then u[], v[], height[] as zig-zag deltas.
+void write_vertices(Writer& w, const QuantisedVertices& q) {
+  w.u32(static_cast<std::uint32_t>(q.u.size()));
+  for (const auto* column : {&q.u, &q.v, &q.h}) {
+    int prev = 0;
+    for (std::uint16_t value : *column) {
+      w.u16(zigzag(static_cast<int>(value) - prev));
+      prev = value;
+    }
+  }
+}
+
+// An index: u16, or u32 for meshes of more than 65536 vertices.
+void put_index(Writer& w, bool wide, std::uint32_t i) {
+  if (wide) {
+    w.u32(i);
+  } else {
+    w.u16(static_cast<std::uint16_t>(i));
+  }
+}
+
+// triangleCount, then the indices (new numbering) as high-water-mark codes.
+void write_triangles(Writer& w, bool wide, const std::vector<tile::Triangle>& triangles,
+                     const std::vector<std::uint32_t>& new_index) {
+  w.align(wide ? 4 : 2);
+  w.u32(static_cast<std::uint32_t>(triangles.size()));
+  std::uint32_t highest = 0;
+  for (const auto& t : triangles) {
+    for (std::uint32_t old : t) {
+      const std::uint32_t i = new_index[old];
+      const std::uint32_t code = highest - i;  // i ≤ highest by construction of the numbering
+      put_index(w, wide, code);
+      if (code == 0) ++highest;
+    }
+  }
+}
+
+// The four edge index lists, in the order Cesium's skirt builder sorts them into: west
+// south→north, south east→west, east north→south, north west→east.
+void write_edge_lists(Writer& w, bool wide, const std::vector<std::uint8_t>& sides,
+                      const Renumbering& numbering, const QuantisedVertices& q) {
+  const auto n = static_cast<std::uint32_t>(numbering.order.size());
+  auto edge = [&](std::uint8_t bit, auto less) {
+    std::vector<std::uint32_t> list;
+    for (std::uint32_t k = 0; k < n; ++k) {
+      if (sides[numbering.order[k]] & bit) list.push_back(k);
+    }
+    std::stable_sort(list.begin(), list.end(), less);
+    w.u32(static_cast<std::uint32_t>(list.size()));
+    for (std::uint32_t k : list) put_index(w, wide, k);
+  };
+  edge(kWest, [&](std::uint32_t a, std::uint32_t b) { return q.v[a] < q.v[b]; });
+  edge(kSouth, [&](std::uint32_t a, std::uint32_t b) { return q.u[a] > q.u[b]; });
+  edge(kEast, [&](std::uint32_t a, std::uint32_t b) { return q.v[a] > q.v[b]; });
+  edge(kNorth, [&](std::uint32_t a, std::uint32_t b) { return q.u[a] < q.u[b]; });
+}
+
+// The octvertexnormals extension: area-weighted face normals in ECEF (relative to the centre for
+// precision), summed per vertex. CCW in lon/lat seen from above ⇒ the cross product points away
+// from the Earth.
+void write_oct_normals(Writer& w, const std::vector<tile::Triangle>& triangles,
+                       const std::vector<std::uint32_t>& new_index, const std::vector<Vec3>& ecef,
+                       const Vec3& centre) {
+  const std::size_t n = ecef.size();
+  std::vector<Vec3> normals(n);
+  for (const auto& t : triangles) {
+    const std::uint32_t i0 = new_index[t[0]], i1 = new_index[t[1]], i2 = new_index[t[2]];
+    const Vec3 p0 = sub(ecef[i0], centre), p1 = sub(ecef[i1], centre), p2 = sub(ecef[i2], centre);
+    const Vec3 f = cross(sub(p1, p0), sub(p2, p0));
+    for (std::uint32_t i : {i0, i1, i2}) normals[i] = add(normals[i], f);
+  }
+  w.u8(kExtOctVertexNormals);
+  w.u32(static_cast<std::uint32_t>(2 * n));
+  for (std::size_t k = 0; k < n; ++k) {
+    Vec3 nv = normals[k];
+    double len = norm(nv);
+    if (!(len > 0)) {
+      // Degenerate fan (or unused vertex): the ellipsoid's geodetic normal.
+      const double a = geo::kWgs84A, b = a * (1.0 - geo::kWgs84F);
+      nv = {ecef[k].x / (a * a), ecef[k].y / (a * a), ecef[k].z / (b * b)};
+      len = norm(nv);
+    }
+    const auto oct = oct_encode(scale(nv, 1.0 / len));
+    w.u8(oct[0]);
+    w.u8(oct[1]);
+  }
+}
+
+}  // namespace
+
+// quantise → drop flipped → order → renumber → bounds → serialise.
 Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& tile,
                                                         geo::Projection projection,
                                                         const QuantizedMeshOptions& options) {
@@ -303,210 +590,30 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
   if (tile.triangles.empty()) {
     return invalid_argument("tile " + tile.id.to_string() + " has no triangles");
   }
-
-  // Gather vertices in the tile numbering (tin_tile.hpp) and remember each one's border side.
-  std::vector<tile::Vertex> verts(tile.corners.begin(), tile.corners.end());
-  std::vector<std::uint8_t> side_bits;  // 1 west, 2 south, 4 east, 8 north
-  side_bits = {8 | 1, 8 | 4, 2 | 1, 2 | 4};
-  auto append = [&](const std::vector<tile::Vertex>& list, std::uint8_t bits) {
-    for (const auto& v : list) {
-      verts.push_back(v);
-      side_bits.push_back(bits);
-    }
-  };
-  append(tile.north, 8);
-  append(tile.east, 4);
-  append(tile.south, 2);
-  append(tile.west, 1);
-  append(tile.interior, 0);
-  const std::size_t n = verts.size();
-  if (n > std::numeric_limits<std::uint32_t>::max() / 2) {
-    return invalid_argument("tile " + tile.id.to_string() + ": too many vertices");
-  }
-  for (const auto& t : tile.triangles) {
-    for (std::uint32_t i : t) {
-      if (i >= n) {
-        return invalid_argument("tile " + tile.id.to_string() + ": triangle index " +
-                                std::to_string(i) + " out of range");
-      }
-    }
-  }
-
+  auto sided = gather_vertices(tile);
+  if (!sided) return sided.error();
+  const std::size_t n = sided->vertices.size();
   const geo::NormalisedMercator merc(projection);
   const geo::LonLatRect rect = tile.id.lonlat_bounds(merc);
-  double min_h = std::numeric_limits<double>::infinity();
-  double max_h = -min_h;
-  for (const auto& v : verts) {
-    min_h = std::min(min_h, v.z);
-    max_h = std::max(max_h, v.z);
-  }
-  if (!std::isfinite(min_h) || !std::isfinite(max_h)) {
-    return invalid_argument("tile " + tile.id.to_string() + ": non-finite height");
-  }
-  const double h_range = max_h - min_h;
+  auto heights = height_range(tile, sided->vertices);
+  if (!heights) return heights.error();
 
-  // Quantise in the tile's numbering first (u/v linear in lon/lat).
-  std::vector<std::uint16_t> qu0(n), qv0(n), qh0(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const tile::Vertex& v = verts[k];
-    const std::uint8_t bits = side_bits[k];
-    const double lon = geo::NormalisedMercator::lon_from_x(v.x);
-    const double lat = merc.lat_from_y(v.y);
-    // Border vertices are exactly on the border; pin them so rounding cannot move them off.
-    double u = (lon - rect.west) / (rect.east - rect.west);
-    double vv = (lat - rect.south) / (rect.north - rect.south);
-    if (bits & 1) u = 0;
-    if (bits & 4) u = 1;
-    if (bits & 2) vv = 0;
-    if (bits & 8) vv = 1;
-    qu0[k] = quantise(u);
-    qv0[k] = quantise(vv);
-    qh0[k] = h_range > 0 ? quantise((v.z - min_h) / h_range) : 0;
-  }
-
-  // Triangles that rounding to the 15-bit grid turns clockwise are left out: they are slivers
-  // thinner than one quantum (coarse tiles over dense data, where several vertices share a grid
-  // cell), and drawn clockwise they would fold over their neighbours. Degenerate (zero-area)
-  // ones are kept; they draw nothing.
-  std::vector<tile::Triangle> triangles;
-  triangles.reserve(tile.triangles.size());
-  for (const auto& t : tile.triangles) {
-    const double cross =
-        (static_cast<double>(qu0[t[1]]) - qu0[t[0]]) *
-            (static_cast<double>(qv0[t[2]]) - qv0[t[0]]) -
-        (static_cast<double>(qv0[t[1]]) - qv0[t[0]]) * (static_cast<double>(qu0[t[2]]) - qu0[t[0]]);
-    if (cross >= 0) triangles.push_back(t);
-  }
-
-  triangles = locality_order(triangles, qu0, qv0, n);
-
-  // Renumber by first use in the triangle list (high-water mark needs it); unused vertices last.
-  constexpr std::uint32_t kUnset = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> new_index(n, kUnset);
-  std::vector<std::uint32_t> order;  // new → old
-  order.reserve(n);
-  for (const auto& t : triangles) {
-    for (std::uint32_t i : t) {
-      if (new_index[i] == kUnset) {
-        new_index[i] = static_cast<std::uint32_t>(order.size());
-        order.push_back(i);
-      }
-    }
-  }
-  for (std::uint32_t i = 0; i < n; ++i) {
-    if (new_index[i] == kUnset) {
-      new_index[i] = static_cast<std::uint32_t>(order.size());
-      order.push_back(i);
-    }
-  }
-
-  std::vector<std::uint16_t> qu(n), qv(n), qh(n);
-  std::vector<Vec3> ecef(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    qu[k] = qu0[order[k]];
-    qv[k] = qv0[order[k]];
-    qh[k] = qh0[order[k]];
-    // ECEF of the position Cesium will reconstruct (quantised lon/lat/height), so bounding
-    // volumes and normals match what is drawn.
-    const double dlon = rect.west + (rect.east - rect.west) * qu[k] / kQuantMax;
-    const double dlat = rect.south + (rect.north - rect.south) * qv[k] / kQuantMax;
-    const double dh = min_h + h_range * qh[k] / kQuantMax;
-    const geo::Ecef e = geo::to_ecef({dlon, dlat, dh});
-    ecef[k] = {e.x, e.y, e.z};
-  }
-
-  const geo::Ecef centre_e = geo::to_ecef(
-      {(rect.west + rect.east) / 2, (rect.south + rect.north) / 2, (min_h + max_h) / 2});
-  const Vec3 centre{centre_e.x, centre_e.y, centre_e.z};
-  const Sphere sphere = bounding_sphere(ecef);
-  const std::optional<Vec3> hop = horizon_occlusion_point(ecef, sphere.centre);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const QuantisedVertices q_tile = quantise_vertices(*sided, merc, rect, *heights);
+  const std::vector<tile::Triangle> triangles =
+      locality_order(drop_flipped(tile.triangles, q_tile), q_tile.u, q_tile.v, n);
+  const Renumbering numbering = renumber_by_first_use(triangles, n);
+  const QuantisedVertices q = reorder(q_tile, numbering.order);
+  const std::vector<Vec3> ecef = reconstructed_ecef(q, rect, *heights);
+  const Vec3 centre = tile_centre(rect, *heights);
 
   Writer w;
-  w.f64(centre.x);
-  w.f64(centre.y);
-  w.f64(centre.z);
-  w.f32(static_cast<float>(min_h));
-  w.f32(static_cast<float>(max_h));
-  w.f64(sphere.centre.x);
-  w.f64(sphere.centre.y);
-  w.f64(sphere.centre.z);
-  w.f64(sphere.radius);
-  w.f64(hop ? hop->x : nan);
-  w.f64(hop ? hop->y : nan);
-  w.f64(hop ? hop->z : nan);
-
-  w.u32(static_cast<std::uint32_t>(n));
-  for (const auto* q : {&qu, &qv, &qh}) {
-    int prev = 0;
-    for (std::uint16_t value : *q) {
-      w.u16(zigzag(static_cast<int>(value) - prev));
-      prev = value;
-    }
-  }
-
   const bool wide = n > 65536;
-  auto put_index = [&](std::uint32_t i) {
-    if (wide) {
-      w.u32(i);
-    } else {
-      w.u16(static_cast<std::uint16_t>(i));
-    }
-  };
-  w.align(wide ? 4 : 2);
-  w.u32(static_cast<std::uint32_t>(triangles.size()));
-  std::uint32_t highest = 0;
-  for (const auto& t : triangles) {
-    for (std::uint32_t old : t) {
-      const std::uint32_t i = new_index[old];
-      const std::uint32_t code = highest - i;  // i ≤ highest by construction of the numbering
-      put_index(code);
-      if (code == 0) ++highest;
-    }
-  }
-
-  // Edge lists in the order Cesium's skirt builder sorts them into: west south→north,
-  // south east→west, east north→south, north west→east.
-  auto edge = [&](std::uint8_t bit, auto less) {
-    std::vector<std::uint32_t> list;
-    for (std::uint32_t k = 0; k < n; ++k) {
-      if (side_bits[order[k]] & bit) list.push_back(k);
-    }
-    std::stable_sort(list.begin(), list.end(), less);
-    w.u32(static_cast<std::uint32_t>(list.size()));
-    for (std::uint32_t k : list) put_index(k);
-  };
-  edge(1, [&](std::uint32_t a, std::uint32_t b) { return qv[a] < qv[b]; });
-  edge(2, [&](std::uint32_t a, std::uint32_t b) { return qu[a] > qu[b]; });
-  edge(4, [&](std::uint32_t a, std::uint32_t b) { return qv[a] > qv[b]; });
-  edge(8, [&](std::uint32_t a, std::uint32_t b) { return qu[a] < qu[b]; });
-
-  if (options.oct_vertex_normals) {
-    // Area-weighted face normals in ECEF (relative to the centre for precision), summed per
-    // vertex. CCW in lon/lat seen from above ⇒ the cross product points away from the Earth.
-    std::vector<Vec3> normals(n);
-    for (const auto& t : triangles) {
-      const std::uint32_t i0 = new_index[t[0]], i1 = new_index[t[1]], i2 = new_index[t[2]];
-      const Vec3 p0 = sub(ecef[i0], centre), p1 = sub(ecef[i1], centre), p2 = sub(ecef[i2], centre);
-      const Vec3 f = cross(sub(p1, p0), sub(p2, p0));
-      for (std::uint32_t i : {i0, i1, i2}) normals[i] = add(normals[i], f);
-    }
-    w.u8(kExtOctVertexNormals);
-    w.u32(static_cast<std::uint32_t>(2 * n));
-    for (std::size_t k = 0; k < n; ++k) {
-      Vec3 nv = normals[k];
-      double len = norm(nv);
-      if (!(len > 0)) {
-        // Degenerate fan (or unused vertex): the ellipsoid's geodetic normal.
-        const double a = geo::kWgs84A, b = a * (1.0 - geo::kWgs84F);
-        nv = {ecef[k].x / (a * a), ecef[k].y / (a * a), ecef[k].z / (b * b)};
-        len = norm(nv);
-      }
-      const auto oct = oct_encode(scale(nv, 1.0 / len));
-      w.u8(oct[0]);
-      w.u8(oct[1]);
-    }
-  }
+  write_header(w, centre, *heights, ecef);
+  write_vertices(w, q);
+  write_triangles(w, wide, triangles, numbering.new_index);
+  write_edge_lists(w, wide, sided->sides, numbering, q);
+  if (options.oct_vertex_normals)
+    write_oct_normals(w, triangles, numbering.new_index, ecef, centre);
   return w.take();
 }
 

@@ -103,6 +103,7 @@ class BitWriter {
   }
   void bytes(const std::uint8_t* p, std::size_t n) {
     assert(filled_ == 0);
+    if (n == 0) return;  // p may be null (an empty input's data()): memcpy(…, null, 0) is UB
     std::memcpy(out_, p, n);
     out_ += n;
   }

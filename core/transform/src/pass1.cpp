@@ -10,6 +10,8 @@
 #include <optional>
 #include <thread>
 
+#include "tinstream/base/worker_threads.hpp"
+
 namespace tinstream::transform {
 namespace {
 
@@ -64,6 +66,7 @@ struct BatchWork {
   std::vector<RunPoint> run_points;
   std::vector<geo::LonLat> lonlat;
   std::uint64_t outside_mercator = 0;
+  std::uint64_t implausible_height = 0;
   Status status;
   bool done = false;  // guarded by the pipeline's mutex while the batch is in flight
 };
@@ -74,6 +77,7 @@ void transform_batch(const BatchContext& c, Reprojector& reprojector, BatchWork&
   w.run_points.clear();
   w.lonlat.clear();
   w.outside_mercator = 0;
+  w.implausible_height = 0;
   w.status = {};
   if (auto st = reprojector.transform(w.batch, w.geo_points); !st.ok()) {
     w.status = st;
@@ -94,10 +98,34 @@ void transform_batch(const BatchContext& c, Reprojector& reprojector, BatchWork&
                            std::to_string(c.mercator->max_latitude()) + "°)");
       return;
     }
+    if (std::abs(g.h) > kMaxAbsHeight) {
+      if (c.skip_invalid) {
+        ++w.implausible_height;
+        continue;
+      }
+      w.status = Error(ErrorCode::corrupt_data,
+                       c.path + ": record " + std::to_string(w.batch[i].record) + ": height " +
+                           std::to_string(g.h) + " m is outside the Earth's range (|h| ≤ " +
+                           std::to_string(static_cast<int>(kMaxAbsHeight)) +
+                           " m): a NODATA value the file does not declare, or wrong z units? "
+                           "(--skip-invalid drops such records)");
+      return;
+    }
     w.run_points.push_back(
         RunPoint{m->x, m->y, g.h, c.weight, c.input_tag, w.batch[i].classification});
     w.lonlat.push_back(geo::LonLat{g.lon, g.lat});
   }
+}
+
+// transform_batch inside the exception barrier: an exception (out of memory, a throwing PROJ
+// callback) becomes the batch's Status, which the caller reports in record order like any
+// other error of the batch. Fault point "pass1.transform".
+void transform_guarded(const BatchContext& c, Reprojector& reprojector, BatchWork& w) {
+  Status s = guarded("pass 1 transform", [&] {
+    fault::point("pass1.transform");
+    transform_batch(c, reprojector, w);
+  });
+  if (!s.ok()) w.status = std::move(s);
 }
 
 // Worker threads that transform batches, one Reprojector each (PROJ contexts are not shared).
@@ -108,11 +136,7 @@ void transform_batch(const BatchContext& c, Reprojector& reprojector, BatchWork&
 //   writer (calling thread) ◀──wait(oldest)───────────────────────────────────────┘
 class TransformWorkers {
  public:
-  TransformWorkers(const BatchContext& context, std::vector<Reprojector>& reprojectors)
-      : context_(context) {
-    threads_.reserve(reprojectors.size());
-    for (Reprojector& r : reprojectors) threads_.emplace_back([this, &r] { work(r); });
-  }
+  explicit TransformWorkers(const BatchContext& context) : context_(context) {}
   TransformWorkers(const TransformWorkers&) = delete;
   TransformWorkers& operator=(const TransformWorkers&) = delete;
   // Batches still queued are dropped; those being transformed finish first.
@@ -123,7 +147,15 @@ class TransformWorkers {
       todo_.clear();
     }
     wake_workers_.notify_all();
-    for (auto& t : threads_) t.join();
+    (void)threads_.join();
+  }
+  // Starts one worker per reprojector; an Error when one cannot be started (the destructor stops
+  // and joins those that were).
+  Status start(std::vector<Reprojector>& reprojectors) {
+    for (Reprojector& r : reprojectors) {
+      if (Status s = threads_.start([this, &r] { work(r); }); !s) return s;
+    }
+    return {};
   }
   void submit(BatchWork& w) {
     {
@@ -150,7 +182,7 @@ class TransformWorkers {
         w = todo_.front();
         todo_.pop_front();
       }
-      transform_batch(context_, reprojector, *w);
+      transform_guarded(context_, reprojector, *w);
       {
         std::lock_guard lock(mutex_);
         w->done = true;
@@ -164,14 +196,17 @@ class TransformWorkers {
   std::condition_variable wake_workers_, batch_done_;
   std::deque<BatchWork*> todo_;
   bool stop_ = false;
-  std::vector<std::thread> threads_;  // last: started after, joined before the rest goes
+  WorkerThreads threads_{"pass 1 transform",
+                         "pass1.transform"};  // last: started after, joined before the rest goes
 };
 
 }  // namespace
 
-Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
-                                     const TransformOptions& options,
-                                     const ProgressSink& progress) {
+namespace {
+
+Result<RunSummary> transform_unguarded(std::span<const InputSpec> inputs,
+                                       const TransformOptions& options,
+                                       const ProgressSink& progress) {
   if (options.batch_size == 0) return invalid_argument("batch size must be at least 1");
   if (options.output.empty() && !options.on_points) {
     return invalid_argument("no run file path given and no consumer of the points");
@@ -223,6 +258,7 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
     auto append = [&](BatchWork& w) -> Status {
       if (!w.status.ok()) return w.status;
       s.outside_mercator += w.outside_mercator;
+      s.implausible_height += w.implausible_height;
       if (writer) {
         if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
       } else {
@@ -231,6 +267,11 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
       s.points_written += w.run_points.size();
       if (options.on_points) return options.on_points(w.run_points);
       return {};
+    };
+    // Fault point "pass1.read": a reader that throws.
+    auto read = [&](BatchWork& w) {
+      fault::point("pass1.read");
+      return src.read(w.batch, options.batch_size);
     };
     auto report = [&]() -> Status {
       if (!throttle.report(done_before + src.counters().records_read, total, false)) {
@@ -242,24 +283,25 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
       BatchWork& w = slots[0];
       for (;;) {
         w.batch.clear();
-        auto got = src.read(w.batch, options.batch_size);
+        auto got = read(w);
         if (!got.ok()) return got.error();
         if (*got == 0) break;
-        transform_batch(context, *reprojector, w);
+        transform_guarded(context, *reprojector, w);
         if (Status st = append(w); !st.ok()) return st.error();
         if (Status st = report(); !st.ok()) return st.error();
       }
     } else {
       // Slots are used round robin: batch i lives in slots[i % size], so the oldest batch in
       // flight is always the next slot to refill.
-      TransformWorkers pool(context, worker_reprojectors);
+      TransformWorkers pool(context);
+      if (Status st = pool.start(worker_reprojectors); !st.ok()) return st.error();
       std::size_t next = 0, in_flight = 0;
       bool more = true;
       while (more || in_flight > 0) {
         if (more && in_flight < slots.size()) {
           BatchWork& w = slots[(next + in_flight) % slots.size()];
           w.batch.clear();
-          auto got = src.read(w.batch, options.batch_size);
+          auto got = read(w);
           if (!got.ok()) {
             // Batches before the failing read come first: their errors win.
             for (; in_flight > 0; --in_flight, next = (next + 1) % slots.size()) {
@@ -285,8 +327,8 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
       }
     }
     s.counters = src.counters();
-    s.counters.accepted -= s.outside_mercator;
-    s.counters.rejected_invalid += s.outside_mercator;
+    s.counters.accepted -= s.outside_mercator + s.implausible_height;
+    s.counters.rejected_invalid += s.outside_mercator + s.implausible_height;
     s.notes = src.info().notes;
     s.notes.insert(s.notes.end(), s.plan.notes.begin(), s.plan.notes.end());
     done_before += s.counters.records_read;
@@ -303,6 +345,21 @@ Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
     summary.header = header.header();
   }
   return summary;
+}
+
+}  // namespace
+
+Result<RunSummary> transform_sources(std::span<const InputSpec> inputs,
+                                     const TransformOptions& options,
+                                     const ProgressSink& progress) {
+  Result<RunSummary> out = Error(ErrorCode::internal, "pass 1 did not run");
+  // The calling thread's barrier: an exception (a throwing reader, out of memory) is an Error
+  // too, after the workers were stopped and joined (TransformWorkers' destructor).
+  if (Status s = guarded("pass 1", [&] { out = transform_unguarded(inputs, options, progress); });
+      !s.ok()) {
+    return s.error();
+  }
+  return out;
 }
 
 }  // namespace tinstream::transform

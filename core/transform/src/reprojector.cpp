@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 
@@ -33,6 +34,19 @@ std::string proj_message(PJ_CONTEXT* ctx) {
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() &&
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Whether a CRS text can make PROJ open a file: a PROJ string ("+init=", "+nadgrids=", …) or a
+// WKT with an EXTENSION (PROJ4, PROJ4_GRIDS). Case-insensitive.
+bool may_name_files(std::string_view crs) {
+  std::string lower(crs);
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const auto first = lower.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && lower[first] == '+') return true;
+  for (const char* word : {"extension[", "+init", "init=", "grids=", "+proj"}) {
+    if (lower.find(word) != std::string::npos) return true;
+  }
+  return false;
 }
 
 struct AxisUnit {
@@ -246,12 +260,45 @@ Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertic
   if (vertical_datum == "egm2008" || vertical_datum == "egm08") {
     return std::vector<std::string>{"us_nga_egm08_25.tif", "egm08_25.gtx"};
   }
-  if (ends_with(vertical_datum, ".tif") || ends_with(vertical_datum, ".gtx") ||
-      ends_with(vertical_datum, ".gtg")) {
-    return std::vector<std::string>{vertical_datum};
+  if (is_grid_file_name(vertical_datum)) return std::vector<std::string>{vertical_datum};
+  return invalid_argument("unknown vertical datum '" + shorten(vertical_datum, 60) +
+                          "': use ellipsoidal, egm96, egm2008, crs or the file name of a PROJ "
+                          "geoid grid (letters, digits, '.', '_', '-', ending in .tif, .gtx or "
+                          ".gtg; no directory: PROJ looks for it in its data directories)");
+}
+
+bool is_grid_file_name(std::string_view name) {
+  if (name.empty() || name.size() > 128) return false;
+  if (!std::isalnum(static_cast<unsigned char>(name.front()))) return false;
+  for (const char c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-') {
+      return false;
+    }
   }
-  return invalid_argument("unknown vertical datum '" + vertical_datum +
-                          "': use ellipsoidal, egm96, egm2008, crs or a PROJ geoid grid file name");
+  const std::string n(name);
+  return ends_with(n, ".tif") || ends_with(n, ".gtx") || ends_with(n, ".gtg");
+}
+
+bool is_authority_code(std::string_view crs) {
+  // AUTH:code, optionally +code (a compound of two codes of the same authority).
+  const auto colon = crs.find(':');
+  if (colon == std::string_view::npos || colon == 0 || colon > 16) return false;
+  for (std::size_t i = 0; i < colon; ++i) {
+    if (!std::isupper(static_cast<unsigned char>(crs[i]))) return false;
+  }
+  const std::string_view codes = crs.substr(colon + 1);
+  if (codes.empty() || codes.size() > 24) return false;
+  bool digit_before = false;
+  for (const char c : codes) {
+    if (std::isdigit(static_cast<unsigned char>(c))) {
+      digit_before = true;
+    } else if (c == '+' && digit_before) {
+      digit_before = false;
+    } else {
+      return false;
+    }
+  }
+  return digit_before;
 }
 
 Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
@@ -263,6 +310,23 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
   PJ_CONTEXT* ctx = impl->ctx.get();
   if (ctx == nullptr) return Error(ErrorCode::internal, "cannot create a PROJ context");
   proj_log_level(ctx, PJ_LOG_NONE);
+  if (options.confined) {
+    // Untrusted options and files: no download of grids (PROJ_NETWORK), and only CRS texts that
+    // cannot name files (a PROJ string's +init=, +nadgrids= or +geoidgrids=, WKT1's PROJ4 and
+    // PROJ4_GRIDS extensions).
+    proj_context_set_enable_network(ctx, 0);
+    if (!options.crs.empty() && !is_authority_code(options.crs)) {
+      return invalid_argument(file + ": CRS '" + shorten(options.crs, 60) +
+                              "' refused: here a CRS is an authority code such as EPSG:32632 "
+                              "or EPSG:2903+6360");
+    }
+    if (options.crs.empty() && may_name_files(info.crs)) {
+      return unsupported(file +
+                         ": the file's CRS is a PROJ string or carries a PROJ extension "
+                         "(which can name grid and init files); give the CRS as an authority "
+                         "code instead");
+    }
+  }
   ReprojectionPlan& plan = impl->plan;
 
   plan.crs = !options.crs.empty() ? options.crs : info.crs;

@@ -388,3 +388,79 @@ TEST(Reprojector, PointOutsideTheProjectionDomainNamesTheRecord) {
 
 }  // namespace
 }  // namespace tinstream::transform
+
+namespace tinstream::transform {
+namespace {
+
+// #22: the vertical option went into a PROJ pipeline as text, so it could add steps or read a grid
+// at any absolute path. Now only the closed list and bare grid file names pass.
+TEST(Reprojector, VerticalDatumCannotInjectPipelineStepsOrAbsoluteGrids) {
+  for (const std::string& hostile : {
+           // egm96_15.gtx is in Debian's proj-data: before the fix this built a pipeline that
+           // added 5 km to every height.
+           std::string("egm96_15.gtx +multiplier=1 +step +proj=affine +zoff=5000 "
+                       "+step +proj=noop +x=a.tif"),
+           std::string("/usr/share/proj/egm96_15.gtx"),
+           std::string("../proj/egm96_15.gtx"),
+           std::string("@egm96_15.gtx"),
+           std::string("egm96_15.gtx\n"),
+           std::string("egm96 15.gtx"),
+           std::string(200, 'a') + ".tif",
+       }) {
+    SCOPED_TRACE(hostile);
+    EXPECT_FALSE(is_grid_file_name(hostile));
+    ReprojectOptions o;
+    o.vertical_datum = hostile;
+    auto rp = Reprojector::create(info_with("EPSG:4326"), o);
+    ASSERT_FALSE(rp.ok());
+    EXPECT_EQ(rp.error().code, ErrorCode::invalid_argument) << rp.error().message;
+    EXPECT_NE(rp.error().message.find("unknown vertical datum"), std::string::npos);
+  }
+  for (const char* fine :
+       {"egm96_15.gtx", "us_nga_egm08_25.tif", "AUSGeoid2020_20180201.gtx", "nzgeoid2016.gtg"}) {
+    EXPECT_TRUE(is_grid_file_name(fine)) << fine;
+  }
+}
+
+TEST(Reprojector, ConfinedOptionsTakeOnlyAuthorityCodesAndNoFileNamingCrs) {
+  EXPECT_TRUE(is_authority_code("EPSG:4326"));
+  EXPECT_TRUE(is_authority_code("EPSG:2903+6360"));
+  EXPECT_TRUE(is_authority_code("ESRI:102100"));
+  for (const char* bad : {"EPSG:", "epsg:4326", "EPSG:43a", "EPSG:4326+", "+proj=longlat",
+                          "EPSG:4326 +init=/etc/passwd", ":4326", "EPSG:+4326"}) {
+    EXPECT_FALSE(is_authority_code(bad)) << bad;
+  }
+  ReprojectOptions o;
+  o.confined = true;
+  o.crs = "+proj=longlat +datum=WGS84 +nadgrids=/etc/passwd +type=crs";
+  auto rp = Reprojector::create(info_with(""), o);
+  ASSERT_FALSE(rp.ok());
+  EXPECT_EQ(rp.error().code, ErrorCode::invalid_argument);
+  EXPECT_NE(rp.error().message.find("authority code"), std::string::npos) << rp.error().message;
+  o.crs = "EPSG:32632";
+  EXPECT_TRUE(Reprojector::create(info_with(""), o).ok());
+  // A file's own CRS that can name files (a LAS WKT VLR is the file writer's text) is refused
+  // too; a plain WKT passes.
+  o.crs.clear();
+  for (const char* file_crs :
+       {"+proj=longlat +datum=WGS84 +no_defs +type=crs",
+        R"(GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],)"
+        R"(PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],)"
+        R"(EXTENSION["PROJ4_GRIDS","/etc/passwd"]])"}) {
+    auto from_file = Reprojector::create(info_with(file_crs), o);
+    ASSERT_FALSE(from_file.ok()) << file_crs;
+    EXPECT_EQ(from_file.error().code, ErrorCode::unsupported);
+  }
+  auto plain = Reprojector::create(
+      info_with(R"(GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],)"
+                R"(PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]])"),
+      o);
+  EXPECT_TRUE(plain.ok()) << plain.error().message;
+  // Unconfined (the CLI, the user's own machine): a PROJ string is the user's choice.
+  ReprojectOptions local;
+  local.crs = "+proj=longlat +datum=WGS84 +no_defs +type=crs";
+  EXPECT_TRUE(Reprojector::create(info_with(""), local).ok());
+}
+
+}  // namespace
+}  // namespace tinstream::transform

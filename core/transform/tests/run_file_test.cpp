@@ -8,6 +8,7 @@
 #include <cstring>
 #include <fstream>
 
+#include "tinstream/base/fault.hpp"
 #include "tinstream/transform/pass1.hpp"
 
 namespace tinstream::transform {
@@ -503,6 +504,95 @@ TEST(Pass1, WithoutARunFileThePointsAndHeaderAreTheSame) {
   auto c = transform_sources(inputs, opt);
   ASSERT_FALSE(c.ok());
   EXPECT_EQ(c.error().code, ErrorCode::invalid_argument);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace tinstream::transform
+
+namespace tinstream::transform {
+namespace {
+
+// #22: heights far outside the Earth's range (an undeclared NODATA of -3.4e38, a z unit wrong by
+// 10^6) were accepted as terrain and published. They are errors naming the record, or invalid
+// records under --skip-invalid.
+TEST(Pass1, HeightsOutsideTheEarthsRangeAreRejectedOrCountedInvalid) {
+  auto dir = scratch("heights");
+  const auto path = dir / "h.xyz";
+  std::ofstream(path) << "8.5 47.4 420\n8.6 47.4 -3.4e38\n8.5 47.5 100001\n8.6 47.5 -100000\n"
+                      << "8.55 47.45 8848\n";
+  std::vector<InputSpec> inputs(1);
+  inputs[0].path = path;
+  inputs[0].reproject.crs = "EPSG:4326";
+  TransformOptions opt;
+  opt.output = dir / "h.run";
+  for (unsigned threads : {1u, 2u}) {
+    opt.threads = threads;
+    auto s = transform_sources(inputs, opt);
+    ASSERT_FALSE(s.ok()) << threads;
+    EXPECT_EQ(s.error().code, ErrorCode::corrupt_data);
+    EXPECT_NE(s.error().message.find("record 2: height"), std::string::npos) << s.error().message;
+    EXPECT_NE(s.error().message.find("outside the Earth's range"), std::string::npos);
+    EXPECT_NE(s.error().message.find("--skip-invalid"), std::string::npos);
+    EXPECT_FALSE(std::filesystem::exists(opt.output));
+  }
+  inputs[0].source.invalid = sources::InvalidPolicy::skip;
+  auto skipped = transform_sources(inputs, opt);
+  ASSERT_TRUE(skipped.ok()) << skipped.error().message;
+  EXPECT_EQ(skipped->header.point_count, 3u);  // 420, -100000 (the limit itself) and 8848
+  EXPECT_EQ(skipped->inputs[0].implausible_height, 2u);
+  EXPECT_EQ(skipped->inputs[0].counters.rejected_invalid, 2u);
+  EXPECT_EQ(skipped->inputs[0].counters.accepted, 3u);
+  EXPECT_EQ(skipped->header.min_z, -100000);
+  EXPECT_EQ(skipped->header.max_z, 8848);
+  std::filesystem::remove_all(dir);
+}
+
+// #22, worker crashes: an exception on a pass-1 worker (or the reading thread) and a worker that
+// cannot be started are the pass's Error; before, the first reached std::terminate and the second
+// unwound a vector of running threads into it.
+TEST(Pass1, AWorkerExceptionAThrowingReaderAndAFailedThreadStartAreErrors) {
+  ASSERT_TRUE(fault::enabled()) << "fault points are not compiled into this test build";
+  auto dir = scratch("faults");
+  std::vector<InputSpec> inputs(1);
+  inputs[0].path = utm_points(dir, 5'000);
+  inputs[0].reproject.crs = "EPSG:32632";
+  TransformOptions opt;
+  opt.batch_size = 500;
+  opt.output = dir / "out.run";
+  struct Case {
+    const char* point;
+    std::uint64_t skip;
+    fault::Kind kind;
+    unsigned threads;
+    const char* message;
+  };
+  const Case cases[] = {
+      {"pass1.transform", 3, fault::Kind::throw_error, 3,
+       "pass 1 transform: injected fault at pass1.transform"},
+      {"pass1.transform", 0, fault::Kind::out_of_memory, 2, "pass 1 transform: out of memory"},
+      {"pass1.transform", 2, fault::Kind::throw_error, 1,
+       "pass 1 transform: injected fault at pass1.transform"},
+      {"pass1.read", 4, fault::Kind::throw_error, 3, "pass 1: injected fault at pass1.read"},
+      {"pass1.transform.spawn", 1, fault::Kind::no_thread, 3,
+       "pass 1 transform: cannot start a thread"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(c.point) + " threads " + std::to_string(c.threads));
+    opt.threads = c.threads;
+    const fault::Arm arm(c.point, c.skip, c.kind);
+    auto s = transform_sources(inputs, opt);
+    EXPECT_TRUE(arm.fired());
+    ASSERT_FALSE(s.ok());
+    EXPECT_EQ(s.error().code, ErrorCode::internal);
+    EXPECT_NE(s.error().message.find(c.message), std::string::npos) << s.error().message;
+    EXPECT_FALSE(std::filesystem::exists(opt.output));
+  }
+  // Nothing armed: the same input goes through.
+  opt.threads = 3;
+  auto fine = transform_sources(inputs, opt);
+  ASSERT_TRUE(fine.ok()) << fine.error().message;
+  EXPECT_EQ(fine->header.point_count, 5'000u);
   std::filesystem::remove_all(dir);
 }
 

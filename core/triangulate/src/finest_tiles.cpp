@@ -15,6 +15,7 @@
 #include <unordered_set>
 
 #include "delaunay.hpp"
+#include "tinstream/base/worker_threads.hpp"
 #include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::triangulate {
@@ -314,22 +315,37 @@ Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::Sor
     std::mutex mutex;
     Status failure;
     auto read_tiles = [&] {
-      auto reader = subdivide::SortedRunReader::open(run.path);
-      Status s = reader ? Status{} : Status(reader.error());
-      std::vector<SortedPoint> chunk;
-      for (std::size_t i; s.ok() && (i = next.fetch_add(1)) < which.size();) {
-        const auto& range = cells->tiles_[which[i]];
-        s = reader->read(range.first, range.count, chunk);
-        if (s.ok()) visit(which[i], chunk);
-      }
+      // The exception barrier (this runs on the workers and on the calling thread). Fault point
+      // "pass3.cells": one tile.
+      Status s = guarded("pass 3 cell index", [&]() -> Status {
+        auto reader = subdivide::SortedRunReader::open(run.path);
+        if (!reader) return reader.error();
+        std::vector<SortedPoint> chunk;
+        for (std::size_t i; (i = next.fetch_add(1)) < which.size();) {
+          fault::point("pass3.cells");
+          const auto& range = cells->tiles_[which[i]];
+          if (Status r = reader->read(range.first, range.count, chunk); !r) return r;
+          visit(which[i], chunk);
+        }
+        return {};
+      });
+      if (s.ok()) return;
+      next.store(which.size());  // the other readers stop too
       std::lock_guard lock(mutex);
       if (failure.ok()) failure = s;
     };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < std::max(1u, threads); ++t) pool.emplace_back(read_tiles);
-    read_tiles();
-    for (auto& t : pool) t.join();
-    return failure;
+    WorkerThreads pool("pass 3 cell index", "pass3.cells");
+    Status started;
+    for (unsigned t = 1; t < std::max(1u, threads) && started.ok(); ++t) {
+      started = pool.start(read_tiles);
+    }
+    if (started.ok()) {
+      read_tiles();
+    } else {
+      next.store(which.size());  // those started stop at once
+    }
+    (void)pool.join();  // read_tiles keeps its own failures
+    return started.ok() ? failure : started;
   };
   // Every tile: its cell offsets and the bounding box of its points.
   std::vector<std::uint32_t> all(tiles);
@@ -584,10 +600,15 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
     if (fresh) {
       const auto [first, count] = cells.cell_range(cx, cy);
       it->second = {peek_pool.size(), 0};
-      if (count > 0) {
-        if (Status st = reader.read(first, count, chunk); !st) peek_error = st;
-        for (const auto& p : chunk) peek_pool.push_back({p.x, p.y});
-        it->second.second = chunk.size();
+      // After a failed read the chunk holds nothing of this cell: the cell stays empty, the
+      // first error is kept (later peeks read nothing) and the round ends with it.
+      if (count > 0 && peek_error.ok()) {
+        if (Status st = reader.read(first, count, chunk); !st) {
+          peek_error = st;
+        } else {
+          for (const auto& p : chunk) peek_pool.push_back({p.x, p.y});
+          it->second.second = chunk.size();
+        }
       }
     }
     return {peek_pool.data() + it->second.first, it->second.second};
@@ -1049,13 +1070,14 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
     changed.notify_all();
   };
 
-  auto worker = [&] {
+  auto work = [&] {
     auto reader = subdivide::SortedRunReader::open(cells->run_path());
     TileBuffers buffers;  // this worker's, reused from tile to tile
     if (!reader) fail(reader.error());
     while (reader) {
       const std::size_t i = next.fetch_add(1);
       if (i >= total || stop.load()) break;
+      fault::point("pass3.tile");
       FinestTileStats stats;
       auto tile = build_tile(cells->tiles()[i].id, *cells, *reader, options, &stats, buffers);
       buffers.release_oversized();
@@ -1075,12 +1097,23 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
       summary.circle_tests += stats.circle_tests;
       changed.notify_all();
     }
+  };
+  // The exception barrier: whatever a tile or the sink throws is the run's error, and the worker
+  // still counts as finished.
+  auto worker = [&] {
+    if (Status s = guarded("pass 3 worker", work); !s) fail(std::move(s));
     std::lock_guard lock(mutex);
     ++finished;
     changed.notify_all();
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
+  WorkerThreads pool("pass 3 worker", "pass3.tile");
+  unsigned started = 0;
+  for (; started < threads; ++started) {
+    if (Status s = pool.start(worker); !s) {
+      fail(std::move(s));  // the started workers stop at their next tile
+      break;
+    }
+  }
 
   std::uint64_t reported = ~std::uint64_t{0};
   for (;;) {
@@ -1088,9 +1121,9 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
     bool all_returned = false;
     {
       std::unique_lock lock(mutex);
-      changed.wait(lock, [&] { return finished == threads || summary.tiles != reported; });
+      changed.wait(lock, [&] { return finished == started || summary.tiles != reported; });
       done = summary.tiles;
-      all_returned = finished == threads;
+      all_returned = finished == started;
     }
     if (progress && done != reported && !progress({"triangulate", done, total, "tiles"})) {
       fail(Error(ErrorCode::cancelled, "ingest cancelled while triangulating"));
@@ -1098,7 +1131,7 @@ Result<TriangulateSummary> build_finest_tiles(const subdivide::SortedRun& run, u
     reported = done;
     if (all_returned) break;
   }
-  for (auto& t : pool) t.join();
+  (void)pool.join();  // the workers' failures went to fail()
   if (!failure.ok()) return failure.error();
   return summary;
 }

@@ -4,6 +4,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/convex_hull_2.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
@@ -34,7 +35,8 @@ struct Fixture {
 Fixture build(const std::vector<InputPoint>& points, std::uint32_t max_points, unsigned threads,
               const std::string& name) {
   Fixture f;
-  f.dir = fs::temp_directory_path() / ("tinstream-tri-test-" + name);
+  f.dir =
+      fs::temp_directory_path() / ("tinstream-tri-test-" + name + "-" + std::to_string(::getpid()));
   fs::remove_all(f.dir);
   fs::create_directories(f.dir);
   subdivide::SubdivideOptions opt;

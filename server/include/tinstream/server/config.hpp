@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "tinstream/base/result.hpp"
 
@@ -30,6 +31,13 @@ struct ServerConfig {
   std::uint32_t write_timeout_ms = 30000;  // per response write
   std::uint32_t cache_max_age_s = 86400;   // Cache-Control max-age for tiles
   std::string cors_allow_origin = "*";     // empty: no CORS headers
+  // Admin API and metrics on a second listener (address:port) instead of the public one; empty
+  // address: on the public listener.
+  std::string admin_address;
+  std::uint16_t admin_port = 8081;
+  // Addresses (IPs or CIDR ranges, IPv4 or IPv6) allowed to reach /admin and /metrics; empty:
+  // any address (the admin API still needs its token).
+  std::vector<std::string> admin_allow;
   std::uint64_t terrain_cache_bytes = 64u << 20;  // LRU of encoded .terrain tiles; 0: off
   // Cached bodies of at least this many bytes are sent with sendfile(2) from a memory file
   // (server/src/body_file.hpp) instead of being copied into the socket; 0: every cached body.

@@ -11,6 +11,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "tinstream/base/result.hpp"
 #include "tinstream/server/config.hpp"
@@ -33,7 +35,21 @@ struct Context {
   JobManager* jobs = nullptr;
   TerrainCache* terrain_cache = nullptr;  // may be null
   LayerCache* layer_cache = nullptr;      // may be null: every request reads the layer row
+  // Server paths and what answers say instead (server_path_redactions()); empty: handle()
+  // derives them from `config` on each error answer.
+  std::vector<std::pair<std::string, std::string>> path_redactions;
 };
+
+// The paths of a configuration that no answer may show (the store, its folder, the data root,
+// the upload directory; as given, absolute and canonical), each with its replacement: folders
+// followed by '/' vanish (a file under the data root is named relative to it), the rest become
+// words ("the store"). Longest first. Reads the file system (canonical paths).
+std::vector<std::pair<std::string, std::string>> server_path_redactions(const ServerConfig& config);
+
+// Replaces every server path in `text` (and "/proc/self/fd/N/" prefixes: how the ingest names
+// sources opened by descriptor) as server_path_redactions() says.
+void redact_server_paths(std::string& text,
+                         const std::vector<std::pair<std::string, std::string>>& redactions);
 
 Response handle(const Request& request, Context& context);
 
@@ -49,17 +65,19 @@ bool is_upload(const Request& request_head);
 // Applies CORS headers (when configured) to any response.
 void add_cors(Response& response, const ServerConfig& config);
 
-// An encoded response body and its ETag.
+// An encoded response body and its ETag: one representation (gzip, or inflated for clients that
+// take no gzip) of a terrain tile or layer.json.
 struct CachedBody {
   std::string etag;
   std::string bytes;
-  // Every header of the 200 answer with these bytes as they are (gzip), when the cache owner
-  // built it; null: the handler formats the headers per request.
-  std::shared_ptr<const HeaderBlock> gzip_head;
+  // Every header of the 200 answer with these bytes as they are, when the cache owner built it;
+  // null: the handler formats the headers per request.
+  std::shared_ptr<const HeaderBlock> head;
 };
 
-// A bounded LRU of encoded (gzip) quantized-mesh tiles and layer.json documents, keyed by layer
-// *version*, tile and extensions — a new version of a layer never hits old entries.
+// A bounded LRU of encoded quantized-mesh tiles (gzip, and inflated for clients without gzip) and
+// layer.json documents, keyed by layer *version*, tile, extensions and encoding — a new version
+// of a layer never hits old entries.
 //
 // Budget: an entry costs its bytes, ETag, key, shared header block (HeaderBlock::memory_bytes)
 // and the bookkeeping around them (nodes, control blocks); bytes() ≤ max_bytes always. An entry

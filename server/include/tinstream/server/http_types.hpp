@@ -4,8 +4,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -24,28 +24,36 @@ struct Request {
   std::string body;                 // small bodies (JSON)
   std::filesystem::path body_file;  // an upload streamed to disk; empty otherwise
   std::uint64_t body_file_size = 0;
+  std::string remote;           // the peer's address ("127.0.0.1", "::1"); empty when unknown
+  bool admin_listener = false;  // received on the admin listener (config admin_address)
 };
 
-// Header fields shared by every identical answer (the 200 of a cached tile), built once: the
-// session sends `wire` as it is, without formatting a header per request.
+// Header fields shared by every identical answer (the 200 of a cached tile), built once, with the
+// length of the body they go with: the session sends `keep_alive_head` as it is on a keep-alive
+// HTTP/1.1 connection, and `wire` after a status line it formats in every other case. A plain
+// value: immutable once built, shared between io threads without synchronisation.
 struct HeaderBlock {
-  std::vector<std::pair<std::string, std::string>> fields;
-  std::string wire;  // "Name: value\r\n" for each field, in order
-  // The whole head of a 200 with this block and nothing else on a keep-alive HTTP/1.1
-  // connection (status line to blank line, Content-Length keep_alive_length), formatted by the
-  // session the first time it sends one, then sent as it is.
-  mutable std::once_flag keep_alive_once;
-  mutable std::string keep_alive_head;
-  mutable std::size_t keep_alive_length = 0;
-  // keep_alive_head is `wire` and at most this many bytes more (status line, Server,
-  // Content-Length, blank line).
-  static constexpr std::size_t kKeepAliveExtra = 96;
+  HeaderBlock(std::vector<std::pair<std::string, std::string>> fields, std::size_t content_length);
 
-  explicit HeaderBlock(std::vector<std::pair<std::string, std::string>> f);
-  // Memory this block holds once its keep-alive head is formatted (an upper bound), for cache
-  // budgets: the object, its fields, `wire` and the head.
+  std::vector<std::pair<std::string, std::string>> fields;
+  std::string wire;                // "Name: value\r\n" for each field, in order
+  std::size_t content_length = 0;  // of the body this block was built for
+  // The whole head of a 200 with this block and nothing else, `Content-Length: content_length`,
+  // on a keep-alive HTTP/1.1 connection: status line to blank line.
+  std::string keep_alive_head;
+
+  // Memory this block holds, for cache budgets: the object, its fields, `wire` and the head.
   std::size_t memory_bytes() const;
 };
+
+// The status line and header block of an answer, into `out` (cleared first): the status line,
+// `Server`, `headers`, the prebuilt block's `wire`, the connection token the version needs
+// (`Connection: close` on HTTP/1.1 when `close_after`, `Connection: keep-alive` on HTTP/1.0 when
+// not), `Content-Length` unless the status has no body (204, 304), and the blank line.
+void format_response_head(std::string& out, int status, unsigned http_version,
+                          const std::vector<std::pair<std::string, std::string>>& headers,
+                          const HeaderBlock* prebuilt, bool close_after,
+                          std::size_t content_length);
 
 struct Response {
   int status = 200;
@@ -59,6 +67,10 @@ struct Response {
   std::shared_ptr<const std::string> shared_body;
   std::string_view payload() const { return shared_body ? std::string_view(*shared_body) : body; }
   std::string route = "other";  // metrics label of the matched route
+  // When set, the answer is not ready yet: the session runs `deferred` on the server's blocking
+  // worker (never on an io thread) and sends what it returns instead. For work that may wait on
+  // a lock or a disk (removing a layer). Callers without a session (tests) call it themselves.
+  std::function<Response()> deferred;
 
   // Case-insensitive, in `headers` then `prebuilt`; nullptr if absent.
   const std::string* header(std::string_view name) const;

@@ -37,6 +37,11 @@ struct IngestJobSpec {
   std::vector<std::filesystem::path> sources;  // canonical, existing, under data_root or uploads
   nlohmann::json options = nlohmann::json::object();  // passed through from the request
   std::filesystem::path store_path;                   // the server's store (open it read-write)
+  // Ingest confinement (sources::RasterPolicy): every file the ingest reads, a VRT's sources
+  // included, lies under `root` — the data root, or the upload directory for an upload (which
+  // may not be a VRT: its sources could not have been uploaded with it).
+  std::filesystem::path root;
+  bool allow_vrt = true;
 };
 
 using IngestRunner = std::function<Status(const IngestJobSpec&, const ProgressSink&)>;
@@ -59,6 +64,9 @@ struct JobStatus {
 
 class JobManager {
  public:
+  // Finished jobs beyond this many are forgotten, oldest (lowest id) first.
+  static constexpr std::size_t kKeptJobs = 1000;
+
   JobManager(IngestRunner runner, std::uint32_t max_pending);
   ~JobManager();
   JobManager(const JobManager&) = delete;
@@ -69,7 +77,7 @@ class JobManager {
   Result<std::string> submit(IngestJobSpec spec,
                              std::vector<std::filesystem::path> delete_after = {});
   std::optional<JobStatus> get(const std::string& id) const;
-  std::vector<JobStatus> list() const;
+  std::vector<JobStatus> list() const;  // oldest first
   JobCounts counts() const;
   // Cancels queued jobs and asks the running one to stop; joins the worker.
   void shutdown();
@@ -86,7 +94,7 @@ class JobManager {
   std::uint32_t max_pending_;
   mutable std::mutex mutex_;  // guards everything below
   std::condition_variable wake_;
-  std::map<std::string, std::shared_ptr<Job>> jobs_;
+  std::map<std::uint64_t, std::shared_ptr<Job>> jobs_;  // by id: oldest first
   std::deque<std::shared_ptr<Job>> queue_;
   std::uint64_t next_id_ = 1;
   bool stopping_ = false;

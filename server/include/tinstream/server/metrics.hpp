@@ -8,6 +8,8 @@
 #include <string>
 #include <string_view>
 
+#include "tinstream/server/routes.hpp"
+
 namespace tinstream::server {
 
 struct JobCounts {
@@ -16,10 +18,9 @@ struct JobCounts {
 
 class Metrics {
  public:
-  // Route labels known to the server; anything else is counted as "other".
-  static constexpr std::array<std::string_view, 13> kRoutes = {
-      "healthz", "metrics", "layers", "layer",        "layer_json", "terrain", "tile",
-      "ingest",  "jobs",    "job",    "delete_layer", "preflight",  "other"};
+  // Route labels known to the server (every route's kName, routes.hpp); anything else is
+  // counted as "other".
+  static constexpr auto kRoutes = kRouteLabels;
   static constexpr std::array<int, 16> kStatuses = {200, 202, 204, 304, 400, 401, 403, 404,
                                                     405, 409, 413, 415, 431, 500, 503, 0};
   // Latency histogram upper bounds, seconds.

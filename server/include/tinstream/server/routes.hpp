@@ -12,12 +12,16 @@
 //   DELETE    /admin/layers/{layer}                    DeleteLayerRoute
 //   OPTIONS   any path                                 PreflightRoute (CORS)
 //
+// (To add routes, see "Route families" below.)
+//
 // Path segments are percent-decoded one by one after splitting on '/', so `%2F` can never create
 // a segment and `%2e%2e` decodes to "..", which no layer name, quadkey or number accepts. Layer
 // names follow store::validate_layer_name ([A-Za-z0-9_.-]{1,64}, no leading '.').
 #pragma once
 
+#include <array>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -26,38 +30,96 @@
 
 namespace tinstream::server {
 
-struct HealthRoute {};
-struct MetricsRoute {};
-struct LayersRoute {};
+// ---------------------------------------------------------------------------------------------
+// Route families: the registration point.
+//
+// A route family owns the paths under one first segment ("tiles", "admin", …). Each of its routes
+// is a struct below, named `<What>Route`, with `kName` (its metrics label) and the fields the
+// handler needs, already validated. To add a family (say `/imagery/{layer}/{z}/{x}/{y}.png`):
+//   1. its route structs here, and each in the `Route` variant below (the metrics labels follow
+//      from it: kRouteLabels; `static constexpr bool kAdmin = true` puts a route behind the
+//      admin allow-list and listener);
+//   2. a `parse_<family>(method, segments, query)` in src/routes.cpp and one line in its
+//      kFamilies table naming the first segment it owns ("" is the root path `/`);
+//   3. `Response serve(const Request&, Context&, const <What>Route&)` for each struct in a new
+//      src/family_<family>.cpp, declared in src/families.hpp, and the file in
+//      server/CMakeLists.txt. The dispatch (src/handler.cpp) is a std::visit over `Route`: a
+//      route without its `serve` does not compile.
+// Nothing else changes: the session, the metrics and the other families stay as they are.
+// ---------------------------------------------------------------------------------------------
+
+// Family "service": /healthz, /metrics, and OPTIONS on any path (src/family_service.cpp).
+struct HealthRoute {
+  static constexpr std::string_view kName = "healthz";
+};
+struct MetricsRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
+  static constexpr std::string_view kName = "metrics";
+};
+// Family "layers": layer metadata (src/family_layers.cpp).
+struct LayersRoute {
+  static constexpr std::string_view kName = "layers";
+};
 struct LayerRoute {
+  static constexpr std::string_view kName = "layer";
   std::string layer;
 };
+// Family "tiles": Cesium terrain (src/family_terrain.cpp) and native tiles (src/family_tiles.cpp).
 struct LayerJsonRoute {
+  static constexpr std::string_view kName = "layer_json";
   std::string layer;
 };
 struct TerrainRoute {
+  static constexpr std::string_view kName = "terrain";
   std::string layer;
   geo::TileId id;
 };
 struct NativeTileRoute {
+  static constexpr std::string_view kName = "tile";
   std::string layer;
   geo::TileId id;
 };
+// Family "admin": ingest jobs and layer removal, bearer token (src/family_admin.cpp).
 struct IngestRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
+  static constexpr std::string_view kName = "ingest";
   std::map<std::string, std::string> query;
 };
-struct JobsRoute {};
+struct JobsRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
+  static constexpr std::string_view kName = "jobs";
+};
 struct JobRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
+  static constexpr std::string_view kName = "job";
   std::string id;
 };
 struct DeleteLayerRoute {
+  static constexpr bool kAdmin = true;  // admin_allow, admin listener, no CORS
+  static constexpr std::string_view kName = "delete_layer";
   std::string layer;
 };
-struct PreflightRoute {};
+struct PreflightRoute {
+  static constexpr std::string_view kName = "preflight";
+  bool admin = false;  // for a path of an admin route (/admin/…, /metrics): no CORS
+};
 
 using Route = std::variant<HealthRoute, MetricsRoute, LayersRoute, LayerRoute, LayerJsonRoute,
                            TerrainRoute, NativeTileRoute, IngestRoute, JobsRoute, JobRoute,
                            DeleteLayerRoute, PreflightRoute>;
+
+namespace detail {
+template <typename V>
+struct RouteLabels;
+template <typename... R>
+struct RouteLabels<std::variant<R...>> {
+  static constexpr std::array<std::string_view, sizeof...(R) + 1> value = {R::kName..., "other"};
+};
+}  // namespace detail
+
+// The metrics label of every route, in the variant's order, then "other" (requests that match
+// no route).
+inline constexpr auto kRouteLabels = detail::RouteLabels<Route>::value;
 
 struct RouteError {
   int status = 400;  // 400 malformed, 404 no such path, 405 wrong method
@@ -70,8 +132,13 @@ using RouteResult = std::variant<Route, RouteError>;
 
 RouteResult parse_route(std::string_view method, std::string_view target);
 
-// Metrics label of a route ("tile", "terrain", …).
+// Metrics label of a route ("tile", "terrain", …): its kName.
 std::string_view route_name(const Route& route);
+
+// True for the admin API and the metrics: routes whose struct says `kAdmin = true`, and their
+// preflights. They answer only addresses in admin_allow, only on the admin listener when there
+// is one, and never carry CORS headers.
+bool is_admin_route(const Route& route);
 
 // Percent-decoding of one path segment or query component; nullopt on a malformed escape or a
 // decoded NUL. `plus_is_space` for query strings.

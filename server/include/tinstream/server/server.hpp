@@ -31,6 +31,8 @@ class Server {
   ~Server();
 
   std::uint16_t port() const;
+  // The admin listener's port (config admin_address); 0 when there is none.
+  std::uint16_t admin_port() const;
   // Serves until stop(). When handle_signals, SIGINT/SIGTERM call stop().
   void run(bool handle_signals = false);
   void stop();

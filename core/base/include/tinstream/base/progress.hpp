@@ -14,7 +14,7 @@
 namespace tinstream {
 
 struct Progress {
-  std::string phase;        // "read", "sort", "triangulate", "lod", "publish", …
+  std::string phase;        // "transform", "sort", "triangulate", "lod", "publish", …
   std::uint64_t done = 0;   // units done in this phase
   std::uint64_t total = 0;  // 0 when unknown
   std::string unit;         // "points", "tiles", "bytes"

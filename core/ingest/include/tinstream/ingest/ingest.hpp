@@ -9,8 +9,8 @@
 //    LayerWriter and published in one transaction. Any error, cancellation, crash or kill leaves
 //    the previously published state (if any) untouched; re-running the ingest is always safe.
 //  * Errors name the file and record (pass 1), the tile (pass 3/4) or the store.
-//  * Progress is reported through the sink (phases "transform", "sort", "merge", "index",
-//    "triangulate", "lod", "publish"); returning false cancels.
+//  * Progress is reported through the sink (phases "transform", "sort", "merge", "triangulate",
+//    "lod", "publish"); returning false cancels.
 // Threads: call from one thread; it runs a worker pool of `threads` internally.
 #pragma once
 

@@ -26,6 +26,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -35,6 +36,25 @@
 #include "tinstream/kernel/predicates.hpp"
 
 namespace tinstream::kernel {
+
+namespace detail {
+struct RemovalHole;  // vertex removal's scratch (src/removal_hole.hpp)
+// Owns a RemovalHole, made on first use, so that removals reuse its buffers. A copy starts with
+// none (scratch and a removal plan are not part of a triangulation's value).
+class RemovalScratch {
+ public:
+  RemovalScratch() noexcept;
+  RemovalScratch(const RemovalScratch&) noexcept;
+  RemovalScratch& operator=(const RemovalScratch&) noexcept;
+  RemovalScratch(RemovalScratch&&) noexcept;
+  RemovalScratch& operator=(RemovalScratch&&) noexcept;
+  ~RemovalScratch();
+  RemovalHole& get();
+
+ private:
+  std::unique_ptr<RemovalHole> hole_;
+};
+}  // namespace detail
 
 struct Point3 {
   double x = 0.0;
@@ -186,52 +206,13 @@ class Triangulation {
   void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
   VertexId insert_intersection(VertexId a, VertexId b, TriangleId t, int edge);
 
-  // The re-triangulated star of a vertex being removed, in local indices (see remove.cpp).
-  // Kept as a member so that removals reuse its buffers instead of allocating.
-  struct Hole {
-    // The star: the first `degree` entries of ring, star and outer (buffers that only grow).
-    std::size_t degree = 0;
-    std::vector<VertexId> ring;          // link vertices, counter-clockwise around v
-    std::vector<TriangleId> star;        // star[i] = (v, ring[i], ring[i + 1])
-    std::vector<TriangleId> outer;       // neighbour across ring edge i
-    std::vector<TriangleId> star_back;   // scratch: the star collected clockwise
-    std::vector<VertexId> ring_back;     // scratch: its ring vertices
-    std::vector<TriangleId> outer_back;  // scratch: its outer neighbours
-    std::vector<int> outer_index;        // its edge index (filled by remove_vertex)
-    // New triangles: the first ntri entries of tris, adj and fixed (buffers that only grow, so
-    // that adding a triangle is a few stores).
-    std::size_t ntri = 0;
-    std::vector<VertexTriple> tris;
-    std::vector<std::array<int, 3>> adj;  // >= 0: local tri * 3 + edge; < 0: -(ring edge + 1)
-    std::vector<std::uint8_t> fixed;      // per new triangle: bit i = edge i constrained
-    std::vector<int> nxt, prv, owner, stack;
-    std::vector<VertexId> chain;
-    std::vector<std::pair<int, int>> flips;
-    VertexId join_a = kNone, join_b = kNone;
-    bool degenerate = false;
-    bool hull = false;  // the ghost vertex is in the link
-    // Set by delaunay_apexes (stars of at most kApexMax triangles): the hole was built from ring
-    // edge 0 inwards, and ring_tri[r] = local tri * 3 + edge of ring edge r.
-    static constexpr std::size_t kApexMax = 32;
-    bool apexes = false;
-    std::array<int, kApexMax> ring_tri{};
-    void clear();
-    int add(VertexId a, VertexId b, VertexId c, int oa, int ob, int oc);
-    void grow();
-    void grow_star(std::size_t n);  // room for a star of n triangles
-    void convexify(const Mesh& mesh);
-    // Closed link polygon (interior vertex): the ring as a circular list, one ear at a time.
-    void start_ring();
-    void clip_ear(int c);    // adds the ear (prv[c], c, nxt[c]) and unlinks c
-    void close_ring(int c);  // adds the last triangle (prv[c], c, nxt[c])
-    bool triangulate_quad(const Mesh& mesh);
-    bool clip_delaunay_ears(const Mesh& mesh, const XY& pv);
-    bool delaunay_apexes(const Mesh& mesh);
-  };
-  Result<bool> plan_removal(VertexId v, Hole& hole, bool any_order = false) const;
-  TriangleId write_hole(Hole& hole);
-  TriangleId write_apex_hole(Hole& hole);
-  TriangleId write_hole_general(Hole& hole);
+  // Vertex removal (remove.cpp): plan_removal fills the hole (the re-triangulated star, in
+  // src/removal_hole.hpp) in three cases: a vertex on the hull, one splitting a straight
+  // constraint, an interior one.
+  Status plan_removal(VertexId v, detail::RemovalHole& hole, bool any_order = false) const;
+  TriangleId write_hole(detail::RemovalHole& hole);
+  TriangleId write_apex_hole(detail::RemovalHole& hole);
+  TriangleId write_hole_general(detail::RemovalHole& hole);
   void demote_to_collinear(VertexId removed);
   TriangleId find_edge(VertexId a, VertexId b, int* index) const;
   bool segment_chain_present(VertexId a, VertexId b) const;
@@ -243,12 +224,10 @@ class Triangulation {
   // Flip stack storage: its size is its capacity (grown by legalize, never shrunk); how much of
   // it is in use is legalize's local `top`.
   std::vector<std::pair<TriangleId, int>> stack_ = std::vector<std::pair<TriangleId, int>>(64);
-  mutable Hole hole_;
-  // Every edit bumps revision_; a removal_preview(v) leaves its plan in hole_ so that
-  // remove_vertex(v) with no edit in between does not compute it again.
+  // Every edit bumps revision_; a removal_preview(v) leaves its plan in the removal scratch so
+  // that remove_vertex(v) with no edit in between does not compute it again.
+  mutable detail::RemovalScratch removal_;
   std::uint64_t revision_ = 0;
-  mutable VertexId planned_vertex_ = kNone;
-  mutable std::uint64_t planned_revision_ = 0;
   mutable TriangleId hint_ = kNone;
   // Walks in a Delaunay triangulation cannot cycle; once constraints exist they can, and the
   // walk picks its first edge at random (remembering stochastic walk).

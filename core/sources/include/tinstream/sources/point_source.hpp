@@ -118,12 +118,50 @@ struct TextLayout {
   char comment = '#';  // lines whose first non-blank char is this are ignored; so are blank lines
 };
 
+// What GDAL may open for a raster input, and how big it may be (ingest confinement). The caller
+// states it: the CLI keeps the default (the user's own files, anywhere on the local disk); the
+// server's admin ingest uses RasterPolicy::confined(data_root). Whatever the policy:
+// - only the listed GDAL drivers open an input; names beginning with /vsi (archives, network)
+//   are refused, and GDAL's HTTP access is off (CPL_VSIL_CURL_ALLOWED_EXTENSIONS);
+// - a VRT (when "VRT" is listed) is read as XML first and accepted only when every element is
+//   one a plain mosaic or subset needs (bands, simple/complex/averaged sources, NODATA, scale,
+//   metadata): raw bands (a file read at any offset), derived bands (pixel functions), warped
+//   and pansharpened VRTs, overviews, masks, GCPs and open options are refused; every
+//   SourceFilename must be a local regular file (no /vsi, no connection string) that one of the
+//   listed drivers other than VRT opens, and under `root` when it is set;
+// - the raster, its blocks and every VRT source are checked against the size limits below
+//   before any buffer is allocated for them (a VRT declaring a 2^31-wide raster fails cleanly).
+struct RasterPolicy {
+  // GDAL drivers (short names) an input may be opened with. Elevation formats only.
+  std::vector<std::string> drivers = {"GTiff", "AAIGrid", "SRTMHGT", "EHdr", "USGSDEM",
+                                      "GSAG",  "GSBG",    "GS7BG",   "BT",   "VRT"};
+  // Non-empty: the input and every file a VRT names must resolve (symlinks followed) to a
+  // regular file under this directory. Empty: anywhere on the local file system.
+  std::filesystem::path root;
+  int max_width = 1 << 22;   // cells per row: the reader's strip buffer holds one row at least
+  int max_height = 1 << 22;  // rows
+  std::uint64_t max_cells = std::uint64_t{1} << 36;         // width × height (6.9e10)
+  std::uint64_t max_block_bytes = std::uint64_t{64} << 20;  // one GDAL block of one band
+  std::uint64_t max_vrt_bytes = std::uint64_t{16} << 20;    // a VRT's XML text
+
+  // The admin API's policy: files under `root` only; VRTs only when `allow_vrt`.
+  static RasterPolicy confined(std::filesystem::path root, bool allow_vrt = true) {
+    RasterPolicy p;
+    p.root = std::move(root);
+    if (!allow_vrt) std::erase(p.drivers, std::string("VRT"));
+    return p;
+  }
+};
+
 struct SourceOptions {
   SourceFormat format = SourceFormat::automatic;
   ClassFilter class_filter;
   InvalidPolicy invalid = InvalidPolicy::fail;
   TextLayout text;
   int raster_band = 1;  // 1-based GDAL band
+  // LAZ: threads decoding chunks ahead of read() (0: one per core, at most 8; 1: none).
+  unsigned decode_threads = 0;
+  RasterPolicy raster;  // what GDAL may open (rasters only)
 };
 
 class PointSource {
@@ -143,9 +181,10 @@ class PointSource {
   PointSource() = default;
 };
 
-// Opens a source. Format: SourceOptions::format, else by extension (.las; .laz is refused
-// with `unsupported`; .xyz .csv .txt .pts → text), else by magic ("LASF"), else any raster GDAL
-// opens. Errors name the file.
+// Opens a source. Format: SourceOptions::format, else by extension (.las, .laz and .copc.laz;
+// .xyz .csv .txt .pts → text), else by magic ("LASF"), else any raster GDAL opens. LAZ files
+// (LASzip-compressed LAS, any point format, COPC included) read exactly like LAS. Errors name
+// the file.
 Result<std::unique_ptr<PointSource>> open_source(const std::filesystem::path& path,
                                                  const SourceOptions& options = {});
 

@@ -6,7 +6,8 @@
 // SQLite commits a batch (and checkpoints the WAL). push() waits only while `capacity` tiles, or
 // `max_bytes` of compressed tiles, are queued (a tile larger than max_bytes alone still goes in
 // once the queue is empty). The first store error stops the queue: the next push() and finish()
-// return it.
+// return it. An exception thrown by the store, or a queue thread that cannot be started, is such
+// an error too (fault points "store.queue" and "store.queue.spawn").
 #pragma once
 
 #include <cstdint>
@@ -32,6 +33,13 @@ class QueuedWriter {
   Status finish();
   // Tiles stored so far (exact after finish()).
   std::uint64_t stored() const;
+  // What waits in the queue (tiles not yet taken by its thread), now and at most so far.
+  struct Occupancy {
+    std::size_t tiles = 0;
+    std::size_t bytes = 0;
+  };
+  Occupancy queued() const;
+  Occupancy peak() const;
 
  private:
   struct Impl;

@@ -139,7 +139,6 @@ class LayerWriter {
 
  private:
   std::unique_ptr<Impl> impl_;
-  friend struct LayerWriterTestAccess;  // core/store/src/writer_test_access.hpp, tests only
 };
 
 // Layer names: 1–64 characters from [A-Za-z0-9_.-], not starting with '.'.

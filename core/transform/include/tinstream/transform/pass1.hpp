@@ -13,6 +13,10 @@
 // - A point outside the Mercator square (|lat| beyond ±85.05° spherical / ±85.08° ellipsoidal)
 //   is an Error naming the record, like any other invalid point; with InvalidPolicy::skip it is
 //   counted as invalid instead.
+// - A height beyond the Earth's range (|ellipsoidal h| > kMaxAbsHeight: 100 km, where the deepest
+//   trench is 11 km down and the highest summit 9 km up) is an Error naming the record — an
+//   undeclared NODATA value such as -3.4e38, or wrong z units — or, with InvalidPolicy::skip,
+//   counted as invalid; it never reaches the store.
 // - Progress: phase "transform", unit "records", done = records read over all inputs, total =
 //   the sum of the inputs' record counts when all are known in advance (LAS, rasters), else 0.
 //   The sink is called from the calling thread, at most about 5 times a second, and once at the
@@ -35,6 +39,8 @@
 #include "tinstream/transform/run_file.hpp"
 
 namespace tinstream::transform {
+
+inline constexpr double kMaxAbsHeight = 1e5;  // metres, ellipsoidal
 
 struct InputSpec {
   std::filesystem::path path;
@@ -67,6 +73,8 @@ struct InputSummary {
   ReprojectionPlan plan;               // CRS used, z unit and the rule that chose it, geoid grid
   sources::SourceCounters counters;    // records read / rejected by class, NODATA, invalid
   std::uint64_t outside_mercator = 0;  // counted in counters.rejected_invalid too
+  // |ellipsoidal height| > kMaxAbsHeight (skipped under InvalidPolicy::skip); in rejected_invalid.
+  std::uint64_t implausible_height = 0;
   std::uint64_t points_written = 0;
   std::vector<std::string> notes;  // the reader's and reprojector's remarks
 };

@@ -58,8 +58,13 @@ struct GeoPoint {
 struct ReprojectOptions {
   std::string crs;                            // overrides the file's CRS when not empty
   std::optional<sources::LinearUnit> z_unit;  // overrides the z unit rule
-  // "ellipsoidal", "egm96", "egm2008", a geoid grid file name, or "crs" (see above).
+  // "ellipsoidal", "egm96", "egm2008", a geoid grid file name, or "crs" (see above). A grid file
+  // name is a bare name (is_grid_file_name): PROJ finds it in its data directories; it never goes
+  // into a PROJ string unchecked.
   std::string vertical_datum = "ellipsoidal";
+  // The options come from an untrusted caller (the server's admin API): `crs` must be an
+  // authority code (is_authority_code), and PROJ may not download grids whatever PROJ_NETWORK says.
+  bool confined = false;
 };
 
 // What a Reprojector decided, for logs and run summaries.
@@ -96,7 +101,16 @@ class Reprojector {
 };
 
 // The PROJ grid file names tried for a vertical datum option ("egm96" → us_nga_egm96_15.tif,
-// egm96_15.gtx); a name ending in .tif/.gtx/.gtg is itself. Empty for "ellipsoidal" and "crs".
+// egm96_15.gtx); a grid file name (is_grid_file_name) is itself. Empty for "ellipsoidal" and
+// "crs". Anything else is invalid_argument.
 Result<std::vector<std::string>> geoid_grid_candidates(const std::string& vertical_datum);
+
+// A bare grid file name: 1-128 characters from [A-Za-z0-9._-], starting with a letter or digit,
+// ending in .tif, .gtx or .gtg. No directory, no space, no '+': it cannot add a PROJ step or
+// reach a file outside PROJ's data directories.
+bool is_grid_file_name(std::string_view name);
+// "AUTH:code" or "AUTH:code+code" (upper-case authority, decimal codes): a CRS text that cannot
+// name a file.
+bool is_authority_code(std::string_view crs);
 
 }  // namespace tinstream::transform

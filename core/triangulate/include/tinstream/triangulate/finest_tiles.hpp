@@ -27,7 +27,7 @@
 // same sub-cells, in the same order.
 //
 // Threads: PointCells is read-only after construction and may be shared; each thread needs its
-// own CellReader (it owns a file handle).
+// own subdivide::SortedRunReader (it owns a file handle).
 #pragma once
 
 #include <array>

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Everything CI checks (`make test` runs this after installing the dependencies), step by step,
+# each timed (wall and CPU seconds; `.ci/timings.tsv` style table at the end and in
+# build-ci/timings.tsv). Every step runs even when one before failed; the exit status is 1 when
+# any failed.
+#   .ci/pipeline.sh [step...]    steps: release asan tsan format tidy fuzz (default: all, in order)
+#   release  Release (-O3) build, what docker/ ships, and the whole suite on it (ctest: unit and
+#            integration tests, crash-safety harnesses, fuzz replays, the build checks)
+#   asan     ASan + UBSan (-O1 -g, asserts on) build and the whole suite on it
+#   tsan     TSan (-O1 -g) build of the threaded suites (worker pools, store queue, server) and
+#            those suites
+#   format   clang-format --dry-run over every C++ file
+#   tidy     clang-tidy (.clang-tidy; findings fail)
+#   fuzz     every libFuzzer target 60 s (scripts/fuzz.sh; FUZZ_SECONDS overrides)
+# Budget: 45 minutes on a 2-core machine (docs/SECURITY.md, "CI", has the measured breakdown).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+steps=("$@")
+((${#steps[@]})) || steps=(release asan tsan format tidy fuzz)
+mkdir -p build-ci
+timings=build-ci/timings.tsv
+printf 'step\tresult\twall_s\tcpu_s\n' >"$timings"
+failed=()
+TIMEFORMAT='%R %U %S'
+for step in "${steps[@]}"; do
+  case $step in
+    release) cmd=(make release) ;;
+    asan) cmd=(make asan) ;;
+    tsan) cmd=(make tsan) ;;
+    format) cmd=(make format-check BUILD=build-release) ;;
+    tidy) cmd=(make tidy BUILD=build-release) ;;
+    fuzz) cmd=(make fuzz) ;;
+    *) echo "pipeline: unknown step $step" >&2; exit 2 ;;
+  esac
+  echo "=== pipeline: $step: ${cmd[*]}"
+  { time "${cmd[@]}" 2>&1; } 2>build-ci/time.$step
+  rc=$?
+  read -r wall user sys < <(tail -n 1 build-ci/time.$step)
+  cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.0f", u + s }')
+  result=ok
+  if ((rc != 0)); then result=FAILED; failed+=("$step"); fi
+  printf '%s\t%s\t%.0f\t%s\n' "$step" "$result" "$wall" "$cpu" >>"$timings"
+  echo "=== pipeline: $step: $result in ${wall%.*} s (CPU ${cpu} s)"
+done
+echo "=== pipeline: timings (wall and CPU seconds)"
+column -t "$timings"
+awk -F'\t' 'NR > 1 { w += $3; c += $4 } END { printf "total: %d s wall (%.1f min), %d s CPU\n", w, w / 60, c }' "$timings"
+if ((${#failed[@]})); then
+  echo "=== pipeline: FAILED: ${failed[*]}"
+  exit 1
+fi
+echo "=== pipeline: all steps passed"

@@ -1,0 +1,435 @@
+// Item decoders: one per LASzip item type and version. An item is a fixed slice of the point
+// record (POINT10 = bytes 0..19 of formats 0-5, GPSTIME11 = the 8-byte GPS time, ...); the
+// record is the items' bytes one after the other, in the LASzip VLR's order.
+//
+// Every decoder has the same shape, with no virtual calls:
+//   start(raw)        the chunk's first record is stored raw: take the item's bytes as the state
+//   decode(..., out)  decode the next item into `out` (its bytes in LAS layout)
+// Pointwise items (versions 1 and 2, compressors 1 and 2) share one ArithmeticDecoder per chunk.
+// Layered items (versions 3 and 4, compressor 3) own one decoder per layer; a layer not asked
+// for (LayerSelection) or empty in this chunk is never decoded, and its fields keep the value of
+// the chunk's first point, as LASzip's selective decompression does.
+//
+// The prediction rules, contexts and model sizes follow the LAZ specification and LASzip's
+// lasreaditemcompressed_v1/v2/v3/v4.cpp; the code is organised our own way.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <vector>
+
+#include "entropy.hpp"
+#include "tinstream/laz/laszip_vlr.hpp"
+#include "tinstream/laz/laz_reader.hpp"
+
+namespace tinstream::laz::detail {
+
+// ---------------------------------------------------------------------------------------------
+// Small shared pieces
+
+inline std::uint16_t get16(const std::uint8_t* p) {
+  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
+}
+inline std::uint32_t get32(const std::uint8_t* p) {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
+inline std::uint64_t get64(const std::uint8_t* p) {
+  return get32(p) | (static_cast<std::uint64_t>(get32(p + 4)) << 32);
+}
+inline void put16(std::uint8_t* p, std::uint16_t v) {
+  p[0] = static_cast<std::uint8_t>(v);
+  p[1] = static_cast<std::uint8_t>(v >> 8);
+}
+inline void put32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+inline void put64(std::uint8_t* p, std::uint64_t v) {
+  put32(p, static_cast<std::uint32_t>(v));
+  put32(p + 4, static_cast<std::uint32_t>(v >> 32));
+}
+// Two's-complement addition without signed overflow.
+inline std::int32_t wrap_add(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) + static_cast<std::uint32_t>(b));
+}
+inline std::int32_t wrap_mul(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) * static_cast<std::uint32_t>(b));
+}
+
+// The running "median of five" LASzip predicts coordinate steps with. It is not the median of
+// the last five values: the five slots stay sorted, and each new value evicts from the top or
+// from the bottom, alternating after each value that lands on the far side of the middle.
+class StreamingMedian5 {
+ public:
+  void reset() { *this = StreamingMedian5{}; }
+  std::int32_t get() const { return s_[2]; }
+  void push(std::int32_t v);
+
+ private:
+  std::array<std::int32_t, 5> s_{};
+  bool evict_high_ = true;
+};
+
+// Context maps from (number of returns n, return number r).
+std::uint8_t return_map_3bit(std::uint32_t n, std::uint32_t r);  // 0..15, n, r < 8 (v1/v2)
+std::uint8_t return_map_6ctx(std::uint32_t n, std::uint32_t r);  // 0..5, n, r < 16 (v3/v4)
+inline std::uint32_t return_level(std::uint32_t n, std::uint32_t r, std::uint32_t cap) {
+  const std::uint32_t d = n > r ? n - r : r - n;
+  return d < cap ? d : cap;
+}
+
+// The GPS time coder of GPSTIME11 v2 and of POINT14's GPS layer (v3): up to four sequences of
+// times, each with its current step; a symbol says "step times m", "new sequence", "switch to
+// sequence j", or (v2 only) "unchanged".
+class GpsTimeSequences {
+ public:
+  explicit GpsTimeSequences(bool layered);
+  void reset(std::uint64_t first_time_bits);
+  // Decodes the next time (as the bits of the double); `dec` is marked corrupt when a damaged
+  // stream keeps switching sequences.
+  std::uint64_t decode(ArithmeticDecoder& dec);
+  std::uint64_t current() const { return time_[last_]; }
+
+ private:
+  void start_new_sequence(ArithmeticDecoder& dec);
+  std::int32_t decode_scaled_step(ArithmeticDecoder& dec, std::uint32_t multi);
+
+  bool layered_;
+  std::uint32_t code_full_;  // "new sequence" in the multi model
+  std::uint32_t last_ = 0;   // the sequence the last time belongs to
+  std::uint32_t next_ = 0;   // the sequence slot a new sequence takes
+  std::array<std::uint64_t, 4> time_{};
+  std::array<std::int32_t, 4> step_{};
+  std::array<std::int32_t, 4> extreme_{};
+  SymbolModel multi_;
+  SymbolModel zero_step_;
+  IntegerDecoder ic_;
+};
+
+// The RGB coder shared by RGB12 v2 and RGB14 v3/v4: which of the six bytes changed (and whether
+// the three channels changed alike), then each changed byte as a difference from the previous
+// byte, the red change predicting green and blue.
+struct RgbModels {
+  RgbModels();
+  void reset();
+  SymbolModel changed{128};
+  std::array<SymbolModel, 6> byte_diff;
+};
+void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t last[3],
+                std::uint16_t out[3]);
+
+// ---------------------------------------------------------------------------------------------
+// Pointwise items (compressors 1 and 2)
+
+// POINT10 bytes 0..19 of formats 0-5, as fields.
+struct Point10Fields {
+  std::int32_t x = 0, y = 0, z = 0;
+  std::uint16_t intensity = 0;
+  std::uint8_t returns = 0;  // return number (bits 0-2), number of returns (3-5), flags (6-7)
+  std::uint8_t classification = 0;  // class (0-4), synthetic/key-point/withheld (5-7)
+  std::uint8_t scan_angle = 0;
+  std::uint8_t user_data = 0;
+  std::uint16_t source_id = 0;
+  void load(const std::uint8_t* p);
+  void store(std::uint8_t* p) const;
+};
+
+class Point10V1 {
+ public:
+  Point10V1();
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  Point10Fields last_;
+  std::array<std::int32_t, 3> last_dx_{}, last_dy_{};
+  std::uint32_t next_slot_ = 0;
+  IntegerDecoder ic_dx_, ic_dy_, ic_z_, ic_intensity_, ic_scan_angle_, ic_source_id_;
+  SymbolModel changed_;
+  LazyModels returns_, classification_, user_data_;
+};
+
+class Point10V2 {
+ public:
+  Point10V2();
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  Point10Fields last_;
+  std::array<std::uint16_t, 16> last_intensity_{};
+  std::array<std::int32_t, 8> last_height_{};
+  std::array<StreamingMedian5, 16> dx_median_, dy_median_;
+  SymbolModel changed_;
+  IntegerDecoder ic_intensity_;
+  std::array<SymbolModel, 2> scan_angle_;
+  IntegerDecoder ic_source_id_;
+  LazyModels returns_, classification_, user_data_;
+  IntegerDecoder ic_dx_, ic_dy_, ic_z_;
+};
+
+class GpsTime11V1 {
+ public:
+  GpsTime11V1();
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  std::uint64_t last_ = 0;
+  std::int32_t last_step_ = 0;
+  std::int32_t extreme_ = 0;
+  SymbolModel multi_, zero_step_;
+  IntegerDecoder ic_;
+};
+
+class GpsTime11V2 {
+ public:
+  GpsTime11V2() : seq_(false) {}
+  void start(const std::uint8_t* raw) { seq_.reset(get64(raw)); }
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out) { put64(out, seq_.decode(dec)); }
+
+ private:
+  GpsTimeSequences seq_;
+};
+
+class Rgb12V1 {
+ public:
+  Rgb12V1();
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  std::array<std::uint8_t, 6> last_{};  // R low, R high, G low, G high, B low, B high
+  SymbolModel changed_;
+  IntegerDecoder ic_;
+};
+
+class Rgb12V2 {
+ public:
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  std::uint16_t last_[3] = {0, 0, 0};
+  RgbModels models_;
+};
+
+// Extra bytes (BYTE v1: integer-coded per byte; v2: a difference symbol per byte).
+class ByteV1 {
+ public:
+  explicit ByteV1(std::size_t count);
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  std::vector<std::uint8_t> last_;
+  IntegerDecoder ic_;
+};
+
+class ByteV2 {
+ public:
+  explicit ByteV2(std::size_t count);
+  void start(const std::uint8_t* raw);
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+
+ private:
+  std::vector<std::uint8_t> last_;
+  std::vector<SymbolModel> diff_;
+};
+
+// The 28 bytes after the descriptor index of a wave packet (formats 4, 5, 9, 10).
+struct WavePacketFields {
+  std::uint64_t offset = 0;
+  std::uint32_t size = 0;
+  std::uint32_t return_point = 0;
+  std::array<std::uint32_t, 3> xyz{};
+  void load(const std::uint8_t* p);
+  void store(std::uint8_t* p) const;
+};
+
+// The wave packet coder of WAVEPACKET13 v1 and WAVEPACKET14 v3/v4 (one context's worth).
+class WavePacketCoder {
+ public:
+  WavePacketCoder();
+  void reset(const std::uint8_t* raw29);
+  // Decodes into out29 (index byte + 28 bytes) and makes it the new state.
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out29);
+  const std::uint8_t* last() const { return last_.data(); }
+  void overwrite_last(const std::uint8_t* raw29) { std::memcpy(last_.data(), raw29, 29); }
+
+ private:
+  std::array<std::uint8_t, 29> last_{};
+  std::int32_t last_diff_32_ = 0;
+  std::uint32_t last_offset_case_ = 0;
+  SymbolModel packet_index_;
+  std::array<SymbolModel, 4> offset_case_;
+  IntegerDecoder ic_offset_diff_, ic_packet_size_, ic_return_point_, ic_xyz_;
+};
+
+class WavePacket13V1 {
+ public:
+  void start(const std::uint8_t* raw) { coder_.reset(raw); }
+  void decode(ArithmeticDecoder& dec, std::uint8_t* out) { coder_.decode(dec, out); }
+
+ private:
+  WavePacketCoder coder_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Layered items (compressor 3, versions 3 and 4)
+
+// One layer of a layered chunk: its byte range in the chunk, and its decoder when it is read.
+struct Layer {
+  std::uint32_t size = 0;  // bytes, from the chunk's layer table
+  bool active = false;     // asked for and non-empty: decoded point by point
+  ArithmeticDecoder dec;
+};
+
+// POINT14 (formats 6-10, bytes 0..29) as fields.
+struct Point14Fields {
+  std::int32_t x = 0, y = 0, z = 0;
+  std::uint16_t intensity = 0;
+  std::uint8_t return_number = 0, number_of_returns = 0;
+  std::uint8_t class_flags = 0, scanner_channel = 0, scan_direction = 0, edge_of_line = 0;
+  std::uint8_t classification = 0, user_data = 0;
+  std::int16_t scan_angle = 0;
+  std::uint16_t source_id = 0;
+  std::uint64_t gps_time = 0;     // the double's bits
+  bool gps_time_changed = false;  // coder state: did the time change at this point
+  void load(const std::uint8_t* p);
+  void store(std::uint8_t* p) const;
+};
+
+// Layers of POINT14, in their order in the chunk.
+enum Point14Layer : std::size_t {
+  kLayerXY,
+  kLayerZ,
+  kLayerClassification,
+  kLayerFlags,
+  kLayerIntensity,
+  kLayerScanAngle,
+  kLayerUserData,
+  kLayerPointSource,
+  kLayerGpsTime,
+  kPoint14Layers
+};
+
+class Point14Layered {
+ public:
+  Point14Layered(const LayerSelection& selection);
+  ~Point14Layered();
+  std::size_t layer_count() const { return kPoint14Layers; }
+  Layer& layer(std::size_t i) { return layers_[i]; }
+  const Layer& layer(std::size_t i) const { return layers_[i]; }
+  bool wanted(std::size_t i) const { return wanted_[i]; }
+  void start(const std::uint8_t* raw);
+  void decode(std::uint8_t* out);
+  std::uint32_t channel() const { return current_; }  // scanner channel: the other items' context
+
+ private:
+  struct Context;
+  Context& open_context(std::uint32_t channel, const Point14Fields& from);
+  void decode_gps(Context& c);
+
+  std::array<Layer, kPoint14Layers> layers_;
+  std::array<bool, kPoint14Layers> wanted_{};
+  std::array<std::unique_ptr<Context>, 4> contexts_;
+  std::array<bool, 4> in_use_{};
+  std::uint32_t current_ = 0;
+};
+
+// The per-channel bookkeeping of the items after POINT14. Version 3 has a quirk that version 4
+// fixed: at the point where the channel switches to one already used in this chunk, v3 predicts
+// from (and updates) the previous channel's last item; v4 uses the new channel's own.
+struct ChannelSwitch {
+  std::uint32_t current = 0;
+  std::array<bool, 4> in_use{};
+  // Moves to `channel` and returns the channel whose last item predicts (and takes) this
+  // point. A channel new in this chunk is first opened from the previous channel's last item:
+  // open(new_channel, previous_channel).
+  template <typename Open>
+  std::uint32_t follow(std::uint32_t channel, bool version4, Open&& open) {
+    std::uint32_t source = current;
+    if (channel != current) {
+      current = channel;
+      if (!in_use[channel]) {
+        open(channel, source);
+        in_use[channel] = true;
+        source = channel;
+      } else if (version4) {
+        source = channel;
+      }
+    }
+    return source;
+  }
+};
+
+class Rgb14Layered {
+ public:
+  Rgb14Layered(bool nir, bool version4, const LayerSelection& selection);
+  std::size_t layer_count() const { return nir_ ? 2 : 1; }
+  Layer& layer(std::size_t i) { return layers_[i]; }
+  const Layer& layer(std::size_t i) const { return layers_[i]; }
+  bool wanted(std::size_t i) const { return i == 0 ? want_rgb_ : want_nir_; }
+  void start(const std::uint8_t* raw, std::uint32_t channel);
+  void decode(std::uint8_t* out, std::uint32_t channel);
+
+ private:
+  struct Context {
+    std::uint16_t last[4] = {0, 0, 0, 0};  // R, G, B, NIR
+    RgbModels rgb;
+    SymbolModel nir_changed{4};
+    SymbolModel nir_diff_low{256}, nir_diff_high{256};
+  };
+  Context& open(std::uint32_t channel, const std::uint16_t* from);
+
+  bool nir_, version4_, want_rgb_, want_nir_;
+  std::array<Layer, 2> layers_;
+  std::array<std::unique_ptr<Context>, 4> contexts_;
+  ChannelSwitch channels_;
+};
+
+class Byte14Layered {
+ public:
+  Byte14Layered(std::size_t count, bool version4, const LayerSelection& selection);
+  std::size_t layer_count() const { return layers_.size(); }
+  Layer& layer(std::size_t i) { return layers_[i]; }
+  const Layer& layer(std::size_t i) const { return layers_[i]; }
+  bool wanted(std::size_t) const { return wanted_; }
+  void start(const std::uint8_t* raw, std::uint32_t channel);
+  void decode(std::uint8_t* out, std::uint32_t channel);
+
+ private:
+  struct Context {
+    std::vector<std::uint8_t> last;
+    std::vector<SymbolModel> diff;
+  };
+  Context& open(std::uint32_t channel, const std::uint8_t* from);
+
+  std::size_t count_;
+  bool version4_, wanted_;
+  std::vector<Layer> layers_;
+  std::array<std::unique_ptr<Context>, 4> contexts_;
+  ChannelSwitch channels_;
+};
+
+class WavePacket14Layered {
+ public:
+  WavePacket14Layered(bool version4, const LayerSelection& selection);
+  std::size_t layer_count() const { return 1; }
+  Layer& layer(std::size_t) { return layer_; }
+  const Layer& layer(std::size_t) const { return layer_; }
+  bool wanted(std::size_t) const { return wanted_; }
+  void start(const std::uint8_t* raw, std::uint32_t channel);
+  void decode(std::uint8_t* out, std::uint32_t channel);
+
+ private:
+  bool version4_, wanted_;
+  Layer layer_;
+  std::array<std::unique_ptr<WavePacketCoder>, 4> contexts_;
+  ChannelSwitch channels_;
+};
+
+}  // namespace tinstream::laz::detail

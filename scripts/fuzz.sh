@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (clang, ASan + UBSan, asserts on) and runs each for a while, several
+# at once, then prints what each did: executions, coverage, corpus, peak memory, and any crash.
+#   scripts/fuzz.sh                       every target for 60 s (what CI runs: make fuzz)
+#   scripts/fuzz.sh --seconds 1800        longer
+#   scripts/fuzz.sh --runs 10000000       a fixed number of executions per target (a long run)
+#   scripts/fuzz.sh --only kernel_fuzzer,qmesh_fuzzer --jobs 1
+# Options: --build DIR (default build-fuzz), --out DIR (default DIR/fuzz-out), --no-build,
+#          --jobs N (targets at once; default: the number of cores).
+# Targets are whatever cmake/TinstreamFuzz.cmake registered (build-fuzz/fuzzers.tsv): a module
+# adds one with tinstream_add_fuzzer() in its fuzz/CMakeLists.txt and nothing else.
+# Each target works on a corpus of its own in OUT/<target>/corpus, seeded from its checked-in
+# corpus and regressions/. Exit status 1 when any target found a crash, leak, timeout or
+# out-of-memory: the input is in OUT/<target>/artifacts/. Fix the bug, then copy the input into
+# the target's regressions/ folder: the replay test (Fuzz.<target>.Replay, every test build) then
+# runs it forever after. A summary table is written to OUT/summary.tsv.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+build=build-fuzz
+out=
+seconds=60
+runs=
+jobs=$(nproc)
+only=
+do_build=1
+while (($#)); do
+  case $1 in
+    --seconds) seconds=$2; shift 2 ;;
+    --minutes) seconds=$(($2 * 60)); shift 2 ;;
+    --runs) runs=$2; shift 2 ;;
+    --jobs) jobs=$2; shift 2 ;;
+    --only) only=$2; shift 2 ;;
+    --build) build=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    --no-build) do_build=0; shift ;;
+    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    *) echo "fuzz.sh: unknown option $1 (--help)" >&2; exit 2 ;;
+  esac
+done
+out=${out:-$build/fuzz-out}
+
+if ((do_build)); then
+  if [[ ! -f $build/build.ninja ]]; then
+    # -O1 -g without NDEBUG: the asserts (programmer errors) are fuzzed too.
+    cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" \
+      -DTINSTREAM_FUZZ=ON -DTINSTREAM_BUILD_TESTS=OFF -DTINSTREAM_BUILD_CLIENT=OFF \
+      -DTINSTREAM_WERROR=OFF >/dev/null
+  fi
+  cmake --build "$build" --target fuzzers -j "$(nproc)"
+fi
+[[ -f $build/fuzzers.tsv ]] || { echo "fuzz.sh: no $build/fuzzers.tsv (configure with TINSTREAM_FUZZ=ON)" >&2; exit 2; }
+
+mkdir -p "$out"
+declare -a names=()
+while IFS=$'\t' read -r name _; do
+  [[ -z $name ]] && continue
+  if [[ -n $only && ",$only," != *",$name,"* ]]; then continue; fi
+  names+=("$name")
+done <"$build/fuzzers.tsv"
+((${#names[@]})) || { echo "fuzz.sh: no target selected" >&2; exit 2; }
+
+run_one() {
+  local name=$1 line bin max_len timeout dict regressions
+  line=$(grep -P "^$name\t" "$build/fuzzers.tsv")
+  IFS=$'\t' read -r -a f <<<"$line"
+  bin=${f[1]} max_len=${f[2]} timeout=${f[3]} dict=${f[4]} regressions=${f[5]}
+  local seeds=("${f[@]:6}")
+  [[ -d $regressions ]] && seeds+=("$regressions")
+  local dir=$out/$name
+  rm -rf "$dir/artifacts"
+  mkdir -p "$dir/corpus" "$dir/artifacts"
+  local args=(-timeout="$timeout" -max_len="$max_len" -rss_limit_mb=2048 -print_final_stats=1
+              -artifact_prefix="$dir/artifacts/")
+  if [[ -n $runs ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
+  [[ -n $dict ]] && args+=(-dict="$dict")
+  local start=$SECONDS rc=0
+  "$bin" "${args[@]}" "$dir/corpus" "${seeds[@]}" >"$dir/log" 2>&1 || rc=$?
+  echo "$((SECONDS - start))" >"$dir/seconds"
+  echo "$rc" >"$dir/rc"
+}
+
+echo "fuzz.sh: ${#names[@]} targets, ${runs:+$runs runs}${runs:-$seconds s} each, $jobs at a time -> $out"
+running=0
+for name in "${names[@]}"; do
+  run_one "$name" &
+  running=$((running + 1))
+  if ((running >= jobs)); then wait -n || true; running=$((running - 1)); fi
+done
+wait
+
+status=0
+printf '%-22s %8s %14s %10s %8s %8s %8s %s\n' target seconds executions exec/s cov corpus rss_mb result \
+  | tee "$out/summary.txt"
+printf 'target\tseconds\texecutions\texec_per_s\tcov\tcorpus\tpeak_rss_mb\tresult\n' >"$out/summary.tsv"
+for name in "${names[@]}"; do
+  dir=$out/$name
+  log=$dir/log
+  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | awk '{print $2}')
+  rss=$(grep -o 'stat::peak_rss_mb: [0-9]*' "$log" | tail -1 | awk '{print $2}')
+  cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}')
+  corpus=$(find "$dir/corpus" -type f | wc -l)
+  secs=$(cat "$dir/seconds")
+  rc=$(cat "$dir/rc")
+  result=ok
+  if [[ $rc != 0 ]] || [[ -n $(find "$dir/artifacts" -type f 2>/dev/null) ]]; then
+    result="FAILED (rc $rc, see $dir/artifacts and $log)"
+    status=1
+  fi
+  rate=$(( ${execs:-0} / (secs > 0 ? secs : 1) ))
+  printf '%-22s %8s %14s %10s %8s %8s %8s %s\n' "$name" "$secs" "${execs:-?}" "$rate" \
+    "${cov:-?}" "$corpus" "${rss:-?}" "$result" | tee -a "$out/summary.txt"
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$secs" "${execs:-}" "$rate" "${cov:-}" \
+    "$corpus" "${rss:-}" "$result" >>"$out/summary.tsv"
+done
+exit $status
