@@ -77,7 +77,7 @@ Session::~Session() {
   server_.live_sessions.fetch_sub(1);
 }
 
-void Session::start(std::string refusal) {
+void Session::start(const std::string& refusal) {
   shard_.sessions.insert(this);
   beast::error_code ec;
   socket_.native_non_blocking(true, ec);  // the sendfile writer calls send/sendfile itself

@@ -50,7 +50,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // On the shard's thread. `refusal` non-empty: answer 503 with it and close (over
   // max_connections or max_connections_per_ip).
-  void start(std::string refusal = {});
+  void start(const std::string& refusal = {});
   // On the shard's thread, when the server stops: idle connections close now, busy ones after
   // their response (bounded by the timeouts and shutdown_grace_ms), with `Connection: close`.
   void shutdown();
