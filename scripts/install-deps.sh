@@ -6,7 +6,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake ninja-build ccache pkg-config git
+  build-essential cmake ninja-build ccache pkg-config git lld   # lld: the linker (CMake)
   libboost-dev                     # Beast/Asio (header-only, 1.74; CGAL needs this one)
   libgeographiclib-dev libproj-dev proj-data libgdal-dev gdal-bin
   libssl-dev                       # libcrypto: sha256 of decoded LAZ records (las-info, tests)
