@@ -21,7 +21,6 @@
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
-#include <ranges>
 #include <sstream>
 #include <unordered_map>
 
@@ -614,8 +613,10 @@ Result<std::optional<StoredTile>> LayerWriter::get_stored(const geo::TileId& id)
   if (Status s = impl_->usable(); !s) return s.error();
   if (!id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + id.to_string());
   // The latest put of the id wins: look at the pending batch first, newest first.
-  for (const StoredTile& t : std::views::reverse(impl_->pending)) {
-    if (t.id == id) return std::optional<StoredTile>(t);
+  // Not std::views::reverse: clang-tidy 14 (clang 14) cannot parse libstdc++ 12's ranges.
+  // NOLINTNEXTLINE(modernize-loop-convert)
+  for (auto it = impl_->pending.rbegin(); it != impl_->pending.rend(); ++it) {
+    if (it->id == id) return std::optional<StoredTile>(*it);
   }
   return impl_->store->stored_tile(impl_->version, id, impl_->what() + " tile " + id.to_string());
 }
