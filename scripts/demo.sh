@@ -53,5 +53,6 @@ curl -fsS --compressed "$base/tiles/sample/layer.json" | head -c 400; echo
 
 if [[ -t 0 ]]; then
   step "Serving $base until Ctrl-C (Cesium terrain URL: $base/tiles/sample/)"
+  echo "In a browser: $base/ (CesiumJS) or $base/maplibre (MapLibre GL JS, raster-DEM terrain)"
   wait $server
 fi

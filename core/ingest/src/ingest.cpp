@@ -21,7 +21,7 @@
 #include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/queued_writer.hpp"
 #include "tinstream/subdivide/sorted_run.hpp"
-#include "tinstream/transform/run_file.hpp"
+#include "tinstream/transform/pass1.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
 
 namespace tinstream::ingest {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -373,6 +374,18 @@ std::vector<std::uint8_t> independent_gunzip(const std::vector<std::uint8_t>& gz
   out.resize(zs.total_out);
   inflateEnd(&zs);
   return out;
+}
+
+// Found by qmesh_fuzzer (core/terrain/fuzz/regressions): a vertex whose triangles are all
+// degenerate has a zero normal, normalised to NaN, which oct_encode cast to a byte (undefined
+// behaviour; UBSan aborts). It is encoded as "up" now, like Cesium's default.
+TEST(QuantizedMesh, OctEncodeOfAMissingNormalIsUp) {
+  const auto up = oct_encode({0, 0, 1});
+  EXPECT_EQ(up, (std::array<std::uint8_t, 2>{128, 128}));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(oct_encode({nan, 0, 0}), up);
+  EXPECT_EQ(oct_encode({0, 0, 0}), up);
+  EXPECT_EQ(oct_encode({std::numeric_limits<double>::infinity(), 1, 0}), up);
 }
 
 TEST(Gzip, RoundTripsAndRewrapsZlib) {
