@@ -182,10 +182,8 @@ Result<std::unique_ptr<LazReader>> LazReader::open(const std::filesystem::path& 
   std::uint64_t largest = 0;
   for (const ChunkInfo& c : s->chunks.chunks) largest = std::max(largest, c.points);
   if (threads > 1) {
-    if (s->chunks.discover) {
-      threads = 1;  // the note from find_chunks says why
-    } else if (s->chunks.chunks.size() < 2) {
-      threads = 1;
+    if (s->chunks.discover || s->chunks.chunks.size() < 2) {
+      threads = 1;  // without a table, find_chunks' note says why
     } else if (largest * layout.record_length > kMaxParallelChunkBytes) {
       threads = 1;
       s->chunks.notes.push_back("chunks of " + std::to_string(largest) +
