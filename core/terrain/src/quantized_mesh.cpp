@@ -396,10 +396,11 @@ QuantisedVertices quantise_vertices(const SidedVertices& in, const geo::Normalis
   return q;
 }
 
-// The triangles without those that rounding to the 15-bit grid turns clockwise: they are slivers
-// thinner than one quantum (coarse tiles over dense data, where several vertices share a grid
-// cell), and drawn clockwise they would fold over their neighbours. Degenerate (zero-area) ones
-// are kept; they draw nothing.
+// The triangles without those that rounding to the 15-bit grid turns clockwise or flat: they are
+// slivers thinner than one quantum (coarse tiles over dense data, where several vertices share a
+// grid cell; edge points closer than a quantum at any level), and drawn clockwise they would fold
+// over their neighbours; zero-area ones draw nothing, and a client interpolating heights in them
+// divides by their area (#20; `tinstream verify` checks that none is written).
 std::vector<tile::Triangle> drop_flipped(const std::vector<tile::Triangle>& triangles,
                                          const QuantisedVertices& q) {
   std::vector<tile::Triangle> kept;
@@ -409,7 +410,7 @@ std::vector<tile::Triangle> drop_flipped(const std::vector<tile::Triangle>& tria
         (static_cast<double>(q.u[t[1]]) - q.u[t[0]]) *
             (static_cast<double>(q.v[t[2]]) - q.v[t[0]]) -
         (static_cast<double>(q.v[t[1]]) - q.v[t[0]]) * (static_cast<double>(q.u[t[2]]) - q.u[t[0]]);
-    if (cross >= 0) kept.push_back(t);
+    if (cross > 0) kept.push_back(t);
   }
   return kept;
 }

@@ -3,6 +3,7 @@
 // SOURCES.md, or the records of the uncompressed twin the file was made from.
 #include <gtest/gtest.h>
 #include <openssl/evp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -224,7 +225,7 @@ class DamagedLaz : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("tinstream_laz_" +
+           ("tinstream_laz_" + std::to_string(::getpid()) + "_" +
             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::create_directories(dir_);
   }
@@ -308,7 +309,7 @@ TEST_F(DamagedLaz, FlippedByteInALayerNamesTheChunk) {
   ASSERT_EQ(chunks.size(), 14u);
   // Chunk 5's first layer (X, Y, returns) starts after the raw point, the count and 9 + 2 + 3
   // layer sizes; damage it a little way in.
-  bytes[chunks[4].offset + 41 + 4 + std::uint64_t{4} * 14 + 100] ^= 0x01;
+  bytes[chunks[4].offset + 41 + 4 + std::size_t{4} * 14 + 100] ^= 0x01;
   const auto p = write(bytes, "flipped_layer.laz");
   for (unsigned threads : {1u, 2u}) {
     auto e = read_error(p, threads);
