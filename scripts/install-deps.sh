@@ -6,7 +6,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake ninja-build ccache pkg-config git
+  build-essential cmake ninja-build ccache pkg-config git lld   # lld: the linker (CMake)
   libboost-dev                     # Beast/Asio (header-only, 1.74; CGAL needs this one)
   libgeographiclib-dev libproj-dev proj-data libgdal-dev gdal-bin
   libssl-dev                       # libcrypto: sha256 of decoded LAZ records (las-info, tests)
@@ -14,7 +14,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only
   libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
-  clang-format clang-tidy curl
+  clang clang-format clang-tidy curl   # clang: the libFuzzer build (scripts/fuzz.sh)
   libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
   wrk python3                      # the server's abuse/load test (ctest Server.Abuse)
 )

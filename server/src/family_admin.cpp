@@ -148,7 +148,8 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
       spec.options = body["options"];
     }
   }
-  auto id = ctx.jobs->submit(std::move(spec), std::move(delete_after));
+  // A copy: when the job is refused (503) the upload is removed here, not by the job.
+  auto id = ctx.jobs->submit(std::move(spec), delete_after);
   if (!id) {
     for (const auto& p : delete_after) remove_quietly(p);
     return json_error(503, id.error().message);
