@@ -300,8 +300,8 @@ void Server::Impl::admit(tcp::acceptor& from, Shard& target, tcp::socket socket)
   if (!refusal.empty()) state.metrics.connection_rejected();
   auto session = std::make_shared<Session>(std::move(socket), state, target,
                                            &from == &admin_acceptor, counted, std::move(peer));
-  net::post(target.ioc, [session = std::move(session), refusal = std::move(refusal)]() mutable {
-    session->start(std::move(refusal));
+  net::post(target.ioc, [session = std::move(session), refusal = std::move(refusal)] {
+    session->start(refusal);
   });
 }
 
