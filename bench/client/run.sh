@@ -20,7 +20,8 @@
 # 4. CesiumJS (npm cesium in Debian's headless chromium, playwright-core; bench/client/cesium.html)
 #    on the same layer's Cesium terrain endpoint, same camera, viewport, fov and maximum
 #    screen-space error, through the same proxy: time to a complete view and bytes (CESIUM=1,
-#    default when chromium and node are there; `npm ci` in bench/client once).
+#    default when chromium and node are there; `npm install` in bench/client once;
+#    CESIUM_TIMEOUT_S, default 600).
 # Store: STORE_IN + LAYER, else the client tests' DEM store ($BUILD/tests/client/stores/dem.sqlite,
 # Big Tujunga SRTM 30 m) when built, else `tinstream ingest` of ../shared/data's Big Tujunga DEM,
 # else `tinstream sample`. Needs node (proxy), python3 (tables), the built tinstream-viewer,
@@ -135,7 +136,8 @@ if [[ $CESIUM == 1 ]]; then
   IFS=, read -r lon lat h hd p <<< "$CAM_FAR"
   for r in $(seq "$REPEAT"); do
     node "$HERE/cesium_run.mjs" --proxy "$proxy" --layer "$layer" --camera "$lon,$lat,$h,$hd,$p" \
-      --sse "$SSE" --size "$SIZE" --timeout-s 600 --shot "$OUT/cesium_$r.png" | tee -a "$OUT/cesium.jsonl"
+      --sse "$SSE" --size "$SIZE" --timeout-s "${CESIUM_TIMEOUT_S:-600}" --shot "$OUT/cesium_$r.png" \
+      | tee -a "$OUT/cesium.jsonl" || echo "CesiumJS run $r: failed (see the line above)"
   done
 fi
 
