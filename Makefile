@@ -13,7 +13,7 @@ SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="
             -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g"
 # The suites with threads of their own (worker pools, the store queue, the server's io threads).
 TSAN_TARGETS = base_tests store_tests transform_tests subdivide_tests triangulate_tests \
-               lod_tests ingest_tests server_tests
+               lod_tests ingest_tests server_tests imagery_tests
 
 .PHONY: all deps build test check demo release asan tsan fuzz format format-check tidy crash bench clean
 

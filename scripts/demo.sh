@@ -74,5 +74,6 @@ echo "server: $base  (layers: $base/layers, native tiles: $base/tiles/sample/{qu
 echo "        Cesium terrain: $base/tiles/sample/)"
 if [[ -t 0 ]]; then
   step "Serving $base until Ctrl-C (Cesium terrain URL: $base/tiles/sample/)"
+  echo "In a browser: $base/ (CesiumJS) or $base/maplibre (MapLibre GL JS, raster-DEM terrain)"
   wait $server
 fi

@@ -15,14 +15,18 @@ packages=(
   libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only
   libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
   clang-format clang-tidy curl
+  libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
 )
+# The browser viewers and their tests: Node.js + npm build web/ (web/build.mjs: CesiumJS and
+# MapLibre GL JS from npm) and drive Debian's Chromium through playwright-core (tests/web).
+# Debian's nodejs + npm unless a Node.js with npm is already installed (e.g. NodeSource's nodejs,
+# which bundles npm and conflicts with Debian's npm package).
+packages+=(chromium)
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
 if [[ ${1:-} == --bench ]]; then
-  packages+=(wrk nginx time)
-  # Node.js for the delatin peer: Debian's nodejs + npm, unless a Node.js with npm is already
-  # installed (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm package).
-  if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
-    packages+=(nodejs npm)
-  fi
+  packages+=(wrk nginx time)  # (Node.js for the delatin peer: above)
 fi
 
 missing=()

@@ -8,6 +8,8 @@
 //   family_tiles.cpp     /tiles/{layer}/{quadkey}                     native tiles
 //   family_terrain.cpp   /tiles/{layer}/layer.json, …/{z}/{x}/{y}.terrain   Cesium terrain
 //   family_admin.cpp     /admin/…                                     ingest jobs, layer removal
+//   family_imagery.cpp   /imagery/…, /tiles/{layer}/{z}/{x}/{y}.png   imagery, raster-DEM tiles
+//   family_web.cpp       /, /maplibre, /web/…                         the browser viewers
 //
 // Adding a family: routes.hpp, "Route families". Every serve() runs on an io thread, concurrently
 // with the others (see handler.hpp for what Context guarantees).
@@ -15,6 +17,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
 #include "tinstream/server/handler.hpp"
@@ -56,5 +59,14 @@ Response serve(const Request& request, Context& ctx, const IngestRoute& route);
 Response serve(const Request& request, Context& ctx, const JobsRoute& route);
 Response serve(const Request& request, Context& ctx, const JobRoute& route);
 Response serve(const Request& request, Context& ctx, const DeleteLayerRoute& route);
+// family_imagery.cpp
+Response serve(const Request& request, Context& ctx, const DemTileRoute& route);
+Response serve(const Request& request, Context& ctx, const ImageryTileRoute& route);
+// The imagery layers and the raster-DEM URLs added to a /layers or /layers/{layer} document
+// (family_layers.cpp calls it): `document` is {"layers": [...]} or one layer object.
+Status add_imagery_metadata(Context& ctx, nlohmann::json& document);
+// family_web.cpp
+Response serve(const Request& request, Context& ctx, const WebPageRoute& route);
+Response serve(const Request& request, Context& ctx, const WebAssetRoute& route);
 
 }  // namespace tinstream::server

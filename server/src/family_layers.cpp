@@ -84,7 +84,9 @@ Response serve(const Request&, Context& ctx, const LayersRoute&) {
   if (!layers) return error_response(layers.error());
   json arr = json::array();
   for (const auto& l : *layers) arr.push_back(layer_to_json(l));
-  return json_response(200, json{{"layers", arr}}.dump());
+  json document = {{"layers", arr}};
+  if (Status s = add_imagery_metadata(ctx, document); !s) return error_response(s.error());
+  return json_response(200, document.dump());
 }
 
 Response serve(const Request&, Context& ctx, const LayerRoute& r) {
@@ -92,7 +94,9 @@ Response serve(const Request&, Context& ctx, const LayerRoute& r) {
   if (!st) return error_response(st.error());
   auto info = (*st)->layer(r.layer);
   if (!info) return error_response(info.error());
-  return json_response(200, layer_to_json(*info).dump());
+  json document = layer_to_json(*info);
+  if (Status s = add_imagery_metadata(ctx, document); !s) return error_response(s.error());
+  return json_response(200, document.dump());
 }
 
 }  // namespace tinstream::server

@@ -28,7 +28,7 @@ RouteError error(int status, std::string message, std::string route = "other") {
   return RouteError{status, std::move(message), {}, std::move(route)};
 }
 
-RouteError wrong_method(std::string allow, std::string route) {
+RouteError wrong_method(const std::string& allow, std::string route) {
   return RouteError{405, "method not allowed; allowed: " + allow, allow, std::move(route)};
 }
 
@@ -128,12 +128,16 @@ RouteResult parse_layers(std::string_view method, const Segments& seg, std::stri
   return Route{LayerRoute{seg[1]}};
 }
 
+RouteResult parse_dem_tile(const Segments& seg, std::string_view query);
+
 // Family "tiles": /tiles/{layer}/layer.json, /tiles/{layer}/{z}/{x}/{y}.terrain,
 // /tiles/{layer}/{quadkey}.
-RouteResult parse_tiles(std::string_view method, const Segments& seg, std::string_view) {
+RouteResult parse_tiles(std::string_view method, const Segments& seg, std::string_view query) {
   const std::size_t n = seg.size();
   if (n != 3 && n != 5) return error(404, "no such resource");
-  const std::string_view name = n == 5                   ? TerrainRoute::kName
+  const bool dem = n == 5 && seg[4].size() > 4 && seg[4].substr(seg[4].size() - 4) == ".png";
+  const std::string_view name = dem                      ? DemTileRoute::kName
+                                : n == 5                 ? TerrainRoute::kName
                                 : seg[2] == "layer.json" ? LayerJsonRoute::kName
                                                          : NativeTileRoute::kName;
   if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", std::string(name));
@@ -143,6 +147,9 @@ RouteResult parse_tiles(std::string_view method, const Segments& seg, std::strin
     auto id = geo::TileId::from_quadkey(seg[2]);
     if (!id) return error(400, id.error().message, "tile");
     return Route{NativeTileRoute{seg[1], *id}};
+  }
+  if (seg[4].size() > 4 && std::string_view(seg[4]).substr(seg[4].size() - 4) == ".png") {
+    return parse_dem_tile(seg, query);
   }
   constexpr std::string_view kExt = ".terrain";
   std::string_view ys = seg[4];
@@ -199,6 +206,104 @@ RouteResult parse_admin(std::string_view method, const Segments& seg, std::strin
   return error(404, "no such resource");
 }
 
+// "{z}", "{x}", "{y}.{ext}" (XYZ rows) → a tile id and the extension, or the error to answer.
+std::variant<std::pair<geo::TileId, std::string>, RouteError> parse_xyz(const std::string& zs,
+                                                                        const std::string& xs,
+                                                                        const std::string& ys_ext,
+                                                                        std::string_view route) {
+  const auto dot = ys_ext.rfind('.');
+  if (dot == std::string::npos) return error(404, "no such resource", std::string(route));
+  const auto z = parse_number(zs), x = parse_number(xs),
+             y = parse_number(std::string_view(ys_ext).substr(0, dot));
+  if (!z || !x || !y) {
+    return error(400, std::string(route) + " tile: z, x and y must be decimal numbers",
+                 std::string(route));
+  }
+  auto id = geo::TileId::from_zxy(*z, *x, *y);
+  if (!id) return error(400, id.error().message, std::string(route));
+  return std::pair{*id, ys_ext.substr(dot + 1)};
+}
+
+// The value of `key` in a query string (percent-decoded), or "" when absent.
+std::optional<std::string> query_value(std::string_view query, std::string_view key) {
+  while (!query.empty()) {
+    const auto amp = query.find('&');
+    const std::string_view kv = query.substr(0, amp);
+    const auto eq = kv.find('=');
+    if (kv.substr(0, eq) == key) {
+      return percent_decode(eq == std::string_view::npos ? std::string_view{} : kv.substr(eq + 1),
+                            true);
+    }
+    if (amp == std::string_view::npos) break;
+    query = query.substr(amp + 1);
+  }
+  return std::string();
+}
+
+// /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox&nodata=opaque|transparent (method and
+// layer already checked).
+RouteResult parse_dem_tile(const Segments& seg, std::string_view query) {
+  auto parsed = parse_xyz(seg[2], seg[3], seg[4], DemTileRoute::kName);
+  if (auto* e = std::get_if<RouteError>(&parsed)) return *e;
+  auto encoding = query_value(query, "encoding");
+  if (!encoding) return error(400, "malformed percent-encoding in query", "dem");
+  if (encoding->empty()) *encoding = "terrarium";
+  if (*encoding != "terrarium" && *encoding != "mapbox") {
+    return error(400, "encoding must be terrarium or mapbox", "dem");
+  }
+  auto nodata = query_value(query, "nodata");
+  if (!nodata) return error(400, "malformed percent-encoding in query parameter nodata", "dem");
+  if (nodata->empty()) *nodata = "opaque";
+  if (*nodata != "opaque" && *nodata != "transparent") {
+    return error(400, "nodata must be opaque (alpha 255, the default) or transparent (alpha 0)",
+                 "dem");
+  }
+  return Route{DemTileRoute{seg[1], std::get<0>(parsed).first, *encoding, *nodata}};
+}
+
+// Family "imagery": /imagery/{layer}/{quadkey}, /imagery/{layer}/{z}/{x}/{y}.{png|jpg|webp}.
+RouteResult parse_imagery(std::string_view method, const Segments& seg, std::string_view) {
+  const std::size_t n = seg.size();
+  if (n != 3 && n != 5) return error(404, "no such resource");
+  if (!is_read(method)) return wrong_method("GET, HEAD, OPTIONS", "imagery");
+  if (!is_valid_layer_name(seg[1])) return layer_error(seg[1], "imagery");
+  if (n == 3) {
+    auto id = geo::TileId::from_quadkey(seg[2]);
+    if (!id) return error(400, id.error().message, "imagery");
+    return Route{ImageryTileRoute{seg[1], *id, {}}};
+  }
+  auto parsed = parse_xyz(seg[2], seg[3], seg[4], ImageryTileRoute::kName);
+  if (auto* e = std::get_if<RouteError>(&parsed)) return *e;
+  auto& [id, ext] = std::get<0>(parsed);
+  if (ext != "png" && ext != "jpg" && ext != "webp") {
+    return error(404, "imagery tiles are /imagery/{layer}/{z}/{x}/{y}.png, .jpg or .webp",
+                 "imagery");
+  }
+  return Route{ImageryTileRoute{seg[1], id, ext}};
+}
+
+// Family "web": / and /maplibre (the pages), /web/{path…} (their files).
+RouteResult parse_web(std::string_view method, const Segments& seg, std::string_view) {
+  const bool page = seg[0] != "web";
+  if (page ? seg.size() != 1 : seg.size() < 2) return error(404, "no such resource");
+  if (!is_read(method)) {
+    return wrong_method("GET, HEAD, OPTIONS", page ? "web_page" : "web_asset");
+  }
+  if (page) return Route{WebPageRoute{seg[0].empty() ? "index.html" : seg[0] + ".html"}};
+  std::string path;
+  for (std::size_t i = 1; i < seg.size(); ++i) {
+    const std::string& s = seg[i];
+    bool ok = !s.empty() && s.front() != '.';
+    for (const char c : s) {
+      ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                  c == '_' || c == '.' || c == '-');
+    }
+    if (!ok) return error(404, "no such file", "web_asset");
+    path += (i == 1 ? "" : "/") + s;
+  }
+  return Route{WebAssetRoute{std::move(path)}};
+}
+
 // The registration table of route families (routes.hpp, "Route families"): the first path
 // segment each one owns, and its parser (given the method, every decoded segment — the first
 // included — and the raw query).
@@ -207,8 +312,15 @@ struct Family {
   RouteResult (*parse)(std::string_view method, const Segments& segments, std::string_view query);
 };
 constexpr Family kFamilies[] = {
-    {"healthz", parse_service}, {"metrics", parse_service}, {"layers", parse_layers},
-    {"tiles", parse_tiles},     {"admin", parse_admin},
+    {"healthz", parse_service},
+    {"metrics", parse_service},
+    {"layers", parse_layers},
+    {"tiles", parse_tiles},
+    {"admin", parse_admin},
+    {"imagery", parse_imagery},
+    {"", parse_web},
+    {"maplibre", parse_web},
+    {"web", parse_web},
 };
 
 }  // namespace

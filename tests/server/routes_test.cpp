@@ -47,7 +47,7 @@ TEST(Routes, TerrainTileConvertsTmsRows) {
             400);  // x out of range
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/-1.terrain"))->status, 400);
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/x.terrain"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/1.png"))->status, 404);
+  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/1.gif"))->status, 404);  // .png: raster-DEM
   EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/99999999999/1/1.terrain"))->status, 400);
 }
 

@@ -59,6 +59,48 @@ CREATE TABLE IF NOT EXISTS tiles (
 
 )sql";
 
+// Imagery (added after schema version 1 shipped; files without these tables are still version 1
+// and get them from the first read-write open that knows them).
+constexpr const char* kImageryTables = R"sql(
+CREATE TABLE IF NOT EXISTS imagery_versions (
+  id              INTEGER PRIMARY KEY AUTOINCREMENT,
+  name            TEXT    NOT NULL,
+  status          TEXT    NOT NULL CHECK (status IN ('building', 'ready')),
+  writer_pid      INTEGER,
+  writer_host     TEXT,
+  writer_start    INTEGER,
+  projection      TEXT    NOT NULL,
+  format          TEXT    NOT NULL CHECK (format IN ('png', 'jpeg', 'webp')),
+  tile_size       INTEGER NOT NULL,
+  min_x REAL NOT NULL, min_y REAL NOT NULL, max_x REAL NOT NULL, max_y REAL NOT NULL,
+  west  REAL NOT NULL, south REAL NOT NULL, east  REAL NOT NULL, north REAL NOT NULL,
+  min_level       INTEGER NOT NULL,
+  max_level       INTEGER NOT NULL,
+  tile_count      INTEGER NOT NULL,
+  options         TEXT    NOT NULL,
+  attribution     TEXT    NOT NULL,
+  started_unix    INTEGER NOT NULL,
+  created_unix    INTEGER
+);
+CREATE INDEX IF NOT EXISTS imagery_versions_by_name ON imagery_versions (name, status);
+
+CREATE TABLE IF NOT EXISTS imagery_layers (
+  name    TEXT PRIMARY KEY,
+  version INTEGER NOT NULL UNIQUE
+);
+
+CREATE TABLE IF NOT EXISTS imagery_tiles (
+  version INTEGER NOT NULL,
+  z       INTEGER NOT NULL,
+  x       INTEGER NOT NULL,
+  y       INTEGER NOT NULL,
+  data    BLOB    NOT NULL,
+  etag    TEXT    NOT NULL,
+  PRIMARY KEY (version, z, x, y)
+) WITHOUT ROWID;
+
+)sql";
+
 }  // namespace
 
 std::string quadkey_expression(const std::string& z, const std::string& x, const std::string& y) {
@@ -74,9 +116,23 @@ std::string quadkey_expression(const std::string& z, const std::string& x, const
   return e;
 }
 
+const std::string& imagery_create_sql() {
+  static const std::string sql =
+      std::string(kImageryTables) +
+      "CREATE VIEW IF NOT EXISTS published_imagery AS\n"
+      "  SELECT l.name AS layer, v.format, t.z, t.x, t.y, (1 << t.z) - 1 - t.y AS tms_y,\n"
+      "         " +
+      quadkey_expression("t.z", "t.x", "t.y") +
+      " AS quadkey,\n"
+      "         t.etag, length(t.data) AS bytes, t.data\n"
+      "  FROM imagery_layers AS l JOIN imagery_versions AS v ON v.id = l.version\n"
+      "       JOIN imagery_tiles AS t ON t.version = l.version;\n";
+  return sql;
+}
+
 const std::string& create_sql() {
   static const std::string sql =
-      std::string(kTables) +
+      std::string(kTables) + imagery_create_sql() +
       "CREATE VIEW IF NOT EXISTS published_tiles AS\n"
       "  SELECT l.name AS layer, t.z, t.x, t.y, (1 << t.z) - 1 - t.y AS tms_y,\n"
       "         " +

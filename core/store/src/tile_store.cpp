@@ -25,6 +25,7 @@
 #include <unordered_map>
 
 #include "schema.hpp"
+#include "store_impl.hpp"
 #include "tinstream/base/fault.hpp"
 #include "tinstream/store/etag.hpp"
 #include "tinstream/tile/codec.hpp"
@@ -33,135 +34,9 @@ namespace tinstream::store {
 
 namespace {
 
-// Batched writes: a transaction is committed after this many tiles or bytes, whichever first.
-constexpr std::size_t kBatchTiles = 256;
-constexpr std::size_t kBatchBytes = 8u << 20;  // bounds the ingest's memory (was 32 MiB)
 constexpr int kBusyTimeoutMs = 10000;
 // The largest tile decode will inflate (the codec's default).
 constexpr std::size_t kMaxTileBytes = 256u << 20;
-
-struct DbCloser {
-  void operator()(sqlite3* db) const { sqlite3_close_v2(db); }
-};
-struct StmtFinalizer {
-  void operator()(sqlite3_stmt* s) const { sqlite3_finalize(s); }
-};
-using DbHandle = std::unique_ptr<sqlite3, DbCloser>;
-using StmtHandle = std::unique_ptr<sqlite3_stmt, StmtFinalizer>;
-
-// One use of a cached prepared statement: binds, steps, and resets it when it goes out of scope.
-class Query {
- public:
-  explicit Query(sqlite3_stmt* s) : s_(s) {}
-  Query(Query&& other) noexcept : s_(std::exchange(other.s_, nullptr)) {}
-  Query& operator=(Query&&) = delete;
-  ~Query() {
-    if (s_ != nullptr) {
-      sqlite3_reset(s_);
-      sqlite3_clear_bindings(s_);
-    }
-  }
-
-  Query& bind(int i, std::int64_t v) {
-    (void)sqlite3_bind_int64(s_, i, v);
-    return *this;
-  }
-  Query& bind(int i, std::uint64_t v) { return bind(i, static_cast<std::int64_t>(v)); }
-  Query& bind(int i, std::uint32_t v) { return bind(i, static_cast<std::int64_t>(v)); }
-  Query& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
-  Query& bind(int i, double v) {
-    (void)sqlite3_bind_double(s_, i, v);
-    return *this;
-  }
-  Query& bind(int i, std::string_view v) {
-    (void)sqlite3_bind_text(s_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
-    return *this;
-  }
-  Query& bind_blob(int i, std::span<const std::uint8_t> v) {
-    (void)sqlite3_bind_blob64(s_, i, v.data(), v.size(), SQLITE_STATIC);
-    return *this;
-  }
-  Query& bind_null(int i) {
-    (void)sqlite3_bind_null(s_, i);
-    return *this;
-  }
-
-  int step() { return sqlite3_step(s_); }
-  // Makes the statement reusable within the same Query (new bindings, new step).
-  void reset() {
-    sqlite3_reset(s_);
-    sqlite3_clear_bindings(s_);
-  }
-
-  std::int64_t i64(int c) const { return sqlite3_column_int64(s_, c); }
-  std::uint32_t u32(int c) const {
-    const std::int64_t v = i64(c);
-    return v < 0 || v > 0xFFFFFFFFll ? 0u : static_cast<std::uint32_t>(v);
-  }
-  std::uint64_t u64(int c) const {
-    const std::int64_t v = i64(c);
-    return v < 0 ? 0u : static_cast<std::uint64_t>(v);
-  }
-  double f64(int c) const { return sqlite3_column_double(s_, c); }
-  bool is_null(int c) const { return sqlite3_column_type(s_, c) == SQLITE_NULL; }
-  std::string text(int c) const {
-    const auto* p = sqlite3_column_text(s_, c);
-    return p == nullptr ? std::string()
-                        : std::string(reinterpret_cast<const char*>(p),
-                                      static_cast<std::size_t>(sqlite3_column_bytes(s_, c)));
-  }
-  std::vector<std::uint8_t> blob(int c) const {
-    const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(s_, c));
-    const auto n = static_cast<std::size_t>(sqlite3_column_bytes(s_, c));
-    return p == nullptr ? std::vector<std::uint8_t>() : std::vector<std::uint8_t>(p, p + n);
-  }
-
- private:
-  sqlite3_stmt* s_;
-};
-
-std::int64_t now_unix() { return static_cast<std::int64_t>(std::time(nullptr)); }
-
-std::string host_name() {
-  char buf[256] = {};
-  if (gethostname(buf, sizeof buf - 1) != 0) return {};
-  return buf;
-}
-
-// The start time of a process (clock ticks since boot, /proc/<pid>/stat field 22), or -1 when
-// unknown. Together with the pid it identifies a process across pid reuse.
-std::int64_t process_start(long pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string stat;
-  if (!std::getline(in, stat)) return -1;
-  const auto paren = stat.rfind(')');  // the command name may contain spaces and parentheses
-  if (paren == std::string::npos) return -1;
-  std::istringstream fields(stat.substr(paren + 2));
-  std::string field;
-  // Fields after the name start at field 3 (state); starttime is field 22.
-  for (int i = 3; i <= 22; ++i) {
-    if (!(fields >> field)) return -1;
-  }
-  try {
-    return std::stoll(field);
-  } catch (...) {
-    return -1;
-  }
-}
-
-bool process_alive(long pid, std::int64_t recorded_start) {
-  if (pid <= 0) return false;
-  if (kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
-  const std::int64_t start = process_start(pid);
-  if (start < 0 || recorded_start < 0) return true;  // cannot tell: assume alive
-  if (start != recorded_start) return false;         // the pid was reused
-  // A zombie (killed, not yet reaped) is not writing any more.
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string stat;
-  std::getline(in, stat);
-  const auto paren = stat.rfind(')');
-  return !(paren != std::string::npos && paren + 2 < stat.size() && stat[paren + 2] == 'Z');
-}
 
 bool finite_info(const LayerInfo& i) {
   for (double v : {i.mercator_bounds.min_x, i.mercator_bounds.min_y, i.mercator_bounds.max_x,
@@ -244,143 +119,60 @@ Result<LayerInfo> read_info(const Query& q, const std::filesystem::path& path) {
 
 }  // namespace
 
-struct TileStore::Impl {
-  std::filesystem::path path;
-  Mode mode = Mode::read_only;
-  DbHandle db;
-  // Prepared statements, keyed by their SQL text (the text is a literal in this file).
-  std::unordered_map<std::string, StmtHandle> statements;
+Result<std::optional<StoredTile>> TileStore::Impl::stored_tile(std::int64_t version,
+                                                               const geo::TileId& id,
+                                                               const std::string& what) {
+  auto q = query(
+      "SELECT data, etag, min_z, max_z, geometric_error, vertex_count, triangle_count "
+      "FROM tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
+  if (!q) return q.error();
+  q->bind(1, version).bind(2, id.z).bind(3, id.x).bind(4, id.y);
+  const int rc = q->step();
+  if (rc == SQLITE_DONE) return std::optional<StoredTile>();
+  if (rc != SQLITE_ROW) return sql_error("reading " + what);
+  return std::optional<StoredTile>(read_stored_tile(*q, id));
+}
 
-  Error sql_error(const std::string& what) const {
-    const int code = db ? sqlite3_errcode(db.get()) : SQLITE_ERROR;
-    std::string message =
-        path.string() + ": " + what + ": " + (db ? sqlite3_errmsg(db.get()) : sqlite3_errstr(code));
-    switch (code) {
-      case SQLITE_NOTADB:
-      case SQLITE_CORRUPT:
-        return corrupt_data(std::move(message));
-      case SQLITE_CANTOPEN:
-      case SQLITE_PERM:
-      case SQLITE_READONLY:
-      case SQLITE_BUSY:
-      case SQLITE_LOCKED:
-      case SQLITE_IOERR:
-      case SQLITE_FULL:
-      default:
-        return io_error(std::move(message));
-    }
+std::int64_t now_unix() { return static_cast<std::int64_t>(std::time(nullptr)); }
+
+std::string host_name() {
+  char buf[256] = {};
+  if (gethostname(buf, sizeof buf - 1) != 0) return {};
+  return buf;
+}
+
+std::int64_t process_start(long pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  if (!std::getline(in, stat)) return -1;
+  const auto paren = stat.rfind(')');  // the command name may contain spaces and parentheses
+  if (paren == std::string::npos) return -1;
+  std::istringstream fields(stat.substr(paren + 2));
+  std::string field;
+  // Fields after the name start at field 3 (state); starttime is field 22.
+  for (int i = 3; i <= 22; ++i) {
+    if (!(fields >> field)) return -1;
   }
-
-  Result<Query> query(const char* sql) {
-    auto it = statements.find(sql);
-    if (it == statements.end()) {
-      sqlite3_stmt* s = nullptr;
-      if (sqlite3_prepare_v3(db.get(), sql, -1, SQLITE_PREPARE_PERSISTENT, &s, nullptr) !=
-          SQLITE_OK) {
-        sqlite3_finalize(s);
-        return sql_error("preparing a statement");
-      }
-      it = statements.emplace(sql, StmtHandle(s)).first;
-    }
-    return Query(it->second.get());
+  try {
+    return std::stoll(field);
+  } catch (...) {
+    return -1;
   }
+}
 
-  Status exec(const char* sql, const char* what) {
-    char* message = nullptr;
-    if (sqlite3_exec(db.get(), sql, nullptr, nullptr, &message) != SQLITE_OK) {
-      sqlite3_free(message);
-      return sql_error(what);
-    }
-    return {};
-  }
-
-  // Runs a statement that returns no rows.
-  static bool done(Query& q) { return q.step() == SQLITE_DONE; }
-
-  Status require_writable() const {
-    if (mode != Mode::read_write) {
-      return invalid_argument(path.string() + ": the tile store is open read-only");
-    }
-    return {};
-  }
-
-  // Runs body inside its own short write transaction (BEGIN IMMEDIATE … COMMIT).
-  template <typename Body>
-  Status transaction(const char* what, Body&& body) {
-    if (Status s = exec("BEGIN IMMEDIATE", what); !s) return s;
-    Status s = body();
-    if (!s) {
-      (void)exec("ROLLBACK", what);
-      return s;
-    }
-    if (Status c = exec("COMMIT", what); !c) {
-      (void)exec("ROLLBACK", what);
-      return c;
-    }
-    return {};
-  }
-
-  // The published version of a layer; not_found when the layer does not exist.
-  Result<std::int64_t> published_version(std::string_view name) {
-    if (Status s = validate_layer_name(name); !s) return s.error();
-    auto q = query("SELECT version FROM layers WHERE name = ?1");
-    if (!q) return q.error();
-    q->bind(1, name);
-    const int rc = q->step();
-    if (rc == SQLITE_ROW) return q->i64(0);
-    if (rc == SQLITE_DONE) {
-      return not_found(path.string() + ": no layer '" + std::string(name) + "'");
-    }
-    return sql_error("looking up layer '" + std::string(name) + "'");
-  }
-
-  Result<std::optional<StoredTile>> stored_tile(std::int64_t version, const geo::TileId& id,
-                                                const std::string& what) {
-    auto q = query(
-        "SELECT data, etag, min_z, max_z, geometric_error, vertex_count, triangle_count "
-        "FROM tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
-    if (!q) return q.error();
-    q->bind(1, version).bind(2, id.z).bind(3, id.x).bind(4, id.y);
-    const int rc = q->step();
-    if (rc == SQLITE_DONE) return std::optional<StoredTile>();
-    if (rc != SQLITE_ROW) return sql_error("reading " + what);
-    return std::optional<StoredTile>(read_stored_tile(*q, id));
-  }
-
-  Result<std::vector<geo::TileId>> ids(std::int64_t version, std::optional<std::uint32_t> level,
-                                       const std::string& what) {
-    auto q = level
-                 ? query("SELECT z, x, y FROM tiles WHERE version = ?1 AND z = ?2 ORDER BY z, x, y")
-                 : query("SELECT z, x, y FROM tiles WHERE version = ?1 ORDER BY z, x, y");
-    if (!q) return q.error();
-    q->bind(1, version);
-    if (level) q->bind(2, *level);
-    std::vector<geo::TileId> out;
-    int rc = 0;
-    while ((rc = q->step()) == SQLITE_ROW) {
-      auto id = geo::TileId::from_zxy(q->i64(0), q->i64(1), q->i64(2));
-      if (!id) return corrupt_data(path.string() + ": " + what + ": " + id.error().message);
-      out.push_back(*id);
-    }
-    if (rc != SQLITE_DONE) return sql_error("listing the tiles of " + what);
-    return out;
-  }
-
-  // Deletes a version's tiles and its row. Inside a transaction.
-  Status drop_version(std::int64_t version) {
-    auto tiles = query("DELETE FROM tiles WHERE version = ?1");
-    if (!tiles) return tiles.error();
-    tiles->bind(1, version);
-    if (!done(*tiles)) return sql_error("deleting the tiles of version " + std::to_string(version));
-    auto row = query("DELETE FROM layer_versions WHERE id = ?1");
-    if (!row) return row.error();
-    row->bind(1, version);
-    if (!done(*row)) return sql_error("deleting version " + std::to_string(version));
-    return {};
-  }
-
-  Status create_or_check_schema();
-};
+bool process_alive(long pid, std::int64_t recorded_start) {
+  if (pid <= 0) return false;
+  if (kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  const std::int64_t start = process_start(pid);
+  if (start < 0 || recorded_start < 0) return true;  // cannot tell: assume alive
+  if (start != recorded_start) return false;         // the pid was reused
+  // A zombie (killed, not yet reaped) is not writing any more.
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  std::getline(in, stat);
+  const auto paren = stat.rfind(')');
+  return !(paren != std::string::npos && paren + 2 < stat.size() && stat[paren + 2] == 'Z');
+}
 
 Status TileStore::Impl::create_or_check_schema() {
   const auto has_table = [this](const char* name) -> Result<bool> {
@@ -445,7 +237,58 @@ Status TileStore::Impl::create_or_check_schema() {
                        "' is not supported (this build reads version " +
                        std::to_string(schema::kSchemaVersion) + ")");
   }
+  // A version-1 file from before imagery gets the imagery tables now (a reader copes without).
+  if (mode == Mode::read_write) return create_imagery_tables();
   return {};
+}
+
+Result<std::vector<std::int64_t>> TileStore::Impl::stale_versions(const char* select_building,
+                                                                  const std::string& name,
+                                                                  std::string_view kind) {
+  auto q = query(select_building);
+  if (!q) return q.error();
+  q->bind(1, name);
+  const std::string host = host_name();
+  std::vector<std::int64_t> stale;
+  int rc = 0;
+  while ((rc = q->step()) == SQLITE_ROW) {
+    const std::int64_t id = q->i64(0);
+    const long other_pid = q->is_null(1) ? 0 : static_cast<long>(q->i64(1));
+    const bool same_host = q->text(2) == host;
+    const std::int64_t start = q->is_null(3) ? -1 : q->i64(3);
+    // WAL needs shared memory, so every writer of this file runs on this host; a version from
+    // another host comes from a copied file and its writer is not writing here.
+    if (same_host && process_alive(other_pid, start)) {
+      return invalid_argument(path.string() + ": " + std::string(kind) + " '" + name +
+                              "' is being written by process " + std::to_string(other_pid) +
+                              " (version " + std::to_string(id) + "); one writer per " +
+                              std::string(kind) + " at a time");
+    }
+    stale.push_back(id);
+  }
+  if (rc != SQLITE_DONE) return sql_error("reading " + std::string(kind) + " versions");
+  return stale;
+}
+
+Result<std::optional<std::int64_t>> TileStore::Impl::switch_published(const char* select_published,
+                                                                      const char* upsert_published,
+                                                                      const std::string& name,
+                                                                      std::int64_t version,
+                                                                      const std::string& what) {
+  std::optional<std::int64_t> previous;
+  auto old = query(select_published);
+  if (!old) return old.error();
+  old->bind(1, name);
+  if (const int rc = old->step(); rc == SQLITE_ROW) {
+    previous = old->i64(0);
+  } else if (rc != SQLITE_DONE) {
+    return sql_error("reading the published version of " + what);
+  }
+  auto upsert = query(upsert_published);
+  if (!upsert) return upsert.error();
+  upsert->bind(1, name).bind(2, version);
+  if (!done(*upsert)) return sql_error("publishing " + what);
+  return previous;
 }
 
 Result<TileStore> TileStore::open(const std::filesystem::path& path, Mode mode) {
@@ -617,30 +460,12 @@ Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& inf
   std::int64_t version = 0;
   Status s = impl_->transaction("starting a layer version", [&]() -> Status {
     // Versions of this name still being built: refuse if their writer lives, else collect them.
-    auto q = impl_->query(
+    auto stale = impl_->stale_versions(
         "SELECT id, writer_pid, writer_host, writer_start FROM layer_versions "
-        "WHERE name = ?1 AND status = 'building'");
-    if (!q) return q.error();
-    q->bind(1, info.name);
-    std::vector<std::int64_t> stale;
-    int rc = 0;
-    while ((rc = q->step()) == SQLITE_ROW) {
-      const std::int64_t id = q->i64(0);
-      const long other_pid = q->is_null(1) ? 0 : static_cast<long>(q->i64(1));
-      const bool same_host = q->text(2) == host;
-      const std::int64_t start = q->is_null(3) ? -1 : q->i64(3);
-      // WAL needs shared memory, so every writer of this file runs on this host; a version from
-      // another host comes from a copied file and its writer is not writing here.
-      if (same_host && process_alive(other_pid, start)) {
-        return invalid_argument(impl_->path.string() + ": layer '" + info.name +
-                                "' is being written by process " + std::to_string(other_pid) +
-                                " (version " + std::to_string(id) +
-                                "); one writer per layer at a time");
-      }
-      stale.push_back(id);
-    }
-    if (rc != SQLITE_DONE) return impl_->sql_error("reading layer versions");
-    for (const std::int64_t id : stale) {
+        "WHERE name = ?1 AND status = 'building'",
+        info.name, "layer");
+    if (!stale) return stale.error();
+    for (const std::int64_t id : *stale) {
       if (Status d = impl_->drop_version(id); !d) return d;
     }
     auto insert = impl_->query(
@@ -844,22 +669,13 @@ Status LayerWriter::publish(const LayerInfo& info) {
                                             " disappeared before it was published");
     }
 
-    std::optional<std::int64_t> previous;
-    auto old = store.query("SELECT version FROM layers WHERE name = ?1");
-    if (!old) return old.error();
-    old->bind(1, impl_->name);
-    if (const int rc = old->step(); rc == SQLITE_ROW) {
-      previous = old->i64(0);
-    } else if (rc != SQLITE_DONE) {
-      return store.sql_error("reading layer '" + impl_->name + "'");
-    }
-    auto upsert = store.query(
-        "INSERT INTO layers (name, version) VALUES (?1, ?2) "
-        "ON CONFLICT (name) DO UPDATE SET version = excluded.version");
-    if (!upsert) return upsert.error();
-    upsert->bind(1, impl_->name).bind(2, version);
-    if (!TileStore::Impl::done(*upsert)) return store.sql_error("publishing " + impl_->what());
-    if (previous) return store.drop_version(*previous);
+    auto previous =
+        store.switch_published("SELECT version FROM layers WHERE name = ?1",
+                               "INSERT INTO layers (name, version) VALUES (?1, ?2) "
+                               "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
+                               impl_->name, version, impl_->what());
+    if (!previous) return previous.error();
+    if (*previous) return store.drop_version(**previous);
     return {};
   });
   if (s) impl_->state = Impl::State::published;

@@ -11,6 +11,12 @@
 //   GET       /admin/jobs, /admin/jobs/{id}            JobsRoute, JobRoute
 //   DELETE    /admin/layers/{layer}                    DeleteLayerRoute
 //   OPTIONS   any path                                 PreflightRoute (CORS)
+//   GET|HEAD  /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox&nodata=opaque|transparent
+//                                                      DemTileRoute   (XYZ rows)
+//   GET|HEAD  /imagery/{layer}/{quadkey}               ImageryTileRoute
+//   GET|HEAD  /imagery/{layer}/{z}/{x}/{y}.{png|jpg|webp}   ImageryTileRoute (XYZ rows)
+//   GET|HEAD  /, /maplibre                             WebPageRoute   (the browser viewers)
+//   GET|HEAD  /web/{path…}                             WebAssetRoute  (their static files)
 //
 // (To add routes, see "Route families" below.)
 //
@@ -103,10 +109,34 @@ struct PreflightRoute {
   static constexpr std::string_view kName = "preflight";
   bool admin = false;  // for a path of an admin route (/admin/…, /metrics): no CORS
 };
+// Family "tiles", raster-DEM part, and family "imagery" (src/family_imagery.cpp).
+struct DemTileRoute {
+  static constexpr std::string_view kName = "dem";
+  std::string layer;
+  geo::TileId id;
+  std::string encoding;  // "terrarium" (the default) or "mapbox"
+  std::string nodata;    // "opaque" (the default) or "transparent"
+};
+struct ImageryTileRoute {
+  static constexpr std::string_view kName = "imagery";
+  std::string layer;
+  geo::TileId id;
+  std::string extension;  // "png", "jpg" or "webp"; empty for the quadkey form
+};
+// Family "web": the browser viewers and their static files (src/family_web.cpp).
+struct WebPageRoute {
+  static constexpr std::string_view kName = "web_page";
+  std::string page;  // file name under the web root: "index.html", "maplibre.html"
+};
+struct WebAssetRoute {
+  static constexpr std::string_view kName = "web_asset";
+  std::string path;  // relative to the web root; segments of [A-Za-z0-9_.-], none starting '.'
+};
 
-using Route = std::variant<HealthRoute, MetricsRoute, LayersRoute, LayerRoute, LayerJsonRoute,
-                           TerrainRoute, NativeTileRoute, IngestRoute, JobsRoute, JobRoute,
-                           DeleteLayerRoute, PreflightRoute>;
+using Route =
+    std::variant<HealthRoute, MetricsRoute, LayersRoute, LayerRoute, LayerJsonRoute, TerrainRoute,
+                 NativeTileRoute, IngestRoute, JobsRoute, JobRoute, DeleteLayerRoute,
+                 PreflightRoute, DemTileRoute, ImageryTileRoute, WebPageRoute, WebAssetRoute>;
 
 namespace detail {
 template <typename V>

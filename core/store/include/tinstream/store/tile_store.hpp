@@ -68,7 +68,34 @@ Result<StoredTile> prepare_tile(const tile::TinTile& tile);
 // no store needed). Errors say what is wrong with the blob, not where it came from.
 Result<tile::TinTile> decode_tile(const StoredTile& stored);
 
+// An imagery layer: 8-bit colour tiles of the same quadtree, stored apart from the terrain layers
+// (docs/store-format.md, "Imagery"). An imagery layer may share its name with a terrain layer
+// (the web viewer drapes it over that terrain); each is published and replaced on its own.
+struct ImageryInfo {
+  std::string name;  // [A-Za-z0-9_.-]{1,64}
+  geo::Projection projection = geo::Projection::spherical;
+  std::string format = "png";           // of every tile blob: "png", "jpeg" or "webp"
+  std::uint32_t tile_size = 256;        // pixels per side
+  geo::MercatorRect mercator_bounds{};  // of the source footprint
+  geo::LonLatRect bounds{};             // of the source footprint, degrees
+  std::uint32_t min_level = 0;
+  std::uint32_t max_level = 0;      // the level of the sources' native resolution
+  std::uint64_t tile_count = 0;     // counted by publish
+  std::string options_json = "{}";  // ingest options used, as JSON
+  std::string attribution;
+  std::int64_t created_unix = 0;  // seconds; set by publish()
+  std::int64_t version = 0;       // set by the store
+};
+
+// An imagery tile as stored: the encoded image (`format` of its layer) and its entity tag.
+struct StoredImage {
+  geo::TileId id;
+  std::vector<std::uint8_t> data;
+  std::string etag;  // strong, quoted, content-derived (make_etag): set by ImageryWriter::put
+};
+
 class LayerWriter;
+class ImageryWriter;
 
 class TileStore {
  public:
@@ -98,6 +125,18 @@ class TileStore {
   Result<std::unique_ptr<LayerWriter>> begin_layer(const LayerInfo& info);
   // Removes a published layer and its tiles. not_found when absent.
   Status delete_layer(std::string_view name);
+
+  // Imagery layers (published only): the same contract as the terrain calls above, on tables of
+  // their own, so writing or deleting imagery never touches a terrain layer, and back. A store
+  // written before imagery existed simply has none.
+  Result<std::vector<ImageryInfo>> imagery_layers();
+  Result<ImageryInfo> imagery_layer(std::string_view name);  // not_found when absent
+  Result<std::optional<StoredImage>> imagery_tile(std::string_view layer, const geo::TileId& id);
+  Result<std::vector<geo::TileId>> imagery_tile_ids(
+      std::string_view layer, std::optional<std::uint32_t> level = std::nullopt);
+  // One writer per imagery layer at a time, as begin_layer.
+  Result<std::unique_ptr<ImageryWriter>> begin_imagery(const ImageryInfo& info);
+  Status delete_imagery(std::string_view name);  // not_found when absent
 
   struct Impl;
 
@@ -136,6 +175,28 @@ class LayerWriter {
 
   struct Impl;
   explicit LayerWriter(std::unique_ptr<Impl> impl);
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Writes one new imagery version; the LayerWriter contract (batched transactions, invisible until
+// publish, abandoned when destroyed unpublished). Single-threaded.
+class ImageryWriter {
+ public:
+  ~ImageryWriter();
+
+  // Stores an encoded tile (replacing one with the same id in this version); sets its ETag.
+  Status put(StoredImage&& tile);
+  Status flush();
+  Result<std::optional<StoredImage>> get(const geo::TileId& id);
+  // Makes the version the layer's published imagery, atomically; `info` replaces the metadata
+  // given to begin_imagery, tile_count is counted, created_unix set to now.
+  Status publish(const ImageryInfo& info);
+  void abandon();
+
+  struct Impl;
+  explicit ImageryWriter(std::unique_ptr<Impl> impl);
 
  private:
   std::unique_ptr<Impl> impl_;

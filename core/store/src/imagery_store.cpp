@@ -1,0 +1,447 @@
+// The imagery tables of the tile store: imagery_versions, imagery_layers, imagery_tiles
+// (schema.cpp, docs/store-format.md "Imagery").
+//
+// The same protocol as the terrain tables (tile_store.cpp's invariants 1–3), on tables of their
+// own: an imagery layer is visible iff imagery_layers has a row for it, that row names a 'ready'
+// imagery version, and publish switches it in one transaction. No statement here reads or writes
+// a terrain table, so imagery and terrain layers are replaced independently.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "schema.hpp"
+#include "store_impl.hpp"
+#include "tinstream/store/etag.hpp"
+
+namespace tinstream::store {
+
+namespace {
+
+bool known_format(std::string_view f) { return f == "png" || f == "jpeg" || f == "webp"; }
+
+Status validate_imagery_info(const ImageryInfo& info) {
+  if (Status s = validate_layer_name(info.name); !s) return s;
+  const std::string layer = "imagery layer '" + info.name + "': ";
+  if (!known_format(info.format)) {
+    return invalid_argument(layer + "format '" + info.format + "' is not png, jpeg or webp");
+  }
+  if (info.tile_size < 16 || info.tile_size > 4096) {
+    return invalid_argument(layer + "tile size " + std::to_string(info.tile_size) +
+                            " is outside 16–4096 pixels");
+  }
+  if (info.max_level > static_cast<std::uint32_t>(geo::kMaxLevel) ||
+      info.min_level > info.max_level) {
+    return invalid_argument(layer + "levels must satisfy min ≤ max ≤ " +
+                            std::to_string(geo::kMaxLevel));
+  }
+  for (double v : {info.mercator_bounds.min_x, info.mercator_bounds.min_y,
+                   info.mercator_bounds.max_x, info.mercator_bounds.max_y, info.bounds.west,
+                   info.bounds.south, info.bounds.east, info.bounds.north}) {
+    if (!std::isfinite(v)) return invalid_argument(layer + "non-finite bounds");
+  }
+  if (!nlohmann::json::accept(info.options_json)) {
+    return invalid_argument(layer + "options are not valid JSON");
+  }
+  return {};
+}
+
+// Columns of imagery_versions read into an ImageryInfo, in this order, by read_imagery_info().
+constexpr const char* kImageryColumns =
+    "v.id, v.name, v.projection, v.format, v.tile_size, v.min_x, v.min_y, v.max_x, v.max_y, "
+    "v.west, v.south, v.east, v.north, v.min_level, v.max_level, v.tile_count, v.options, "
+    "v.attribution, v.created_unix";
+
+Result<ImageryInfo> read_imagery_info(const Query& q, const std::filesystem::path& path) {
+  ImageryInfo i;
+  i.version = q.i64(0);
+  i.name = q.text(1);
+  const auto projection = geo::parse_projection(q.text(2));
+  if (!projection) {
+    return corrupt_data(path.string() + ": imagery layer '" + i.name +
+                        "': " + projection.error().message);
+  }
+  i.projection = *projection;
+  i.format = q.text(3);
+  i.tile_size = q.u32(4);
+  i.mercator_bounds = {q.f64(5), q.f64(6), q.f64(7), q.f64(8)};
+  i.bounds = {q.f64(9), q.f64(10), q.f64(11), q.f64(12)};
+  i.min_level = q.u32(13);
+  i.max_level = q.u32(14);
+  i.tile_count = q.u64(15);
+  i.options_json = q.text(16);
+  i.attribution = q.text(17);
+  i.created_unix = q.i64(18);
+  return i;
+}
+
+Error no_imagery(const std::filesystem::path& path, std::string_view name) {
+  return not_found(path.string() + ": no imagery layer '" + std::string(name) + "'");
+}
+
+}  // namespace
+
+Result<bool> TileStore::Impl::has_imagery_tables() {
+  if (imagery_tables) return true;
+  auto q = query(
+      "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN "
+      "('imagery_versions', 'imagery_layers', 'imagery_tiles')");
+  if (!q) return q.error();
+  if (q->step() != SQLITE_ROW) return sql_error("reading the schema");
+  imagery_tables = q->i64(0) == 3;
+  return imagery_tables;
+}
+
+Status TileStore::Impl::create_imagery_tables() {
+  auto present = has_imagery_tables();
+  if (!present) return present.error();
+  if (*present) return {};
+  Status s = transaction("adding the imagery tables", [&]() -> Status {
+    return exec(schema::imagery_create_sql().c_str(), "adding the imagery tables");
+  });
+  if (s) imagery_tables = true;
+  return s;
+}
+
+Status TileStore::Impl::drop_imagery_version(std::int64_t version) {
+  auto tiles = query("DELETE FROM imagery_tiles WHERE version = ?1");
+  if (!tiles) return tiles.error();
+  tiles->bind(1, version);
+  if (!done(*tiles)) {
+    return sql_error("deleting the tiles of imagery version " + std::to_string(version));
+  }
+  auto row = query("DELETE FROM imagery_versions WHERE id = ?1");
+  if (!row) return row.error();
+  row->bind(1, version);
+  if (!done(*row)) return sql_error("deleting imagery version " + std::to_string(version));
+  return {};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Readers
+
+Result<std::vector<ImageryInfo>> TileStore::imagery_layers() {
+  auto present = impl_->has_imagery_tables();
+  if (!present) return present.error();
+  if (!*present) return std::vector<ImageryInfo>();
+  static const std::string sql =
+      std::string("SELECT ") + kImageryColumns +
+      " FROM imagery_layers AS l JOIN imagery_versions AS v ON v.id = l.version ORDER BY l.name";
+  auto q = impl_->query(sql.c_str());
+  if (!q) return q.error();
+  std::vector<ImageryInfo> out;
+  int rc = 0;
+  while ((rc = q->step()) == SQLITE_ROW) {
+    auto info = read_imagery_info(*q, impl_->path);
+    if (!info) return info.error();
+    out.push_back(std::move(*info));
+  }
+  if (rc != SQLITE_DONE) return impl_->sql_error("listing imagery layers");
+  return out;
+}
+
+Result<ImageryInfo> TileStore::imagery_layer(std::string_view name) {
+  if (Status s = validate_layer_name(name); !s) return s.error();
+  auto present = impl_->has_imagery_tables();
+  if (!present) return present.error();
+  if (!*present) return no_imagery(impl_->path, name);
+  static const std::string sql =
+      std::string("SELECT ") + kImageryColumns +
+      " FROM imagery_layers AS l JOIN imagery_versions AS v ON v.id = l.version WHERE l.name = ?1";
+  auto q = impl_->query(sql.c_str());
+  if (!q) return q.error();
+  q->bind(1, name);
+  const int rc = q->step();
+  if (rc == SQLITE_DONE) return no_imagery(impl_->path, name);
+  if (rc != SQLITE_ROW) {
+    return impl_->sql_error("reading imagery layer '" + std::string(name) + "'");
+  }
+  return read_imagery_info(*q, impl_->path);
+}
+
+Result<std::optional<StoredImage>> TileStore::imagery_tile(std::string_view layer,
+                                                           const geo::TileId& id) {
+  if (!id.valid()) return invalid_argument("invalid tile id " + id.to_string());
+  if (Status s = validate_layer_name(layer); !s) return s.error();
+  auto present = impl_->has_imagery_tables();
+  if (!present) return present.error();
+  if (!*present) return no_imagery(impl_->path, layer);
+  // One statement, so the layer → version lookup and the tile read see the same snapshot.
+  auto q = impl_->query(
+      "SELECT t.data, t.etag FROM imagery_layers AS l JOIN imagery_tiles AS t "
+      "ON t.version = l.version WHERE l.name = ?1 AND t.z = ?2 AND t.x = ?3 AND t.y = ?4");
+  if (!q) return q.error();
+  q->bind(1, layer).bind(2, id.z).bind(3, id.x).bind(4, id.y);
+  const int rc = q->step();
+  if (rc == SQLITE_ROW) {
+    StoredImage image;
+    image.id = id;
+    image.data = q->blob(0);
+    image.etag = q->text(1);
+    return std::optional<StoredImage>(std::move(image));
+  }
+  if (rc != SQLITE_DONE) {
+    return impl_->sql_error("reading imagery layer '" + std::string(layer) + "' tile " +
+                            id.to_string());
+  }
+  // No tile: an unknown layer is an error, a tile the layer does not have is not.
+  auto exists = imagery_layer(layer);
+  if (!exists) return exists.error();
+  return std::optional<StoredImage>();
+}
+
+Result<std::vector<geo::TileId>> TileStore::imagery_tile_ids(std::string_view layer,
+                                                             std::optional<std::uint32_t> level) {
+  auto info = imagery_layer(layer);
+  if (!info) return info.error();
+  auto q =
+      level ? impl_->query(
+                  "SELECT z, x, y FROM imagery_tiles WHERE version = ?1 AND z = ?2 "
+                  "ORDER BY z, x, y")
+            : impl_->query("SELECT z, x, y FROM imagery_tiles WHERE version = ?1 ORDER BY z, x, y");
+  if (!q) return q.error();
+  q->bind(1, info->version);
+  if (level) q->bind(2, *level);
+  std::vector<geo::TileId> out;
+  int rc = 0;
+  while ((rc = q->step()) == SQLITE_ROW) {
+    auto id = geo::TileId::from_zxy(q->i64(0), q->i64(1), q->i64(2));
+    if (!id) {
+      return corrupt_data(impl_->path.string() + ": imagery layer '" + std::string(layer) +
+                          "': " + id.error().message);
+    }
+    out.push_back(*id);
+  }
+  if (rc != SQLITE_DONE) {
+    return impl_->sql_error("listing the tiles of imagery layer '" + std::string(layer) + "'");
+  }
+  return out;
+}
+
+Status TileStore::delete_imagery(std::string_view name) {
+  if (Status s = impl_->require_writable(); !s) return s;
+  if (Status s = validate_layer_name(name); !s) return s;
+  return impl_->transaction("deleting an imagery layer", [&]() -> Status {
+    auto info = imagery_layer(name);
+    if (!info) return info.error();
+    auto q = impl_->query("DELETE FROM imagery_layers WHERE name = ?1");
+    if (!q) return q.error();
+    q->bind(1, name);
+    if (!Impl::done(*q)) {
+      return impl_->sql_error("deleting imagery layer '" + std::string(name) + "'");
+    }
+    return impl_->drop_imagery_version(info->version);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// The writer
+
+struct ImageryWriter::Impl {
+  TileStore::Impl* store = nullptr;
+  std::string name;
+  std::int64_t version = 0;
+  enum class State { building, published, abandoned } state = State::building;
+  std::vector<StoredImage> pending;  // waiting for the next flush (LayerWriter's batching)
+  std::size_t pending_bytes = 0;
+
+  std::string what() const {
+    return "imagery layer '" + name + "' version " + std::to_string(version);
+  }
+  Status usable() const {
+    if (state == State::published) return invalid_argument(what() + " is already published");
+    if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
+    return {};
+  }
+  Status flush();
+};
+
+Result<std::unique_ptr<ImageryWriter>> TileStore::begin_imagery(const ImageryInfo& info) {
+  if (Status s = impl_->require_writable(); !s) return s.error();
+  if (Status s = validate_imagery_info(info); !s) return s.error();
+  if (Status s = impl_->create_imagery_tables(); !s) return s.error();
+  const long pid = static_cast<long>(getpid());
+  std::int64_t version = 0;
+  Status s = impl_->transaction("starting an imagery version", [&]() -> Status {
+    auto stale = impl_->stale_versions(
+        "SELECT id, writer_pid, writer_host, writer_start FROM imagery_versions "
+        "WHERE name = ?1 AND status = 'building'",
+        info.name, "imagery layer");
+    if (!stale) return stale.error();
+    for (const std::int64_t id : *stale) {
+      if (Status d = impl_->drop_imagery_version(id); !d) return d;
+    }
+    auto insert = impl_->query(
+        "INSERT INTO imagery_versions (name, status, writer_pid, writer_host, writer_start, "
+        "projection, format, tile_size, min_x, min_y, max_x, max_y, west, south, east, north, "
+        "min_level, max_level, tile_count, options, attribution, started_unix) VALUES (?1, "
+        "'building', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, "
+        "?18, ?19, ?20)");
+    if (!insert) return insert.error();
+    insert->bind(1, info.name).bind(2, static_cast<std::int64_t>(pid)).bind(3, host_name());
+    if (const std::int64_t start = process_start(pid); start >= 0) {
+      insert->bind(4, start);
+    } else {
+      insert->bind_null(4);
+    }
+    insert->bind(5, geo::to_string(info.projection)).bind(6, info.format).bind(7, info.tile_size);
+    insert->bind(8, info.mercator_bounds.min_x).bind(9, info.mercator_bounds.min_y);
+    insert->bind(10, info.mercator_bounds.max_x).bind(11, info.mercator_bounds.max_y);
+    insert->bind(12, info.bounds.west).bind(13, info.bounds.south);
+    insert->bind(14, info.bounds.east).bind(15, info.bounds.north);
+    insert->bind(16, info.min_level).bind(17, info.max_level);
+    insert->bind(18, info.options_json).bind(19, info.attribution).bind(20, now_unix());
+    if (!Impl::done(*insert)) {
+      return impl_->sql_error("creating a version of imagery layer '" + info.name + "'");
+    }
+    version = sqlite3_last_insert_rowid(impl_->db.get());
+    return {};
+  });
+  if (!s) return s.error();
+  auto writer = std::make_unique<ImageryWriter::Impl>();
+  writer->store = impl_.get();
+  writer->name = info.name;
+  writer->version = version;
+  return std::make_unique<ImageryWriter>(std::move(writer));
+}
+
+ImageryWriter::ImageryWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+ImageryWriter::~ImageryWriter() {
+  if (impl_ && impl_->state == Impl::State::building) abandon();
+}
+
+Status ImageryWriter::Impl::flush() {
+  if (pending.empty()) return {};
+  TileStore::Impl& db = *store;
+  Status s = db.transaction("writing a batch of imagery tiles", [&]() -> Status {
+    auto q = db.query(
+        "INSERT OR REPLACE INTO imagery_tiles (version, z, x, y, data, etag) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    if (!q) return q.error();
+    for (const StoredImage& t : pending) {
+      q->bind(1, version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
+      q->bind_blob(5, t.data).bind(6, t.etag);
+      if (!TileStore::Impl::done(*q)) {
+        return db.sql_error("writing " + what() + " tile " + t.id.to_string());
+      }
+      q->reset();
+    }
+    return {};
+  });
+  if (s) {
+    pending.clear();
+    pending_bytes = 0;
+  }
+  return s;
+}
+
+Status ImageryWriter::put(StoredImage&& tile) {
+  if (Status s = impl_->usable(); !s) return s;
+  if (!tile.id.valid()) {
+    return invalid_argument(impl_->what() + ": invalid tile id " + tile.id.to_string());
+  }
+  if (tile.data.empty()) {
+    return invalid_argument(impl_->what() + ": empty image for tile " + tile.id.to_string());
+  }
+  tile.etag = make_etag(tile.data);
+  impl_->pending_bytes += tile.data.size();
+  impl_->pending.push_back(std::move(tile));
+  if (impl_->pending.size() >= kBatchTiles || impl_->pending_bytes >= kBatchBytes) {
+    return impl_->flush();  // on failure the tiles stay pending: a later put/flush retries
+  }
+  return {};
+}
+
+Status ImageryWriter::flush() {
+  if (Status s = impl_->usable(); !s) return s;
+  return impl_->flush();
+}
+
+Result<std::optional<StoredImage>> ImageryWriter::get(const geo::TileId& id) {
+  if (Status s = impl_->usable(); !s) return s.error();
+  // The latest put of the id wins: the pending batch is searched newest first.
+  const auto pending = std::find_if(impl_->pending.rbegin(), impl_->pending.rend(),
+                                    [&](const StoredImage& t) { return t.id == id; });
+  if (pending != impl_->pending.rend()) return std::optional<StoredImage>(*pending);
+  auto q = impl_->store->query(
+      "SELECT data, etag FROM imagery_tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
+  if (!q) return q.error();
+  q->bind(1, impl_->version).bind(2, id.z).bind(3, id.x).bind(4, id.y);
+  const int rc = q->step();
+  if (rc == SQLITE_DONE) return std::optional<StoredImage>();
+  if (rc != SQLITE_ROW) {
+    return impl_->store->sql_error("reading " + impl_->what() + " tile " + id.to_string());
+  }
+  StoredImage image;
+  image.id = id;
+  image.data = q->blob(0);
+  image.etag = q->text(1);
+  return std::optional<StoredImage>(std::move(image));
+}
+
+Status ImageryWriter::publish(const ImageryInfo& info) {
+  if (Status s = impl_->usable(); !s) return s;
+  if (info.name != impl_->name) {
+    return invalid_argument(impl_->what() + ": publish() given the metadata of imagery layer '" +
+                            info.name + "'");
+  }
+  if (Status s = validate_imagery_info(info); !s) return s;
+  if (Status s = impl_->flush(); !s) return s;
+  TileStore::Impl& store = *impl_->store;
+  const std::int64_t version = impl_->version;
+  Status s = store.transaction("publishing an imagery layer", [&]() -> Status {
+    auto count = store.query("SELECT count(*) FROM imagery_tiles WHERE version = ?1");
+    if (!count) return count.error();
+    count->bind(1, version);
+    if (count->step() != SQLITE_ROW) {
+      return store.sql_error("counting the tiles of " + impl_->what());
+    }
+    const std::int64_t tiles = count->i64(0);
+    auto update = store.query(
+        "UPDATE imagery_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
+        "writer_start = NULL, projection = ?2, format = ?3, tile_size = ?4, min_x = ?5, "
+        "min_y = ?6, max_x = ?7, max_y = ?8, west = ?9, south = ?10, east = ?11, north = ?12, "
+        "min_level = ?13, max_level = ?14, tile_count = ?15, options = ?16, attribution = ?17, "
+        "created_unix = ?18 WHERE id = ?1 AND status = 'building'");
+    if (!update) return update.error();
+    update->bind(1, version).bind(2, geo::to_string(info.projection)).bind(3, info.format);
+    update->bind(4, info.tile_size);
+    update->bind(5, info.mercator_bounds.min_x).bind(6, info.mercator_bounds.min_y);
+    update->bind(7, info.mercator_bounds.max_x).bind(8, info.mercator_bounds.max_y);
+    update->bind(9, info.bounds.west).bind(10, info.bounds.south);
+    update->bind(11, info.bounds.east).bind(12, info.bounds.north);
+    update->bind(13, info.min_level).bind(14, info.max_level).bind(15, tiles);
+    update->bind(16, info.options_json).bind(17, info.attribution).bind(18, now_unix());
+    if (!TileStore::Impl::done(*update)) return store.sql_error("publishing " + impl_->what());
+    if (sqlite3_changes(store.db.get()) != 1) {
+      return Error(ErrorCode::internal, store.path.string() + ": " + impl_->what() +
+                                            " disappeared before it was published");
+    }
+    auto previous =
+        store.switch_published("SELECT version FROM imagery_layers WHERE name = ?1",
+                               "INSERT INTO imagery_layers (name, version) VALUES (?1, ?2) "
+                               "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
+                               impl_->name, version, impl_->what());
+    if (!previous) return previous.error();
+    if (*previous) return store.drop_imagery_version(**previous);
+    return {};
+  });
+  if (s) impl_->state = Impl::State::published;
+  return s;
+}
+
+void ImageryWriter::abandon() {
+  if (impl_->state != Impl::State::building) return;
+  impl_->state = Impl::State::abandoned;
+  impl_->pending.clear();
+  impl_->pending_bytes = 0;
+  TileStore::Impl& store = *impl_->store;
+  const std::int64_t version = impl_->version;
+  // Best effort: if this fails, the next begin_imagery of the name collects it.
+  (void)store.transaction("abandoning an imagery version",
+                          [&]() -> Status { return store.drop_imagery_version(version); });
+}
+
+}  // namespace tinstream::store

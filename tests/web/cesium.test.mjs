@@ -1,0 +1,79 @@
+// End to end: the CesiumJS page of tinstream-server in Debian's Chromium (headless, SwiftShader
+// WebGL). The page must load the fixture's terrain layer and its imagery from the server alone,
+// without a page error or Cesium's error panel; its terrain must give the generated DEM's
+// heights at known ground points (sampleTerrainMostDetailed); a click must put a height in the
+// panel; and the rendering must show the draped imagery (many distinct colours).
+//
+// Pitfalls this test avoids: `globe.tilesLoaded` is true even when every terrain tile failed
+// (so terrain responses are counted, by status), and a 404 layer.json does not reject
+// CesiumTerrainProvider.fromUrl (so the page's own readiness and error list are checked).
+import {
+  check, checkNoForeignRequests, distinctColours, fixture, recordedPage, responsesMatching, run,
+  saveScreenshot, waitFor,
+} from './harness.mjs';
+
+const HEIGHT_TOLERANCE = 0.25;  // metres: quantized-mesh keeps about 1 cm on this height range
+
+await run('web_cesium', async ({ server, browser }) => {
+  const { points } = fixture();
+  const { page, log } = await recordedPage(browser, { width: 800, height: 520 });
+  const t0 = Date.now();
+  const mark = (what) => console.log(`web_cesium: ${what} after ${((Date.now() - t0) / 1000).toFixed(1)} s`);
+  await page.goto(`${server.base}/?layer=demo&fly=0`, { waitUntil: 'load', timeout: 60000 });
+
+  // The page's own start: /layers read, layer.json checked, terrain and imagery set, camera placed.
+  await waitFor('window.tinstream.ready', () => page.evaluate(() => Boolean(window.tinstream && window.tinstream.ready)), 30000);
+  const started = await page.evaluate(() => window.tinstream.ready.then(() => 'ok', (e) => `failed: ${e.message}`));
+  check(started === 'ok', `the viewer did not start: ${started}`);
+  mark('viewer ready');
+  const errors = await page.evaluate(() => window.tinstream.errors);
+  check(errors.length === 0, `the viewer reported errors: ${errors.join('; ')}`);
+  const status = await page.textContent('#status');
+  check(/^demo: levels 0–\d+/.test(status), `status line: ${status}`);
+
+  // Terrain and imagery tiles arrive with 200, and the globe settles.
+  await waitFor('terrain tiles (200)', () => responsesMatching(log, /\/tiles\/demo\/\d+\/\d+\/\d+\.terrain/)
+    .filter((r) => r.status === 200).length >= 4, 120000);
+  await waitFor('imagery tiles (200)', () => responsesMatching(log, /\/imagery\/demo\/\d+\/\d+\/\d+\.jpg/)
+    .filter((r) => r.status === 200).length >= 2, 120000);
+  await waitFor('globe.tilesLoaded', () => page.evaluate(() => window.tinstream.viewer.scene.globe.tilesLoaded), 120000);
+  mark('tiles loaded');
+  const layerJson = responsesMatching(log, /\/tiles\/demo\/layer\.json/);
+  check(layerJson.length > 0 && layerJson.every((r) => r.status === 200), `layer.json: ${JSON.stringify(layerJson)}`);
+  const badTerrain = responsesMatching(log, /\.terrain/).filter((r) => r.status !== 200);
+  check(badTerrain.length === 0, `terrain tiles that failed: ${JSON.stringify(badTerrain.slice(0, 5))}`);
+  const badImagery = responsesMatching(log, /\/imagery\//).filter((r) => r.status !== 200);
+  check(badImagery.length === 0, `imagery tiles that failed: ${JSON.stringify(badImagery.slice(0, 5))}`);
+  check((await page.$('.cesium-widget-errorPanel')) === null, 'Cesium shows its error panel');
+
+  // Heights at the DEM's own cell centres, from the most detailed tiles.
+  const sampled = await page.evaluate(async (pts) => {
+    const C = window.Cesium;
+    const carto = pts.map((p) => C.Cartographic.fromDegrees(p.lon, p.lat));
+    const result = await C.sampleTerrainMostDetailed(window.tinstream.terrainProvider, carto);
+    return result.map((c) => c.height);
+  }, points);
+  points.forEach((p, i) => {
+    check(Number.isFinite(sampled[i]) && Math.abs(sampled[i] - p.height) <= HEIGHT_TOLERANCE,
+          `ground point ${p.lon},${p.lat}: Cesium samples ${sampled[i]} m, the DEM says ${p.height} m`);
+  });
+
+  // The panel: a click in the middle of the view gives a height within the layer's range.
+  const layer = await page.evaluate(() => window.tinstream.layer);
+  await page.mouse.click(400, 300);
+  const picked = Number(await waitFor('a picked height', () => page.getAttribute('#pick-height', 'data-height'), 30000));
+  check(picked >= layer.min_z - 1 && picked <= layer.max_z + 1,
+        `picked height ${picked} m outside ${layer.min_z}–${layer.max_z} m`);
+
+  // What is on screen: the imagery draped on the terrain, i.e. many colours in the middle.
+  const shot = await page.screenshot();
+  saveScreenshot('cesium', shot);
+  const colours = await distinctColours(browser, shot);
+  check(colours >= 1000, `only ${colours} distinct colours in the middle of the view`);
+
+  checkNoForeignRequests(log, server.base);
+  check(log.pageErrors.length === 0, `page errors: ${log.pageErrors.join('\n')}`);
+  check(log.failed.length === 0, `failed requests: ${JSON.stringify(log.failed.slice(0, 5))}`);
+  console.log(`web_cesium: ${log.requests.length} requests, heights within ${HEIGHT_TOLERANCE} m at ` +
+              `${points.length} points, picked ${picked.toFixed(2)} m, ${colours} colours`);
+});
