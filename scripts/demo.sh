@@ -4,7 +4,9 @@
 #   2. ingest it into an SQLite tile store (TIN tiles + LOD pyramid) and verify it,
 #   3. serve it with tinstream-server and show what a client gets (layers, a native tile,
 #      Cesium layer.json and a quantized-mesh tile, an OBJ export),
-#   4. keep serving until Ctrl-C when run from a terminal (stop at once otherwise).
+#   4. render it with tinstream-viewer --headless (EGL on Mesa) into $build/demo/snapshot.png and
+#      print its path (and open the viewer's window when there is a display and a terminal),
+#   5. keep serving until Ctrl-C when run from a terminal (stop at once otherwise).
 set -euo pipefail
 build=${1:-build}
 bin="$build/bin"
@@ -51,6 +53,25 @@ fi
 echo "GET $base/tiles/sample/layer.json (Cesium terrain)"
 curl -fsS --compressed "$base/tiles/sample/layer.json" | head -c 400; echo
 
+if [[ -x "$bin/tinstream-viewer" ]]; then
+  step "4. Look at it: tinstream-viewer, headless (EGL on Mesa), streaming from $base"
+  rm -f "$out/snapshot.png"
+  if "$bin/tinstream-viewer" --headless --url "$base" --layer sample --size 1280x720 --timeout 300 \
+      --out "$out/snapshot.png" --stats "$out/snapshot.json"; then
+    echo "statistics: $(head -c 300 "$out/snapshot.json") … (all of it in $out/snapshot.json)"
+  else
+    echo "tinstream-viewer did not finish the view (exit status $?); see above"
+  fi
+  if [[ -f $out/snapshot.png ]]; then echo "snapshot: $(realpath "$out/snapshot.png")"; fi
+  if [[ -t 0 && ( -n ${DISPLAY:-} || -n ${WAYLAND_DISPLAY:-} ) ]]; then
+    echo "opening the viewer window (close it to go on)"
+    "$bin/tinstream-viewer" --url "$base" --layer sample || true
+  fi
+fi
+
+echo
+echo "server: $base  (layers: $base/layers, native tiles: $base/tiles/sample/{quadkey},"
+echo "        Cesium terrain: $base/tiles/sample/)"
 if [[ -t 0 ]]; then
   step "Serving $base until Ctrl-C (Cesium terrain URL: $base/tiles/sample/)"
   echo "In a browser: $base/ (CesiumJS) or $base/maplibre (MapLibre GL JS, raster-DEM terrain)"

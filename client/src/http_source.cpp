@@ -347,7 +347,9 @@ class HttpSource final : public TileSource {
       if (t != Transport::ok) continue;
       std::string body(a.body.begin(), a.body.end());
       if (a.status == 200) return body;
-      if (a.status == 404) return not_found("GET " + url_.text() + target + ": 404 " + body);
+      if (a.status == 404)
+        return not_found(
+            std::string("GET ").append(url_.text()).append(target).append(": 404 ").append(body));
       error = "HTTP " + std::to_string(a.status) + " " + body.substr(0, 200);
       if (a.status < 500) break;
     }

@@ -3,6 +3,7 @@
 #include <epoxy/gl.h>
 #include <imgui.h>
 
+#include <cstdint>
 #include <cstdio>
 
 #include "gl_program.hpp"
@@ -10,6 +11,15 @@
 #include "tinstream/client/renderer.hpp"
 
 namespace tinstream::client {
+
+namespace {
+
+// GL's convention: a byte offset into the bound buffer, passed as a pointer.
+void* gl_offset(std::size_t bytes) {
+  return reinterpret_cast<void*>(bytes);  // NOLINT(performance-no-int-to-ptr)
+}
+
+}  // namespace
 
 struct Overlay::Impl {
   ImGuiContext* context = nullptr;
@@ -55,7 +65,9 @@ Result<std::unique_ptr<Overlay>> Overlay::create() {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, width, height, 0, GL_RGBA, GL_UNSIGNED_BYTE, pixels);
-  io.Fonts->SetTexID(reinterpret_cast<ImTextureID>(static_cast<std::intptr_t>(impl->font_texture)));
+  // ImGui's texture ids are pointers; ours carry a GL texture name.
+  io.Fonts->SetTexID(reinterpret_cast<ImTextureID>(  // NOLINT(performance-no-int-to-ptr)
+      static_cast<std::intptr_t>(impl->font_texture)));
 
   glGenVertexArrays(1, &impl->vao);
   glBindVertexArray(impl->vao);
@@ -65,14 +77,12 @@ Result<std::unique_ptr<Overlay>> Overlay::create() {
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, impl->ibo);
   constexpr GLsizei stride = sizeof(ImDrawVert);
   glEnableVertexAttribArray(0);
-  glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride,
-                        reinterpret_cast<void*>(offsetof(ImDrawVert, pos)));
+  glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride, gl_offset(offsetof(ImDrawVert, pos)));
   glEnableVertexAttribArray(1);
-  glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride,
-                        reinterpret_cast<void*>(offsetof(ImDrawVert, uv)));
+  glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, gl_offset(offsetof(ImDrawVert, uv)));
   glEnableVertexAttribArray(2);
   glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, stride,
-                        reinterpret_cast<void*>(offsetof(ImDrawVert, col)));
+                        gl_offset(offsetof(ImDrawVert, col)));
   glBindVertexArray(0);
   return std::unique_ptr<Overlay>(new Overlay(std::move(impl)));
 }
@@ -119,11 +129,13 @@ void Overlay::render(int framebuffer_width, int framebuffer_height) {
   for (int n = 0; n < data->CmdListsCount; ++n) {
     const ImDrawList* list = data->CmdLists[n];
     glBufferData(GL_ARRAY_BUFFER,
-                 static_cast<GLsizeiptr>(list->VtxBuffer.Size) * sizeof(ImDrawVert),
+                 static_cast<GLsizeiptr>(static_cast<std::size_t>(list->VtxBuffer.Size) *
+                                         sizeof(ImDrawVert)),
                  list->VtxBuffer.Data, GL_STREAM_DRAW);
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER,
-                 static_cast<GLsizeiptr>(list->IdxBuffer.Size) * sizeof(ImDrawIdx),
-                 list->IdxBuffer.Data, GL_STREAM_DRAW);
+    glBufferData(
+        GL_ELEMENT_ARRAY_BUFFER,
+        static_cast<GLsizeiptr>(static_cast<std::size_t>(list->IdxBuffer.Size) * sizeof(ImDrawIdx)),
+        list->IdxBuffer.Data, GL_STREAM_DRAW);
     for (int c = 0; c < list->CmdBuffer.Size; ++c) {
       const ImDrawCmd& cmd = list->CmdBuffer[c];
       if (cmd.UserCallback) continue;  // none of ours use callbacks
@@ -137,7 +149,7 @@ void Overlay::render(int framebuffer_width, int framebuffer_height) {
                     static_cast<GLuint>(reinterpret_cast<std::intptr_t>(cmd.GetTexID())));
       glDrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(cmd.ElemCount),
                                sizeof(ImDrawIdx) == 2 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_INT,
-                               reinterpret_cast<void*>(cmd.IdxOffset * sizeof(ImDrawIdx)),
+                               gl_offset(cmd.IdxOffset * sizeof(ImDrawIdx)),
                                static_cast<GLint>(cmd.VtxOffset));
     }
   }

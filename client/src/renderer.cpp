@@ -133,15 +133,15 @@ struct GlobeRenderer::Impl {
 
   Status build_programs() {
     std::vector<std::string> common;
-    if (log_depth) common.push_back("#define LOG_DEPTH");
+    if (log_depth) common.emplace_back("#define LOG_DEPTH");
     for (int variant = 0; variant < 4; ++variant) {
       std::vector<std::string> defines = common;
       std::vector<gl::Stage> stages{{GL_VERTEX_SHADER, shaders::kTerrainVertex}};
       if (variant & 1) {
-        defines.push_back("#define WIREFRAME");
+        defines.emplace_back("#define WIREFRAME");
         stages.push_back({GL_GEOMETRY_SHADER, shaders::kTerrainGeometry});
       }
-      if (variant & 2) defines.push_back("#define MASKED");
+      if (variant & 2) defines.emplace_back("#define MASKED");
       stages.push_back({GL_FRAGMENT_SHADER, shaders::kTerrainFragment});
       auto program = gl::build_program("terrain", stages, defines);
       if (!program) return program.error();

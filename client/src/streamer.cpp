@@ -172,7 +172,7 @@ void TileStreamer::upload(GpuUploader& gpu) {
     ResidentTile t{gpu.upload(m),     m.centre, m.frame, m.bounds,
                    m.geometric_error, m.min_z,  m.max_z, m.quadrant_data};
     const std::uint64_t gpu_bytes = t.gpu.bytes;
-    if (!gpu_.insert(r.key, std::move(t), gpu_bytes, frame_, frame_, release)) break;
+    if (!gpu_.insert(r.key, t, gpu_bytes, frame_, frame_, release)) break;
     used += bytes;
     ++frame_result_.uploaded;
   }

@@ -8,8 +8,6 @@
 namespace tinstream::client {
 namespace {
 
-using testing::ecef;
-
 Camera oblique() {
   Camera c(800, 600, 60);
   c.set_pose({6.1, 49.6, 3000, 20, -40});

@@ -156,7 +156,7 @@ TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
     EXPECT_TRUE(v == 0 || v >= 4) << "a NODATA corner is drawn";
   }
   // Skirts only under the border segments of drawn triangles: NW–N and NW–W.
-  EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, 2u * 6);
+  EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, std::size_t{12});  // 2 quads × 6
   // The box ignores the NODATA corners at z = 0 (the surface is near 300 m).
   EXPECT_GT(mesh.min_z, 100);
   EXPECT_LT(mesh.bounds.half[2], 100);

@@ -43,7 +43,7 @@ class CountingUploader final : public GpuUploader {
 };
 
 struct Fixture {
-  explicit Fixture(const std::string& name, SyntheticLayer layer = testing::default_layer())
+  explicit Fixture(const std::string& name, const SyntheticLayer& layer = testing::default_layer())
       : dir(name), store(dir.path / "s.db") {
     testing::write_layer(store, layer);
     auto source = open_store_source(store);

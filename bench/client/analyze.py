@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""bench/client helpers (run.sh calls them).
+
+  analyze.py cameras LAYER_JSON FLIGHT_FILE FLIGHT_S STREAM_FILE
+      prints CAM_FAR=… CAM_NEAR=… (shell assignments) and writes the two camera paths:
+      STREAM_FILE: cold at the near view, `wait complete`, then 5 s more on it (loaded);
+      FLIGHT_FILE: FLIGHT_S seconds back and forth over the layer at three heights.
+  analyze.py report OUT LAYER STORE DELAY_MS SIZE SSE FLIGHT_S
+      reads OUT/cold.jsonl, OUT/stream.jsonl, OUT/flight.jsonl, OUT/flight.maxrss_kb,
+      OUT/cesium.jsonl and prints the Markdown tables of RESULTS.md.
+"""
+import json
+import math
+import statistics
+import sys
+
+
+def pct(values, p):
+    """The p-th percentile, nearest rank (no interpolation)."""
+    s = sorted(values)
+    if not s:
+        return float('nan')
+    k = max(0, min(len(s) - 1, math.ceil(p / 100 * len(s)) - 1))
+    return s[k]
+
+
+def cameras(layer_json, flight_file, flight_s, stream_file):
+    layer = json.load(open(layer_json))
+    b = layer['bounds']
+    lon = (b['west'] + b['east']) / 2
+    lat = (b['south'] + b['north']) / 2
+    # Extent in metres (spherical approximation, only to place the cameras).
+    width = max((b['east'] - b['west']) * 111320 * math.cos(math.radians(lat)),
+                (b['north'] - b['south']) * 110540, 100.0)
+    top = layer.get('max_z', 0.0)
+    far = f'{lon:.6f},{lat:.6f},{top + 1.2 * width:.1f},0,-90'
+    # Close and oblique: looking north-east over the layer from its south-west quarter.
+    near_lon = b['west'] + 0.3 * (b['east'] - b['west'])
+    near_lat = b['south'] + 0.25 * (b['north'] - b['south'])
+    near = f'{near_lon:.6f},{near_lat:.6f},{top + 0.12 * width:.1f},30,-30'
+    with open(stream_file, 'w') as f:
+        f.write(f'# cold at the near view, until complete, then 5 s loaded\n0 {near}\n'
+                f'wait complete\n5 {near}\n')
+    legs = []
+    heights = [top + 0.6 * width, top + 0.2 * width, top + 0.06 * width]
+    corners = [(b['west'], b['south']), (b['east'], b['north']), (b['east'], b['south']),
+               (b['west'], b['north'])]
+    i = 0
+    while sum(s for s, _ in legs) < flight_s:
+        cx, cy = corners[i % len(corners)]
+        x = lon + 0.8 * (cx - lon)
+        y = lat + 0.8 * (cy - lat)
+        h = heights[i % len(heights)]
+        legs.append((10.0, f'{x:.6f},{y:.6f},{h:.1f},{(45 * i) % 360},-40'))
+        i += 1
+    with open(flight_file, 'w') as f:
+        f.write(f'# {flight_s} s over the layer, three heights\n0 {far}\n')
+        for s, pose in legs:
+            f.write(f'{s} {pose}\n')
+    print(f'CAM_FAR={far}')
+    print(f'CAM_NEAR={near}')
+
+
+def read_jsonl(path):
+    try:
+        with open(path) as f:
+            return [json.loads(line) for line in f if line.strip()]
+    except FileNotFoundError:
+        return []
+
+
+def report(out, layer, store, delay_ms, size, sse, flight_s):
+    print(f'store `{store}`, layer `{layer}`, {size}, max SSE {sse} px, '
+          f'+{delay_ms} ms per request (proxy)\n')
+    cold = read_jsonl(f'{out}/cold.jsonl')
+    print('### Cold time to a complete view (fresh process, no disk tier)\n')
+    print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
+          '(proxy) | most in flight |')
+    print('|---|---|---|---|---|---|---|---|')
+    by_t = {}
+    for c in cold:
+        v, p = c['viewer'], c['proxy']
+        by_t.setdefault(c['threads'], []).append(v['time_to_complete_s'])
+        print(f"| {c['threads']} | {c['run']} | {v['complete']} | {v['time_to_complete_s']:.2f} | "
+              f"{v['tiles']['loaded']} | {p['requests']} | {p['bytes']} | {p['max_in_flight']} |")
+    if 1 in by_t and 8 in by_t:
+        m1, m8 = statistics.median(by_t[1]), statistics.median(by_t[8])
+        pairs = [a / b for a, b in zip(by_t[1], by_t[8]) if b]
+        print(f'\nmedian 1 thread {m1:.2f} s, 8 threads {m8:.2f} s: **{m1 / m8:.2f}×** '
+              f'(per run pair: {", ".join(f"{r:.2f}" for r in pairs)}); target ≥ 5×\n')
+
+    frames = [f for f in read_jsonl(f'{out}/stream.jsonl') if 'frame' in f]
+    if frames:
+        streaming = [f['frame_ms'] for f in frames if not f['complete']]
+        first_complete = next((f['t'] for f in frames if f['complete']), None)
+        loaded = [f['frame_ms'] for f in frames
+                  if f['complete'] and first_complete is not None and f['t'] > first_complete + 0.5]
+        tiles = max(f['loaded'] for f in frames)
+        print('### Render thread while tiles stream in (near view, 8 threads)\n')
+        print(f'{tiles} tiles decoded; {len(streaming)} frames streaming, {len(loaded)} frames '
+              f'loaded (from 0.5 s after complete)\n')
+        print('| frames | median ms | p95 ms | p99 ms | worst ms |')
+        print('|---|---|---|---|---|')
+        for name, v in (('streaming', streaming), ('loaded (same view)', loaded)):
+            if v:
+                print(f'| {name} | {statistics.median(v):.2f} | {pct(v, 95):.2f} | '
+                      f'{pct(v, 99):.2f} | {max(v):.2f} |')
+        upd = [f['update_ms'] for f in frames if not f['complete']]
+        tri = max(f['triangles'] for f in frames)
+        if upd:
+            print(f'| streaming: update only (take results, select, upload) | '
+                  f'{statistics.median(upd):.2f} | {pct(upd, 95):.2f} | {pct(upd, 99):.2f} | '
+                  f'{max(upd):.2f} |')
+        print(f'\nat most {tri} triangles drawn in a frame')
+        if streaming and loaded:
+            print(f'\nworst streaming frame / median loaded frame = '
+                  f'**{max(streaming) / statistics.median(loaded):.2f}×** (target ≤ 1.5×); '
+                  f'p99 streaming / median loaded = {pct(streaming, 99) / statistics.median(loaded):.2f}×\n')
+
+    flight = [f for f in read_jsonl(f'{out}/flight.jsonl') if 'frame' in f]
+    if flight:
+        rss = [f['rss_bytes'] for f in flight]
+        ft = [f['frame_ms'] for f in flight]
+        budget = (64 + 64) << 20
+        base = rss[0]
+        try:
+            maxrss = int(open(f'{out}/flight.maxrss_kb').read().split()[-1]) * 1024
+        except (OSError, ValueError, IndexError):
+            maxrss = 0
+        mb = 1 << 20
+        print(f'### Memory over a scripted flight ({flight[-1]["t"]:.0f} s, {len(flight)} frames, '
+              f'--gpu-mb 64 --cache-mb 64)\n')
+        print('| RSS first frame | RSS median | RSS max (frames) | max RSS (time -f %M) | '
+              'budgets | max − first frame | peak GPU tier | peak RAM tier |')
+        print('|---|---|---|---|---|---|---|---|')
+        print(f'| {base / mb:.0f} MB | {statistics.median(rss) / mb:.0f} MB | {max(rss) / mb:.0f} MB | '
+              f'{maxrss / mb:.0f} MB | {budget / mb:.0f} MB | {(max(rss) - base) / mb:.0f} MB | '
+              f'{max(f["gpu_bytes"] for f in flight) / mb:.0f} MB | '
+              f'{max(f["ram_bytes"] for f in flight) / mb:.0f} MB |')
+        print(f'\nframe times over the flight: median {statistics.median(ft):.2f} ms, '
+              f'p95 {pct(ft, 95):.2f}, p99 {pct(ft, 99):.2f}, worst {max(ft):.2f} ms\n')
+
+    cesium = read_jsonl(f'{out}/cesium.jsonl')
+    if cesium:
+        print('### CesiumJS, same layer (Cesium terrain endpoint), camera, size, max SSE\n')
+        print('| run | time to complete (s) | requests | bytes (proxy) | error |')
+        print('|---|---|---|---|---|')
+        for i, c in enumerate(cesium, 1):
+            p = c.get('proxy', {})
+            ms = c.get('ms')
+            print(f"| {i} | {ms / 1000 if ms else float('nan'):.2f} | {p.get('requests', '')} | "
+                  f"{p.get('bytes', '')} | {c.get('error', '')[:80]} |")
+        print()
+
+
+if __name__ == '__main__':
+    if sys.argv[1] == 'cameras':
+        cameras(sys.argv[2], sys.argv[3], float(sys.argv[4]), sys.argv[5])
+    elif sys.argv[1] == 'report':
+        report(*sys.argv[2:9])
+    else:
+        sys.exit(__doc__)

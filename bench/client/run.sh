@@ -1,0 +1,146 @@
+#!/usr/bin/env bash
+# Client benchmark (issue #17): tinstream-viewer --headless streaming from tinstream-server through
+# a loopback proxy that holds every request 30 ms (proxy.mjs), so the server looks 30 ms away.
+#
+#   bench/client/run.sh                      everything below, results in $OUT (printed at the end)
+#   BUILD=build REPEAT=3 FLIGHT_S=300 bench/client/run.sh
+#   STORE_IN=terrain.sqlite LAYER=alps bench/client/run.sh
+#   CESIUM=0 bench/client/run.sh             leave out the CesiumJS peer
+#
+# 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
+#    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
+#    statistics, requests and bytes counted by the proxy;
+# 2. the render thread while tiles stream in: a camera path that starts cold at a close view
+#    (`wait complete`), then stays 5 s on it fully loaded; the frame times (stream update + draw +
+#    glFinish) while streaming vs on the same view loaded (median, p95, p99, worst), and the
+#    streaming part of each frame alone (update_ms: take results, select, upload);
+# 3. memory: a scripted flight of FLIGHT_S seconds (default 300) back and forth over the layer
+#    at several heights with small budgets (--gpu-mb 64 --cache-mb 64): RSS per frame against
+#    the budgets (the GPU tier lives in process memory with Mesa) plus the RSS of the first frame;
+# 4. CesiumJS (npm cesium in Debian's headless chromium, playwright-core; bench/client/cesium.html)
+#    on the same layer's Cesium terrain endpoint, same camera, viewport, fov and maximum
+#    screen-space error, through the same proxy: time to a complete view and bytes (CESIUM=1,
+#    default when chromium and node are there; `npm install` in bench/client once;
+#    CESIUM_TIMEOUT_S, default 600).
+# Store: STORE_IN + LAYER, else the client tests' DEM store ($BUILD/tests/client/stores/dem.sqlite,
+# Big Tujunga SRTM 30 m) when built, else `tinstream ingest` of ../shared/data's Big Tujunga DEM,
+# else `tinstream sample`. Needs node (proxy), python3 (tables), the built tinstream-viewer,
+# tinstream-server and tinstream in $BUILD/bin.
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+HERE=$ROOT/bench/client
+BUILD=${BUILD:-$ROOT/build}
+BIN=${BIN:-$BUILD/bin}
+OUT=${OUT:-$BUILD/bench-client}
+DELAY_MS=${DELAY_MS:-30}
+REPEAT=${REPEAT:-3}
+FLIGHT_S=${FLIGHT_S:-300}
+SIZE=${SIZE:-1280x720}
+SSE=${SSE:-2}
+CESIUM=${CESIUM:-auto}
+mkdir -p "$OUT"
+for b in tinstream-viewer tinstream-server tinstream; do
+  [[ -x $BIN/$b ]] || { echo "run.sh: $BIN/$b is missing (cmake --build $BUILD --target $b)" >&2; exit 2; }
+done
+
+# --- the store ---
+if [[ -n ${STORE_IN:-} ]]; then
+  store=$STORE_IN
+  layer=${LAYER:?LAYER= names the layer of STORE_IN}
+elif [[ -f $BUILD/tests/client/stores/dem.sqlite ]]; then
+  store=$BUILD/tests/client/stores/dem.sqlite
+  layer=dem
+else
+  store=$OUT/bench.sqlite
+  layer=dem
+  if [[ ! -f $store ]]; then
+    dem=$ROOT/../shared/data/bigtujunga_srtm30m_utm11.tif
+    if [[ -f $dem ]]; then input=$dem; else
+      "$BIN/tinstream" sample --out "$OUT/sample.las" --points 1000000 --density 0.05
+      input=$OUT/sample.las
+    fi
+    echo "ingesting $input into $store"
+    "$BIN/tinstream" ingest --store "$store.tmp" --layer "$layer" "$input"
+    mv "$store.tmp" "$store"
+  fi
+fi
+echo "store $store, layer $layer"
+
+# --- server and proxy ---
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; wait "$p" 2>/dev/null || true; done; }
+trap cleanup EXIT
+wait_line() {  # FILE PATTERN: until FILE has a line matching PATTERN (30 s at most)
+  for _ in $(seq 300); do grep -q "$2" "$1" 2>/dev/null && return 0; sleep 0.1; done
+  echo "run.sh: no '$2' in $1" >&2; cat "$1" >&2; exit 1
+}
+"$BIN/tinstream-server" --config "$ROOT/config/server.json" --store "$store" --address 127.0.0.1 \
+  --port 0 > "$OUT/server.out" 2> "$OUT/server.log" &
+pids+=($!)
+wait_line "$OUT/server.out" "listening on"
+server_port=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$OUT/server.out" | head -1)
+node "$HERE/proxy.mjs" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
+  --static "$HERE" > "$OUT/proxy.out" 2> "$OUT/proxy.log" &
+pids+=($!)
+wait_line "$OUT/proxy.out" "listening"
+proxy=http://127.0.0.1:$(awk '/listening/ {print $2; exit}' "$OUT/proxy.out")
+curl -fsS "$proxy/layers/$layer" > "$OUT/layer.json"
+echo "server :$server_port, proxy $proxy (+$DELAY_MS ms per request)"
+
+# Cameras from the layer's bounds: the framing view, a close oblique view, and a flight.
+eval "$(python3 "$HERE/analyze.py" cameras "$OUT/layer.json" "$OUT/flight.txt" "$FLIGHT_S" \
+  "$OUT/stream.txt")"
+echo "cameras: far $CAM_FAR, near $CAM_NEAR"
+
+viewer() { "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" \
+  --max-sse "$SSE" --timeout 900 "$@"; }
+proxy_stats() { curl -fsS "$proxy/__stats"; }
+
+# --- 1. cold time to a complete view ---
+: > "$OUT/cold.jsonl"
+for r in $(seq "$REPEAT"); do
+  for t in 8 1; do
+    curl -fsS "$proxy/__reset" > /dev/null
+    viewer --threads "$t" --camera "$CAM_FAR" --out "$OUT/cold_t${t}_$r.png" \
+      --stats "$OUT/cold_t${t}_$r.json"
+    python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); p=json.loads(sys.argv[2]); print(json.dumps({"threads": int(sys.argv[3]), "run": int(sys.argv[4]), "viewer": v, "proxy": p}))' \
+      "$OUT/cold_t${t}_$r.json" "$(proxy_stats)" "$t" "$r" >> "$OUT/cold.jsonl"
+    echo "cold, $t threads, run $r: $(python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); print(v["time_to_complete_s"], "s,", v["tiles"]["loaded"], "tiles")' "$OUT/cold_t${t}_$r.json")"
+  done
+done
+
+# --- 2. frame times while streaming vs loaded (8 threads) ---
+curl -fsS "$proxy/__reset" > /dev/null
+# --fps 1: the path's 5 loaded seconds are 5 frames, however slow the renderer (Mesa llvmpipe).
+viewer --threads 8 --fps 1 --camera-path "$OUT/stream.txt" --out "$OUT/stream.png" \
+  --stats "$OUT/stream.jsonl"
+
+# --- 3. memory over a scripted flight ---
+curl -fsS "$proxy/__reset" > /dev/null
+/usr/bin/time -f '%M' -o "$OUT/flight.maxrss_kb" \
+  "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" --max-sse "$SSE" \
+  --threads 8 --gpu-mb 64 --cache-mb 64 --timeout 120 --camera-path "$OUT/flight.txt" \
+  --out "$OUT/flight.png" --stats "$OUT/flight.jsonl"
+
+# --- 4. CesiumJS ---
+if [[ $CESIUM == auto ]]; then
+  if [[ -x /usr/bin/chromium && -d $HERE/node_modules/cesium && -d $HERE/node_modules/playwright-core ]]; then
+    CESIUM=1
+  else
+    CESIUM=0
+    echo "CesiumJS: left out (needs /usr/bin/chromium and 'npm ci' in bench/client)"
+  fi
+fi
+: > "$OUT/cesium.jsonl"
+if [[ $CESIUM == 1 ]]; then
+  IFS=, read -r lon lat h hd p <<< "$CAM_FAR"
+  for r in $(seq "$REPEAT"); do
+    node "$HERE/cesium_run.mjs" --proxy "$proxy" --layer "$layer" --camera "$lon,$lat,$h,$hd,$p" \
+      --sse "$SSE" --size "$SIZE" --timeout-s "${CESIUM_TIMEOUT_S:-600}" --shot "$OUT/cesium_$r.png" \
+      | tee -a "$OUT/cesium.jsonl" || echo "CesiumJS run $r: failed (see the line above)"
+  done
+fi
+
+python3 "$HERE/analyze.py" report "$OUT" "$layer" "$store" "$DELAY_MS" "$SIZE" "$SSE" "$FLIGHT_S" \
+  | tee "$OUT/report.md"
+echo "results in $OUT (report.md)"
