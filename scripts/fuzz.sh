@@ -82,7 +82,8 @@ run_one() {
   echo "$rc" >"$dir/rc"
 }
 
-echo "fuzz.sh: ${#names[@]} targets, ${runs:+$runs runs}${runs:-$seconds s} each, $jobs at a time -> $out"
+if [[ -n $runs ]]; then budget="$runs runs"; else budget="$seconds s"; fi
+echo "fuzz.sh: ${#names[@]} targets, $budget each, $jobs at a time -> $out"
 running=0
 for name in "${names[@]}"; do
   run_one "$name" &

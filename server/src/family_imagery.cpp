@@ -63,8 +63,11 @@ void add_raster_dem(json& layer) {
 }
 
 // The DEM tile's PNG, rendered and encoded; or the answer that replaces it.
-std::variant<std::shared_ptr<const CachedBody>, Response> render_dem(
-    const Request& req, Context& ctx, const DemTileRoute& r, terrain::DemEncoding encoding) {
+std::variant<std::shared_ptr<const CachedBody>, Response> render_dem(const Request& req,
+                                                                     Context& ctx,
+                                                                     const DemTileRoute& r,
+                                                                     terrain::DemEncoding encoding,
+                                                                     terrain::DemNodata nodata) {
   auto st = get_store(ctx);
   if (!st) return error_response(st.error());
   auto stored = (*st)->tile(r.layer, r.id);
@@ -74,7 +77,8 @@ std::variant<std::shared_ptr<const CachedBody>, Response> render_dem(
   }
   std::string base = (**stored).etag;
   base.erase(std::remove(base.begin(), base.end(), '"'), base.end());
-  const std::string etag = "\"dem-" + r.encoding + "-" + base + "\"";
+  const std::string etag = "\"dem-" + r.encoding +
+                           (nodata == terrain::DemNodata::transparent ? "-t-" : "-") + base + "\"";
   if (etag_matches(req.if_none_match, etag)) {
     Response res;
     set_tile_headers(res, ctx.config, etag);
@@ -83,7 +87,7 @@ std::variant<std::shared_ptr<const CachedBody>, Response> render_dem(
   }
   auto tin = store::decode_tile(**stored);
   if (!tin) return json_error(500, "tile " + r.id.to_string() + ": " + tin.error().message);
-  auto raster = terrain::render_raster_dem(*tin, encoding, 256);
+  auto raster = terrain::render_raster_dem(*tin, encoding, 256, nodata);
   if (!raster) return error_response(raster.error());
   imagery::RgbaImage image;
   image.width = image.height = raster->size;
@@ -109,12 +113,14 @@ Response serve(const Request& req, Context& ctx, const DemTileRoute& r) {
   }
   const auto encoding = terrain::parse_dem_encoding(r.encoding);
   if (!encoding) return error_response(encoding.error());
+  const auto nodata = terrain::parse_dem_nodata(r.nodata);
+  if (!nodata) return error_response(nodata.error());
   const std::string key = "dem|" + r.layer + "|" + std::to_string(info.version) + "|" +
-                          r.id.quadkey() + "|" + r.encoding;
+                          r.id.quadkey() + "|" + r.encoding + "|" + r.nodata;
   std::shared_ptr<const CachedBody> body =
       ctx.terrain_cache ? ctx.terrain_cache->get(key) : nullptr;
   if (!body) {
-    auto rendered = render_dem(req, ctx, r, *encoding);
+    auto rendered = render_dem(req, ctx, r, *encoding, *nodata);
     if (auto* answer = std::get_if<Response>(&rendered)) return std::move(*answer);
     body = std::move(std::get<std::shared_ptr<const CachedBody>>(rendered));
     if (ctx.terrain_cache) ctx.terrain_cache->put(key, body);

@@ -28,7 +28,7 @@ RouteError error(int status, std::string message, std::string route = "other") {
   return RouteError{status, std::move(message), {}, std::move(route)};
 }
 
-RouteError wrong_method(std::string allow, std::string route) {
+RouteError wrong_method(const std::string& allow, std::string route) {
   return RouteError{405, "method not allowed; allowed: " + allow, allow, std::move(route)};
 }
 
@@ -240,7 +240,8 @@ std::optional<std::string> query_value(std::string_view query, std::string_view 
   return std::string();
 }
 
-// /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox (method and layer already checked).
+// /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox&nodata=opaque|transparent (method and
+// layer already checked).
 RouteResult parse_dem_tile(const Segments& seg, std::string_view query) {
   auto parsed = parse_xyz(seg[2], seg[3], seg[4], DemTileRoute::kName);
   if (auto* e = std::get_if<RouteError>(&parsed)) return *e;
@@ -250,7 +251,14 @@ RouteResult parse_dem_tile(const Segments& seg, std::string_view query) {
   if (*encoding != "terrarium" && *encoding != "mapbox") {
     return error(400, "encoding must be terrarium or mapbox", "dem");
   }
-  return Route{DemTileRoute{seg[1], std::get<0>(parsed).first, *encoding}};
+  auto nodata = query_value(query, "nodata");
+  if (!nodata) return error(400, "malformed percent-encoding in query parameter nodata", "dem");
+  if (nodata->empty()) *nodata = "opaque";
+  if (*nodata != "opaque" && *nodata != "transparent") {
+    return error(400, "nodata must be opaque (alpha 255, the default) or transparent (alpha 0)",
+                 "dem");
+  }
+  return Route{DemTileRoute{seg[1], std::get<0>(parsed).first, *encoding, *nodata}};
 }
 
 // Family "imagery": /imagery/{layer}/{quadkey}, /imagery/{layer}/{z}/{x}/{y}.{png|jpg|webp}.

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "grid_tile.hpp"
 #include "test_rasters.hpp"
 #include "test_support.hpp"
 #include "tinstream/imagery/image.hpp"
@@ -152,12 +153,103 @@ TEST_F(WebRoutesTest, RasterDemTilesRevalidateCacheAndRefuseWhatTheyCannotServe)
   EXPECT_EQ(get("/tiles/lux/12/2121/1401.png", "", etag).status, 304);
   const Response mapbox = get("/tiles/lux/12/2121/1401.png?encoding=mapbox");
   EXPECT_NE(*mapbox.header("ETag"), etag);
+  // NODATA transparent: a tile of its own (this one has no NODATA, so the same pixels).
+  const Response transparent = get("/tiles/lux/12/2121/1401.png?nodata=transparent");
+  ASSERT_EQ(transparent.status, 200);
+  EXPECT_NE(*transparent.header("ETag"), etag);
+  EXPECT_EQ(transparent.payload(), first.payload());
+  EXPECT_EQ(get("/tiles/lux/12/2121/1401.png?nodata=transparent", "", etag).status, 200);
   EXPECT_EQ(get("/tiles/ell/12/2121/1401.png").status, 409);
   EXPECT_EQ(get("/tiles/lux/12/0/0.png").status, 404);
   EXPECT_EQ(get("/tiles/lux/13/4242/2802.png").status, 404);
   EXPECT_EQ(get("/tiles/nope/12/2121/1401.png").status, 404);
   EXPECT_EQ(get("/tiles/lux/12/2121/1401.png?encoding=mapzen").status, 400);
   EXPECT_EQ(get("/tiles/lux/12/2121/99999.png").status, 400);
+}
+
+// A spherical layer "gap" of the one tile kTile whose north-west corner is NODATA.
+void write_nodata_layer(const fs::path& path) {
+  auto st = store::TileStore::open(path, store::TileStore::Mode::read_write);
+  if (!st) throw std::runtime_error("open store: " + st.error().message);
+  tile::TinTile t = testing::make_grid_tile(kTile, 9, testing::synthetic_height);
+  t.corner_nodata[0] = true;
+  store::LayerInfo info;
+  info.name = "gap";
+  info.projection = geo::Projection::spherical;
+  info.min_level = info.max_level = 12;
+  info.max_points = 1000;
+  info.mercator_bounds = kTile.bounds();
+  info.bounds = kTile.lonlat_bounds(geo::NormalisedMercator(geo::Projection::spherical));
+  info.level_max_error = std::vector<double>(13, 0.0);
+  auto writer = st->begin_layer(info);
+  if (!writer) throw std::runtime_error("begin_layer: " + writer.error().message);
+  if (Status s = (*writer)->put(t); !s) throw std::runtime_error("put: " + s.error().message);
+  info.tile_count = 1;
+  info.point_count = 81;
+  info.min_z = t.min_z;
+  info.max_z = t.max_z;
+  if (Status s = (*writer)->publish(info); !s) {
+    throw std::runtime_error("publish: " + s.error().message);
+  }
+}
+
+std::optional<imagery::RgbaImage> decode_png(const Response& res) {
+  const std::string_view body = res.payload();
+  auto image =
+      imagery::decode(std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size()));
+  if (!image) return std::nullopt;
+  return std::move(*image);
+}
+
+// nodata=opaque (the default, what browsers need) and nodata=transparent are two tiles: different
+// bytes (alpha 0 in the NODATA triangles or not, the same heights) and different ETags, so a
+// cache or a client revalidating one never gets the other.
+TEST_F(WebRoutesTest, RasterDemNodataOpaqueAndTransparentAreDifferentTiles) {
+  write_nodata_layer(store_path_);
+  const Response opaque = get("/tiles/gap/12/2121/1401.png");
+  ASSERT_EQ(opaque.status, 200) << opaque.payload();
+  const Response transparent = get("/tiles/gap/12/2121/1401.png?nodata=transparent");
+  ASSERT_EQ(transparent.status, 200) << transparent.payload();
+  EXPECT_EQ(get("/tiles/gap/12/2121/1401.png?nodata=opaque").payload(), opaque.payload());
+  EXPECT_NE(opaque.payload(), transparent.payload());
+  const std::string opaque_etag = *opaque.header("ETag");
+  const std::string transparent_etag = *transparent.header("ETag");
+  EXPECT_NE(opaque_etag, transparent_etag);
+  EXPECT_EQ(get("/tiles/gap/12/2121/1401.png", "", opaque_etag).status, 304);
+  EXPECT_EQ(get("/tiles/gap/12/2121/1401.png?nodata=transparent", "", transparent_etag).status,
+            304);
+  const Response crossed = get("/tiles/gap/12/2121/1401.png?nodata=transparent", "", opaque_etag);
+  EXPECT_EQ(crossed.status, 200);
+  EXPECT_EQ(crossed.payload(), transparent.payload());
+  EXPECT_EQ(get("/tiles/gap/12/2121/1401.png", "", transparent_etag).status, 200);
+
+  const auto o = decode_png(opaque);
+  const auto t = decode_png(transparent);
+  ASSERT_TRUE(o && t);
+  ASSERT_EQ(o->width, 256u);
+  ASSERT_EQ(t->width, 256u);
+  std::size_t clear = 0;
+  for (std::uint32_t j = 0; j < 256; ++j) {
+    for (std::uint32_t i = 0; i < 256; ++i) {
+      const std::uint8_t* po = o->at(i, j);
+      const std::uint8_t* pt = t->at(i, j);
+      ASSERT_EQ(po[3], 255) << i << "," << j;
+      ASSERT_TRUE(pt[3] == 0 || pt[3] == 255) << i << "," << j;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(po[c], pt[c]) << i << "," << j;
+      clear += pt[3] == 0 ? 1 : 0;
+    }
+  }
+  // Both triangles of the north-west cell of the 8 × 8 grid have the NODATA corner: its 32 × 32
+  // pixels (no pixel centre on a cell border) are clear, no other is.
+  EXPECT_EQ(clear, std::size_t{1024});  // 32 × 32
+  EXPECT_EQ(t->at(0, 0)[3], 0);
+  EXPECT_EQ(t->at(255, 255)[3], 255);
+
+  for (const char* bad : {"?nodata=flagged", "?nodata=Opaque", "?nodata=%zz"}) {
+    const Response r = get(std::string("/tiles/gap/12/2121/1401.png") + bad);
+    EXPECT_EQ(r.status, 400) << bad;
+    EXPECT_NE(r.body.find("nodata"), std::string::npos) << bad << ": " << r.body;
+  }
 }
 
 TEST_F(WebRoutesTest, ImageryTilesByQuadkeyAndByXyzRows) {
@@ -302,6 +394,13 @@ TEST(WebRouteParsing, NewRoutesParseToTheirTypes) {
   const auto& d = std::get<DemTileRoute>(std::get<Route>(dem));
   EXPECT_EQ(d.id, (geo::TileId{3, 2, 1}));  // XYZ rows, not TMS
   EXPECT_EQ(d.encoding, "mapbox");
+  EXPECT_EQ(d.nodata, "opaque");  // the default: what browsers need
+  auto transparent = parse_route("GET", "/tiles/a/3/2/1.png?nodata=transparent");
+  ASSERT_TRUE(std::holds_alternative<Route>(transparent));
+  EXPECT_EQ(std::get<DemTileRoute>(std::get<Route>(transparent)).nodata, "transparent");
+  EXPECT_EQ(std::get<DemTileRoute>(std::get<Route>(transparent)).encoding, "terrarium");
+  EXPECT_EQ(std::get<RouteError>(parse_route("GET", "/tiles/a/3/2/1.png?nodata=flagged")).status,
+            400);
   auto im = parse_route("HEAD", "/imagery/a/3/2/1.jpg");
   ASSERT_TRUE(std::holds_alternative<Route>(im));
   EXPECT_EQ(std::get<ImageryTileRoute>(std::get<Route>(im)).extension, "jpg");

@@ -304,7 +304,7 @@ Status build_finest_level(const subdivide::SortedRun& sorted, store::LayerWriter
   // Room for the writer's stalls (a batch commit, a WAL checkpoint, pages under writeback): with
   // 4 tiles per worker the workers waited on it 11 % of pass 3 (1e7 points); 64 per worker,
   // bounded to 32 MB of compressed tiles, keeps them busy.
-  store::QueuedWriter queue(writer, 64 * threads, std::size_t{32} << 20);
+  store::QueuedWriter queue(writer, std::size_t{64} * threads, std::size_t{32} << 20);
   auto pass3 = triangulate::build_finest_tiles(
       sorted, threads,
       [&](tile::TinTile&& t) -> Status {

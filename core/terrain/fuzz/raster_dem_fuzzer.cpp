@@ -2,9 +2,10 @@
 // server renders stored tiles on request, so a hostile or corrupt store reaches it).
 //   scripts/fuzz.sh --only raster_dem_fuzzer        (seeds: core/tile/fuzz/corpus)
 // The input is a native tile blob; its last byte, when the blob decodes without it, picks the
-// encoding and a raster size of 1–64. Properties: render never crashes and finishes in bounded
-// time (libFuzzer's -timeout: overlapping triangles are cut off by the work budget); a raster it
-// returns has size² pixels of alpha 0 or 255 and as many alpha-0 pixels as it reports.
+// encoding, the NODATA form and a raster size of 1–64. Properties: render never crashes and
+// finishes in bounded time (libFuzzer's -timeout: overlapping triangles are cut off by the work
+// budget); a raster it returns has size² pixels of alpha 0 or 255, as many alpha-0 pixels as it
+// reports NODATA pixels when NODATA is transparent and none when it is opaque.
 #include <cstdint>
 #include <cstdlib>
 #include <span>
@@ -24,8 +25,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (!tile) return 0;
   const auto encoding =
       (choice & 1) != 0 ? terrain::DemEncoding::mapbox : terrain::DemEncoding::terrarium;
+  const auto nodata =
+      (choice & 2) != 0 ? terrain::DemNodata::transparent : terrain::DemNodata::opaque;
   const std::uint32_t pixels = 1 + (choice >> 2) % 64;
-  auto raster = terrain::render_raster_dem(*tile, encoding, pixels);
+  auto raster = terrain::render_raster_dem(*tile, encoding, pixels, nodata);
   if (!raster) return 0;
   if (raster->size != pixels || raster->rgba.size() != std::size_t{pixels} * pixels * 4)
     std::abort();
@@ -35,6 +38,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (a != 0 && a != 255) std::abort();
     transparent += a == 0 ? 1 : 0;
   }
-  if (transparent != raster->nodata_pixels) std::abort();
+  if (transparent != (nodata == terrain::DemNodata::transparent ? raster->nodata_pixels : 0))
+    std::abort();
   return 0;
 }

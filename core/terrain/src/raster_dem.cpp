@@ -66,6 +66,17 @@ Result<DemEncoding> parse_dem_encoding(std::string_view text) {
                           "' is not terrarium or mapbox");
 }
 
+std::string_view to_string(DemNodata n) {
+  return n == DemNodata::opaque ? "opaque" : "transparent";
+}
+
+Result<DemNodata> parse_dem_nodata(std::string_view text) {
+  if (text == "opaque") return DemNodata::opaque;
+  if (text == "transparent") return DemNodata::transparent;
+  return invalid_argument("raster-DEM nodata '" + std::string(text) +
+                          "' is not opaque or transparent");
+}
+
 double dem_step(DemEncoding e) { return 1.0 / encoding_of(e).scale; }
 
 std::array<std::uint8_t, 3> encode_dem_height(DemEncoding e, double height) {
@@ -85,7 +96,7 @@ double decode_dem_height(DemEncoding e, std::uint8_t r, std::uint8_t g, std::uin
 }
 
 Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding,
-                                    std::uint32_t size) {
+                                    std::uint32_t size, DemNodata nodata_mode) {
   if (size < 1 || size > 4096) {
     return invalid_argument("raster-DEM size " + std::to_string(size) + " is outside 1–4096");
   }
@@ -166,7 +177,7 @@ Result<DemRaster> render_raster_dem(const tile::TinTile& t, DemEncoding encoding
     }
     const auto rgb = encode_dem_height(encoding, height[k]);
     std::copy(rgb.begin(), rgb.end(), out.rgba.begin() + static_cast<std::ptrdiff_t>(k * 4));
-    out.rgba[k * 4 + 3] = state[k] == 1 ? 255 : 0;
+    out.rgba[k * 4 + 3] = state[k] == 2 && nodata_mode == DemNodata::transparent ? 0 : 255;
     out.nodata_pixels += state[k] == 2 ? 1 : 0;
   }
   return out;

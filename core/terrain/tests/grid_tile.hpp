@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <functional>
+#include <vector>
 
 #include "tinstream/geo/mercator.hpp"
 #include "tinstream/tile/tin_tile.hpp"
@@ -24,24 +27,28 @@ inline tile::TinTile make_grid_tile(const geo::TileId& id, int n, const HeightFn
   };
   tile::TinTile t;
   t.id = id;
-  std::vector<std::vector<std::uint32_t>> index(n, std::vector<std::uint32_t>(n));
+  const auto side = static_cast<std::size_t>(n);
+  std::vector<std::uint32_t> cells(side * side);
+  auto index = [&](int i, int j) -> std::uint32_t& {
+    return cells[static_cast<std::size_t>(i) * side + static_cast<std::size_t>(j)];
+  };
   t.corners = {coord(0, 0), coord(n - 1, 0), coord(0, n - 1), coord(n - 1, n - 1)};
-  index[0][0] = 0;
-  index[n - 1][0] = 1;
-  index[0][n - 1] = 2;
-  index[n - 1][n - 1] = 3;
+  index(0, 0) = 0;
+  index(n - 1, 0) = 1;
+  index(0, n - 1) = 2;
+  index(n - 1, n - 1) = 3;
   std::uint32_t next = 4;
-  for (int i = 1; i < n - 1; ++i) t.north.push_back(coord(i, 0)), index[i][0] = next++;
-  for (int j = 1; j < n - 1; ++j) t.east.push_back(coord(n - 1, j)), index[n - 1][j] = next++;
-  for (int i = 1; i < n - 1; ++i) t.south.push_back(coord(i, n - 1)), index[i][n - 1] = next++;
-  for (int j = 1; j < n - 1; ++j) t.west.push_back(coord(0, j)), index[0][j] = next++;
+  for (int i = 1; i < n - 1; ++i) t.north.push_back(coord(i, 0)), index(i, 0) = next++;
+  for (int j = 1; j < n - 1; ++j) t.east.push_back(coord(n - 1, j)), index(n - 1, j) = next++;
+  for (int i = 1; i < n - 1; ++i) t.south.push_back(coord(i, n - 1)), index(i, n - 1) = next++;
+  for (int j = 1; j < n - 1; ++j) t.west.push_back(coord(0, j)), index(0, j) = next++;
   for (int j = 1; j < n - 1; ++j) {
-    for (int i = 1; i < n - 1; ++i) t.interior.push_back(coord(i, j)), index[i][j] = next++;
+    for (int i = 1; i < n - 1; ++i) t.interior.push_back(coord(i, j)), index(i, j) = next++;
   }
   for (int j = 0; j + 1 < n; ++j) {
     for (int i = 0; i + 1 < n; ++i) {
-      const std::uint32_t a = index[i][j], b = index[i + 1][j], c = index[i][j + 1],
-                          d = index[i + 1][j + 1];
+      const std::uint32_t a = index(i, j), b = index(i + 1, j), c = index(i, j + 1),
+                          d = index(i + 1, j + 1);
       t.triangles.push_back({a, c, d});
       t.triangles.push_back({a, d, b});
     }

@@ -1,5 +1,5 @@
 // Raster-DEM tiles decode to the TIN's heights at their pixel centres, within half the
-// encoding's step; NODATA triangles are transparent and wall-free.
+// encoding's step; NODATA triangles are wall-free, transparent or opaque as asked.
 #include "tinstream/terrain/raster_dem.hpp"
 
 #include <gtest/gtest.h>
@@ -57,9 +57,10 @@ std::vector<Hit> triangles_at(const tile::TinTile& t, double px, double py) {
   return hits;
 }
 
-// Checks every pixel of the raster of `t` against the brute-force TIN.
+// Checks every pixel of the raster of `t` against the brute-force TIN (NODATA transparent), then
+// that the opaque form differs only in the alpha of those pixels.
 void expect_raster_matches_tin(const tile::TinTile& t, DemEncoding encoding, std::uint32_t size) {
-  auto raster = render_raster_dem(t, encoding, size);
+  auto raster = render_raster_dem(t, encoding, size, DemNodata::transparent);
   ASSERT_TRUE(raster.ok()) << raster.error().message;
   ASSERT_EQ(raster->rgba.size(), std::size_t{size} * size * 4);
   const geo::MercatorRect r = t.id.bounds();
@@ -89,6 +90,14 @@ void expect_raster_matches_tin(const tile::TinTile& t, DemEncoding encoding, std
     }
   }
   EXPECT_EQ(raster->nodata_pixels, nodata);
+  auto opaque = render_raster_dem(t, encoding, size, DemNodata::opaque);
+  ASSERT_TRUE(opaque.ok()) << opaque.error().message;
+  EXPECT_EQ(opaque->nodata_pixels, nodata);
+  ASSERT_EQ(opaque->rgba.size(), raster->rgba.size());
+  for (std::size_t k = 0; k < opaque->rgba.size(); k += 4) {
+    ASSERT_EQ(opaque->rgba[k + 3], 255) << "pixel " << k / 4;
+    for (std::size_t c = 0; c < 3; ++c) ASSERT_EQ(opaque->rgba[k + c], raster->rgba[k + c]);
+  }
 }
 
 TEST(RasterDem, EncodingsRoundTripWithinHalfAStep) {
@@ -111,6 +120,9 @@ TEST(RasterDem, EncodingsRoundTripWithinHalfAStep) {
   EXPECT_EQ(high, (std::array<std::uint8_t, 3>{255, 255, 255}));
   EXPECT_EQ(*parse_dem_encoding("mapbox"), DemEncoding::mapbox);
   EXPECT_FALSE(parse_dem_encoding("mapzen").ok());
+  EXPECT_EQ(*parse_dem_nodata("transparent"), DemNodata::transparent);
+  EXPECT_EQ(*parse_dem_nodata("opaque"), DemNodata::opaque);
+  EXPECT_FALSE(parse_dem_nodata("flagged").ok());
 }
 
 TEST(RasterDem, IrregularTinsWithNodataCornersDecodeToTheTinAtPixelCentres) {

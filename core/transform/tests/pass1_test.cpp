@@ -235,7 +235,7 @@ TEST(Pass1, NoPointLeftGivesAnEmptyHeader) {
 // latitude limit (outside the Mercator square).
 std::filesystem::path utm_points(const std::filesystem::path& dir, int n,
                                  const std::vector<int>& bad = {}) {
-  const auto path = dir / "utm.xyz";
+  auto path = dir / "utm.xyz";
   std::ofstream out(path);
   for (int i = 1; i <= n; ++i) {
     const bool is_bad = std::find(bad.begin(), bad.end(), i) != bad.end();

@@ -11,7 +11,8 @@
 //   GET       /admin/jobs, /admin/jobs/{id}            JobsRoute, JobRoute
 //   DELETE    /admin/layers/{layer}                    DeleteLayerRoute
 //   OPTIONS   any path                                 PreflightRoute (CORS)
-//   GET|HEAD  /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox   DemTileRoute (XYZ rows)
+//   GET|HEAD  /tiles/{layer}/{z}/{x}/{y}.png?encoding=terrarium|mapbox&nodata=opaque|transparent
+//                                                      DemTileRoute   (XYZ rows)
 //   GET|HEAD  /imagery/{layer}/{quadkey}               ImageryTileRoute
 //   GET|HEAD  /imagery/{layer}/{z}/{x}/{y}.{png|jpg|webp}   ImageryTileRoute (XYZ rows)
 //   GET|HEAD  /, /maplibre                             WebPageRoute   (the browser viewers)
@@ -114,6 +115,7 @@ struct DemTileRoute {
   std::string layer;
   geo::TileId id;
   std::string encoding;  // "terrarium" (the default) or "mapbox"
+  std::string nodata;    // "opaque" (the default) or "transparent"
 };
 struct ImageryTileRoute {
   static constexpr std::string_view kName = "imagery";

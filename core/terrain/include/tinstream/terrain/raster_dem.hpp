@@ -11,10 +11,15 @@
 //   terrarium  h = R·256 + G + B/256 − 32768          step 1/256 m, range [−32768, 32768)
 //   mapbox     h = −10000 + (R·65536 + G·256 + B)·0.1  step 0.1 m,   range [−10000, 1667721.5]
 // rounded to the nearest step (so a decoded height is within step/2 of the TIN's) and clamped to
-// the range. Alpha is 255 in the data footprint and 0 in NODATA triangles (those with a NODATA
-// corner, TinTile::is_nodata_triangle; docs/tile-format.md §2.1): there the height is
-// interpolated over the triangle's data vertices only, so a client that ignores alpha sees no
-// wall, even in tiles written when NODATA corners still sat at height 0.
+// the range. In NODATA triangles (those with a NODATA corner, TinTile::is_nodata_triangle;
+// docs/tile-format.md §2.1) the height is interpolated over the triangle's data vertices only —
+// the data continued, no wall down to the NODATA corners, even in tiles written when those still
+// sat at height 0 — and their pixels are, by DemNodata:
+//   opaque       alpha 255, like the data. What browsers need: they premultiply alpha when they
+//                decode a PNG into a canvas or texture, so a transparent pixel's R, G, B become 0,
+//                i.e. −32768 m (Terrarium) or −10000 m (Terrain-RGB) in MapLibre: a wall.
+//   transparent  alpha 0, same R, G, B: the footprint, for clients that decode the PNG themselves.
+// DemRaster::nodata_pixels counts them either way.
 //
 // Pure functions, thread-safe.
 #pragma once
@@ -30,10 +35,14 @@
 namespace tinstream::terrain {
 
 enum class DemEncoding { terrarium, mapbox };
+enum class DemNodata { opaque, transparent };
 
 std::string_view to_string(DemEncoding e);
 // "terrarium" or "mapbox" (Mapbox Terrain-RGB).
 Result<DemEncoding> parse_dem_encoding(std::string_view text);
+std::string_view to_string(DemNodata n);
+// "opaque" or "transparent".
+Result<DemNodata> parse_dem_nodata(std::string_view text);
 
 // The height step of an encoding in metres (1/256 or 0.1).
 double dem_step(DemEncoding e);
@@ -51,6 +60,6 @@ struct DemRaster {
 // bounding boxes cover the raster more than 256 times (the work is bounded by that) — is a
 // corrupt_data error naming the tile, never a crash.
 Result<DemRaster> render_raster_dem(const tile::TinTile& tile, DemEncoding encoding,
-                                    std::uint32_t size = 256);
+                                    std::uint32_t size = 256, DemNodata nodata = DemNodata::opaque);
 
 }  // namespace tinstream::terrain
