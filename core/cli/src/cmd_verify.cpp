@@ -52,6 +52,7 @@ int run(const VerifyArgs& a) {
                    {"shared_borders", report->shared_borders},
                    {"error_checks", report->error_checks},
                    {"worst_error_ratio", report->worst_error_ratio},
+                   {"near_duplicate_pairs", report->near_duplicate_pairs},
                    {"problems", report->problems},
                    {"messages", report->messages},
                    {"ok", report->ok()}};

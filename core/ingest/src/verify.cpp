@@ -133,14 +133,12 @@ Result<std::uint64_t> count_zero_area_triangles(const std::vector<std::uint8_t>&
   return zero_area;
 }
 
-// Checks that quantised encodings of the tile stay sound: no near-duplicate vertices, and (for a
-// layer in spherical Mercator, the one Cesium reads) no zero-area triangle in its quantized-mesh
-// encoding.
+// Checks that quantised encodings of the tile stay sound: counts its near-duplicate vertex pairs
+// (verify.hpp: not yet a problem), and for a layer in spherical Mercator (the one Cesium reads)
+// requires no zero-area triangle in its quantized-mesh encoding.
 void check_quantisable(const tile::TinTile& t, geo::Projection projection, const std::string& name,
-                       Problems& problems) {
-  if (const auto pairs = count_near_duplicates(t); pairs > 0) {
-    problems.add(name + ": " + std::to_string(pairs) + " pairs of vertices closer than 1e-12");
-  }
+                       Problems& problems, VerifyReport& report) {
+  report.near_duplicate_pairs += count_near_duplicates(t);
   if (projection != geo::Projection::spherical) return;
   auto qm = terrain::encode_quantized_mesh(t, projection);
   if (!qm) {
@@ -322,7 +320,7 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
       }
     }
     check_shared_borders(id, *t, name, present, cache, problems, report);
-    if (options.quantisation) check_quantisable(*t, info->projection, name, problems);
+    if (options.quantisation) check_quantisable(*t, info->projection, name, problems, report);
     if (id.z == finest) {
       finest_source_points += t->source_points;
       if (t->interior.size() > t->source_points) {

@@ -17,7 +17,6 @@
 namespace tinstream::lod {
 
 using detail::FlatTriangle;
-using detail::P2;
 using detail::plane_at;
 using detail::TriangleGrid;
 
@@ -194,8 +193,7 @@ struct WalkMesh {
     for (std::size_t next = 0; next < queue_.size(); ++next) {
       const std::uint32_t c = queue_[next];
       f(c);
-      for (int k = 0; k < 3; ++k) {
-        const std::int32_t j = cell[c].n[k];
+      for (const std::int32_t j : cell[c].n) {
         if (j < 0 || stamp_[static_cast<std::size_t>(j)] == stamp_now_) continue;
         const auto u = static_cast<std::uint32_t>(j);
         stamp_[u] = stamp_now_;

@@ -476,7 +476,7 @@ class GreedyInserter {
   // read it.
   void take(std::uint32_t t) {
     star_.push_back(t);
-    taken_.push_back({begin_[t], count_[t]});
+    taken_.emplace_back(begin_[t], count_[t]);
     live_ -= count_[t];
     count_[t] = 0;
   }
@@ -852,12 +852,12 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   GreedyResult out;
   out.vertex.assign(candidates.size(), kNone);
   auto commit = [&](const std::vector<std::uint32_t>& chosen, bool bulk) -> Status {
-    for (std::size_t k = 0; k < chosen.size(); ++k) {
-      const tile::Vertex& p = points.pts[chosen[k]];
+    for (const std::uint32_t c : chosen) {
+      const tile::Vertex& p = points.pts[c];
       if (!bulk) {
         const kernel::InsertResult r = tri.insert({p.x, p.y, p.z, p.weight});
         if (r.outcome != kernel::InsertOutcome::inserted) break;
-        out.vertex[chosen[k]] = r.vertex;
+        out.vertex[c] = r.vertex;
       }
     }
     if (bulk) {

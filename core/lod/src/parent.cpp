@@ -153,7 +153,14 @@ Result<LodTile> build_parent(const geo::TileId& parent, Children children,
     finer.push_back(c->as_chain_input());
   }
   ChainedError e = chain_error(out.tile, finer, witness_count(options));
-  out.tile.geometric_error = e.geometric_error;
+  // Monotone up the pyramid (a client refines while a tile's error is too large, so a parent's
+  // must not promise less than a child's): the chained bound, an upper bound of the parent's error
+  // over the data, can come out below a child's looser one; the larger of the two still bounds it.
+  double children_error = 0;
+  for (const auto& c : children.tiles) {
+    if (c) children_error = std::max(children_error, c->tile.geometric_error);
+  }
+  out.tile.geometric_error = std::max(e.geometric_error, children_error);
   out.tile.rms_error = e.rms_error;
   out.bounds = std::move(e.bounds);
   out.reaches = std::move(e.reaches);

@@ -233,7 +233,8 @@ class ConflictSearch {
         }
       }
     }
-    for (std::size_t head = 0; head < queue_.size(); ++head) {
+    // The queue grows while it is walked (push below): by index, not by iterator.
+    for (std::size_t head = 0; head < queue_.size(); ++head) {  // NOLINT(modernize-loop-convert)
       const std::uint32_t q = queue_[head];
       ++tests;
       if (detail::perturbed_incircle(at(q, 0), at(q, 1), at(q, 2), p) <= 0) continue;
@@ -352,7 +353,7 @@ Result<std::shared_ptr<const PointCells>> PointCells::build(const subdivide::Sor
   for (std::uint32_t t = 0; t < tiles; ++t) all[t] = t;
   std::vector<geo::MercatorRect> boxes(tiles);
   Status read = for_each_tile(all, [&](std::uint32_t t, const std::vector<SortedPoint>& chunk) {
-    std::uint32_t* counts = &cells->cell_offsets_[t * (per_tile + 1)];
+    std::uint32_t* counts = &cells->cell_offsets_[std::size_t{t} * (per_tile + 1)];
     geo::MercatorRect box{chunk[0].x, chunk[0].y, chunk[0].x, chunk[0].y};
     for (const SortedPoint& p : chunk) {
       const auto local = static_cast<std::uint32_t>((p.key >> cell_shift) & (per_tile - 1));
