@@ -1,11 +1,12 @@
 # Fuzz targets: one way to declare them, for every module (core/*/fuzz, server/fuzz).
 #
 #   tinstream_add_fuzzer(NAME SOURCES src... DEPS target... CORPUS dir... [MAX_LEN bytes]
-#                        [TIMEOUT seconds] [DICT file])
+#                        [TIMEOUT seconds] [DICT file] [REGRESSIONS dir])
 #
 # A fuzz target defines extern "C" int LLVMFuzzerTestOneInput(const uint8_t*, size_t) and aborts
 # on a broken property. Each fuzz folder holds CMakeLists.txt calling this, its sources, its seed
-# corpus and regressions/ (inputs that once crashed it; scripts/fuzz.sh tells where to put them).
+# corpus and regressions/ (inputs that once crashed it; scripts/fuzz.sh tells where to put them;
+# REGRESSIONS names another folder, for a target whose sources live in another module's folder).
 #
 # - TINSTREAM_FUZZ=ON (a clang build, scripts/fuzz.sh makes one in build-fuzz): NAME is a libFuzzer
 #   binary (bin/NAME) with ASan + UBSan, every library instrumented for coverage
@@ -36,14 +37,20 @@ function(tinstream_setup_fuzzing)
 endfunction()
 
 function(tinstream_add_fuzzer name)
-  cmake_parse_arguments(ARG "" "MAX_LEN;TIMEOUT;DICT" "SOURCES;DEPS;CORPUS" ${ARGN})
+  cmake_parse_arguments(ARG "" "MAX_LEN;TIMEOUT;DICT;REGRESSIONS" "SOURCES;DEPS;CORPUS" ${ARGN})
   if(NOT ARG_MAX_LEN)
     set(ARG_MAX_LEN 65536)
   endif()
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 10)
   endif()
+  if(NOT ARG_DICT)
+    set(ARG_DICT -)  # fuzzers.tsv has no empty fields (tabs are whitespace to `read`)
+  endif()
   set(regressions ${CMAKE_CURRENT_SOURCE_DIR}/regressions)
+  if(ARG_REGRESSIONS)
+    set(regressions ${ARG_REGRESSIONS})
+  endif()
   if(TINSTREAM_FUZZ)
     add_executable(${name} ${ARG_SOURCES})
     target_link_libraries(${name} PRIVATE ${ARG_DEPS})

@@ -75,14 +75,15 @@ run_one() {
   local args=(-timeout="$timeout" -max_len="$max_len" -rss_limit_mb=2048 -print_final_stats=1
               -artifact_prefix="$dir/artifacts/")
   if [[ -n $runs ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
-  [[ -n $dict ]] && args+=(-dict="$dict")
+  [[ $dict != - ]] && args+=(-dict="$dict")
   local start=$SECONDS rc=0
   "$bin" "${args[@]}" "$dir/corpus" "${seeds[@]}" >"$dir/log" 2>&1 || rc=$?
   echo "$((SECONDS - start))" >"$dir/seconds"
   echo "$rc" >"$dir/rc"
 }
 
-echo "fuzz.sh: ${#names[@]} targets, ${runs:+$runs runs}${runs:-$seconds s} each, $jobs at a time -> $out"
+if [[ -n $runs ]]; then budget="$runs runs"; else budget="$seconds s"; fi
+echo "fuzz.sh: ${#names[@]} targets, $budget each, $jobs at a time -> $out"
 running=0
 for name in "${names[@]}"; do
   run_one "$name" &
@@ -98,9 +99,9 @@ printf 'target\tseconds\texecutions\texec_per_s\tcov\tcorpus\tpeak_rss_mb\tresul
 for name in "${names[@]}"; do
   dir=$out/$name
   log=$dir/log
-  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | awk '{print $2}')
-  rss=$(grep -o 'stat::peak_rss_mb: [0-9]*' "$log" | tail -1 | awk '{print $2}')
-  cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}')
+  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | awk '{print $2}' || true)
+  rss=$(grep -o 'stat::peak_rss_mb: [0-9]*' "$log" | tail -1 | awk '{print $2}' || true)
+  cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
   corpus=$(find "$dir/corpus" -type f | wc -l)
   secs=$(cat "$dir/seconds")
   rc=$(cat "$dir/rc")

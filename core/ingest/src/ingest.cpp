@@ -21,7 +21,7 @@
 #include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/queued_writer.hpp"
 #include "tinstream/subdivide/sorted_run.hpp"
-#include "tinstream/transform/run_file.hpp"
+#include "tinstream/transform/pass1.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
 
 namespace tinstream::ingest {
@@ -304,7 +304,7 @@ Status build_finest_level(const subdivide::SortedRun& sorted, store::LayerWriter
   // Room for the writer's stalls (a batch commit, a WAL checkpoint, pages under writeback): with
   // 4 tiles per worker the workers waited on it 11 % of pass 3 (1e7 points); 64 per worker,
   // bounded to 32 MB of compressed tiles, keeps them busy.
-  store::QueuedWriter queue(writer, 64 * threads, std::size_t{32} << 20);
+  store::QueuedWriter queue(writer, std::size_t{64} * threads, std::size_t{32} << 20);
   auto pass3 = triangulate::build_finest_tiles(
       sorted, threads,
       [&](tile::TinTile&& t) -> Status {
@@ -327,12 +327,13 @@ Status build_finest_level(const subdivide::SortedRun& sorted, store::LayerWriter
 
 // Pass 4: the LOD pyramid, levels finest − 1 … info.min_level built from their children (none
 // when the pyramid is off), and the finest tiles of gridded inputs reduced when an epsilon is
-// given ("reduced TINs"). Requires: build_finest_level done (summary.levels holds the finest
+// given ("reduced TINs"); what a level hands to the next beside its tiles goes to a file under
+// `scratch`. Requires: build_finest_level done (summary.levels holds the finest
 // level). Fills info.level_max_error and the summary's levels (sorted, coarsest first), tile
 // count and min_level; sets info.min_level to the coarsest level built.
-Status build_lod(const IngestOptions& options, const SortedPoints& in, unsigned threads,
-                 store::LayerWriter& writer, store::LayerInfo& info, IngestSummary& summary,
-                 const ProgressSink& progress) {
+Status build_lod(const IngestOptions& options, const SortedPoints& in, const fs::path& scratch,
+                 unsigned threads, store::LayerWriter& writer, store::LayerInfo& info,
+                 IngestSummary& summary, const ProgressSink& progress) {
   const std::uint32_t finest = in.sorted.finest_level;
   info.level_max_error.assign(finest + 1, 0.0);
   const bool gridded = std::any_of(
@@ -344,7 +345,7 @@ Status build_lod(const IngestOptions& options, const SortedPoints& in, unsigned 
     popt.lod.max_points = options.max_points;
     popt.lod.epsilon = options.epsilon;
     popt.reduce_finest = reduce;
-    popt.finest_heights = {in.pass1.header.min_z, in.pass1.header.max_z};
+    popt.scratch = scratch;
     const std::uint32_t coarsest = options.pyramid ? info.min_level : finest;
     auto pyramid = lod::build_pyramid(writer, finest, coarsest, popt, threads, progress);
     if (!pyramid) return pyramid.error();
@@ -413,7 +414,9 @@ Result<IngestSummary> run_ingest(const IngestOptions& options, const ProgressSin
     return s.error();
   }
   clock.next("lod");
-  if (Status s = build_lod(options, *sorted, threads, **writer, info, summary, progress); !s) {
+  if (Status s =
+          build_lod(options, *sorted, scratch->path(), threads, **writer, info, summary, progress);
+      !s) {
     return s.error();
   }
   clock.next("publish");

@@ -1,11 +1,14 @@
 #include "tinstream/ingest/verify.hpp"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <map>
 #include <unordered_map>
 
 #include "tinstream/kernel/predicates.hpp"
 #include "tinstream/lod/error.hpp"
+#include "tinstream/terrain/quantized_mesh.hpp"
 
 namespace tinstream::ingest {
 namespace {
@@ -53,6 +56,104 @@ std::uint64_t count_non_delaunay(const tile::TinTile& t) {
     }
   }
   return bad;
+}
+
+// Pairs of a tile's vertices closer than kNearDuplicate (normalised Mercator units, about 4e-5 m
+// at the equator): quantised encodings (quantized-mesh, float32 on a GPU) merge them into one
+// position, and their triangles into needles of zero area (#20: an edge point 1e-14 beside a
+// corner). Sorted by x, each vertex compared with those within the distance in x.
+constexpr double kNearDuplicate = 1e-12;
+
+std::uint64_t count_near_duplicates(const tile::TinTile& t) {
+  std::vector<tile::Vertex> v = t.vertices();
+  std::sort(v.begin(), v.end(), [](const tile::Vertex& a, const tile::Vertex& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
+  std::uint64_t pairs = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (std::size_t j = i + 1; j < v.size() && v[j].x - v[i].x < kNearDuplicate; ++j) {
+      if (std::hypot(v[j].x - v[i].x, v[j].y - v[i].y) < kNearDuplicate) ++pairs;
+    }
+  }
+  return pairs;
+}
+
+// The zero-area triangles of a quantized-mesh encoding, read back from its bytes (the layout of
+// quantized_mesh.hpp: the 88-byte header, the vertex count, u, v and height as zig-zag deltas,
+// the triangle count and its high-water-mark indices, u32 and 4-aligned above 65,536 vertices).
+// An Error when the bytes are cut short.
+Result<std::uint64_t> count_zero_area_triangles(const std::vector<std::uint8_t>& qm) {
+  std::size_t at = 88;
+  auto read = [&](std::size_t bytes) -> Result<std::uint32_t> {
+    if (at + bytes > qm.size()) return Error(ErrorCode::corrupt_data, "quantized-mesh cut short");
+    std::uint32_t value = 0;
+    for (std::size_t k = 0; k < bytes; ++k) value |= std::uint32_t{qm[at + k]} << (8 * k);
+    at += bytes;
+    return value;
+  };
+  auto n = read(4);
+  if (!n) return n.error();
+  std::array<std::vector<std::int32_t>, 2> uv;
+  for (auto& column : uv) {
+    column.resize(*n);
+    std::int32_t value = 0;
+    for (auto& c : column) {
+      auto zigzag = read(2);
+      if (!zigzag) return zigzag.error();
+      value += static_cast<std::int32_t>(*zigzag >> 1) ^ -static_cast<std::int32_t>(*zigzag & 1);
+      c = value;
+    }
+  }
+  at += 2 * std::size_t{*n};  // heights
+  const bool wide = *n > 65536;
+  if (wide && at % 4 != 0) at += 4 - at % 4;
+  auto triangles = read(4);
+  if (!triangles) return triangles.error();
+  std::uint32_t highest = 0;
+  std::uint64_t zero_area = 0;
+  for (std::uint32_t t = 0; t < *triangles; ++t) {
+    std::array<std::int64_t, 3> index{};
+    for (auto& i : index) {
+      auto code = read(wide ? 4 : 2);
+      if (!code) return code.error();
+      i = static_cast<std::int64_t>(highest) - *code;
+      if (*code == 0) ++highest;
+      if (i < 0 || i >= static_cast<std::int64_t>(*n)) {
+        return Error(ErrorCode::corrupt_data, "quantized-mesh index out of range");
+      }
+    }
+    const auto u = [&](std::size_t k) {
+      return std::int64_t{uv[0][static_cast<std::size_t>(index[k])]};
+    };
+    const auto v = [&](std::size_t k) {
+      return std::int64_t{uv[1][static_cast<std::size_t>(index[k])]};
+    };
+    if ((u(1) - u(0)) * (v(2) - v(0)) - (v(1) - v(0)) * (u(2) - u(0)) == 0) ++zero_area;
+  }
+  return zero_area;
+}
+
+// Checks that quantised encodings of the tile stay sound: no near-duplicate vertices, and (for a
+// layer in spherical Mercator, the one Cesium reads) no zero-area triangle in its quantized-mesh
+// encoding.
+void check_quantisable(const tile::TinTile& t, geo::Projection projection, const std::string& name,
+                       Problems& problems) {
+  if (const auto pairs = count_near_duplicates(t); pairs > 0) {
+    problems.add(name + ": " + std::to_string(pairs) + " pairs of vertices closer than 1e-12");
+  }
+  if (projection != geo::Projection::spherical) return;
+  auto qm = terrain::encode_quantized_mesh(t, projection);
+  if (!qm) {
+    problems.add(name + ": quantized-mesh encoding: " + qm.error().message);
+    return;
+  }
+  auto zero_area = count_zero_area_triangles(*qm);
+  if (!zero_area) {
+    problems.add(name + ": quantized-mesh encoding: " + zero_area.error().message);
+  } else if (*zero_area > 0) {
+    problems.add(name + ": " + std::to_string(*zero_area) +
+                 " zero-area triangles in its quantized-mesh encoding");
+  }
 }
 
 // Decoded tiles of one layer, read on demand: neighbours and children are read again when their
@@ -221,6 +322,7 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
       }
     }
     check_shared_borders(id, *t, name, present, cache, problems, report);
+    if (options.quantisation) check_quantisable(*t, info->projection, name, problems);
     if (id.z == finest) {
       finest_source_points += t->source_points;
       if (t->interior.size() > t->source_points) {

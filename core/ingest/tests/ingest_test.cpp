@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -230,6 +231,46 @@ TEST_F(IngestTest, VerifyChecksStoredErrorsAgainstTheFinestSurface) {
   ASSERT_TRUE(skipped.ok());
   EXPECT_TRUE(skipped->ok());
   EXPECT_EQ(skipped->error_checks, 0u);
+}
+
+// #20: an edge point 1e-14 beside a tile corner became a duplicate vertex and zero-area triangles
+// in quantized-mesh. A sound layer has neither; one interior vertex moved to 1e-13 from its tile's
+// north-west corner is a near-duplicate pair, which verify names; its needles are left out of the
+// quantized-mesh encoding (terrain drops flat triangles), so verify finds no zero-area triangle.
+TEST_F(IngestTest, VerifyRejectsNearDuplicateVerticesAndZeroAreaQuantisedTriangles) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("q.xyz", 8000, 9)}, "q")).ok());
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
+  ASSERT_TRUE(store.ok());
+  const auto info = *store->layer("q");
+  auto good = verify_layer(*store, "q");
+  ASSERT_TRUE(good.ok());
+  EXPECT_TRUE(good->ok()) << (good->messages.empty() ? "" : good->messages.front());
+  bool moved = false;
+  republish(*store, "q", [&](tile::TinTile& t) {
+    if (moved || t.id.z != info.max_level || t.interior.empty()) return;
+    // The interior vertex nearest the NW corner, so that the move flips no far triangle.
+    const auto& nw = t.corners[0];
+    auto nearest = std::min_element(
+        t.interior.begin(), t.interior.end(), [&](const tile::Vertex& a, const tile::Vertex& b) {
+          return std::hypot(a.x - nw.x, a.y - nw.y) < std::hypot(b.x - nw.x, b.y - nw.y);
+        });
+    nearest->x = nw.x + 1e-13;
+    nearest->y = nw.y - 1e-13;
+    moved = true;
+  });
+  ASSERT_TRUE(moved);
+  auto bad = verify_layer(*store, "q");
+  ASSERT_TRUE(bad.ok());
+  EXPECT_FALSE(bad->ok());
+  EXPECT_TRUE(mentions(*bad, "1 pairs of vertices closer than 1e-12"));
+  EXPECT_FALSE(mentions(*bad, "zero-area triangles in its quantized-mesh encoding"));
+  VerifyOptions off;
+  off.quantisation = false;
+  off.delaunay = false;
+  auto unchecked = verify_layer(*store, "q", off);
+  ASSERT_TRUE(unchecked.ok());
+  EXPECT_FALSE(mentions(*unchecked, "closer than 1e-12"));
+  EXPECT_FALSE(mentions(*unchecked, "zero-area"));
 }
 
 TEST_F(IngestTest, VerifyChecksThePointBudget) {

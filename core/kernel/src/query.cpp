@@ -1,4 +1,5 @@
 // Queries, accessors, the validity checker and cutting triangles away (islands).
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -176,29 +177,49 @@ std::optional<VertexId> Triangulation::find_vertex(double x, double y) const {
 // Follows constrained edges from a towards b, always taking the constrained edge that turns least
 // away from the direction to b (intersection vertices make chains slightly bent).
 bool Triangulation::segment_chain_present(VertexId a, VertexId b) const {
-  VertexId cur = a;
-  VertexId prev = kNone;
-  for (std::size_t steps = 0; steps <= mesh_.vertex_slots(); ++steps) {
+  // Depth-first from a along constrained edges whose far vertex lies on the segment a-b (within
+  // rounding: intersection vertices are rounded; see the tolerance below) and not behind the
+  // vertex before. Not a greedy walk by edge direction: rounding can put two intersection vertices
+  // a few ulps apart (their short edge points anywhere, in either order along a-b), and two long
+  // constraints from one far vertex can point the same way to within rounding; the greedy walk
+  // reported both as missing chains (found by kernel_fuzzer).
+  const XY& pa = mesh_.xy(a);
+  const XY& pb = mesh_.xy(b);
+  const double dx = pb.x - pa.x, dy = pb.y - pa.y;
+  const double len2 = dx * dx + dy * dy;
+  // An intersection vertex is computed along the crossing segment, to within ~1e-16 of *its*
+  // length: a short constraint crossed by a much longer one can be bent by that much (a 8-unit
+  // one by 4e-8 when crossed by a 1e9-unit one). The tolerance is relative to the mesh's extent.
+  double extent = std::sqrt(len2);
+  for (VertexId v = 1; v < mesh_.vertex_slots(); ++v) {
+    if (!is_vertex(v)) continue;
+    extent = std::max({extent, std::abs(mesh_.xy(v).x - pa.x), std::abs(mesh_.xy(v).y - pa.y)});
+  }
+  const double tolerance = 1e-9 * extent;
+  auto along = [&](const XY& p) { return ((p.x - pa.x) * dx + (p.y - pa.y) * dy) / len2; };
+  auto off = [&](const XY& p) {
+    return std::abs((p.x - pa.x) * dy - (p.y - pa.y) * dx) / std::sqrt(len2);
+  };
+  std::vector<VertexId> stack{a};
+  std::vector<VertexId> seen{a};
+  while (!stack.empty()) {
+    const VertexId cur = stack.back();
+    stack.pop_back();
     if (cur == b) return true;
-    const XY& c = mesh_.xy(cur);
-    const XY& target = mesh_.xy(b);
-    const double dx = target.x - c.x, dy = target.y - c.y;
-    const double len = std::hypot(dx, dy);
-    VertexId best = kNone;
-    double best_cos = 0.0;
+    const double t_cur = along(mesh_.xy(cur));
     for (VertexId w : adjacent_vertices(cur)) {
-      if (w == prev || !is_constrained_edge(cur, w)) continue;
-      const XY& q = mesh_.xy(w);
-      const double ex = q.x - c.x, ey = q.y - c.y;
-      const double cosang = (ex * dx + ey * dy) / (std::hypot(ex, ey) * len);
-      if (cosang > best_cos) {
-        best_cos = cosang;
-        best = w;
+      if (!is_constrained_edge(cur, w) || std::find(seen.begin(), seen.end(), w) != seen.end()) {
+        continue;
       }
+      const XY& q = mesh_.xy(w);
+      // Not backwards beyond rounding: two intersection vertices a few ulps apart can come in
+      // either order along the segment (the visited list stops any cycle).
+      const double t = along(q);
+      const double slack = tolerance / std::sqrt(len2);  // the tolerance along a-b, in t
+      if (w != b && (off(q) > tolerance || !(t > t_cur - slack) || t > 1.0 + slack)) continue;
+      seen.push_back(w);
+      stack.push_back(w);
     }
-    if (best == kNone || best_cos < 0.999) return false;
-    prev = cur;
-    cur = best;
   }
   return false;
 }

@@ -701,6 +701,12 @@ Status Triangulation::plan_removal(VertexId v, RemovalHole& hole, bool any_order
 Result<std::vector<VertexTriple>> Triangulation::removal_preview(VertexId v) const {
   RemovalHole& hole = removal_.get();
   hole.planned_vertex = kNone;  // the hole is overwritten below, even when planning fails
+  // A vertex kept while the set is not yet triangulated (dimension < 2): remove_vertex drops it,
+  // and no triangle replaces it (found by kernel_fuzzer: the preview refused what removal did).
+  if (!cut_ && v != kInfiniteVertex && v < mesh_.vertex_slots() &&
+      mesh_.vertex_triangle(v) == kPendingTriangle) {
+    return std::vector<VertexTriple>{};
+  }
   if (Status s = plan_removal(v, hole); !s) return s.error();
   hole.planned_vertex = v;  // remove_vertex(v) right after this preview reuses the plan
   hole.planned_revision = revision_;

@@ -145,5 +145,58 @@ TEST(Constraint, BadRequestsAreReported) {
   EXPECT_FALSE(d.insert_constraint(Point3{0.5, 0.5, 0}, Point3{2, 2, 0}).ok());
 }
 
+// Found by kernel_fuzzer (core/kernel/fuzz/regressions/chain_check_two_long_constraints): two
+// constraints from one far vertex to two near ones point the same way to within rounding; the
+// checker's greedy walk along the first one reported the second as "not a chain of constrained
+// edges" although it is an edge.
+TEST(Constraint, LongConstraintsSharingAFarEndBothPassTheChainCheck) {
+  Triangulation t;
+  const VertexId origin = t.insert({0, 0, 0, 0}).vertex;
+  const VertexId top = t.insert({0, 15, 0, 0}).vertex;
+  const VertexId mid = t.insert({0, 9, 0, 0}).vertex;
+  const VertexId far = t.insert({1015000000, 0, 0, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(mid, far).ok());
+  ASSERT_TRUE(t.remove_vertex(origin).ok());
+  t.insert({5, 13.999999999999998, 0, 0});
+  t.insert({0, 0, 0, 0});
+  t.insert({0, 1, 0, 0});
+  ASSERT_TRUE(t.insert_constraint(far, top).ok());
+  EXPECT_TRUE(t.is_constrained_edge(far, top));
+  EXPECT_TRUE(t.is_constrained_edge(far, mid));
+  const Status valid = t.check_valid(CheckLevel::expensive);
+  EXPECT_TRUE(valid.ok()) << valid.error().message;
+}
+
+// Found by kernel_fuzzer (regressions/chain_check_ulp_apart_intersections): a constraint crossing
+// two constraints that almost coincide gets two intersection vertices one ulp apart; the short
+// edge between them points anywhere, and the checker's walk by edge direction lost the chain.
+TEST(Constraint, AChainThroughIntersectionsOneUlpApartPassesTheCheck) {
+  Triangulation t;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{0, 0},
+                                                                   {0, 1},
+                                                                   {0, 4},
+                                                                   {1, 0},
+                                                                   {1, 1},
+                                                                   {1, 2},
+                                                                   {1, 3},
+                                                                   {3, 3.9999999999999996},
+                                                                   {2, 0},
+                                                                   {2, 1},
+                                                                   {3, 0},
+                                                                   {1, 4}}) {
+    t.insert({x, y, 0, 0});
+  }
+  auto at = [&](double x, double y) { return *t.find_vertex(x, y); };
+  ASSERT_TRUE(t.insert_constraint(at(1, 3), at(0, 1)).ok());
+  ASSERT_TRUE(t.insert_constraint(at(3, 3.9999999999999996), at(0, 1)).ok());
+  ASSERT_TRUE(t.insert_constraint(at(0, 1), at(1, 2)).ok());
+  ASSERT_TRUE(t.insert_constraint(at(0, 4), at(1, 0)).ok());
+  // The last one crosses the second and third at (0.6, 1.6) rounded two ways.
+  EXPECT_TRUE(t.find_vertex(0.6, 1.6000000000000001).has_value());
+  EXPECT_TRUE(t.find_vertex(0.6, 1.5999999999999999).has_value());
+  const Status valid = t.check_valid(CheckLevel::expensive);
+  EXPECT_TRUE(valid.ok()) << valid.error().message;
+}
+
 }  // namespace
 }  // namespace tinstream::kernel

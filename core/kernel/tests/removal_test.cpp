@@ -481,5 +481,25 @@ TEST(Removal, RejoiningOnTheHullKeepsTheBorderConstrained) {
   expect_valid(t);
 }
 
+// Found by kernel_fuzzer (core/kernel/fuzz/regressions/preview_of_a_pending_vertex): before three
+// non-collinear points exist, remove_vertex drops a vertex but removal_preview refused it as "not a
+// live vertex". The preview has the same refusals as the removal: here none, and no triangle.
+TEST(Removal, PreviewOfAVertexBeforeTheFirstTriangleAgreesWithRemoval) {
+  Triangulation t;
+  const VertexId a = t.insert({0, 0, 0, 0}).vertex;
+  const VertexId b = t.insert({1, 1, 0, 0}).vertex;
+  t.insert({2, 2, 0, 0});  // collinear: still no triangle
+  ASSERT_LT(t.dimension(), 2);
+  auto preview = t.removal_preview(b);
+  ASSERT_TRUE(preview.ok()) << preview.error().message;
+  EXPECT_TRUE(preview->empty());
+  ASSERT_TRUE(t.remove_vertex(b).ok());
+  EXPECT_FALSE(t.is_vertex(b));
+  EXPECT_TRUE(t.is_vertex(a));
+  EXPECT_FALSE(t.removal_preview(b).ok());  // gone now: refused by both
+  EXPECT_FALSE(t.remove_vertex(b).ok());
+  expect_valid(t);
+}
+
 }  // namespace
 }  // namespace tinstream::kernel

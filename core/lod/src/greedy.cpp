@@ -114,6 +114,7 @@ struct PointSet {
   // With a lattice: by cell, its z while it is a candidate, NaN once it is not (a NaN error never
   // wins the scan's comparison, so the scan needs no look-up of the state).
   std::vector<double> candidate_z;
+  std::span<const VertexId> nodata_vertices;  // kernel ids of the NODATA corners
 };
 
 class GreedyInserter {
@@ -124,6 +125,7 @@ class GreedyInserter {
         state_(points.state),
         lattice_(points.lattice),
         candidate_z_(points.candidate_z),
+        nodata_kernel_(points.nodata_vertices),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
 
@@ -149,6 +151,10 @@ class GreedyInserter {
       }
       tris_.push_back(m);
     });
+    nodata_.assign(xy_.size(), 0);
+    for (const VertexId v : nodata_kernel_) {
+      if (v < local_vertex.size() && local_vertex[v] != kNone) nodata_[local_vertex[v]] = 1;
+    }
     kernel_.for_each_finite_triangle([&](TriangleId t, const kernel::Triangle& T) {
       Tri& m = tris_[local_tri[t]];
       for (std::size_t k = 0; k < 3; ++k) {
@@ -367,8 +373,16 @@ class GreedyInserter {
     if (lattice_) {
       rank_cells(t);
     } else {
-      set_best(t, best, best_e);
+      set_best(t, best, best_e + coverage_cost(t));
     }
+  }
+
+  // kCoverageCost for a triangle at a NODATA corner (greedy.hpp), else 0.
+  double coverage_cost(std::uint32_t t) const {
+    for (const std::uint32_t v : tris_[t].v) {
+      if (v < nodata_.size() && nodata_[v]) return kCoverageCost;
+    }
+    return 0.0;
   }
 
   // On a lattice: t's best candidate is the candidate cell of largest effective error inside it.
@@ -405,7 +419,7 @@ class GreedyInserter {
       if (row_i != kNone) best_e = row_e, best = static_cast<std::uint32_t>(row + row_i);
     };
     l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row, candidate_z_.data());
-    set_best(t, best, best_e);
+    set_best(t, best, best_e + coverage_cost(t));
   }
 
   // The candidate named by best_[t]: a pool entry, or on a lattice a cell.
@@ -663,7 +677,7 @@ class GreedyInserter {
       if (lattice_) {
         rank_cells(star_[k]);
       } else {
-        set_best(star_[k], star_best_[k], star_error_[k]);
+        set_best(star_[k], star_best_[k], star_error_[k] + coverage_cost(star_[k]));
       }
     }
   }
@@ -787,6 +801,8 @@ class GreedyInserter {
   std::vector<std::uint8_t>& state_;
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
+  std::span<const VertexId> nodata_kernel_;  // PointSet::nodata_vertices
+  std::vector<std::uint8_t> nodata_;         // by own vertex: a NODATA corner
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
   std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
@@ -822,8 +838,10 @@ class GreedyInserter {
 
 Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
-                                   double epsilon, const Lattice* lattice) {
+                                   double epsilon, const Lattice* lattice,
+                                   std::span<const VertexId> nodata_vertices) {
   PointSet points;
+  points.nodata_vertices = nodata_vertices;
   points.candidates = candidates.size();
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;

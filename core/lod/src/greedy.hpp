@@ -56,8 +56,18 @@ struct GreedyResult {
   FiledPoints orphans;
 };
 
+// Coverage first (docs/tile-format.md §2.1): a point of the surface lying in a triangle at a
+// NODATA corner (outside the current footprint) costs this many metres more than its vertical
+// error, in the greedy stage (a candidate there goes in before any other) and in the drop stage
+// (a vertex next to a NODATA corner, whose removal would widen the corner's fan over the data,
+// goes after every other). So a coarse tile keeps its data's outline while its budget allows, and
+// no data hides under a fan whose continued heights only roughly follow it.
+inline constexpr double kCoverageCost = 1e6;
+
 // Inserts candidates into `tri` (already holding the fixed points) until it has `max_vertices`
-// vertices, or until the largest effective error is 0 or below `epsilon`. `extra` points are
+// vertices, or until the largest effective error is 0 or below `epsilon`. A candidate's effective
+// error is its vertical distance to the surface + its weight (+ kCoverageCost in a triangle at
+// one of `nodata_vertices`, the NODATA corners). `extra` points are
 // filed and carried along but never inserted (dropped border points, a parent's internal cross).
 // With `lattice` (the candidates form it, lattice.hpp), the candidates are not filed: each
 // triangle's best one is found by scanning its lattice cells, and GreedyResult::orphans holds the
@@ -68,6 +78,7 @@ struct GreedyResult {
 Result<GreedyResult> greedy_insert(kernel::Triangulation& tri,
                                    std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
-                                   double epsilon, const Lattice* lattice = nullptr);
+                                   double epsilon, const Lattice* lattice = nullptr,
+                                   std::span<const kernel::VertexId> nodata_vertices = {});
 
 }  // namespace tinstream::lod::detail

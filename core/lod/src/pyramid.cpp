@@ -11,11 +11,14 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <set>
 #include <string>
 #include <thread>
 
+#include "side_store.hpp"
 #include "tinstream/base/worker_threads.hpp"
 #include "tinstream/lod/error.hpp"
 #include "tinstream/lod/parent.hpp"
@@ -26,10 +29,16 @@ using tile::TinTile;
 
 namespace {
 
+// What a job hands back: the tile prepared for the store and its side record.
+struct Built {
+  store::StoredTile stored;
+  std::vector<std::uint8_t> side;
+};
+
 // A fixed set of workers running submitted jobs; finished results are collected by the owner.
 class TilePool {
  public:
-  using Job = std::function<Result<store::StoredTile>()>;
+  using Job = std::function<Result<Built>()>;
 
   TilePool() = default;
   // Starts the workers; an Error when one cannot be started (the destructor stops and joins
@@ -59,10 +68,10 @@ class TilePool {
     cv_work_.notify_one();
   }
   // Blocks until at least one result is ready and returns all ready ones.
-  std::vector<Result<store::StoredTile>> wait_results() {
+  std::vector<Result<Built>> wait_results() {
     std::unique_lock lock(m_);
     cv_done_.wait(lock, [&] { return !done_.empty(); });
-    std::vector<Result<store::StoredTile>> out;
+    std::vector<Result<Built>> out;
     while (!done_.empty()) {
       out.push_back(std::move(done_.front()));
       done_.pop_front();
@@ -81,7 +90,7 @@ class TilePool {
         job = std::move(jobs_.front());
         jobs_.pop_front();
       }
-      Result<store::StoredTile> r = Error(ErrorCode::internal, "lod: job did not run");
+      Result<Built> r = Error(ErrorCode::internal, "lod: job did not run");
       // The exception barrier: a job that throws is a failed tile. Fault point "lod.tile".
       if (Status s = guarded("lod",
                              [&] {
@@ -102,7 +111,7 @@ class TilePool {
   std::mutex m_;  // guards jobs_, done_, stop_
   std::condition_variable cv_work_, cv_done_;
   std::deque<Job> jobs_;
-  std::deque<Result<store::StoredTile>> done_;
+  std::deque<Result<Built>> done_;
   bool stop_ = false;
   WorkerThreads workers_{"lod worker", "lod.tile"};  // last: joined before the rest goes
 };
@@ -130,6 +139,111 @@ Result<TinTile> decode_child(const store::StoredTile& stored) {
   return decoded;
 }
 
+// A tile as read for the next level: the stored blob and its side record (none for an unreduced
+// finest tile), decoded on a worker.
+struct ReadTile {
+  store::StoredTile stored;
+  std::optional<std::vector<std::uint8_t>> side;
+};
+
+Result<LodTile> decode_lod_tile(const ReadTile& read) {
+  auto tile = decode_child(read.stored);
+  if (!tile) return tile.error();
+  LodTile out;
+  out.tile = std::move(*tile);
+  if (read.side) {
+    if (Status s = detail::decode_side(*read.side, out); !s) return s.error();
+  }
+  return out;
+}
+
+// Where a child is absent, the parent's NODATA corner there takes its height from the tiles of
+// the children's level (docs/tile-format.md §2.1). Runs on the calling thread (it reads the
+// writer); answers are kept per corner, which up to four parents share.
+class AbsentCorners {
+ public:
+  AbsentCorners(store::LayerWriter& writer, const std::set<geo::TileId>& level)
+      : writer_(writer), level_(level) {}
+
+  // The height of corner k of `parent`, whose child k is absent.
+  Result<double> height(const geo::TileId& parent, int k) {
+    const geo::TileId child = parent.children()[static_cast<std::size_t>(k)];
+    // The corner in the children's level: column gx, row gy of the tile grid lines.
+    const std::int64_t gx = std::int64_t{child.x} + (k & 1), gy = std::int64_t{child.y} + (k >> 1);
+    const auto key = std::pair{gx, gy};
+    if (const auto it = known_.find(key); it != known_.end()) return it->second;
+    auto z = compute(child.z, gx, gy);
+    if (z) known_.emplace(key, *z);
+    return z;
+  }
+
+ private:
+  Result<double> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
+    const std::int64_t n = std::int64_t{1} << level;
+    auto present = [&](std::int64_t x, std::int64_t y) -> std::optional<geo::TileId> {
+      if (x < 0 || y < 0 || x >= n || y >= n) return std::nullopt;
+      const geo::TileId id{level, static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y)};
+      if (!level_.count(id)) return std::nullopt;
+      return id;
+    };
+    // A tile of the level that has the corner: its height there (all of them agree).
+    for (int q = 0; q < 4; ++q) {
+      const std::int64_t tx = gx - 1 + (q & 1), ty = gy - 1 + (q >> 1);
+      const auto id = present(tx, ty);
+      if (!id) continue;
+      auto t = tile(*id);
+      if (!t) return t.error();
+      return (*t)->corners[static_cast<std::size_t>(3 - q)].z;  // the corner at (gx, gy)
+    }
+    // Else the nearest data vertex of the level, searched in square rings of tiles around the
+    // corner: ring r holds the tiles r tiles away from the four that meet there, at least r tile
+    // widths from the corner.
+    const double x = -1.0 + 2.0 * static_cast<double>(gx) / static_cast<double>(n);
+    const double y = 1.0 - 2.0 * static_cast<double>(gy) / static_cast<double>(n);
+    const double width = 2.0 / static_cast<double>(n);
+    std::optional<NearestVertex> best;
+    for (std::int64_t ring = 0; ring <= n; ++ring) {
+      for (std::int64_t ty = gy - 1 - ring; ty <= gy + ring; ++ty) {
+        for (std::int64_t tx = gx - 1 - ring; tx <= gx + ring; ++tx) {
+          const bool edge =
+              ty == gy - 1 - ring || ty == gy + ring || tx == gx - 1 - ring || tx == gx + ring;
+          if (!edge) continue;
+          const auto id = present(tx, ty);
+          if (!id) continue;
+          auto t = tile(*id);
+          if (!t) return t.error();
+          const auto v = nearest_data_vertex(**t, x, y);
+          if (v && (!best || v->closer_than(*best))) best = v;
+        }
+      }
+      const double reach = static_cast<double>(ring + 1) * width;
+      if (best && best->d2 < reach * reach * (1 - 1e-9)) break;
+    }
+    if (!best) return Error(ErrorCode::internal, "lod: no data vertex for a NODATA corner");
+    return best->z;
+  }
+
+  // A decoded tile of the level (the last few are kept: neighbouring corners read the same).
+  Result<const TinTile*> tile(const geo::TileId& id) {
+    for (const auto& [cached_id, t] : cache_) {
+      if (cached_id == id) return &t;
+    }
+    auto stored = writer_.get_stored(id);
+    if (!stored) return stored.error();
+    if (!*stored) return not_found("lod: tile " + id.to_string() + " vanished");
+    auto decoded = decode_child(**stored);
+    if (!decoded) return decoded.error();
+    if (cache_.size() >= 8) cache_.pop_front();
+    cache_.emplace_back(id, std::move(*decoded));
+    return &cache_.back().second;
+  }
+
+  store::LayerWriter& writer_;
+  const std::set<geo::TileId>& level_;
+  std::map<std::pair<std::int64_t, std::int64_t>, double> known_;
+  std::deque<std::pair<geo::TileId, TinTile>> cache_;
+};
+
 }  // namespace
 
 Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
@@ -142,7 +256,6 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   if (options.lod.max_points < 4) return invalid_argument("lod: max_points must be at least 4");
   threads = std::max(threads, 1u);
   const std::size_t max_in_flight = options.max_in_flight ? options.max_in_flight : 2 * threads + 2;
-  PyramidOptions opts = options;
   PyramidSummary summary;
   summary.level_max_error.assign(finest_level + 1, 0.0);
   summary.level_tiles.assign(finest_level + 1, 0);
@@ -152,6 +265,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     ++summary.level_tiles[t.id.z];
     summary.level_vertices[t.id.z] += t.vertex_count;
   };
+  detail::SideStore side(options.scratch);
 
   TilePool pool;
   if (Status s = pool.start(threads); !s) return s.error();
@@ -169,7 +283,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   // on the calling thread, with at most max_in_flight items between load and store.
   auto run_level = [&](const std::vector<geo::TileId>& items,
                        const std::function<Result<TilePool::Job>(const geo::TileId&)>& load,
-                       const std::function<Status(store::StoredTile &&)>& store) -> Status {
+                       const std::function<Status(Built &&)>& store) -> Status {
     std::size_t next = 0, in_flight = 0;
     std::optional<Error> failure;
     while ((next < items.size() && !failure) || in_flight > 0) {
@@ -201,13 +315,27 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     if (failure) return *failure;
     return writer.flush();
   };
+  // Stores a built tile and its side record.
+  auto put = [&](Built&& b) -> Status {
+    const geo::TileId id = b.stored.id;
+    if (Status s = side.put(id, std::move(b.side)); !s.ok()) return s;
+    return writer.put(std::move(b.stored));
+  };
+  auto read = [&](const geo::TileId& id) -> Result<std::optional<ReadTile>> {
+    auto t = writer.get_stored(id);
+    if (!t.ok()) return t.error();
+    if (!*t) return std::optional<ReadTile>{};
+    auto record = side.get(id);
+    if (!record.ok()) return record.error();
+    return std::optional<ReadTile>{ReadTile{std::move(**t), std::move(*record)}};
+  };
 
   // ---- optional reduced TIN at the finest level ----------------------------------------------
   auto finest_ids = writer.tile_ids(finest_level);
   if (!finest_ids.ok()) return finest_ids.error();
   if (options.reduce_finest) {
     total += finest_ids->size();
-    const LodOptions lod = opts.lod;
+    const LodOptions lod = options.lod;
     Status s = run_level(
         *finest_ids,
         [&](const geo::TileId& id) -> Result<TilePool::Job> {
@@ -215,26 +343,17 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
           if (!t.ok()) return t.error();
           if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
           auto blob = std::make_shared<store::StoredTile>(std::move(**t));
-          const HeightRange heights = opts.finest_heights;
-          return TilePool::Job([blob, lod, heights]() -> Result<store::StoredTile> {
+          return TilePool::Job([blob, lod]() -> Result<Built> {
             auto decoded = decode_child(*blob);
             if (!decoded) return decoded.error();
-            TinTile& tile = *decoded;
-            bool nodata = false;
-            for (const auto& tr : tile.triangles) {
-              for (auto v : tr) nodata = nodata || (v < 4 && tile.corner_nodata[v]);
-            }
-            if (Status st = reduce_finest_tile(tile, lod); !st.ok()) return st.error();
-            if (nodata) {
-              // The reduced tile's NODATA fan may reach over the original's data (parent.hpp).
-              tile.geometric_error =
-                  std::max(tile.geometric_error,
-                           nodata_band_bound(tile, heights) + error_rounding_allowance(tile));
-            }
-            return store::prepare_tile(tile);
+            auto reduced = reduce_finest(*decoded, lod);
+            if (!reduced) return reduced.error();
+            auto stored = store::prepare_tile(reduced->tile);
+            if (!stored) return stored.error();
+            return Built{std::move(*stored), detail::encode_side(*reduced)};
           });
         },
-        [&](store::StoredTile&& t) { return writer.put(std::move(t)); });
+        put);
     if (!s.ok()) return s.error();
   }
   if (finest_level == min_level) {
@@ -256,46 +375,55 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
               [](const auto& a, const auto& b) { return a.morton() < b.morton(); });
     total += parents.size();
     if (Status s = report(true); !s.ok()) return s.error();
-    const LodOptions lod = opts.lod;
+    const LodOptions lod = options.lod;
+    const std::set<geo::TileId> child_set(child_ids.begin(), child_ids.end());
+    AbsentCorners absent(writer, child_set);
     std::vector<geo::TileId> written;
     written.reserve(parents.size());
     Status s = run_level(
         parents,
         [&](const geo::TileId& pid) -> Result<TilePool::Job> {
-          auto blobs = std::make_shared<std::array<std::optional<store::StoredTile>, 4>>();
+          auto reads = std::make_shared<std::array<std::optional<ReadTile>, 4>>();
+          std::array<double, 4> absent_z{};
           const auto ids = pid.children();
           for (std::size_t i = 0; i < 4; ++i) {
-            auto t = writer.get_stored(ids[i]);
+            auto t = read(ids[i]);
             if (!t.ok()) return t.error();
             if (*t) {
-              account(**t);
-              (*blobs)[i] = std::move(**t);
+              account((*t)->stored);
+              (*reads)[i] = std::move(**t);
+              continue;
             }
+            auto z_corner = absent.height(pid, static_cast<int>(i));
+            if (!z_corner) return z_corner.error();
+            absent_z[i] = *z_corner;
           }
-          const HeightRange heights = opts.finest_heights;
-          return TilePool::Job([blobs, pid, lod, heights]() -> Result<store::StoredTile> {
-            std::array<std::optional<TinTile>, 4> kids;
+          return TilePool::Job([reads, pid, lod, absent_z]() -> Result<Built> {
+            Children kids;
+            kids.absent_corner_z = absent_z;
             for (std::size_t i = 0; i < 4; ++i) {
-              if (!(*blobs)[i]) continue;
-              auto decoded = decode_child(*(*blobs)[i]);
+              if (!(*reads)[i]) continue;
+              auto decoded = decode_lod_tile(*(*reads)[i]);
               if (!decoded) return decoded.error();
-              kids[i] = std::move(*decoded);
-              (*blobs)[i].reset();  // the compressed copy is not needed any more
+              kids.tiles[i] = std::move(*decoded);
+              (*reads)[i].reset();  // the compressed copy is not needed any more
             }
-            auto parent = build_parent(pid, std::move(kids), lod, nullptr, heights);
+            auto parent = build_parent(pid, std::move(kids), lod);
             if (!parent) return parent.error();
-            return store::prepare_tile(*parent);
+            auto stored = store::prepare_tile(parent->tile);
+            if (!stored) return stored.error();
+            return Built{std::move(*stored), detail::encode_side(*parent)};
           });
         },
-        [&](store::StoredTile&& t) -> Status {
-          const store::StoredTile& stored = t;
-          if (t.id.z == min_level) account(stored);
-          const geo::TileId id = t.id;
-          if (Status st = writer.put(std::move(t)); !st.ok()) return st;
+        [&](Built&& b) -> Status {
+          if (b.stored.id.z == min_level) account(b.stored);
+          const geo::TileId id = b.stored.id;
+          if (Status st = put(std::move(b)); !st.ok()) return st;
           written.push_back(id);
           return {};
         });
     if (!s.ok()) return s.error();
+    side.forget_level(z + 1);
     summary.tiles_built += written.size();
     child_ids = std::move(written);
   }

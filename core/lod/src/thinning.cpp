@@ -78,8 +78,9 @@ class InteriorThinner {
   // `lattice`: the input's interior points (all of them, any state) as a lattice whose cells are
   // scanned for the error (the filed orphans are then the others only), or null.
   InteriorThinner(Triangulation& tri, std::vector<std::uint8_t> candidate, FiledPoints orphans,
-                  const detail::Lattice* lattice)
-      : tri_(tri),
+                  const detail::Lattice* lattice, std::span<const VertexId> nodata_corners)
+      : nodata_corners_(nodata_corners.begin(), nodata_corners.end()),
+        tri_(tri),
         candidate_(std::move(candidate)),
         heap_(candidate_.size()),
         level_(candidate_.size(), kPreviewBound),
@@ -97,6 +98,7 @@ class InteriorThinner {
   }
 
   void seed_queue() {
+    mark_coverage();
     for (VertexId v = 1; v < candidate_.size(); ++v) {
       if (candidate_[v] && tri_.is_vertex(v)) evaluate_and_push(v);
     }
@@ -128,6 +130,25 @@ class InteriorThinner {
   }
 
  private:
+  // What removing v costs beside its vertical error: its weight, and kCoverageCost when it is next
+  // to a NODATA corner (its removal would widen that corner's fan over the data, greedy.hpp).
+  double cost_of(VertexId v) const {
+    return tri_.weight(v) + (v < coverage_.size() && coverage_[v] ? detail::kCoverageCost : 0.0);
+  }
+
+  // Marks the vertices next to a NODATA corner (coverage_). Removing any other vertex leaves the
+  // corners' stars as they are (its star's new triangles use its ring only), so the marks change
+  // only when a marked vertex goes.
+  void mark_coverage() {
+    coverage_.assign(tri_.vertex_id_bound(), 0);
+    for (const VertexId c : nodata_corners_) {
+      if (!tri_.is_vertex(c)) continue;
+      for (const VertexId w : tri_.adjacent_vertices(c)) {
+        if (w < coverage_.size()) coverage_[w] = 1;
+      }
+    }
+  }
+
   // Calls f(t) for the finite triangles around v, walking its fan in the mesh (the kernel's
   // incident_triangles() allocates a vector each call). Requires: v a live vertex.
   template <typename F>
@@ -221,7 +242,7 @@ class InteriorThinner {
           err = std::max(err, std::abs(orph_.z[i] - *z));
       }
     });
-    return err + tri_.weight(v);
+    return err + cost_of(v);
   }
 
   // Largest |z − surface| over the lattice cells in triangle t of `tri`.
@@ -258,7 +279,7 @@ class InteriorThinner {
     bound_[v] = {err, static_cast<std::uint32_t>(bound_tris_.size()),
                  static_cast<std::uint32_t>(preview_.size())};
     bound_tris_.insert(bound_tris_.end(), preview_.begin(), preview_.end());
-    return err + tri_.weight(v);
+    return err + cost_of(v);
   }
 
   // Largest |z − surface| over the orphans filed under v's triangles, the surface being the
@@ -287,7 +308,7 @@ class InteriorThinner {
       set_planes(tris);
       err = std::max(err, orphan_error(v));
     }
-    return err + tri_.weight(v);
+    return err + cost_of(v);
   }
 
   // Keys v by a lower bound of its effective error, the cheapest first: from its ring alone
@@ -300,7 +321,7 @@ class InteriorThinner {
   void evaluate_and_push(VertexId v) {
     if (const auto b = detail::removal_error_bound(tri_, v)) {
       level_[v] = kRingBound;
-      heap_.set(v, *b + tri_.weight(v));
+      heap_.set(v, *b + cost_of(v));
       return;
     }
     push_previewed(v);
@@ -376,6 +397,8 @@ class InteriorThinner {
       surface_at(pv.x, pv.y, &k);
       orph_.push(pv.x, pv.y, zv, new_ids_[k]);
     }
+    // A vertex next to a NODATA corner went: the corner's new neighbours (in v's ring) cost more.
+    if (v < coverage_.size() && coverage_[v]) mark_coverage();
     // Eager update of the former neighbours. (Lazily re-evaluating them only when they reach the
     // top of the heap is ~1.5× faster but worse: on bigtujunga at 50k vertices the max error
     // went from 9.57 m to 11.0 m, since a removal can also *lower* a neighbour's error.)
@@ -385,6 +408,8 @@ class InteriorThinner {
     return {};
   }
 
+  std::vector<VertexId> nodata_corners_;
+  std::vector<std::uint8_t> coverage_;  // by vertex id: next to a NODATA corner (mark_coverage)
   Triangulation& tri_;
   std::vector<std::uint8_t> candidate_;  // by vertex id: an interior point that may go
   IndexedHeap heap_;                     // candidates by (effective error, vertex id)
@@ -418,7 +443,8 @@ std::string tile_name(const geo::TileId& id) { return "tile " + id.to_string(); 
 }  // namespace
 
 std::vector<Vertex> thin_border_side(std::span<const Vertex> side, bool along_x, std::size_t budget,
-                                     double epsilon, std::vector<Vertex>* removed) {
+                                     double epsilon, std::vector<Vertex>* removed,
+                                     std::array<bool, 2> nodata_ends) {
   const std::size_t n = side.size();
   if (n <= 2) return {side.begin(), side.end()};
   auto pos = [&](std::size_t i) { return along_x ? side[i].x : side[i].y; };
@@ -438,7 +464,9 @@ std::vector<Vertex> thin_border_side(std::span<const Vertex> side, bool along_x,
       const double f = (pos(j) - ta) / (tb - ta);
       err = std::max(err, std::abs(side[j].z - (za + (zb - za) * f)));
     }
-    return err + side[i].weight;
+    // Coverage first: the data point next to a NODATA end marks where the data begin.
+    const bool keeps_coverage = (i == 1 && nodata_ends[0]) || (i + 2 == n && nodata_ends[1]);
+    return err + side[i].weight + (keeps_coverage ? detail::kCoverageCost : 0.0);
   };
   MinQueue queue;
   auto push = [&](std::size_t i) {
@@ -508,7 +536,9 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     side.insert(side.end(), list.begin(), list.end());
     side.push_back(in.corners[static_cast<std::size_t>(c1)]);
     std::vector<Vertex> kept =
-        thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped);
+        thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped,
+                         {in.corner_nodata[static_cast<std::size_t>(c0)],
+                          in.corner_nodata[static_cast<std::size_t>(c1)]});
     return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
   };
   st.input_points =
@@ -559,6 +589,11 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   }
   if (tri.dimension() != 2)
     return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": degenerate triangulation");
+  // The NODATA corners' vertices (coverage first, greedy.hpp).
+  std::vector<VertexId> nodata_corners;
+  for (std::size_t c = 0; c < 4; ++c) {
+    if (in.corner_nodata[c]) nodata_corners.push_back(ins[c].vertex);
+  }
   // Border chains in edge order: corner ids 0..3 are ins[0..3].
   std::array<std::vector<VertexId>, 4> chain;
   {
@@ -602,7 +637,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
     std::vector<Vertex> extra = in.orphans;
     extra.insert(extra.end(), dropped.begin(), dropped.end());
     auto g = detail::greedy_insert(tri, in.interior, extra, target, options.epsilon,
-                                   lattice ? &*lattice : nullptr);
+                                   lattice ? &*lattice : nullptr, nodata_corners);
     if (!g.ok()) {
       return Error(g.error().code, "lod: " + tile_name(in.id) + ": " + g.error().message);
     }
@@ -619,7 +654,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   VertexId removed_last = kNone;
   {
     InteriorThinner thinner(tri, std::move(candidate), std::move(filed),
-                            lattice ? &*lattice : nullptr);
+                            lattice ? &*lattice : nullptr, nodata_corners);
     if (!greedy) {
       for (const auto& o : in.orphans) thinner.add_orphan(o);
       for (const auto& o : dropped) thinner.add_orphan(o);
@@ -691,16 +726,33 @@ ThinInput thin_input(const tile::TinTile& tile) {
   return in;
 }
 
-Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinStats* stats) {
-  auto reduced = thin_tile(thin_input(tile), options, stats);
+std::size_t witness_count(const LodOptions& options) {
+  return options.witnesses == std::numeric_limits<std::size_t>::max() ? options.max_points / 8
+                                                                      : options.witnesses;
+}
+
+Result<LodTile> reduce_finest(const tile::TinTile& finest, const LodOptions& options,
+                              ThinStats* stats) {
+  auto reduced = thin_tile(thin_input(finest), options, stats);
   if (!reduced.ok()) return reduced.error();
-  const tile::TinTile* original = &tile;
-  const SurfaceDifference d =
-      surface_difference(*reduced, std::span<const tile::TinTile* const>(&original, 1));
-  reduced->geometric_error = d.max_abs + tile.geometric_error + error_rounding_allowance(*reduced);
-  reduced->rms_error = d.rms() + tile.rms_error;
-  reduced->source_points = tile.source_points;
-  tile = std::move(*reduced);
+  LodTile out;
+  out.tile = std::move(*reduced);
+  const ChainInput original{&finest, nullptr, {}, {}};
+  ChainedError e =
+      chain_error(out.tile, std::span<const ChainInput>(&original, 1), witness_count(options));
+  out.tile.geometric_error = e.geometric_error;
+  out.tile.rms_error = e.rms_error;
+  out.tile.source_points = finest.source_points;
+  out.bounds = std::move(e.bounds);
+  out.reaches = std::move(e.reaches);
+  out.witnesses = std::move(e.witnesses);
+  return out;
+}
+
+Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options, ThinStats* stats) {
+  auto reduced = reduce_finest(tile, options, stats);
+  if (!reduced.ok()) return reduced.error();
+  tile = std::move(reduced->tile);
   return {};
 }
 

@@ -78,30 +78,24 @@ inline std::optional<double> brute_height(const tile::TinTile& t, double x, doub
   return best;
 }
 
-// Max |coarse − fine| over a dense lattice (samples per side) inside `coarse` plus all fine
-// vertices, where the fine surface has data.
-inline double sampled_max_difference(const tile::TinTile& coarse,
-                                     const std::vector<tile::TinTile>& fines, int samples) {
-  const geo::MercatorRect r = coarse.id.bounds();
+// Max |coarse − z| over the finest data points under `coarse`: the vertices of the fine tiles'
+// data triangles (error.hpp: what is measured), the coarse surface evaluated on any of its
+// triangles by brute force.
+inline double data_point_max_difference(const tile::TinTile& coarse,
+                                        const std::vector<tile::TinTile>& fines) {
   double worst = 0;
-  auto probe = [&](double x, double y) {
-    for (const auto& f : fines) {
-      const auto fr = f.id.bounds();
-      if (x < fr.min_x || x > fr.max_x || y < fr.min_y || y > fr.max_y) continue;
-      const auto zf = brute_height(f, x, y, true);
-      if (!zf) continue;
-      // NODATA-corner triangles are not surface on either side (error.hpp).
-      const auto zc = brute_height(coarse, x, y, true);
-      if (zc) worst = std::max(worst, std::abs(*zc - *zf));
-    }
-  };
-  for (int j = 0; j <= samples; ++j) {
-    for (int i = 0; i <= samples; ++i) {
-      probe(r.min_x + r.width() * i / samples, r.min_y + r.height() * j / samples);
-    }
-  }
   for (const auto& f : fines) {
-    for (const auto& p : f.vertices()) probe(p.x, p.y);
+    const auto v = f.vertices();
+    std::vector<std::uint8_t> data(v.size(), 0);
+    for (std::size_t t = 0; t < f.triangles.size(); ++t) {
+      if (f.is_nodata_triangle(t)) continue;
+      for (auto i : f.triangles[t]) data[i] = 1;
+    }
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!data[i]) continue;
+      const auto zc = brute_height(coarse, v[i].x, v[i].y, false);
+      if (zc) worst = std::max(worst, std::abs(*zc - v[i].z));
+    }
   }
   return worst;
 }

@@ -187,7 +187,9 @@ std::uint16_t zigzag(int v) {
 }
 
 std::uint16_t quantise(double t) {
-  const double q = std::round(std::clamp(t, 0.0, 1.0) * kQuantMax);
+  // NaN (a flat tile's 0/0 height range, a NaN coordinate of a corrupt blob) is 0, not a NaN
+  // cast to an integer (undefined; found by qmesh_fuzzer).
+  const double q = std::round((t > 0 ? std::min(t, 1.0) : 0.0) * kQuantMax);
   return static_cast<std::uint16_t>(q);
 }
 
@@ -268,7 +270,10 @@ std::optional<Vec3> horizon_occlusion_point(std::span<const Vec3> ecef_points,
 }
 
 std::array<std::uint8_t, 2> oct_encode(Vec3 n) {
-  const double l1 = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
+  double l1 = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
+  // A vertex whose triangles are all degenerate has no normal (zero or NaN): up, not a NaN cast
+  // to a byte (undefined; found by qmesh_fuzzer).
+  if (!(l1 > 0) || !std::isfinite(l1)) n = {0, 0, 1}, l1 = 1;
   double x = n.x / l1;
   double y = n.y / l1;
   if (n.z < 0) {
@@ -391,10 +396,11 @@ QuantisedVertices quantise_vertices(const SidedVertices& in, const geo::Normalis
   return q;
 }
 
-// The triangles without those that rounding to the 15-bit grid turns clockwise: they are slivers
-// thinner than one quantum (coarse tiles over dense data, where several vertices share a grid
-// cell), and drawn clockwise they would fold over their neighbours. Degenerate (zero-area) ones
-// are kept; they draw nothing.
+// The triangles without those that rounding to the 15-bit grid turns clockwise or flat: they are
+// slivers thinner than one quantum (coarse tiles over dense data, where several vertices share a
+// grid cell; edge points closer than a quantum at any level), and drawn clockwise they would fold
+// over their neighbours; zero-area ones draw nothing, and a client interpolating heights in them
+// divides by their area (#20; `tinstream verify` checks that none is written).
 std::vector<tile::Triangle> drop_flipped(const std::vector<tile::Triangle>& triangles,
                                          const QuantisedVertices& q) {
   std::vector<tile::Triangle> kept;
@@ -404,7 +410,7 @@ std::vector<tile::Triangle> drop_flipped(const std::vector<tile::Triangle>& tria
         (static_cast<double>(q.u[t[1]]) - q.u[t[0]]) *
             (static_cast<double>(q.v[t[2]]) - q.v[t[0]]) -
         (static_cast<double>(q.v[t[1]]) - q.v[t[0]]) * (static_cast<double>(q.u[t[2]]) - q.u[t[0]]);
-    if (cross >= 0) kept.push_back(t);
+    if (cross > 0) kept.push_back(t);
   }
   return kept;
 }

@@ -4,7 +4,9 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -334,6 +336,39 @@ TEST(QuantizedMesh, SliversThatQuantisationTurnsClockwiseAreLeftOut) {
   FAIL() << "no sliver found to test with";
 }
 
+// #20: a triangle whose vertices round to one quantum (edge points closer than a quantum, coarse
+// tiles over dense data) has zero area in (u, v): it draws nothing, and a client interpolating
+// a height in it divides by its area. It is left out like a clockwise sliver.
+TEST(QuantizedMesh, TrianglesThatQuantisationFlattensAreLeftOut) {
+  const geo::TileId id = *geo::TileId::from_zxy(2, 2, 1);
+  const geo::NormalisedMercator merc;
+  const geo::LonLatRect r = id.lonlat_bounds(merc);
+  tile::TinTile t = flat_tile(id);
+  // Counter-clockwise in doubles, all three within the quantum around (16000, 16000).
+  for (const auto& p :
+       {std::array{16000.1, 16000.1}, std::array{16000.3, 16000.1}, std::array{16000.1, 16000.3}}) {
+    const double lon = r.west + (r.east - r.west) * p[0] / 32767.0;
+    const double lat = r.south + (r.north - r.south) * p[1] / 32767.0;
+    const geo::MercatorXY m = merc.forward({lon, lat});
+    t.interior.push_back({m.x, m.y, 10.0, 1.0});
+  }
+  t.triangles.push_back({4, 5, 6});
+  auto bytes = encode_quantized_mesh(t, geo::Projection::spherical);
+  ASSERT_TRUE(bytes.ok());
+  const auto m = decode_quantized_mesh(*bytes);
+  ASSERT_EQ(m.u.size(), 7u);
+  EXPECT_EQ(m.u[4], m.u[5]);  // the three vertices did share a quantum (unused ones come last)
+  EXPECT_EQ(m.v[4], m.v[6]);
+  EXPECT_EQ(m.indices.size(), 6u) << "the flat triangle was written";
+  for (std::size_t k = 0; k < m.indices.size(); k += 3) {
+    const auto a = m.indices[k], b = m.indices[k + 1], c = m.indices[k + 2];
+    const double cross =
+        (static_cast<double>(m.u[b]) - m.u[a]) * (static_cast<double>(m.v[c]) - m.v[a]) -
+        (static_cast<double>(m.v[b]) - m.v[a]) * (static_cast<double>(m.u[c]) - m.u[a]);
+    EXPECT_GT(cross, 0);
+  }
+}
+
 TEST(QuantizedMesh, EllipsoidalLayersAreRefused) {
   const auto t = make_grid_tile(kTile, 5, synthetic_height);
   auto r = encode_quantized_mesh(t, geo::Projection::ellipsoidal);
@@ -373,6 +408,18 @@ std::vector<std::uint8_t> independent_gunzip(const std::vector<std::uint8_t>& gz
   out.resize(zs.total_out);
   inflateEnd(&zs);
   return out;
+}
+
+// Found by qmesh_fuzzer (core/terrain/fuzz/regressions): a vertex whose triangles are all
+// degenerate has a zero normal, normalised to NaN, which oct_encode cast to a byte (undefined
+// behaviour; UBSan aborts). It is encoded as "up" now, like Cesium's default.
+TEST(QuantizedMesh, OctEncodeOfAMissingNormalIsUp) {
+  const auto up = oct_encode({0, 0, 1});
+  EXPECT_EQ(up, (std::array<std::uint8_t, 2>{128, 128}));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(oct_encode({nan, 0, 0}), up);
+  EXPECT_EQ(oct_encode({0, 0, 0}), up);
+  EXPECT_EQ(oct_encode({std::numeric_limits<double>::infinity(), 1, 0}), up);
 }
 
 TEST(Gzip, RoundTripsAndRewrapsZlib) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <deque>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -130,7 +131,7 @@ void transform_guarded(const BatchContext& c, Reprojector& reprojector, BatchWor
 
 // Worker threads that transform batches, one Reprojector each (PROJ contexts are not shared).
 // The calling thread submits batches in record order and collects them in the same order, so
-// the run file and the first error reported do not depend on the number of workers.
+// the points handed on and the first error reported do not depend on the number of workers.
 //
 //   reader (calling thread) ──submit──▶ todo_ ──▶ worker k: transform_batch ──▶ done = true
 //   writer (calling thread) ◀──wait(oldest)───────────────────────────────────────┘
@@ -200,32 +201,55 @@ class TransformWorkers {
                          "pass1.transform"};  // last: started after, joined before the rest goes
 };
 
-}  // namespace
+// Accumulates the RunHeader (count, boxes, z range) over the batches handed on.
+class RunHeaderBuilder {
+ public:
+  RunHeaderBuilder(geo::Projection projection, std::uint32_t input_count) {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    header_.projection = projection;
+    header_.input_count = input_count;
+    header_.mercator = Extent{inf, inf, -inf, -inf};
+    header_.lonlat = Extent{inf, inf, -inf, -inf};
+    header_.min_z = inf;
+    header_.max_z = -inf;
+  }
 
-namespace {
+  // Requires: `lonlat` holds the same points as `points`.
+  void add(std::span<const RunPoint> points, std::span<const geo::LonLat> lonlat) {
+    Extent& m = header_.mercator;
+    for (const RunPoint& p : points) {
+      m.min_x = std::min(m.min_x, p.x), m.max_x = std::max(m.max_x, p.x);
+      m.min_y = std::min(m.min_y, p.y), m.max_y = std::max(m.max_y, p.y);
+      header_.min_z = std::min(header_.min_z, p.z);
+      header_.max_z = std::max(header_.max_z, p.z);
+    }
+    Extent& e = header_.lonlat;
+    for (const geo::LonLat& g : lonlat) {
+      e.min_x = std::min(e.min_x, g.lon), e.max_x = std::max(e.max_x, g.lon);
+      e.min_y = std::min(e.min_y, g.lat), e.max_y = std::max(e.max_y, g.lat);
+    }
+    header_.point_count += points.size();
+  }
+
+  const RunHeader& header() const { return header_; }
+
+ private:
+  RunHeader header_;
+};
 
 Result<RunSummary> transform_unguarded(std::span<const InputSpec> inputs,
                                        const TransformOptions& options,
                                        const ProgressSink& progress) {
   if (options.batch_size == 0) return invalid_argument("batch size must be at least 1");
-  if (options.output.empty() && !options.on_points) {
-    return invalid_argument("no run file path given and no consumer of the points");
-  }
+  if (!options.on_points) return invalid_argument("no consumer of the points (on_points)");
   ProgressThrottle throttle(progress);
   const std::uint64_t total = progress ? total_records(inputs) : 0;
 
   const auto input_count = static_cast<std::uint32_t>(inputs.size());
-  std::optional<RunFileWriter> writer;  // none: the points only go to on_points
   RunHeaderBuilder header(options.projection, input_count);
-  if (!options.output.empty()) {
-    auto created = RunFileWriter::create(options.output, options.projection, input_count);
-    if (!created.ok()) return created.error();
-    writer = std::move(*created);
-  }
   const geo::NormalisedMercator mercator(options.projection);
 
   RunSummary summary;
-  summary.run_file = options.output;
   std::uint64_t done_before = 0;  // records of the inputs already finished
   // Batches in flight: one per worker plus the one the reader fills.
   const unsigned workers = options.threads > 1 ? options.threads : 0;
@@ -254,19 +278,14 @@ Result<RunSummary> transform_unguarded(std::span<const InputSpec> inputs,
                                static_cast<std::uint16_t>(std::min<std::size_t>(index, 65535)),
                                in.source.invalid == sources::InvalidPolicy::skip};
 
-    // Appends one transformed batch (or returns the first error of its records).
+    // Hands one transformed batch on (or returns the first error of its records).
     auto append = [&](BatchWork& w) -> Status {
       if (!w.status.ok()) return w.status;
       s.outside_mercator += w.outside_mercator;
       s.implausible_height += w.implausible_height;
-      if (writer) {
-        if (auto st = writer->append(w.run_points, w.lonlat); !st.ok()) return st.error();
-      } else {
-        header.add(w.run_points, w.lonlat);
-      }
+      header.add(w.run_points, w.lonlat);
       s.points_written += w.run_points.size();
-      if (options.on_points) return options.on_points(w.run_points);
-      return {};
+      return options.on_points(w.run_points);
     };
     // Fault point "pass1.read": a reader that throws.
     auto read = [&](BatchWork& w) {
@@ -335,15 +354,9 @@ Result<RunSummary> transform_unguarded(std::span<const InputSpec> inputs,
     summary.inputs.push_back(std::move(s));
   }
   if (!throttle.report(done_before, total, true)) {
-    return Error(ErrorCode::cancelled, "transform cancelled before the run file was committed");
+    return Error(ErrorCode::cancelled, "transform cancelled after the last input");
   }
-  if (writer) {
-    auto committed = writer->commit(options.durable);
-    if (!committed.ok()) return committed.error();
-    summary.header = *committed;
-  } else {
-    summary.header = header.header();
-  }
+  summary.header = header.header();
   return summary;
 }
 

@@ -28,6 +28,9 @@ constexpr std::uint32_t kKeyLevel = 30;
 constexpr std::uint32_t kDefaultSubShift = 4;
 // Above this many triangles with large circles in a halo round, ask per point (ConflictSearch).
 constexpr std::size_t kFewLargeCircles = 16;
+// No edge point closer than this to a corner (normalised units; `tinstream verify` rejects two
+// vertices of a tile closer than that).
+constexpr double kMinVertexDistance = 1e-12;
 
 std::uint64_t pack(std::uint32_t x, std::uint32_t y) {
   return (static_cast<std::uint64_t>(x) << 32) | y;
@@ -454,6 +457,70 @@ struct TileBuffers {
     if (delaunay.memory_bytes() > kKeepBytes) delaunay = detail::DelaunayBuilder();
   }
 };
+
+// The height of a NODATA corner (docs/tile-format.md §2.1): the input point nearest to `corner`
+// (dx² + dy² in doubles; ties to the smaller x, then y), found by reading the sub-cells around the
+// corner in square rings until no unread cell can hold a nearer point. Every tile around the
+// corner reads the same cells in the same order, so all of them get the same height.
+//
+//   ring 1 ┌───┬───┬───┬───┐    ring r: the cells at Chebyshev cell distance r from the four
+//          │   │   │   │   │    cells that meet at the corner (ring 0); every point of ring r is
+//          ├───┼───┼───┼───┤    at least r cell widths from the corner.
+//          │   │ 0 │ 0 │   │
+//          ├───┼───●───┼───┤    ● the corner
+//          │   │ 0 │ 0 │   │
+//          ├───┼───┼───┼───┤
+//          │   │   │   │   │
+//          └───┴───┴───┴───┘
+Result<double> nearest_input_height(const PointCells& cells, subdivide::SortedRunReader& reader,
+                                    const geo::TileId& tile, int corner,
+                                    std::vector<SortedPoint>& chunk) {
+  const std::uint32_t shift = cells.sub_shift();
+  const std::int64_t per_side = std::int64_t{1} << cells.cell_level();
+  // The corner's position in cell units: the cells meeting there are columns gx − 1, gx and
+  // rows gy − 1, gy (rows from the north, as tile rows).
+  const std::int64_t gx = (std::int64_t{tile.x} + (corner & 1)) << shift;
+  const std::int64_t gy = (std::int64_t{tile.y} + (corner >> 1)) << shift;
+  const geo::MercatorRect r = tile.bounds();
+  const XY c{(corner & 1) ? r.max_x : r.min_x, (corner >> 1) ? r.min_y : r.max_y};
+  const double cell_width = 2.0 / static_cast<double>(per_side);
+  bool found = false;
+  double best_d2 = 0, best_x = 0, best_y = 0, best_z = 0;
+  auto visit = [&](std::int64_t cx, std::int64_t cy) -> Status {
+    if (cx < 0 || cy < 0 || cx >= per_side || cy >= per_side) return {};
+    const auto [first, count] =
+        cells.cell_range(static_cast<std::uint32_t>(cx), static_cast<std::uint32_t>(cy));
+    if (count == 0) return {};
+    if (Status s = reader.read(first, count, chunk); !s) return s;
+    for (const SortedPoint& p : chunk) {
+      const double dx = p.x - c.x, dy = p.y - c.y, d2 = dx * dx + dy * dy;
+      if (!found || d2 < best_d2 ||
+          (d2 == best_d2 && (p.x < best_x || (p.x == best_x && p.y < best_y)))) {
+        found = true, best_d2 = d2, best_x = p.x, best_y = p.y, best_z = p.z;
+      }
+    }
+    return {};
+  };
+  for (std::int64_t ring = 0; ring <= per_side; ++ring) {
+    const std::int64_t x0 = gx - 1 - ring, x1 = gx + ring, y0 = gy - 1 - ring, y1 = gy + ring;
+    for (std::int64_t cx = x0; cx <= x1; ++cx) {
+      for (const std::int64_t cy : {y0, y1}) {
+        if (Status s = visit(cx, cy); !s) return s.error();
+      }
+    }
+    for (std::int64_t cy = y0 + 1; cy < y1; ++cy) {
+      for (const std::int64_t cx : {x0, x1}) {
+        if (Status s = visit(cx, cy); !s) return s.error();
+      }
+    }
+    // Every cell of the next ring lies (ring + 1) cell widths or more from the corner.
+    const double reach = static_cast<double>(ring + 1) * cell_width;
+    if (found && best_d2 < reach * reach * (1 - 1e-9)) return best_z;
+  }
+  if (found) return best_z;
+  return Error(ErrorCode::internal,
+               "tile " + tile.quadkey() + ": no input point for a NODATA corner");
+}
 
 Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
                                  subdivide::SortedRunReader& reader,
@@ -883,21 +950,39 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   }
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  // Where an edge crosses a border line is decided exactly, from the orientation of the side's
+  // two corners against the edge: through a corner (orientation 0) the corner itself is the
+  // vertex there (corner_elevation interpolates it on the edge), so no edge point is made a
+  // rounding error away from it; beyond the side, none either. Only the position along the side
+  // is computed in floating point, and a crossing closer than kMinVertexDistance to a corner is
+  // left out as well: on a lattice whose squares are centred on tile corners up to the rounding
+  // of the input's coordinates (a DEM aligned with the tiles, its coordinates converted from
+  // metres), the diagonals miss the corners by 1e-14, and such an edge point would be a
+  // duplicate of the corner in any quantised encoding. Both neighbours decide it alike (the
+  // same numbers), and the corner's interpolated height differs from the dropped point's by the
+  // slope times that distance.
+  auto crosses_side = [](const SortedPoint& a, const SortedPoint& b, const XY& from, const XY& to) {
+    const double o_from = kernel::orient2d({a.x, a.y}, {b.x, b.y}, from);
+    const double o_to = kernel::orient2d({a.x, a.y}, {b.x, b.y}, to);
+    return o_from != 0 && o_to != 0 && (o_from > 0) != (o_to > 0);
+  };
   for (const auto& [ia, ib] : edges) {
     const SortedPoint& a = pts[ia];
     const SortedPoint& b = pts[ib];
     for (double Y : {R.max_y, R.min_y}) {
-      if ((a.y < Y && b.y > Y) || (a.y > Y && b.y < Y)) {
+      if (((a.y < Y && b.y > Y) || (a.y > Y && b.y < Y)) &&
+          crosses_side(a, b, {R.min_x, Y}, {R.max_x, Y})) {
         const Crossing c = cross_horizontal(a, b, Y);
-        if (c.along > R.min_x && c.along < R.max_x) {
+        if (c.along - R.min_x >= kMinVertexDistance && R.max_x - c.along >= kMinVertexDistance) {
           (Y == R.max_y ? north : south).push_back({c.along, Y, c.z, 0.0});
         }
       }
     }
     for (double X : {R.min_x, R.max_x}) {
-      if ((a.x < X && b.x > X) || (a.x > X && b.x < X)) {
+      if (((a.x < X && b.x > X) || (a.x > X && b.x < X)) &&
+          crosses_side(a, b, {X, R.min_y}, {X, R.max_y})) {
         const Crossing c = cross_vertical(a, b, X);
-        if (c.along > R.min_y && c.along < R.max_y) {
+        if (c.along - R.min_y >= kMinVertexDistance && R.max_y - c.along >= kMinVertexDistance) {
           (X == R.min_x ? west : east).push_back({X, c.along, c.z, 0.0});
         }
       }
@@ -922,10 +1007,15 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   }
   for (int k = 0; k < 4; ++k) {
     if (corner_found[k]) continue;
-    const auto z = corner_elevation(corner_xy[k], pts, tris);
-    out.corners[static_cast<std::size_t>(k)] = {corner_xy[k].x, corner_xy[k].y, z.value_or(0.0),
-                                                0.0};
-    out.corner_nodata[static_cast<std::size_t>(k)] = !z.has_value();
+    auto z = corner_elevation(corner_xy[k], pts, tris);
+    const bool nodata = !z.has_value();
+    if (nodata) {  // outside the data: a height continued from it, never 0 (a wall)
+      auto nearest = nearest_input_height(cells, reader, id, k, chunk);
+      if (!nearest) return nearest.error();
+      z = *nearest;
+    }
+    out.corners[static_cast<std::size_t>(k)] = {corner_xy[k].x, corner_xy[k].y, *z, 0.0};
+    out.corner_nodata[static_cast<std::size_t>(k)] = nodata;
   }
   out.north = std::move(north);
   out.east = std::move(east);

@@ -14,6 +14,7 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "tinstream/kernel/predicates.hpp"
 
@@ -136,6 +137,33 @@ void expect_delaunay_tiles(const Fixture& f) {
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 
+// The height a NODATA corner must get (docs/tile-format.md §2.1), by brute force: the input point
+// nearest to it (dx² + dy²; ties to the smaller x, then y; of exact duplicates the lowest z, the
+// one pass 2 keeps).
+double nearest_input_height(const std::vector<InputPoint>& pts, kernel::XY c) {
+  const InputPoint* best = nullptr;
+  double best_d2 = 0;
+  for (const auto& p : pts) {
+    const double d2 = (p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y);
+    if (!best || d2 < best_d2 ||
+        (d2 == best_d2 && std::tie(p.x, p.y, p.z) < std::tie(best->x, best->y, best->z))) {
+      best = &p, best_d2 = d2;
+    }
+  }
+  return best->z;
+}
+
+// No two vertices of a tile closer than 1e-12 (normalised units), by brute force.
+void expect_no_close_vertices(const tile::TinTile& t) {
+  const auto v = t.vertices();
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (std::size_t j = i + 1; j < v.size(); ++j) {
+      ASSERT_GE(std::hypot(v[i].x - v[j].x, v[i].y - v[j].y), 1e-12)
+          << t.id.quadkey() << ": vertices " << i << " and " << j;
+    }
+  }
+}
+
 // Edge points must be exactly the crossings of the GLOBAL Delaunay triangulation's edges with the
 // tile borders, on all four sides (computed here from CGAL's triangulation of all points).
 void expect_edge_points_match_global(const Fixture& f, const std::vector<InputPoint>& pts) {
@@ -214,6 +242,8 @@ void expect_edge_points_match_global(const Fixture& f, const std::vector<InputPo
       if (lt == DT::EDGE || lt == DT::VERTEX) continue;
       if (lt != DT::FACE || !kept(face)) {
         EXPECT_TRUE(t.corner_nodata[k]) << t.id.quadkey() << " corner " << k;
+        EXPECT_EQ(t.corners[k].z, nearest_input_height(pts, corner_xy[k]))
+            << t.id.quadkey() << " corner " << k;
         continue;
       }
       ASSERT_FALSE(t.corner_nodata[k]) << t.id.quadkey() << " corner " << k;
@@ -416,20 +446,27 @@ TEST(FinestTiles, CornersOutsideTheDataAreNodata) {
   // A thin diagonal strip: many tile corners lie outside the data's convex hull.
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0.0, 1.0);
+  // Heights rise along the strip (3,100 … 3,400 m), so a corner's height says where it came from.
   std::vector<InputPoint> pts;
   for (int i = 0; i < 3000; ++i) {
     const double s = u(rng);
-    pts.push_back({0.5 + 3e-4 * s + 1e-6 * u(rng), 0.5 + 3e-4 * s + 1e-6 * u(rng), 5.0});
+    pts.push_back(
+        {0.5 + 3e-4 * s + 1e-6 * u(rng), 0.5 + 3e-4 * s + 1e-6 * u(rng), 3100.0 + 300.0 * s});
   }
   const Fixture f = build(pts, 300, 2, "strip");
   int nodata = 0;
   for (const auto& t : f.tiles) {
-    for (int k = 0; k < 4; ++k) {
-      if (t.corner_nodata[static_cast<std::size_t>(k)]) {
+    const auto r = t.id.bounds();
+    const kernel::XY corner_xy[4] = {
+        {r.min_x, r.max_y}, {r.max_x, r.max_y}, {r.min_x, r.min_y}, {r.max_x, r.min_y}};
+    for (std::size_t k = 0; k < 4; ++k) {
+      // Never a wall: within the data's heights; a NODATA corner takes the nearest input point's.
+      EXPECT_GE(t.corners[k].z, 3100.0) << t.id.quadkey() << " corner " << k;
+      EXPECT_LE(t.corners[k].z, 3400.0) << t.id.quadkey() << " corner " << k;
+      if (t.corner_nodata[k]) {
         ++nodata;
-        EXPECT_EQ(t.corners[static_cast<std::size_t>(k)].z, 0.0);
-      } else {
-        EXPECT_NEAR(t.corners[static_cast<std::size_t>(k)].z, 5.0, 1e-9);
+        EXPECT_EQ(t.corners[k].z, nearest_input_height(pts, corner_xy[k]))
+            << t.id.quadkey() << " corner " << k;
       }
     }
   }
@@ -478,6 +515,46 @@ TEST(FinestTiles, LatticeCellsStraddlingTileBordersStayWatertight) {
   ASSERT_GT(f.tiles.size(), 4u);
   expect_watertight(f);
   expect_no_point_lost(f, pts);
+  // Every tile corner is the centre of a lattice square, which a Delaunay diagonal crosses: the
+  // corner is on that edge (exactly), so it gets no edge point beside it (#20: these were 1e-14
+  // away and became duplicate vertices in quantised encodings).
+  std::size_t corners_on_edges = 0;
+  for (const auto& t : f.tiles) {
+    expect_no_close_vertices(t);
+    for (std::size_t k = 0; k < 4; ++k) corners_on_edges += t.corner_nodata[k] ? 0 : 1;
+  }
+  EXPECT_GT(corners_on_edges, 4u);
+}
+
+TEST(FinestTiles, MetreLatticeCentredOnTileCornersGivesNoEdgePointBesideACorner) {
+  // A DEM in EPSG:3857 aligned with the tiles, its cell centres half a cell inside a level-10
+  // tile, converted from metres the way the ingest does (x = X / (π·a)): the finest tiles'
+  // corners are the centres of lattice squares up to rounding, so their Delaunay diagonals pass
+  // 1e-14 from the corners (#20: 63 of 64 finest tiles had such an edge point).
+  const double a = 6378137.0, half = std::numbers::pi * a;
+  const geo::TileId tile{10, 541, 510};
+  const double tile_m = 2 * half / 1024, cell = tile_m / 128;
+  const double x0 = -half + tile.x * tile_m, y0 = half - tile.y * tile_m;
+  std::vector<InputPoint> pts;
+  for (int i = 0; i < 128; ++i) {
+    for (int j = 0; j < 128; ++j) {
+      const double x = x0 + (i + 0.5) * cell, y = y0 - (j + 0.5) * cell;
+      pts.push_back({x / half, y / half, 300.0 + 40.0 * std::sin(i * 0.37) * std::cos(j * 0.23)});
+    }
+  }
+  const Fixture f = build(pts, 1100, 2, "metre-lattice");
+  ASSERT_EQ(f.run.finest_level, 12u);
+  ASSERT_EQ(f.tiles.size(), 16u);
+  expect_watertight(f);
+  expect_no_point_lost(f, pts);
+  std::size_t inner_corners = 0;
+  for (const auto& t : f.tiles) {
+    expect_no_close_vertices(t);
+    ASSERT_TRUE(tile::check_structure(t).ok()) << t.id.quadkey();
+    for (std::size_t k = 0; k < 4; ++k) inner_corners += t.corner_nodata[k] ? 0 : 1;
+  }
+  // The 3 × 3 inner grid points, four tiles each, have data; the outer ring lies outside it.
+  EXPECT_EQ(inner_corners, 36u);
 }
 
 TEST(FinestTiles, PointCellsHullIsTheDataHull) {

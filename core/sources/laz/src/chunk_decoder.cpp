@@ -149,7 +149,7 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
     }
     header_bytes_ = record_length_;
     window_.open(fd_, chunk.offset + record_length_, chunk.offset + chunk.bytes);
-    dec_.start(ByteStream(&window_));
+    dec_.start(&window_);
     return stream_health();
   }
 
@@ -190,7 +190,7 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
       layer.active = item.wanted(i) && layer.size > 0;
       if (layer.active) {
         layer_windows_[index].open(fd_, pos, pos + layer.size);
-        layer.dec.start(ByteStream(&layer_windows_[index]));
+        layer.dec.start(&layer_windows_[index]);
       }
       pos += layer.size;
     }
@@ -204,43 +204,6 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
     std::visit([&](auto& item) { item.start(raw + offsets_[i + 1], channel); }, layered_items_[i]);
   }
   return stream_health();
-}
-
-void ChunkDecoder::decode_pointwise_record(std::uint8_t* out) {
-  for (std::size_t i = 0; i < pointwise_.size(); ++i) {
-    std::uint8_t* dst = out + offsets_[i];
-    PointwiseItem& item = pointwise_[i];
-    // An explicit switch (not std::visit) so that the hot items inline into this loop.
-    switch (item.index()) {
-      case 0:
-        std::get_if<Point10V1>(&item)->decode(dec_, dst);
-        break;
-      case 1:
-        std::get_if<Point10V2>(&item)->decode(dec_, dst);
-        break;
-      case 2:
-        std::get_if<GpsTime11V1>(&item)->decode(dec_, dst);
-        break;
-      case 3:
-        std::get_if<GpsTime11V2>(&item)->decode(dec_, dst);
-        break;
-      case 4:
-        std::get_if<Rgb12V1>(&item)->decode(dec_, dst);
-        break;
-      case 5:
-        std::get_if<Rgb12V2>(&item)->decode(dec_, dst);
-        break;
-      case 6:
-        std::get_if<ByteV1>(&item)->decode(dec_, dst);
-        break;
-      case 7:
-        std::get_if<ByteV2>(&item)->decode(dec_, dst);
-        break;
-      default:
-        std::get_if<WavePacket13V1>(&item)->decode(dec_, dst);
-        break;
-    }
-  }
 }
 
 void ChunkDecoder::decode_layered_record(std::uint8_t* out) {
@@ -276,7 +239,7 @@ Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
   if (layered_) {
     for (std::uint64_t i = 0; i < n; ++i, out += record_length_) decode_layered_record(out);
   } else {
-    for (std::uint64_t i = 0; i < n; ++i, out += record_length_) decode_pointwise_record(out);
+    decode_pointwise(pointwise_, offsets_.data(), record_length_, dec_, out, n);
   }
   left_ -= n;
   return stream_health();
@@ -284,11 +247,11 @@ Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
 
 Status ChunkDecoder::stream_health() const {
   auto check = [](const ArithmeticDecoder& d, const char* what) -> Status {
-    if (d.stream().io_failed()) {
+    if (d.io_failed()) {
       return io_error(std::string("reading the ") + what +
                       " failed (file truncated or unreadable)");
     }
-    if (d.stream().overrun() > 0) {
+    if (d.overrun() > 0) {
       return corrupt_data(std::string("the ") + what +
                           " ends before its points are decoded (truncated or damaged data)");
     }
@@ -327,7 +290,7 @@ Status ChunkDecoder::finish() {
   if (chunk_.points == 0) return {};
   if (!layered_) {
     if (!chunk_.exact_length) return {};
-    const std::uint64_t used = header_bytes_ + dec_.stream().consumed();
+    const std::uint64_t used = header_bytes_ + dec_.consumed();
     if (used != chunk_.bytes) {
       return corrupt_data("decoding used " + std::to_string(used) + " of the chunk's " +
                           std::to_string(chunk_.bytes) + " bytes (damaged data)");
@@ -335,17 +298,16 @@ Status ChunkDecoder::finish() {
     return {};
   }
   for (Layer* layer : all_layers()) {
-    if (layer->active && layer->dec.stream().consumed() != layer->size) {
-      return corrupt_data("a layer's decoding used " +
-                          std::to_string(layer->dec.stream().consumed()) + " of its " +
-                          std::to_string(layer->size) + " bytes (damaged data)");
+    if (layer->active && layer->dec.consumed() != layer->size) {
+      return corrupt_data("a layer's decoding used " + std::to_string(layer->dec.consumed()) +
+                          " of its " + std::to_string(layer->size) + " bytes (damaged data)");
     }
   }
   return {};
 }
 
 std::uint64_t ChunkDecoder::consumed() const {
-  if (!layered_) return header_bytes_ + dec_.stream().consumed();
+  if (!layered_) return header_bytes_ + dec_.consumed();
   return chunk_.bytes;
 }
 

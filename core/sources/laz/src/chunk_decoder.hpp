@@ -5,7 +5,7 @@
 //   layered chunk (compressor 3):        [first record, raw][u32 points][u32 size per layer]
 //                                        [layer 0 bytes][layer 1 bytes]...
 //
-// The chunk's bytes are read from the file window by window (StreamRefill), so a chunk of any
+// The chunk's bytes are read from the file window by window (ByteSource), so a chunk of any
 // size decodes in bounded memory; decode() may be called repeatedly for a few records at a time.
 //
 // Integrity: every arithmetic stream in a LAZ file is exactly as long as its decoder reads
@@ -29,7 +29,7 @@
 namespace tinstream::laz::detail {
 
 // A window onto [pos, end) of the file, refilled with pread().
-class FileWindow final : public StreamRefill {
+class FileWindow final : public ByteSource {
  public:
   static constexpr std::size_t kWindowBytes = std::size_t{1} << 20;
   void open(int fd, std::uint64_t pos, std::uint64_t end) {
@@ -84,11 +84,8 @@ class ChunkDecoder {
   std::size_t layer_count() const { return layer_sizes_.size(); }
 
  private:
-  using PointwiseItem = std::variant<Point10V1, Point10V2, GpsTime11V1, GpsTime11V2, Rgb12V1,
-                                     Rgb12V2, ByteV1, ByteV2, WavePacket13V1>;
   using LayeredItem = std::variant<Rgb14Layered, Byte14Layered, WavePacket14Layered>;
 
-  void decode_pointwise_record(std::uint8_t* out);
   void decode_layered_record(std::uint8_t* out);
   Status stream_health() const;
   std::vector<Layer*> all_layers();

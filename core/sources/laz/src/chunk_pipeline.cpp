@@ -2,6 +2,8 @@
 
 #include <exception>
 
+#include "tinstream/base/fault.hpp"
+
 namespace tinstream::laz::detail {
 
 ChunkPipeline::ChunkPipeline(const LaszipVlr& vlr, std::uint16_t record_length,
@@ -18,8 +20,9 @@ ChunkPipeline::ChunkPipeline(const LaszipVlr& vlr, std::uint16_t record_length,
     slots_[s].state = SlotState::queued;
     slots_[s].chunk = s;
   }
-  threads_.reserve(workers);
-  for (unsigned w = 0; w < workers; ++w) threads_.emplace_back([this] { work(); });
+  for (unsigned w = 0; w < workers && started_.ok(); ++w) {
+    started_ = threads_.start([this] { work(); });
+  }
 }
 
 ChunkPipeline::~ChunkPipeline() {
@@ -28,7 +31,7 @@ ChunkPipeline::~ChunkPipeline() {
     stop_ = true;
   }
   work_ready_.notify_all();
-  for (auto& t : threads_) t.join();
+  (void)threads_.join();  // work() keeps every failure in its slot
 }
 
 Status ChunkPipeline::decode_chunk(ChunkDecoder& decoder, Slot& slot) {
@@ -60,6 +63,7 @@ void ChunkPipeline::work() {
     }
     // Exception barrier: nothing thrown here may leave the thread.
     try {
+      fault::point("laz.decode");
       if (!decoder) {
         decoder = std::make_unique<ChunkDecoder>(vlr_, record_length_, layers_, fd_);
       }
@@ -69,6 +73,9 @@ void ChunkPipeline::work() {
       decoder.reset();
     } catch (const std::exception& e) {
       slot->status = Error(ErrorCode::internal, std::string("decoding failed: ") + e.what());
+      decoder.reset();
+    } catch (...) {
+      slot->status = Error(ErrorCode::internal, "decoding failed: unknown exception");
       decoder.reset();
     }
     {

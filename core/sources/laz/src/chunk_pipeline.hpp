@@ -8,17 +8,19 @@
 // Memory: K buffers of at most kMaxParallelChunkBytes (LazReader checks) plus one ChunkDecoder
 // per worker. The reader never waits on a worker's lock while the worker decodes: decoding runs
 // outside the mutex; the mutex guards only the slot states. Each worker catches everything
-// (std::bad_alloc included) and turns it into its chunk's Error.
+// (std::bad_alloc included) and turns it into its chunk's Error; a thread that cannot be created
+// is started() 's Error, never std::terminate (the workers already running are stopped and
+// joined by the destructor). Fault points (fault.hpp): laz.decode (one chunk), laz.decode.spawn.
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
 #include <span>
-#include <thread>
 #include <vector>
 
 #include "chunk_decoder.hpp"
+#include "tinstream/base/worker_threads.hpp"
 
 namespace tinstream::laz::detail {
 
@@ -27,6 +29,9 @@ class ChunkPipeline {
   ChunkPipeline(const LaszipVlr& vlr, std::uint16_t record_length, const LayerSelection& layers,
                 int fd, std::vector<ChunkExtent> chunks, unsigned workers);
   ~ChunkPipeline();  // stops and joins the workers
+  // Whether every worker started: an Error when a thread could not be created (the reader must
+  // not wait on this pipeline then).
+  const Status& started() const { return started_; }
   ChunkPipeline(const ChunkPipeline&) = delete;
   ChunkPipeline& operator=(const ChunkPipeline&) = delete;
 
@@ -57,7 +62,8 @@ class ChunkPipeline {
   std::condition_variable chunk_done_;  // a slot became done
   std::vector<Slot> slots_;             // states guarded by mutex_
   bool stop_ = false;                   // guarded by mutex_
-  std::vector<std::thread> threads_;
+  Status started_;
+  WorkerThreads threads_{"LAZ chunk decoder", "laz.decode"};  // last: joined first
 };
 
 }  // namespace tinstream::laz::detail

@@ -72,7 +72,7 @@ TableRead read_table(int fd, const PointDataLayout& layout, const LaszipVlr& vlr
   FileWindow window;
   window.open(fd, table + 8, layout.file_size);
   ArithmeticDecoder dec;
-  dec.start(ByteStream(&window));
+  dec.start(&window);
   IntegerDecoder ic(32, 2);
   const bool variable = vlr.variable_chunks();
   std::int32_t prev_points = 0, prev_bytes = 0;
@@ -91,7 +91,7 @@ TableRead read_table(int fd, const PointDataLayout& layout, const LaszipVlr& vlr
     c.offset = pos;
     c.first_point = first_point;
     const std::string which = "the chunk table's entry " + std::to_string(i + 1);
-    if (dec.stream().overrun() > 0 || dec.stream().io_failed()) {
+    if (dec.overrun() > 0 || dec.io_failed()) {
       out.problem = "the chunk table ends before its " + std::to_string(count) + " entries";
       return out;
     }

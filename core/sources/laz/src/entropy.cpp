@@ -4,16 +4,21 @@
 
 namespace tinstream::laz::detail {
 
-std::uint8_t ByteStream::next_slow() {
-  before_window_ += static_cast<std::uint64_t>(cur_ - window_);
-  window_ = cur_;
-  while (refill_ != nullptr && refill_->next_window(&cur_, &end_)) {
-    window_ = cur_;
-    if (cur_ != end_) return *cur_++;
+ByteSource::Shifted ByteSource::shift_in(std::uint32_t value, std::uint32_t bytes, Cursor at) {
+  for (std::uint32_t i = 0; i < bytes; ++i) {
+    while (at.cur == at.end) {
+      if (window_ != nullptr) before_window_ += static_cast<std::uint64_t>(at.end - window_);
+      if (!next_window(&at.cur, &at.end)) {
+        // Past the end: the encoder never needs these bytes, a damaged stream does.
+        window_ = at.cur = at.end = nullptr;
+        ++overrun_;
+        break;
+      }
+      window_ = at.cur;
+    }
+    value = (value << 8) | (at.cur != at.end ? *at.cur++ : 0u);
   }
-  cur_ = end_ = window_ = nullptr;
-  ++overrun_;  // past the end: the encoder never needs these, a damaged stream does
-  return 0;
+  return {value, at};
 }
 
 void BitModel::update() {
@@ -30,27 +35,26 @@ void BitModel::update() {
   until_update = cycle;
 }
 
-SymbolModel::SymbolModel(std::uint32_t symbols) : symbols_(symbols), last_symbol_(symbols - 1) {
+SymbolModel::SymbolModel(std::uint32_t symbols) : last_symbol_(symbols - 1), symbols_(symbols) {
   assert(symbols >= 2 && symbols <= 2048);
-  if (symbols > 16) {
-    // LASzip's table has about one slot per 4 symbols; ours has 2 per symbol (at most 1024), so
-    // that a slot nearly always holds one symbol and the search after the lookup ends at once.
-    // Any table size finds the same symbol: it only brackets the bisection.
-    std::uint32_t bits = 2;
-    while ((1u << bits) < 2 * symbols && bits < 10) ++bits;
-    table_size_ = 1u << bits;
-    table_bits_shift_ = kSymbolLengthShift - bits;
-  }
-  const std::size_t words = 2 * std::size_t{symbols} + (table_size_ ? table_size_ + 2 : 0);
-  storage_ = std::make_unique<std::uint32_t[]>(words);
-  cumulative_ = storage_.get();
-  counts_ = cumulative_ + symbols;
-  table_ = table_size_ ? counts_ + symbols : nullptr;
+  std::uint32_t bits = 4;
+  while ((1u << bits) < 2 * symbols && bits < 10) ++bits;
+  table_size_ = 1u << bits;
+  table_shift_ = kSymbolLengthShift - bits;
+  const std::size_t words = (symbols + 3) + symbols + (table_size_ + 2);
+  storage_ = std::make_unique<std::uint16_t[]>(words);
+  std::uint16_t* cumulative = storage_.get();
+  // Bounds past the last symbol, read by the 4-value loads: above any scaled value, so that
+  // decoding never steps past the last symbol (whose decode uses the length instead).
+  std::fill(cumulative + symbols, cumulative + symbols + 3, std::uint16_t{0xFFFF});
+  cumulative_ = cumulative;
+  counts_ = cumulative + symbols + 3;
+  table_ = counts_ + symbols;
   reset();
 }
 
 void SymbolModel::reset() {
-  std::fill(counts_, counts_ + symbols_, 1u);
+  std::fill(counts_, counts_ + symbols_, std::uint16_t{1});
   total_count_ = 0;
   cycle_ = symbols_;
   rebuild();
@@ -63,32 +67,47 @@ void SymbolModel::rebuild() {
   if (total_count_ > kSymbolMaxCount) {
     total_count_ = 0;
     for (std::uint32_t s = 0; s < symbols_; ++s) {
-      counts_[s] = (counts_[s] + 1) >> 1;
+      counts_[s] = static_cast<std::uint16_t>((counts_[s] + 1) >> 1);
       total_count_ += counts_[s];
     }
   }
   const std::uint32_t scale = 0x80000000u / total_count_;
+  auto* cumulative = const_cast<std::uint16_t*>(cumulative_);
   std::uint32_t sum = 0;
-  if (table_size_ == 0) {
-    for (std::uint32_t s = 0; s < symbols_; ++s) {
-      cumulative_[s] = (scale * sum) >> (31 - kSymbolLengthShift);
-      sum += counts_[s];
-    }
-  } else {
-    // table_[slot] = the last symbol whose cumulative value starts at or below slot's first
-    // value; [table_[slot], table_[slot + 1]] brackets every symbol the slot can decode to.
-    std::uint32_t slot = 0;
-    for (std::uint32_t s = 0; s < symbols_; ++s) {
-      cumulative_[s] = (scale * sum) >> (31 - kSymbolLengthShift);
-      sum += counts_[s];
-      const std::uint32_t first_slot = cumulative_[s] >> table_bits_shift_;
-      while (slot < first_slot) table_[++slot] = s - 1;
-    }
-    table_[0] = 0;
-    while (slot <= table_size_) table_[++slot] = symbols_ - 1;
+  for (std::uint32_t s = 0; s < symbols_; ++s) {
+    cumulative[s] = static_cast<std::uint16_t>((scale * sum) >> (31 - kSymbolLengthShift));
+    sum += counts_[s];
   }
+  // Slot j covers scaled values [j << shift, (j + 1) << shift): it gets the symbol its first
+  // value falls in, marked for a search when the symbol after next starts inside it too.
+  auto* table = const_cast<std::uint16_t*>(table_);
+  std::uint32_t slot = 0;
+  for (std::uint32_t s = 0; s < symbols_; ++s) {
+    const std::uint32_t end = s < last_symbol_ ? cumulative[s + 1] : kSymbolMaxCount;
+    const std::uint32_t first = slot;
+    for (; (slot << table_shift_) < end; ++slot) table[slot] = static_cast<std::uint16_t>(s);
+    if (slot != first && cumulative[s + 2] < (slot << table_shift_)) table[slot - 1] |= kSearchSlot;
+  }
+  // Scaled values just past 2^15 (see decode_symbol) fall in the last symbol.
+  table[table_size_] = table[table_size_ + 1] = static_cast<std::uint16_t>(last_symbol_);
   cycle_ = std::min((5 * cycle_) >> 2, (symbols_ + 6) << 3);
   until_update_ = cycle_;
+}
+
+std::uint32_t SymbolModel::search(std::uint32_t scaled) const {
+  // The symbol lies between the slot's first symbol and the next slot's.
+  const std::uint32_t slot = scaled >> table_shift_;
+  std::uint32_t low = table_[slot] & ~std::uint32_t{kSearchSlot};
+  std::uint32_t high = table_[slot + 1] & ~std::uint32_t{kSearchSlot};
+  while (low < high) {  // the last symbol in [low, high] whose cumulative value <= scaled
+    const std::uint32_t mid = (low + high + 1) >> 1;
+    if (cumulative_[mid] <= scaled) {
+      low = mid;
+    } else {
+      high = mid - 1;
+    }
+  }
+  return low;
 }
 
 SymbolModel& LazyModels::first_use(std::size_t context) {
@@ -101,12 +120,20 @@ SymbolModel& LazyModels::first_use(std::size_t context) {
   return *models_[context];
 }
 
-void ArithmeticDecoder::start(ByteStream stream) {
-  in_ = stream;
+void ArithmeticDecoder::start(ByteSource* source) {
+  source_ = source;
   corrupt_ = false;
   length_ = 0xFFFFFFFFu;
-  value_ = 0;
-  for (int i = 0; i < 4; ++i) value_ = (value_ << 8) | in_.next();
+  source->restart();
+  const ByteSource::Shifted s = source->shift_in(0, 4, {nullptr, nullptr});
+  value_ = s.value;
+  at_ = s.at;
+  // Every step keeps value < length once it holds (the decode steps rely on it), and a valid
+  // stream starts with it; a damaged one that does not is marked and made to.
+  if (value_ >= length_) {
+    corrupt_ = true;
+    value_ = length_ - 1;
+  }
 }
 
 IntegerDecoder::IntegerDecoder(std::uint32_t bits, std::uint32_t contexts, std::uint32_t high_bits)
@@ -114,11 +141,11 @@ IntegerDecoder::IntegerDecoder(std::uint32_t bits, std::uint32_t contexts, std::
   assert(bits >= 1 && bits <= 32 && contexts >= 1);
   if (bits < 32) {
     corr_bits_ = bits;
-    range_ = 1u << bits;
-    min_correction_ = -static_cast<std::int32_t>(range_ / 2);
+    mask_ = (1u << bits) - 1;
+    min_correction_ = -static_cast<std::int32_t>(1u << (bits - 1));
   } else {
     corr_bits_ = 32;
-    range_ = 0;
+    mask_ = 0xFFFFFFFFu;
     min_correction_ = INT32_MIN;
   }
   magnitude_.reserve(contexts);

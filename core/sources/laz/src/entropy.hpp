@@ -19,70 +19,68 @@
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <vector>
 
+// The decoding steps are forced inline into the item loops that call them: a call that is not
+// inlined would take the address of the loop's local decoder and move its state to memory.
+#define TINSTREAM_LAZ_INLINE [[gnu::always_inline]] inline
+
 namespace tinstream::laz::detail {
 
-// Where the bytes of one arithmetic-coded stream come from once its first window is used up:
-// the reader refills windows from the file for chunks too large to hold in memory.
-class StreamRefill {
+// if_true or if_false for conditions that no predictor guesses (which symbol, which bit): said
+// so, the compiler selects (cmov) where a plain ?: may become a branch.
+TINSTREAM_LAZ_INLINE std::uint32_t pick(bool condition, std::uint32_t if_true,
+                                        std::uint32_t if_false) {
+  return __builtin_expect_with_probability(condition, true, 0.5) ? if_true : if_false;
+}
+
+// Where the bytes of one arithmetic-coded stream come from, window by window (the reader refills
+// windows from the file, so a chunk of any size decodes in bounded memory), and how many of them
+// the decoder has taken. The decoder keeps its own cursor into the current window (so that a
+// decoding loop can hold it in registers) and comes here only when fewer than 4 bytes are left
+// in the window. Bytes are counted by position: consumed = bytes of earlier windows + (cursor -
+// window start).
+class ByteSource {
  public:
-  virtual ~StreamRefill() = default;
+  virtual ~ByteSource() = default;
   // Points [*begin, *end) at the next bytes of the stream; false at the stream's end or on an
   // I/O error (failed() then says which). Called once per window, never per byte.
   virtual bool next_window(const std::uint8_t** begin, const std::uint8_t** end) = 0;
   virtual bool failed() const = 0;
-};
 
-// The bytes of one stream, window by window. Bytes are counted by position, not one by one:
-// consumed = bytes of earlier windows + (cur - window start).
-class ByteStream {
- public:
-  ByteStream() = default;
-  explicit ByteStream(StreamRefill* refill) : refill_(refill) {}
-  ByteStream(const std::uint8_t* begin, const std::uint8_t* end)
-      : cur_(begin), end_(end), window_(begin) {}
-
-  std::uint8_t next() {
-    if (cur_ != end_) [[likely]]
-      return *cur_++;
-    return next_slow();
+  // A decoder's cursor into the current window.
+  struct Cursor {
+    const std::uint8_t* cur;
+    const std::uint8_t* end;
+  };
+  // Starts counting a new stream (after the refill has been pointed at it).
+  void restart() {
+    window_ = nullptr;
+    before_window_ = 0;
+    overrun_ = 0;
   }
-  // Shifts the next `bytes` (0..3) bytes into `value`, big-endian first, with one 4-byte load
-  // when at least 4 bytes remain in the window.
-  std::uint32_t shift_in(std::uint32_t value, std::uint32_t bytes) {
-    if (end_ - cur_ >= 4) [[likely]] {
-      const std::uint32_t next4 = (static_cast<std::uint32_t>(cur_[0]) << 24) |
-                                  (static_cast<std::uint32_t>(cur_[1]) << 16) |
-                                  (static_cast<std::uint32_t>(cur_[2]) << 8) | cur_[3];
-      cur_ += bytes;
-      const std::uint32_t bits = 8 * bytes;
-      return static_cast<std::uint32_t>((static_cast<std::uint64_t>(value) << bits) |
-                                        (static_cast<std::uint64_t>(next4) >> (32 - bits)));
-    }
-    for (std::uint32_t i = 0; i < bytes; ++i) value = (value << 8) | next();
-    return value;
+  // Shifts the next `bytes` (0..4) bytes of the stream into `value`, big-endian first, starting
+  // at `at` and crossing into the next windows as needed (bytes past the stream's end read as 0
+  // and are counted in overrun()).
+  struct Shifted {
+    std::uint32_t value;
+    Cursor at;
+  };
+  Shifted shift_in(std::uint32_t value, std::uint32_t bytes, Cursor at);
+  std::uint64_t consumed(const std::uint8_t* cur) const {
+    return before_window_ + static_cast<std::uint64_t>(cur - window_);
   }
-  std::uint64_t consumed() const {
-    return before_window_ + static_cast<std::uint64_t>(cur_ - window_);
-  }
-  std::uint64_t overrun() const { return overrun_; }  // bytes asked for past its end
-  bool io_failed() const { return refill_ != nullptr && refill_->failed(); }
+  std::uint64_t overrun() const { return overrun_; }  // bytes asked for past the stream's end
 
  private:
-  std::uint8_t next_slow();
-
-  const std::uint8_t* cur_ = nullptr;
-  const std::uint8_t* end_ = nullptr;
   const std::uint8_t* window_ = nullptr;  // start of the current window
-  StreamRefill* refill_ = nullptr;
   std::uint64_t before_window_ = 0;
   std::uint64_t overrun_ = 0;
 };
 
-inline constexpr std::uint32_t kRenormBelow = 1u << 24;  // interval length that forces a byte in
-inline constexpr std::uint32_t kBitLengthShift = 13;     // bit models: probability resolution
+inline constexpr std::uint32_t kBitLengthShift = 13;  // bit models: probability resolution
 inline constexpr std::uint32_t kBitMaxCount = 1u << kBitLengthShift;
 inline constexpr std::uint32_t kSymbolLengthShift = 15;  // symbol models: cumulative resolution
 inline constexpr std::uint32_t kSymbolMaxCount = 1u << kSymbolLengthShift;
@@ -100,8 +98,19 @@ struct BitModel {
 };
 
 // Adaptive model over `symbols` symbols (2..2048). The cumulative distribution is rebuilt every
-// `cycle` decoded symbols; the cycle grows by 5/4 up to 8 * (symbols + 6). Models of more than
-// 16 symbols also keep a lookup table from the top bits of the scaled value to a symbol range.
+// `cycle` decoded symbols; the cycle grows by 5/4 up to 8 * (symbols + 6).
+//
+// Decoding looks the symbol up in a table indexed by the top bits of the scaled value (LASzip
+// keeps one for models of more than 16 symbols, about one slot per 4 symbols; ours has about 2
+// slots per symbol, at least 16 and at most 1024, for every model). A slot holds the symbol its
+// first value falls in; the decoder then steps to the next symbol when the value lies beyond
+// this one, without a branch. Only a slot in which a third symbol starts is marked
+// (kSearchSlot), and decoding searches there: that takes a symbol narrower than a slot, which is
+// rarely decoded. The table only speeds the search up: any table finds the symbols the
+// cumulative distribution defines.
+//
+// Counts fit 16 bits: the total is halved as soon as it passes 2^15 at a rebuild, and at most
+// 8 * (2048 + 6) symbols are counted between rebuilds, so no count passes 2^15 + 16432.
 class SymbolModel {
  public:
   explicit SymbolModel(std::uint32_t symbols);
@@ -113,19 +122,23 @@ class SymbolModel {
 
  private:
   friend class ArithmeticDecoder;
+  static constexpr std::uint16_t kSearchSlot = 0x8000;
   void rebuild();
+  std::uint32_t search(std::uint32_t scaled) const;  // in a kSearchSlot slot
 
-  std::uint32_t symbols_ = 0;
+  // Used by every decode, first.
+  const std::uint16_t* table_ = nullptr;       // table_size + 2 entries (the last two: last symbol)
+  const std::uint16_t* cumulative_ = nullptr;  // symbols_ entries scaled to 2^15, then 3 bounds
+  std::uint16_t* counts_ = nullptr;            // symbols_ entries
+  std::uint32_t table_shift_ = 0;              // scaled value >> this = slot
   std::uint32_t last_symbol_ = 0;
-  std::uint32_t table_bits_shift_ = 0;  // cumulative value >> this = table slot
-  std::uint32_t table_size_ = 0;        // 0: no table (small alphabets)
+  std::uint32_t until_update_ = 0;
+  // Used by rebuilds.
+  std::uint32_t symbols_ = 0;
   std::uint32_t total_count_ = 0;
   std::uint32_t cycle_ = 0;
-  std::uint32_t until_update_ = 0;
-  std::unique_ptr<std::uint32_t[]> storage_;  // cumulative | counts | table
-  std::uint32_t* cumulative_ = nullptr;       // symbols_ entries, scaled to 2^15
-  std::uint32_t* counts_ = nullptr;           // symbols_ entries
-  std::uint32_t* table_ = nullptr;            // table_size_ + 2 entries
+  std::uint32_t table_size_ = 0;
+  std::unique_ptr<std::uint16_t[]> storage_;  // cumulative | counts | table
 };
 
 // Models created the first time their context is used, and reset on their first use in each
@@ -151,112 +164,127 @@ class LazyModels {
   std::uint32_t symbols_;
 };
 
+// Big-endian hosts: the four 16-bit values of a 64-bit load in memory order, first lowest.
+inline std::uint64_t swap_halves16(std::uint64_t v) {
+  return ((v & 0xFFFF) << 48) | ((v & 0xFFFF0000u) << 16) | ((v >> 16) & 0xFFFF0000u) | (v >> 48);
+}
+
+// The range decoder. A small value type: a decoding loop copies it into a local, so that the
+// interval and the cursor stay in registers (nothing it calls out of line takes its address),
+// and copies it back at the end. Renormalisation is branch-free: every step shifts in the
+// 0-3 bytes that bring the interval length back to >= 2^24 with one 4-byte load.
 class ArithmeticDecoder {
  public:
-  // Reads the 4 bytes that prime the interval.
-  void start(ByteStream stream);
+  // Reads the 4 bytes that prime the interval; `source` must have been pointed at the stream.
+  void start(ByteSource* source);
 
-  std::uint32_t decode_bit(BitModel& m) {
+  TINSTREAM_LAZ_INLINE std::uint32_t decode_bit(BitModel& m) {
     const std::uint32_t split = m.zero_probability * (length_ >> kBitLengthShift);
-    std::uint32_t bit;
-    if (value_ < split) {
-      bit = 0;
-      length_ = split;
-      ++m.zero_count;
-    } else {
-      bit = 1;
-      value_ -= split;
-      length_ -= split;
-    }
-    if (length_ < kRenormBelow) renormalise();
-    if (--m.until_update == 0) m.update();
-    return bit;
+    const bool one = value_ >= split;
+    value_ -= pick(one, split, 0);
+    length_ = pick(one, length_ - split, split);
+    m.zero_count += one ? 0 : 1;
+    renormalise();
+    if (--m.until_update == 0) [[unlikely]]
+      m.update();
+    return one ? 1 : 0;
   }
 
-  std::uint32_t decode_symbol(SymbolModel& m) {
-    std::uint32_t low, high = length_, symbol;
-    length_ >>= kSymbolLengthShift;
-    if (m.table_size_ != 0) {
-      std::uint32_t scaled = value_ / length_;
-      // A valid stream keeps value < length, so `scaled` exceeds 2^15 by a few at most, and
-      // every such value falls in the last symbol; clamping keeps the table index in range for
-      // hostile streams without changing any valid decode.
-      if (scaled >= kSymbolMaxCount) scaled = kSymbolMaxCount - 1;
-      const std::uint32_t slot = scaled >> m.table_bits_shift_;
-      symbol = m.table_[slot];
-      std::uint32_t above = m.table_[slot + 1] + 1;
-      while (above > symbol + 1) {  // bisection inside the slot's symbol range, branch-free
-        const std::uint32_t mid = (symbol + above) >> 1;
-        const bool below = m.cumulative_[mid] > scaled;
-        above = below ? mid : above;
-        symbol = below ? symbol : mid;
-      }
-      low = m.cumulative_[symbol] * length_;
-      if (symbol != m.last_symbol_) high = m.cumulative_[symbol + 1] * length_;
-    } else {
-      low = symbol = 0;
-      std::uint32_t above = m.symbols_;
-      std::uint32_t mid = above >> 1;
-      do {  // bisection, branch-free
-        const std::uint32_t bound = length_ * m.cumulative_[mid];
-        const bool below = bound > value_;
-        above = below ? mid : above;
-        high = below ? bound : high;
-        symbol = below ? symbol : mid;
-        low = below ? low : bound;
-      } while ((mid = (symbol + above) >> 1) != symbol);
-    }
+  TINSTREAM_LAZ_INLINE std::uint32_t decode_symbol(SymbolModel& m) {
+    const std::uint32_t unit = length_ >> kSymbolLengthShift;  // >= 2^9
+    // value < length (see start()), so scaled < 2^15 + 2^15 / unit <= 2^15 + 64: past the
+    // last symbol's start by a few at most, which the table's two extra slots cover.
+    const std::uint32_t scaled = value_ / unit;
+    const std::uint32_t entry = m.table_[scaled >> m.table_shift_];
+    std::uint32_t symbol = entry & ~std::uint32_t{SymbolModel::kSearchSlot};
+    if (entry & SymbolModel::kSearchSlot) [[unlikely]]
+      symbol = m.search(scaled);
+    // cumulative[symbol .. symbol + 2] with one load; the value lies in `symbol` or the next.
+    std::uint64_t bounds;
+    std::memcpy(&bounds, m.cumulative_ + symbol, sizeof bounds);
+    if constexpr (std::endian::native == std::endian::big) bounds = swap_halves16(bounds);
+    const auto c1 = static_cast<std::uint32_t>((bounds >> 16) & 0xFFFF);
+    const std::uint32_t x0 = static_cast<std::uint32_t>(bounds & 0xFFFF) * unit;
+    const std::uint32_t x1 = c1 * unit;
+    const std::uint32_t x2 = static_cast<std::uint32_t>((bounds >> 32) & 0xFFFF) * unit;
+    const bool next = scaled >= c1;
+    symbol += next ? 1 : 0;
+    const std::uint32_t low = pick(next, x1, x0);
+    // The last symbol takes the rest of the interval, not its scaled share.
+    const std::uint32_t high = pick(symbol == m.last_symbol_, length_, pick(next, x2, x1));
     value_ -= low;
     length_ = high - low;
-    if (length_ < kRenormBelow) renormalise();
+    renormalise();
     ++m.counts_[symbol];
-    if (--m.until_update_ == 0) m.rebuild();
+    if (--m.until_update_ == 0) [[unlikely]]
+      m.rebuild();
     return symbol;
   }
 
-  // Raw (equiprobable) fields of 1..32 bits.
-  std::uint32_t read_bits(std::uint32_t bits) {
+  // Raw (equiprobable) fields of 1..32 bits; more than 19 bits come as two fields, low 16 first.
+  TINSTREAM_LAZ_INLINE std::uint32_t read_bits(std::uint32_t bits) {
     assert(bits >= 1 && bits <= 32);
     if (bits > 19) {
-      const std::uint32_t low = read_short();
-      return (read_bits(bits - 16) << 16) | low;
+      const std::uint32_t low = read_field(16);
+      return (read_field(bits - 16) << 16) | low;
     }
+    return read_field(bits);
+  }
+  TINSTREAM_LAZ_INLINE std::uint32_t read_short() { return read_field(16); }
+  TINSTREAM_LAZ_INLINE std::uint32_t read_int() {
+    const std::uint32_t low = read_field(16);
+    return (read_field(16) << 16) | low;
+  }
+  TINSTREAM_LAZ_INLINE std::uint64_t read_int64() {
+    const std::uint64_t low = read_int();
+    return (static_cast<std::uint64_t>(read_int()) << 32) | low;
+  }
+
+  // Bytes of the stream taken so far, bytes asked for past its end, and its source's I/O state.
+  std::uint64_t consumed() const { return source_->consumed(at_.cur); }
+  std::uint64_t overrun() const { return source_->overrun(); }
+  bool io_failed() const { return source_->failed(); }
+  bool corrupt() const { return corrupt_; }
+  void mark_corrupt() { corrupt_ = true; }
+
+ private:
+  // One raw field of 1..19 bits.
+  TINSTREAM_LAZ_INLINE std::uint32_t read_field(std::uint32_t bits) {
     length_ >>= bits;
     std::uint32_t v = value_ / length_;
     value_ -= length_ * v;
-    if (length_ < kRenormBelow) renormalise();
+    renormalise();
     if (v >> bits) [[unlikely]] {
       corrupt_ = true;
       v &= (1u << bits) - 1;
     }
     return v;
   }
-  std::uint32_t read_short() { return read_bits(16); }
-  std::uint32_t read_int() {
-    const std::uint32_t low = read_short();
-    return (read_short() << 16) | low;
-  }
-  std::uint64_t read_int64() {
-    const std::uint64_t low = read_int();
-    return (static_cast<std::uint64_t>(read_int()) << 32) | low;
-  }
 
-  const ByteStream& stream() const { return in_; }
-  bool corrupt() const { return corrupt_; }
-  void mark_corrupt() { corrupt_ = true; }
-
- private:
   // Brings length back to >= 2^24 a byte at a time: 1, 2 or 3 bytes for lengths in
-  // [2^16, 2^24), [2^8, 2^16), [1, 2^8) (length is never 0), i.e. clz(length) / 8 bytes.
-  void renormalise() {
-    const auto bytes = static_cast<std::uint32_t>(std::countl_zero(length_)) >> 3;
-    value_ = in_.shift_in(value_, bytes);
-    length_ <<= 8 * bytes;
+  // [2^16, 2^24), [2^8, 2^16), [1, 2^8) (length is never 0), none above: clz(length) / 8 bytes.
+  TINSTREAM_LAZ_INLINE void renormalise() {
+    // (length is never 0; `| 1` tells the compiler so, which spares a branch)
+    const auto shift = static_cast<std::uint32_t>(std::countl_zero(length_ | 1)) & 24u;
+    if (at_.end - at_.cur < 4) [[unlikely]] {
+      const ByteSource::Shifted s = source_->shift_in(value_, shift >> 3, at_);
+      value_ = s.value;
+      at_ = s.at;
+    } else {
+      std::uint32_t next4;
+      std::memcpy(&next4, at_.cur, sizeof next4);
+      if constexpr (std::endian::native == std::endian::little) next4 = __builtin_bswap32(next4);
+      value_ = (value_ << shift) |
+               static_cast<std::uint32_t>(static_cast<std::uint64_t>(next4) >> (32 - shift));
+      at_.cur += shift >> 3;
+    }
+    length_ <<= shift;
   }
 
   std::uint32_t value_ = 0;
   std::uint32_t length_ = 0;
-  ByteStream in_;
+  ByteSource::Cursor at_{nullptr, nullptr};
+  ByteSource* source_ = nullptr;
   bool corrupt_ = false;
 };
 
@@ -269,41 +297,40 @@ class IntegerDecoder {
   IntegerDecoder(std::uint32_t bits, std::uint32_t contexts, std::uint32_t high_bits = 8);
 
   void reset();
-  std::int32_t decode(ArithmeticDecoder& dec, std::int32_t predicted, std::uint32_t context) {
+  // For bits < 32 the result is reduced modulo 2^bits. LASzip adds or subtracts 2^bits once
+  // instead, which leaves the same low `bits` bits; every caller keeps only those (it stores
+  // the result in a field of `bits` bits).
+  TINSTREAM_LAZ_INLINE std::int32_t decode(ArithmeticDecoder& dec, std::int32_t predicted,
+                                           std::uint32_t context) {
     assert(context < magnitude_.size());
     const std::int32_t correction = decode_correction(dec, magnitude_[context]);
-    std::int32_t real = static_cast<std::int32_t>(static_cast<std::uint32_t>(predicted) +
-                                                  static_cast<std::uint32_t>(correction));
-    if (range_ != 0) {
-      if (real < 0) {
-        real = static_cast<std::int32_t>(static_cast<std::uint32_t>(real) + range_);
-      } else if (static_cast<std::uint32_t>(real) >= range_) {
-        real = static_cast<std::int32_t>(static_cast<std::uint32_t>(real) - range_);
-      }
-    }
-    return real;
+    return static_cast<std::int32_t>(
+        (static_cast<std::uint32_t>(predicted) + static_cast<std::uint32_t>(correction)) & mask_);
   }
   // The magnitude class of the last correction: item decoders use it to pick later contexts.
   std::uint32_t last_k() const { return k_; }
 
  private:
-  std::int32_t decode_correction(ArithmeticDecoder& dec, SymbolModel& magnitude) {
-    k_ = dec.decode_symbol(magnitude);
-    if (k_ == 0) return static_cast<std::int32_t>(dec.decode_bit(zero_or_one_));  // 0 or 1
-    if (k_ >= 32) return min_correction_;
-    std::uint32_t c = dec.decode_symbol(within_class_[k_]);
-    if (k_ > high_bits_) {
-      const std::uint32_t low_bits = k_ - high_bits_;
+  TINSTREAM_LAZ_INLINE std::int32_t decode_correction(ArithmeticDecoder& dec,
+                                                      SymbolModel& magnitude) {
+    const std::uint32_t k = k_ = dec.decode_symbol(magnitude);
+    if (k == 0) return static_cast<std::int32_t>(dec.decode_bit(zero_or_one_));  // 0 or 1
+    if (k >= 32) [[unlikely]]
+      return min_correction_;
+    std::uint32_t c = dec.decode_symbol(within_class_[k]);
+    if (k > high_bits_) {
+      const std::uint32_t low_bits = k - high_bits_;
       c = (c << low_bits) | dec.read_bits(low_bits);
     }
-    // Class k holds [-(2^k - 1), -2^(k-1)] and [2^(k-1) + 1, 2^k], mapped onto [0, 2^k).
-    const std::uint32_t half = 1u << (k_ - 1);
-    if (c >= half) return static_cast<std::int32_t>(c + 1);
-    return static_cast<std::int32_t>(static_cast<std::int64_t>(c) - ((std::int64_t{1} << k_) - 1));
+    // Class k holds [-(2^k - 1), -2^(k-1)] and [2^(k-1) + 1, 2^k], mapped onto [0, 2^k): the
+    // lower half is c - (2^k - 1), the upper c + 1 (arithmetic, not a branch: the halves are
+    // about equally likely).
+    const std::uint32_t lower_half = c < (1u << (k - 1)) ? 1u : 0u;
+    return static_cast<std::int32_t>(c + 1 - (lower_half << k));
   }
 
   std::uint32_t corr_bits_;
-  std::uint32_t range_;  // 2^bits, or 0 for 32 bits (no wrap)
+  std::uint32_t mask_;  // 2^bits - 1, or all ones for 32 bits (no wrap)
   std::int32_t min_correction_;
   std::uint32_t high_bits_;
   std::uint32_t k_ = 0;

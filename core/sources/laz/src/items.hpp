@@ -14,10 +14,13 @@
 // lasreaditemcompressed_v1/v2/v3/v4.cpp; the code is organised our own way.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <span>
+#include <variant>
 #include <vector>
 
 #include "entropy.hpp"
@@ -61,11 +64,25 @@ inline std::int32_t wrap_mul(std::int32_t a, std::int32_t b) {
 // The running "median of five" LASzip predicts coordinate steps with. It is not the median of
 // the last five values: the five slots stay sorted, and each new value evicts from the top or
 // from the bottom, alternating after each value that lands on the far side of the middle.
+//
+// Either way the kept slots are the sorted union of the four that stay and the new value, so
+// push() is a branch-free insertion: evicting the top keeps s[0..3], the bottom s[1..4].
 class StreamingMedian5 {
  public:
   void reset() { *this = StreamingMedian5{}; }
   std::int32_t get() const { return s_[2]; }
-  void push(std::int32_t v);
+  TINSTREAM_LAZ_INLINE void push(std::int32_t v) {
+    const std::size_t from = evict_high_ ? 0 : 1;
+    const std::int32_t a0 = s_[from], a1 = s_[from + 1], a2 = s_[from + 2], a3 = s_[from + 3];
+    // The top is evicted again while values land below the middle, the bottom while they land
+    // at or above it; a value on the other side switches.
+    evict_high_ = evict_high_ ? v < s_[2] : !(s_[2] < v);
+    s_[0] = std::min(a0, v);
+    s_[1] = std::max(a0, std::min(a1, v));
+    s_[2] = std::max(a1, std::min(a2, v));
+    s_[3] = std::max(a2, std::min(a3, v));
+    s_[4] = std::max(a3, v);
+  }
 
  private:
   std::array<std::int32_t, 5> s_{};
@@ -89,12 +106,12 @@ class GpsTimeSequences {
   void reset(std::uint64_t first_time_bits);
   // Decodes the next time (as the bits of the double); `dec` is marked corrupt when a damaged
   // stream keeps switching sequences.
-  std::uint64_t decode(ArithmeticDecoder& dec);
+  TINSTREAM_LAZ_INLINE std::uint64_t decode(ArithmeticDecoder& dec);
   std::uint64_t current() const { return time_[last_]; }
 
  private:
-  void start_new_sequence(ArithmeticDecoder& dec);
-  std::int32_t decode_scaled_step(ArithmeticDecoder& dec, std::uint32_t multi);
+  TINSTREAM_LAZ_INLINE void start_new_sequence(ArithmeticDecoder& dec);
+  TINSTREAM_LAZ_INLINE std::int32_t decode_scaled_step(ArithmeticDecoder& dec, std::uint32_t multi);
 
   bool layered_;
   std::uint32_t code_full_;  // "new sequence" in the multi model
@@ -117,8 +134,8 @@ struct RgbModels {
   SymbolModel changed{128};
   std::array<SymbolModel, 6> byte_diff;
 };
-void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t last[3],
-                std::uint16_t out[3]);
+TINSTREAM_LAZ_INLINE void decode_rgb(ArithmeticDecoder& dec, RgbModels& m,
+                                     const std::uint16_t last[3], std::uint16_t out[3]);
 
 // ---------------------------------------------------------------------------------------------
 // Pointwise items (compressors 1 and 2)
@@ -140,7 +157,7 @@ class Point10V1 {
  public:
   Point10V1();
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   Point10Fields last_;
@@ -155,7 +172,7 @@ class Point10V2 {
  public:
   Point10V2();
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   Point10Fields last_;
@@ -174,7 +191,7 @@ class GpsTime11V1 {
  public:
   GpsTime11V1();
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   std::uint64_t last_ = 0;
@@ -188,7 +205,7 @@ class GpsTime11V2 {
  public:
   GpsTime11V2() : seq_(false) {}
   void start(const std::uint8_t* raw) { seq_.reset(get64(raw)); }
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out) { put64(out, seq_.decode(dec)); }
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   GpsTimeSequences seq_;
@@ -198,7 +215,7 @@ class Rgb12V1 {
  public:
   Rgb12V1();
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   std::array<std::uint8_t, 6> last_{};  // R low, R high, G low, G high, B low, B high
@@ -209,7 +226,7 @@ class Rgb12V1 {
 class Rgb12V2 {
  public:
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   std::uint16_t last_[3] = {0, 0, 0};
@@ -221,7 +238,7 @@ class ByteV1 {
  public:
   explicit ByteV1(std::size_t count);
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   std::vector<std::uint8_t> last_;
@@ -232,7 +249,7 @@ class ByteV2 {
  public:
   explicit ByteV2(std::size_t count);
   void start(const std::uint8_t* raw);
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   std::vector<std::uint8_t> last_;
@@ -255,7 +272,7 @@ class WavePacketCoder {
   WavePacketCoder();
   void reset(const std::uint8_t* raw29);
   // Decodes into out29 (index byte + 28 bytes) and makes it the new state.
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out29);
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out29);
   const std::uint8_t* last() const { return last_.data(); }
   void overwrite_last(const std::uint8_t* raw29) { std::memcpy(last_.data(), raw29, 29); }
 
@@ -271,11 +288,21 @@ class WavePacketCoder {
 class WavePacket13V1 {
  public:
   void start(const std::uint8_t* raw) { coder_.reset(raw); }
-  void decode(ArithmeticDecoder& dec, std::uint8_t* out) { coder_.decode(dec, out); }
+  TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
  private:
   WavePacketCoder coder_;
 };
+
+using PointwiseItem = std::variant<Point10V1, Point10V2, GpsTime11V1, GpsTime11V2, Rgb12V1, Rgb12V2,
+                                   ByteV1, ByteV2, WavePacket13V1>;
+
+// Decodes the next n records of a pointwise chunk: items[i] at byte offsets[i] of each record.
+// The common item lists (POINT10 v2 with GPSTIME11 v2, RGB12 v2 and BYTE v2, in LAS order) run a
+// loop compiled for that list; others dispatch per item.
+void decode_pointwise(std::span<PointwiseItem> items, const std::uint16_t* offsets,
+                      std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
+                      std::uint64_t n);
 
 // ---------------------------------------------------------------------------------------------
 // Layered items (compressor 3, versions 3 and 4)

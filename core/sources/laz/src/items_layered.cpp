@@ -2,6 +2,7 @@
 // WAVEPACKET14). Each scanner channel (0-3) has its own context: models and "last" values.
 #include <algorithm>
 
+#include "item_coders.hpp"
 #include "items.hpp"
 
 namespace tinstream::laz::detail {
@@ -271,7 +272,7 @@ void Rgb14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
     decode_rgb(layers_[0].dec, models.rgb, last, now);
     std::copy(now, now + 3, last);
   }
-  for (int i = 0; i < 3; ++i) put16(out + 2 * i, last[i]);
+  for (std::size_t i = 0; i < 3; ++i) put16(out + 2 * i, last[i]);
   if (!nir_) return;
   if (layers_[1].active) {
     ArithmeticDecoder& dec = layers_[1].dec;

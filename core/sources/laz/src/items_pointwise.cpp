@@ -1,63 +1,15 @@
 // Pointwise item decoders (LASzip item versions 1 and 2) and the pieces the layered ones share.
 #include <algorithm>
+#include <tuple>
+#include <utility>
 
+#include "item_coders.hpp"
 #include "items.hpp"
 
 namespace tinstream::laz::detail {
 
 // ---------------------------------------------------------------------------------------------
 // Shared pieces
-
-void StreamingMedian5::push(std::int32_t v) {
-  auto& s = s_;
-  if (evict_high_) {
-    if (v < s[2]) {
-      s[4] = s[3];
-      s[3] = s[2];
-      if (v < s[0]) {
-        s[2] = s[1];
-        s[1] = s[0];
-        s[0] = v;
-      } else if (v < s[1]) {
-        s[2] = s[1];
-        s[1] = v;
-      } else {
-        s[2] = v;
-      }
-    } else {
-      if (v < s[3]) {
-        s[4] = s[3];
-        s[3] = v;
-      } else {
-        s[4] = v;
-      }
-      evict_high_ = false;
-    }
-  } else {
-    if (s[2] < v) {
-      s[0] = s[1];
-      s[1] = s[2];
-      if (s[4] < v) {
-        s[2] = s[3];
-        s[3] = s[4];
-        s[4] = v;
-      } else if (s[3] < v) {
-        s[2] = s[3];
-        s[3] = v;
-      } else {
-        s[2] = v;
-      }
-    } else {
-      if (s[1] < v) {
-        s[0] = s[1];
-        s[1] = v;
-      } else {
-        s[0] = v;
-      }
-      evict_high_ = true;
-    }
-  }
-}
 
 namespace {
 
@@ -88,13 +40,6 @@ constexpr std::uint8_t kReturnMap6Ctx[16][16] = {{0, 1, 2, 3, 4, 5, 3, 4, 4, 5, 
                                                  {5, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 5, 5, 5},
                                                  {5, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 5, 5}};
 
-// GPSTIME11 multipliers: symbols below 500 scale the step up, 501..510 scale it by -1..-10.
-constexpr std::uint32_t kGpsMultiMax = 500;
-constexpr std::int32_t kGpsMultiMin = -10;
-
-std::uint8_t fold_byte(std::int32_t v) { return static_cast<std::uint8_t>(v & 0xFF); }
-std::int32_t clamp_byte(std::int32_t v) { return v <= 0 ? 0 : (v >= 255 ? 255 : v); }
-
 }  // namespace
 
 std::uint8_t return_map_3bit(std::uint32_t n, std::uint32_t r) { return kReturnMap3Bit[n][r]; }
@@ -120,89 +65,6 @@ void GpsTimeSequences::reset(std::uint64_t first_time_bits) {
   ic_.reset();
 }
 
-void GpsTimeSequences::start_new_sequence(ArithmeticDecoder& dec) {
-  // The high 32 bits are coded against the current sequence's, the low 32 bits raw.
-  next_ = (next_ + 1) & 3;
-  const auto high =
-      static_cast<std::uint32_t>(ic_.decode(dec, static_cast<std::int32_t>(time_[last_] >> 32), 8));
-  time_[next_] = (static_cast<std::uint64_t>(high) << 32) | dec.read_int();
-  last_ = next_;
-  step_[last_] = 0;
-  extreme_[last_] = 0;
-}
-
-// Symbols 0 and 2..510 of the multi model: a step relative to the current one. Steps far off
-// the prediction (multiplier 0, 500 or -10) replace the current step after four in a row.
-std::int32_t GpsTimeSequences::decode_scaled_step(ArithmeticDecoder& dec, std::uint32_t multi) {
-  std::int32_t& step = step_[last_];
-  std::int32_t diff;
-  bool extreme = false;
-  if (multi == 0) {
-    diff = ic_.decode(dec, 0, 7);
-    extreme = true;
-  } else if (multi < kGpsMultiMax) {
-    diff = ic_.decode(dec, wrap_mul(static_cast<std::int32_t>(multi), step), multi < 10 ? 2 : 3);
-  } else if (multi == kGpsMultiMax) {
-    diff = ic_.decode(dec, wrap_mul(static_cast<std::int32_t>(kGpsMultiMax), step), 4);
-    extreme = true;
-  } else {
-    const std::int32_t factor = static_cast<std::int32_t>(kGpsMultiMax) - static_cast<int>(multi);
-    if (factor > kGpsMultiMin) {
-      diff = ic_.decode(dec, wrap_mul(factor, step), 5);
-    } else {
-      diff = ic_.decode(dec, wrap_mul(kGpsMultiMin, step), 6);
-      extreme = true;
-    }
-  }
-  if (extreme && ++extreme_[last_] > 3) {
-    step = diff;
-    extreme_[last_] = 0;
-  }
-  return diff;
-}
-
-std::uint64_t GpsTimeSequences::decode(ArithmeticDecoder& dec) {
-  // A valid stream switches sequence at most once per point; the bound stops damaged ones.
-  for (int hops = 0; hops < 8; ++hops) {
-    if (step_[last_] == 0) {
-      std::uint32_t sym = dec.decode_symbol(zero_step_);
-      if (!layered_) {
-        if (sym == 0) return time_[last_];  // unchanged
-        --sym;
-      }
-      if (sym == 0) {  // a step that fits 32 bits
-        step_[last_] = ic_.decode(dec, 0, 0);
-        time_[last_] += static_cast<std::uint64_t>(static_cast<std::int64_t>(step_[last_]));
-        extreme_[last_] = 0;
-      } else if (sym == 1) {
-        start_new_sequence(dec);
-      } else {
-        last_ = (last_ + sym - 1) & 3;
-        continue;
-      }
-      return time_[last_];
-    }
-    const std::uint32_t multi = dec.decode_symbol(multi_);
-    if (multi == 1) {
-      const std::int32_t diff = ic_.decode(dec, step_[last_], 1);
-      time_[last_] += static_cast<std::uint64_t>(static_cast<std::int64_t>(diff));
-      extreme_[last_] = 0;
-    } else if (multi < 511) {
-      const std::int32_t diff = decode_scaled_step(dec, multi);
-      time_[last_] += static_cast<std::uint64_t>(static_cast<std::int64_t>(diff));
-    } else if (multi == code_full_) {
-      start_new_sequence(dec);
-    } else if (multi > code_full_) {
-      last_ = (last_ + multi - code_full_) & 3;
-      continue;
-    }
-    // (v2's 511 = unchanged)
-    return time_[last_];
-  }
-  dec.mark_corrupt();
-  return time_[last_];
-}
-
 // ---------------------------------------------------------------------------------------------
 // RGB (RGB12 v2, RGB14 v3/v4)
 
@@ -213,49 +75,6 @@ RgbModels::RgbModels()
 void RgbModels::reset() {
   changed.reset();
   for (auto& m : byte_diff) m.reset();
-}
-
-void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t last[3],
-                std::uint16_t out[3]) {
-  const std::uint32_t sym = dec.decode_symbol(m.changed);
-  auto low = [](std::uint16_t v) { return static_cast<std::int32_t>(v & 0xFF); };
-  auto high = [](std::uint16_t v) { return static_cast<std::int32_t>(v >> 8); };
-  // Bit i of sym: byte i changed (R low, R high, G low, G high, B low, B high); bit 6: the
-  // channels differ (else green and blue copy red).
-  std::int32_t r_low = low(last[0]), r_high = high(last[0]);
-  if (sym & 1)
-    r_low = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[0])) + r_low);
-  if (sym & 2)
-    r_high = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[1])) + r_high);
-  out[0] = static_cast<std::uint16_t>(r_low | (r_high << 8));
-  if (!(sym & 64)) {
-    out[1] = out[2] = out[0];
-    return;
-  }
-  std::int32_t diff = r_low - low(last[0]);
-  std::int32_t g_low = low(last[1]), b_low = low(last[2]);
-  if (sym & 4) {
-    g_low = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[2])) +
-                      clamp_byte(diff + low(last[1])));
-  }
-  if (sym & 16) {
-    diff = (diff + g_low - low(last[1])) / 2;
-    b_low = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[4])) +
-                      clamp_byte(diff + low(last[2])));
-  }
-  diff = r_high - high(last[0]);
-  std::int32_t g_high = high(last[1]), b_high = high(last[2]);
-  if (sym & 8) {
-    g_high = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[3])) +
-                       clamp_byte(diff + high(last[1])));
-  }
-  if (sym & 32) {
-    diff = (diff + g_high - high(last[1])) / 2;
-    b_high = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(m.byte_diff[5])) +
-                       clamp_byte(diff + high(last[2])));
-  }
-  out[1] = static_cast<std::uint16_t>(g_low | (g_high << 8));
-  out[2] = static_cast<std::uint16_t>(b_low | (b_high << 8));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -318,7 +137,7 @@ std::int32_t median3(const std::array<std::int32_t, 3>& v) {
 }
 }  // namespace
 
-void Point10V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void Point10V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   const std::int32_t dx = ic_dx_.decode(dec, median3(last_dx_), 0);
   last_.x = wrap_add(last_.x, dx);
   std::uint32_t k = ic_dx_.last_k();
@@ -389,7 +208,7 @@ void Point10V2::start(const std::uint8_t* raw) {
   ic_z_.reset();
 }
 
-void Point10V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void Point10V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   const std::uint32_t changed = dec.decode_symbol(changed_);
   if (changed & 32) {
     last_.returns = static_cast<std::uint8_t>(dec.decode_symbol(returns_.at(last_.returns)));
@@ -451,7 +270,7 @@ void GpsTime11V1::start(const std::uint8_t* raw) {
   ic_.reset();
 }
 
-void GpsTime11V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void GpsTime11V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   auto add = [this](std::int32_t d) {
     last_ += static_cast<std::uint64_t>(static_cast<std::int64_t>(d));
   };
@@ -493,6 +312,11 @@ void GpsTime11V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   put64(out, last_);
 }
 
+// GPSTIME11 v2: the sequence coder (item_coders.hpp).
+TINSTREAM_LAZ_INLINE void GpsTime11V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+  put64(out, seq_.decode(dec));
+}
+
 // ---------------------------------------------------------------------------------------------
 // RGB12
 
@@ -504,7 +328,7 @@ void Rgb12V1::start(const std::uint8_t* raw) {
   ic_.reset();
 }
 
-void Rgb12V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void Rgb12V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   const std::uint32_t sym = dec.decode_symbol(changed_);
   for (std::uint32_t i = 0; i < 6; ++i) {
     if (sym & (1u << i)) last_[i] = static_cast<std::uint8_t>(ic_.decode(dec, last_[i], i));
@@ -513,14 +337,14 @@ void Rgb12V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
 }
 
 void Rgb12V2::start(const std::uint8_t* raw) {
-  for (int i = 0; i < 3; ++i) last_[i] = get16(raw + 2 * i);
+  for (std::size_t i = 0; i < 3; ++i) last_[i] = get16(raw + 2 * i);
   models_.reset();
 }
 
-void Rgb12V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void Rgb12V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   std::uint16_t now[3];
   decode_rgb(dec, models_, last_, now);
-  for (int i = 0; i < 3; ++i) {
+  for (std::size_t i = 0; i < 3; ++i) {
     last_[i] = now[i];
     put16(out + 2 * i, now[i]);
   }
@@ -536,7 +360,7 @@ void ByteV1::start(const std::uint8_t* raw) {
   ic_.reset();
 }
 
-void ByteV1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void ByteV1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   for (std::size_t i = 0; i < last_.size(); ++i) {
     last_[i] = static_cast<std::uint8_t>(ic_.decode(dec, last_[i], static_cast<std::uint32_t>(i)));
   }
@@ -553,7 +377,7 @@ void ByteV2::start(const std::uint8_t* raw) {
   for (auto& m : diff_) m.reset();
 }
 
-void ByteV2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void ByteV2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
   for (std::size_t i = 0; i < last_.size(); ++i) {
     last_[i] = fold_byte(static_cast<std::int32_t>(dec.decode_symbol(diff_[i])) + last_[i]);
   }
@@ -567,14 +391,14 @@ void WavePacketFields::load(const std::uint8_t* p) {
   offset = get64(p);
   size = get32(p + 8);
   return_point = get32(p + 12);
-  for (int i = 0; i < 3; ++i) xyz[static_cast<std::size_t>(i)] = get32(p + 16 + 4 * i);
+  for (std::size_t i = 0; i < 3; ++i) xyz[i] = get32(p + 16 + 4 * i);
 }
 
 void WavePacketFields::store(std::uint8_t* p) const {
   put64(p, offset);
   put32(p + 8, size);
   put32(p + 12, return_point);
-  for (int i = 0; i < 3; ++i) put32(p + 16 + 4 * i, xyz[static_cast<std::size_t>(i)]);
+  for (std::size_t i = 0; i < 3; ++i) put32(p + 16 + 4 * i, xyz[i]);
 }
 
 WavePacketCoder::WavePacketCoder()
@@ -597,38 +421,73 @@ void WavePacketCoder::reset(const std::uint8_t* raw29) {
   ic_xyz_.reset();
 }
 
-void WavePacketCoder::decode(ArithmeticDecoder& dec, std::uint8_t* out29) {
-  out29[0] = static_cast<std::uint8_t>(dec.decode_symbol(packet_index_));
-  WavePacketFields prev, now;
-  prev.load(last_.data() + 1);
-  // The offset is: the same, right after the previous packet, a 32-bit step, or raw 64 bits.
-  last_offset_case_ = dec.decode_symbol(offset_case_[last_offset_case_]);
-  switch (last_offset_case_) {
-    case 0:
-      now.offset = prev.offset;
-      break;
-    case 1:
-      now.offset = prev.offset + prev.size;
-      break;
-    case 2:
-      last_diff_32_ = ic_offset_diff_.decode(dec, last_diff_32_, 0);
-      now.offset =
-          prev.offset + static_cast<std::uint64_t>(static_cast<std::int64_t>(last_diff_32_));
-      break;
-    default:
-      now.offset = dec.read_int64();
-      break;
+TINSTREAM_LAZ_INLINE void WavePacket13V1::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+  coder_.decode(dec, out);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The record loop
+
+namespace {
+
+// One loop per item list: every decode inlines, and the decoder's interval and cursor live in
+// registers for the whole loop (it is a local copy; nothing takes its address).
+template <typename... Items, std::size_t... I>
+void decode_fixed(std::span<PointwiseItem> items, const std::uint16_t* offsets,
+                  std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
+                  std::uint64_t n, std::index_sequence<I...>) {
+  const std::tuple<Items*...> typed{std::get_if<Items>(&items[I])...};
+  const std::uint16_t at[] = {offsets[I]...};
+  ArithmeticDecoder local = dec;
+  for (std::uint64_t i = 0; i < n; ++i, out += record_length) {
+    (std::get<I>(typed)->decode(local, out + at[I]), ...);
   }
-  now.size = static_cast<std::uint32_t>(
-      ic_packet_size_.decode(dec, static_cast<std::int32_t>(prev.size), 0));
-  now.return_point = static_cast<std::uint32_t>(
-      ic_return_point_.decode(dec, static_cast<std::int32_t>(prev.return_point), 0));
-  for (std::uint32_t i = 0; i < 3; ++i) {
-    now.xyz[i] =
-        static_cast<std::uint32_t>(ic_xyz_.decode(dec, static_cast<std::int32_t>(prev.xyz[i]), i));
+  dec = local;
+}
+
+template <typename... Items>
+void decode_fixed(std::span<PointwiseItem> items, const std::uint16_t* offsets,
+                  std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
+                  std::uint64_t n) {
+  decode_fixed<Items...>(items, offsets, record_length, dec, out, n,
+                         std::index_sequence_for<Items...>{});
+}
+
+template <typename... Items>
+bool holds(std::span<PointwiseItem> items) {
+  if (items.size() != sizeof...(Items)) return false;
+  std::size_t i = 0;
+  return (std::holds_alternative<Items>(items[i++]) && ...);
+}
+
+void decode_any(std::span<PointwiseItem> items, const std::uint16_t* offsets,
+                std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
+                std::uint64_t n) {
+  ArithmeticDecoder local = dec;
+  for (std::uint64_t r = 0; r < n; ++r, out += record_length) {
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      std::visit([&](auto& item) { item.decode(local, out + offsets[i]); }, items[i]);
+    }
   }
-  now.store(out29 + 1);
-  std::memcpy(last_.data(), out29, 29);
+  dec = local;
+}
+
+}  // namespace
+
+void decode_pointwise(std::span<PointwiseItem> items, const std::uint16_t* offsets,
+                      std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
+                      std::uint64_t n) {
+  if (holds<Point10V2, GpsTime11V2>(items)) {
+    decode_fixed<Point10V2, GpsTime11V2>(items, offsets, record_length, dec, out, n);
+  } else if (holds<Point10V2>(items)) {
+    decode_fixed<Point10V2>(items, offsets, record_length, dec, out, n);
+  } else if (holds<Point10V2, Rgb12V2>(items)) {
+    decode_fixed<Point10V2, Rgb12V2>(items, offsets, record_length, dec, out, n);
+  } else if (holds<Point10V2, GpsTime11V2, Rgb12V2>(items)) {
+    decode_fixed<Point10V2, GpsTime11V2, Rgb12V2>(items, offsets, record_length, dec, out, n);
+  } else {
+    decode_any(items, offsets, record_length, dec, out, n);
+  }
 }
 
 }  // namespace tinstream::laz::detail

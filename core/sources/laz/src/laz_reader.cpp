@@ -141,12 +141,18 @@ struct LazReader::State {
     return produced;
   }
 
-  void start_pipeline() {
+  Status start_pipeline() {
     std::vector<ChunkExtent> extents;
     extents.reserve(chunks.chunks.size());
     for (std::size_t i = 0; i < chunks.chunks.size(); ++i) extents.push_back(extent(i));
     pipeline = std::make_unique<detail::ChunkPipeline>(vlr, layout.record_length, options.layers,
                                                        fd, std::move(extents), threads);
+    if (!pipeline->started().ok()) {
+      const Error e = pipeline->started().error();
+      pipeline.reset();  // stops and joins the workers that did start
+      return e;
+    }
+    return {};
   }
 };
 
@@ -182,10 +188,8 @@ Result<std::unique_ptr<LazReader>> LazReader::open(const std::filesystem::path& 
   std::uint64_t largest = 0;
   for (const ChunkInfo& c : s->chunks.chunks) largest = std::max(largest, c.points);
   if (threads > 1) {
-    if (s->chunks.discover) {
-      threads = 1;  // the note from find_chunks says why
-    } else if (s->chunks.chunks.size() < 2) {
-      threads = 1;
+    if (s->chunks.discover || s->chunks.chunks.size() < 2) {
+      threads = 1;  // discovered chunks: the note from find_chunks says why
     } else if (largest * layout.record_length > kMaxParallelChunkBytes) {
       threads = 1;
       s->chunks.notes.push_back("chunks of " + std::to_string(largest) +
@@ -202,7 +206,12 @@ Result<std::unique_ptr<LazReader>> LazReader::open(const std::filesystem::path& 
 Result<std::size_t> LazReader::read(std::uint8_t* out, std::size_t max_records) {
   if (s_->failure) return *s_->failure;
   if (s_->threads > 1) {
-    if (!s_->pipeline) s_->start_pipeline();
+    if (!s_->pipeline) {
+      if (Status st = s_->start_pipeline(); !st.ok()) {
+        s_->failure = Error(st.error().code, s_->path + ": " + st.error().message);
+        return *s_->failure;
+      }
+    }
     return s_->read_parallel(out, max_records);
   }
   return s_->read_sequential(out, max_records);

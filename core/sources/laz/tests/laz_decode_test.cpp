@@ -3,6 +3,7 @@
 // SOURCES.md, or the records of the uncompressed twin the file was made from.
 #include <gtest/gtest.h>
 #include <openssl/evp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -174,7 +175,7 @@ TEST(LazDecode, FullwaveDecodesInsideItsHeaderBounds) {
     ASSERT_TRUE(reader.ok()) << reader.error().message;
     const LasFileSummary& s = (*reader)->summary();
     ASSERT_EQ(s.record_length, 67);
-    std::vector<std::uint8_t> buf(1000 * s.record_length);
+    std::vector<std::uint8_t> buf(std::size_t{1000} * s.record_length);
     std::uint64_t total = 0;
     for (;;) {
       auto n = (*reader)->read(buf.data(), 1000);
@@ -184,7 +185,7 @@ TEST(LazDecode, FullwaveDecodesInsideItsHeaderBounds) {
         const std::uint8_t* r = buf.data() + i * s.record_length;
         for (int a = 0; a < 3; ++a) {
           std::int32_t raw;
-          std::memcpy(&raw, r + 4 * a, 4);
+          std::memcpy(&raw, r + std::ptrdiff_t{4} * a, 4);
           const double v =
               raw * s.scale[static_cast<std::size_t>(a)] + s.offset[static_cast<std::size_t>(a)];
           ASSERT_GE(v, s.min[static_cast<std::size_t>(a)] - 1e-6) << "point " << total + i;
@@ -221,13 +222,13 @@ class DamagedLaz : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("tinstream_laz_" +
+           ("tinstream_laz_" + std::to_string(::getpid()) + "_" +
             std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
   std::filesystem::path write(const std::vector<std::uint8_t>& bytes, const std::string& name) {
-    const auto p = dir_ / name;
+    auto p = dir_ / name;
     std::FILE* f = std::fopen(p.c_str(), "wb");
     std::fwrite(bytes.data(), 1, bytes.size(), f);
     std::fclose(f);
@@ -305,7 +306,7 @@ TEST_F(DamagedLaz, FlippedByteInALayerNamesTheChunk) {
   ASSERT_EQ(chunks.size(), 14u);
   // Chunk 5's first layer (X, Y, returns) starts after the raw point, the count and 9 + 2 + 3
   // layer sizes; damage it a little way in.
-  bytes[chunks[4].offset + 41 + 4 + 4 * 14 + 100] ^= 0x01;
+  bytes[chunks[4].offset + 41 + 4 + std::size_t{4} * 14 + 100] ^= 0x01;
   const auto p = write(bytes, "flipped_layer.laz");
   for (unsigned threads : {1u, 2u}) {
     auto e = read_error(p, threads);

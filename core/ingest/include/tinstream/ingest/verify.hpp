@@ -9,7 +9,9 @@
 // vertices of up to `error_samples` finest tiles under it (spread evenly over its descendants in
 // Morton order) located in it, and its vertices located in them (lod::measured_max_error); the
 // finest level's tiles account for every distinct input point (Σ source points = the layer's
-// point count, and no finest tile holds more interior vertices than source points).
+// point count, and no finest tile holds more interior vertices than source points); no tile has
+// two vertices closer than 1e-12 (normalised units) or, in a spherical layer, a zero-area
+// triangle in its quantized-mesh encoding (what CesiumJS would draw).
 // Threads: call from one thread; it owns its TileStore reads.
 #pragma once
 
@@ -25,6 +27,9 @@ namespace tinstream::ingest {
 
 struct VerifyOptions {
   bool delaunay = true;  // the O(triangles) empty-circle check
+  // Quantised encodings: no two vertices of a tile closer than 1e-12, no zero-area triangle in a
+  // tile's quantized-mesh encoding (spherical layers).
+  bool quantisation = true;
   // Finest tiles sampled under each coarser tile for the geometric-error check; 0 = no check,
   // SIZE_MAX = all of them (exhaustive: every level then reads the whole finest level).
   std::size_t error_samples = 4;

@@ -2,8 +2,13 @@
 //
 // For z = L-1 down to min_level, every parent of an existing level z+1 tile is built from its
 // four children (build_parent) and written to the same unpublished layer version. The summary's
-// per-level max errors are what
-// store::LayerInfo::level_max_error wants.
+// per-level max errors are what store::LayerInfo::level_max_error wants.
+//
+// What a level hands to the next beside its tiles (lod_tile.hpp: per-triangle error bounds,
+// witnesses) is kept in a side file under PyramidOptions::scratch (in memory when empty), never
+// in the store. A parent whose child k is absent gets its NODATA corner k's height by the rule of
+// docs/tile-format.md §2.1: from a tile of the children's level around that corner, else from
+// the nearest data vertex of that level (searched in rings of tiles around the corner).
 //
 // Threads: the LayerWriter is used only on the calling thread (reads of children, writes of
 // parents); build_parent runs on `threads` workers. At most `max_in_flight` parents (and their
@@ -13,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 #include "tinstream/base/progress.hpp"
@@ -29,8 +35,8 @@ struct PyramidOptions {
   // Thin the finest tiles first (reduce_finest_tile with lod.epsilon / lod.max_points) and
   // rewrite them: the "reduced TIN" for gridded input.
   bool reduce_finest = false;
-  // Heights of the finest surface (the input's z range), for the NODATA-band term (parent.hpp).
-  HeightRange finest_heights;
+  // Directory for the side file (bounds and witnesses between levels); empty: kept in memory.
+  std::filesystem::path scratch;
 };
 
 struct PyramidSummary {

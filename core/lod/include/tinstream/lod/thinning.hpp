@@ -26,6 +26,11 @@
 //  * Stopping rule, for a side and for the interior alike: keep removing while the count is above
 //    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
 //    Corners are never removed.
+//  * Coverage first (docs/tile-format.md §2.1): a point that the current surface leaves under a
+//    triangle at a NODATA corner (outside its footprint) costs 10⁶ m more in the greedy stage, a
+//    vertex next to a NODATA corner (or the side point next to a NODATA end of a side) as much
+//    more in the drop stage: a coarse tile keeps its data's outline while its budget allows, so
+//    no data hides under a fan.
 //  * Weight rule: effective error = error + weight. A weight is thus "metres of vertical error
 //    that this point is worth"; a point with weight w survives every point whose error is below
 //    its own error + w, and is never removed by the epsilon rule when w ≥ epsilon.
@@ -35,12 +40,15 @@
 // Threads: pure functions on values; call from any thread.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <limits>
 #include <optional>
 #include <span>
 #include <vector>
 
 #include "tinstream/base/result.hpp"
+#include "tinstream/lod/lod_tile.hpp"
 #include "tinstream/tile/tin_tile.hpp"
 
 namespace tinstream::lod {
@@ -64,7 +72,13 @@ struct LodOptions {
   // point under its triangle: the same greedy choices, a drop stage that also counts the cells
   // on a removed star's outline, less time and memory. false = always file (the general path).
   bool lattice_scan = true;
+  // Error witnesses carried to the next coarser level (lod_tile.hpp): at most this many per
+  // tile. 0 = none; SIZE_MAX (the default) = max_points / 8.
+  std::size_t witnesses = std::numeric_limits<std::size_t>::max();
 };
+
+// The witness count that `options` implies (LodOptions::witnesses).
+std::size_t witness_count(const LodOptions& options);
 
 // The point count the greedy stage builds up to, ⌈greedy_factor × max_points⌉ (0 = no greedy
 // stage).
@@ -76,11 +90,14 @@ std::size_t side_budget(const LodOptions& options);
 // 1-D thinning of one side. `side` holds the side's points in edge order *including both
 // corners* (TinTile::border order); `along_x` says whether the side runs along x (north, south)
 // or along y (east, west). Returns the kept points (corners always kept), in order.
-// `removed`, when given, receives the dropped points.
+// `removed`, when given, receives the dropped points. `nodata_ends`: the side's first / last
+// corner is NODATA; the point next to it, where the data begin, then goes last (coverage first,
+// as in the interior: it costs kCoverageCost = 10⁶ m more).
 // Requires: side.size() ≥ 2, positions strictly monotone along the side.
 std::vector<tile::Vertex> thin_border_side(std::span<const tile::Vertex> side, bool along_x,
                                            std::size_t budget, double epsilon,
-                                           std::vector<tile::Vertex>* removed = nullptr);
+                                           std::vector<tile::Vertex>* removed = nullptr,
+                                           std::array<bool, 2> nodata_ends = {false, false});
 
 // What thin_tile works on: a tile's corners and border lists (tile order, corners excluded),
 // interior points, and `orphans` — points of the surface being approximated that are not
@@ -121,9 +138,13 @@ struct ThinStats {
 Result<tile::TinTile> thin_tile(const ThinInput& input, const LodOptions& options,
                                 ThinStats* stats = nullptr);
 
-// "Reduced TIN" at the finest level (gridded input): thins a finest tile the same way, then
-// stores geometric_error = exact max |reduced − original| + the tile's previous geometric_error
-// and the matching RMS. The tile is replaced only on success.
+// "Reduced TIN" at the finest level (gridded input): thins an unreduced finest tile the same
+// way and measures it against the original exactly (error.hpp: bounds per triangle,
+// geometric_error their largest, the RMS), with witnesses among the original's interior points
+// (lod_tile.hpp).
+Result<LodTile> reduce_finest(const tile::TinTile& finest, const LodOptions& options,
+                              ThinStats* stats = nullptr);
+// The same in place, for callers that need the tile only. The tile is replaced only on success.
 Status reduce_finest_tile(tile::TinTile& tile, double epsilon, std::size_t max_points,
                           ThinStats* stats = nullptr);
 Status reduce_finest_tile(tile::TinTile& tile, const LodOptions& options,

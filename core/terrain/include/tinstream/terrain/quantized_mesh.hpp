@@ -21,9 +21,10 @@
 // tiles of level ≥ 6, visible only as slightly different interior shading at coarse levels).
 // Border vertices land exactly on u/v = 0 or 32767, so neighbours share their edge vertices.
 //
-// Triangles that rounding to the 15-bit grid turns clockwise are left out (slivers thinner than
-// one quantum, which happen in coarse tiles over dense data); all others are written, so every
-// triangle in the output is counter-clockwise or degenerate in (u, v).
+// Triangles that rounding to the 15-bit grid turns clockwise or flat are left out (slivers
+// thinner than one quantum, which happen in coarse tiles over dense data and where two edge
+// points are closer than a quantum); all others are written, so every triangle in the output is
+// counter-clockwise with a non-zero area in (u, v).
 // Vertices are renumbered in order of first use by the triangle list (required by the
 // high-water-mark code). Pure functions, thread-safe.
 #pragma once

@@ -1,14 +1,13 @@
 // tinstream/transform/pass1.hpp — ingest pass 1 (DESIGN.md §3): read every input, reproject
-// to WGS84, map to normalised Mercator, and hand the points on in batches (on_points) and/or
-// stream them into one run file; the summary has the run's header (count, boxes) either way.
+// to WGS84, map to normalised Mercator, and hand the points on in batches (on_points, the ingest
+// gives them to pass 2, whose sorted spills are the only files of transformed points); the
+// summary keeps the run's header (count, boxes, height range).
 //
 // Contract:
 // - Inputs are processed in order, each with its own reader options and CRS options; formats
 //   may be mixed. Memory is bounded by TransformOptions::batch_size (a few batches of points),
 //   never by the inputs' sizes.
-// - A run file (when TransformOptions::output is set) appears under that name only when every
-//   input went through: it is written under a temporary name and renamed at the end (see
-//   run_file.hpp). On any error, or when the progress sink asks to stop, nothing is left behind
+// - Pass 1 writes no file. On any error, or when the progress sink asks to stop, the pass stops
 //   and the Error names the file and the record.
 // - A point outside the Mercator square (|lat| beyond ±85.05° spherical / ±85.08° ellipsoidal)
 //   is an Error naming the record, like any other invalid point; with InvalidPolicy::skip it is
@@ -36,11 +35,35 @@
 #include "tinstream/geo/mercator.hpp"
 #include "tinstream/sources/point_source.hpp"
 #include "tinstream/transform/reprojector.hpp"
-#include "tinstream/transform/run_file.hpp"
 
 namespace tinstream::transform {
 
 inline constexpr double kMaxAbsHeight = 1e5;  // metres, ellipsoidal
+
+// One transformed point, as handed on.
+struct RunPoint {
+  double x = 0, y = 0;  // normalised Mercator
+  double z = 0;         // metres above the WGS84 ellipsoid
+  float weight = 1;
+  std::uint16_t input = 0;          // index of the input (saturates at 65535)
+  std::uint8_t classification = 0;  // ASPRS class (0 where the format has none)
+};
+
+struct Extent {
+  double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
+  bool empty() const { return min_x > max_x; }
+};
+
+// What pass 1 learnt about all its points.
+struct RunHeader {
+  std::uint64_t point_count = 0;
+  geo::Projection projection = geo::Projection::spherical;
+  // With no points, the extents are empty() (min = +inf, max = -inf) and so is the z range.
+  Extent mercator;  // normalised Mercator
+  Extent lonlat;    // x = lon, y = lat, degrees
+  double min_z = 0, max_z = 0;
+  std::uint32_t input_count = 0;
+};
 
 struct InputSpec {
   std::filesystem::path path;
@@ -50,21 +73,15 @@ struct InputSpec {
 };
 
 struct TransformOptions {
-  // The run file; empty: none is written (the ingest's case: its points go to pass 2 through
-  // on_points, whose sorted spills are the run files). Requires: set, or on_points given.
-  std::filesystem::path output;
   geo::Projection projection = geo::Projection::spherical;
   std::size_t batch_size = 65536;  // points per batch; Requires: > 0
   // > 1: that many worker threads (each with its own Reprojector) transform batches while this
-  // thread reads the next ones and appends finished ones; the run file is the same (batches are
-  // appended in record order, and the first error in record order is the one reported).
+  // thread reads the next ones and hands finished ones on; the points handed on are the same
+  // (batches go in record order, and the first error in record order is the one reported).
   unsigned threads = 1;
-  // Called on the calling thread with every batch of transformed points (after it is appended to
-  // the run file, if any), in record order (the ingest hands them to pass 2). An error stops the
-  // pass and is returned.
+  // Called on the calling thread with every batch of transformed points, in record order (the
+  // ingest hands them to pass 2). An error stops the pass and is returned. Requires: set.
   std::function<Status(std::span<const RunPoint>)> on_points;
-  // false: the run file is not fsynced before its rename (a scratch file its user removes soon).
-  bool durable = true;
 };
 
 struct InputSummary {
@@ -80,8 +97,7 @@ struct InputSummary {
 };
 
 struct RunSummary {
-  std::filesystem::path run_file;  // empty when none was written
-  RunFileHeader header;            // count, Mercator and lon/lat boxes, z range
+  RunHeader header;  // count, Mercator and lon/lat boxes, z range
   std::vector<InputSummary> inputs;
 };
 

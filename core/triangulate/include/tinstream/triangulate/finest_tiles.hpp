@@ -3,8 +3,10 @@
 // Each finest tile is the Delaunay triangulation of the GLOBAL point set restricted to the tile
 // rectangle R: Delaunay edges that cross R's border give edge points (intersection, elevation
 // interpolated linearly), each corner gets the elevation of the global triangle containing it
-// (or is flagged NODATA at z = 0), the border is constrained, and the tile is re-triangulated from
-// corners + edge points + interior points (tile::TinTile).
+// (or, outside the data, is flagged NODATA and takes the height of the input point nearest to it —
+// never 0, see docs/tile-format.md §2.1), the border is constrained, and the tile is
+// re-triangulated from corners + edge points + interior points (tile::TinTile). An edge through a
+// tile corner (exact orientation test) gives no edge point: the corner is the vertex there.
 //
 // Halo method (beyond the paper): a tile is computed from its own points plus the points of the
 // neighbouring *sub-cells* (quadtree cells 2^sub_shift times finer than the tile) that hold a point
@@ -21,7 +23,8 @@
 // compute each intersection from the edge's endpoints in canonical (lexicographic) order with
 // the same formula, so their shared edge points are bit-identical. Points lying exactly on a
 // border line are edge points of both tiles. Corners are interpolated the same way by all four
-// tiles around them.
+// tiles around them, and a NODATA corner's nearest input point is searched by all four in the
+// same sub-cells, in the same order.
 //
 // Threads: PointCells is read-only after construction and may be shared; each thread needs its
 // own subdivide::SortedRunReader (it owns a file handle).

@@ -1,15 +1,14 @@
-#include "tinstream/transform/run_file.hpp"
+#include "tinstream/transform/pass1.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <fstream>
+#include <limits>
 
 #include "tinstream/base/fault.hpp"
-#include "tinstream/transform/pass1.hpp"
 
 namespace tinstream::transform {
 namespace {
@@ -24,168 +23,58 @@ std::filesystem::path scratch(const std::string& name) {
   return dir;
 }
 
-std::size_t files_in(const std::filesystem::path& dir) {
-  std::size_t n = 0;
-  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
-  return n;
-}
-
-std::vector<unsigned char> slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
-}
-
-TEST(RunFile, RecordLayoutIsLittleEndianAndFixed) {
-  unsigned char rec[kRunRecordBytes];
-  encode_run_point(RunPoint{1.0, -2.0, 0.5, 2.0f, 0x1234, 9}, rec);
-  // 1.0 = 0x3FF0000000000000, -2.0 = 0xC000000000000000, 0.5 = 0x3FE0…, 2.0f = 0x40000000.
-  const unsigned char expected[kRunRecordBytes] = {
-      0, 0, 0, 0, 0, 0, 0xF0, 0x3F, 0, 0, 0, 0,    0,    0,    0, 0xC0,
-      0, 0, 0, 0, 0, 0, 0xE0, 0x3F, 0, 0, 0, 0x40, 0x34, 0x12, 9, 0};
-  EXPECT_EQ(std::memcmp(rec, expected, kRunRecordBytes), 0);
-  const RunPoint back = decode_run_point(rec);
-  EXPECT_EQ(back.x, 1.0);
-  EXPECT_EQ(back.y, -2.0);
-  EXPECT_EQ(back.z, 0.5);
-  EXPECT_EQ(back.weight, 2.0f);
-  EXPECT_EQ(back.input, 0x1234);
-  EXPECT_EQ(back.classification, 9);
-}
-
-TEST(RunFile, WriteCommitReadRoundTrip) {
-  auto dir = scratch("roundtrip");
-  const auto path = dir / "points.run";
-  auto w = RunFileWriter::create(path, geo::Projection::ellipsoidal, 2);
-  ASSERT_TRUE(w.ok()) << w.error().message;
-  std::vector<RunPoint> pts;
-  std::vector<geo::LonLat> ll;
-  for (int i = 0; i < 20000; ++i) {
-    pts.push_back(RunPoint{-0.5 + i * 1e-5, 0.25 - i * 1e-6, 100.0 + i * 0.001, 1.5f,
-                           static_cast<std::uint16_t>(i % 2), static_cast<std::uint8_t>(i % 7)});
-    ll.push_back(geo::LonLat{-90 + i * 1e-3, 10 + i * 1e-4});
+// Collects every point handed on, in order.
+struct Collector {
+  std::vector<RunPoint> points;
+  std::function<Status(std::span<const RunPoint>)> sink() {
+    return [this](std::span<const RunPoint> batch) -> Status {
+      points.insert(points.end(), batch.begin(), batch.end());
+      return {};
+    };
   }
-  ASSERT_TRUE(w->append(std::span(pts).first(12345), std::span(ll).first(12345)).ok());
-  ASSERT_TRUE(w->append(std::span(pts).subspan(12345), std::span(ll).subspan(12345)).ok());
-  EXPECT_FALSE(std::filesystem::exists(path)) << "visible before commit";
-  auto h = w->commit();
-  ASSERT_TRUE(h.ok()) << h.error().message;
-  EXPECT_TRUE(std::filesystem::exists(path));
-  EXPECT_EQ(files_in(dir), 1u);  // the partial file was renamed, not copied
-  EXPECT_EQ(std::filesystem::file_size(path), 128u + 32u * 20000u);
+};
 
-  auto r = RunFileReader::open(path);
-  ASSERT_TRUE(r.ok()) << r.error().message;
-  EXPECT_EQ(r->header().point_count, 20000u);
-  EXPECT_EQ(r->header().projection, geo::Projection::ellipsoidal);
-  EXPECT_EQ(r->header().input_count, 2u);
-  EXPECT_EQ(r->header().mercator.min_x, -0.5);
-  EXPECT_EQ(r->header().mercator.max_x, -0.5 + 19999 * 1e-5);
-  EXPECT_EQ(r->header().mercator.max_y, 0.25);
-  EXPECT_EQ(r->header().min_z, 100.0);
-  EXPECT_EQ(r->header().lonlat.min_x, -90);
-  EXPECT_EQ(r->header().lonlat.max_y, 10 + 19999 * 1e-4);
-  std::vector<RunPoint> back;
-  while (true) {
-    auto n = r->read(back, 3000);
-    ASSERT_TRUE(n.ok());
-    if (*n == 0) break;
-  }
-  ASSERT_EQ(back.size(), pts.size());
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    ASSERT_EQ(back[i].x, pts[i].x);
-    ASSERT_EQ(back[i].y, pts[i].y);
-    ASSERT_EQ(back[i].z, pts[i].z);
-    ASSERT_EQ(back[i].input, pts[i].input);
-    ASSERT_EQ(back[i].classification, pts[i].classification);
-  }
-  ASSERT_TRUE(r->rewind().ok());
-  std::vector<RunPoint> again;
-  ASSERT_TRUE(r->read(again, 1).ok());
-  EXPECT_EQ(again[0].x, pts[0].x);
-  std::filesystem::remove_all(dir);
+// Options handing the points to nowhere (the tests that look only at counts and errors).
+TransformOptions discarding() {
+  TransformOptions opt;
+  opt.on_points = [](std::span<const RunPoint>) -> Status { return {}; };
+  return opt;
 }
 
-TEST(RunFile, AbandonedWriterLeavesNothing) {
-  auto dir = scratch("abandon");
-  const auto path = dir / "points.run";
-  {
-    auto w = RunFileWriter::create(path, geo::Projection::spherical, 1);
-    ASSERT_TRUE(w.ok());
-    std::vector<RunPoint> pts(100);
-    ASSERT_TRUE(w->append(pts, {}).ok());
-    EXPECT_TRUE(std::filesystem::exists(w->partial_path()));
-    EXPECT_FALSE(std::filesystem::exists(path));
+void expect_same_points(const std::vector<RunPoint>& a, const std::vector<RunPoint>& b,
+                        const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].x, b[i].x) << what << " " << i;
+    ASSERT_EQ(a[i].y, b[i].y) << what << " " << i;
+    ASSERT_EQ(a[i].z, b[i].z) << what << " " << i;
+    ASSERT_EQ(a[i].weight, b[i].weight) << what << " " << i;
+    ASSERT_EQ(a[i].input, b[i].input) << what << " " << i;
+    ASSERT_EQ(a[i].classification, b[i].classification) << what << " " << i;
   }
-  EXPECT_FALSE(std::filesystem::exists(path));
-  EXPECT_EQ(files_in(dir), 0u);
-  std::filesystem::remove_all(dir);
-}
-
-TEST(RunFile, ReaderRefusesIncompleteTruncatedAndForeignFiles) {
-  auto dir = scratch("refuse");
-  const auto path = dir / "points.run";
-  auto w = RunFileWriter::create(path, geo::Projection::spherical, 1);
-  ASSERT_TRUE(w.ok());
-  std::vector<RunPoint> pts(10);
-  ASSERT_TRUE(w->append(pts, {}).ok());
-  // A copy of the partial file taken mid-write (as a crash would leave it) is refused.
-  std::fflush(nullptr);
-  auto partial_copy = dir / "crashed.run";
-  ASSERT_TRUE(w->commit().ok());
-  auto bytes = slurp(path);
-  auto incomplete = bytes;
-  incomplete[25] = 0;
-  std::ofstream(partial_copy, std::ios::binary)
-      .write(reinterpret_cast<const char*>(incomplete.data()),
-             static_cast<std::streamsize>(incomplete.size()));
-  auto r1 = RunFileReader::open(partial_copy);
-  ASSERT_FALSE(r1.ok());
-  EXPECT_NE(r1.error().message.find("incomplete"), std::string::npos);
-
-  auto truncated = dir / "truncated.run";
-  std::ofstream(truncated, std::ios::binary)
-      .write(reinterpret_cast<const char*>(bytes.data()),
-             static_cast<std::streamsize>(bytes.size() - 5));
-  auto r2 = RunFileReader::open(truncated);
-  ASSERT_FALSE(r2.ok());
-  EXPECT_NE(r2.error().message.find("says 10 points"), std::string::npos) << r2.error().message;
-
-  auto foreign = dir / "foreign.run";
-  std::ofstream(foreign) << std::string(200, 'x');
-  auto r3 = RunFileReader::open(foreign);
-  ASSERT_FALSE(r3.ok());
-  EXPECT_NE(r3.error().message.find("magic"), std::string::npos);
-
-  auto r4 = RunFileReader::open(dir / "absent.run");
-  ASSERT_FALSE(r4.ok());
-  EXPECT_EQ(r4.error().code, ErrorCode::not_found);
-  std::filesystem::remove_all(dir);
 }
 
 // ---- pass 1 -------------------------------------------------------------------------------
 
 bool have(const char* name) { return std::filesystem::exists(kData / name); }
 
-TEST(Pass1, MixedInputsGiveCountsBoxesAndAReadableRun) {
+TEST(Pass1, MixedInputsGiveCountsBoxesAndTheirPoints) {
   if (!have("autzen_trim.las") || !have("luxembourg_elev.tif")) GTEST_SKIP() << "missing data";
-  auto dir = scratch("mixed");
   std::vector<InputSpec> inputs(2);
   inputs[0].path = kData / "autzen_trim.las";
   inputs[1].path = kData / "luxembourg_elev.tif";
   inputs[1].weight = 2.0f;
   TransformOptions opt;
-  opt.output = dir / "pass1.run";
+  Collector handed;
+  opt.on_points = handed.sink();
   opt.batch_size = 5000;
   std::vector<Progress> seen;
-  bool visible_early = false;
   auto sink = [&](const Progress& p) {
     seen.push_back(p);
-    if (std::filesystem::exists(opt.output)) visible_early = true;
     return true;
   };
   auto s = transform_sources(inputs, opt, sink);
   ASSERT_TRUE(s.ok()) << s.error().message;
-  EXPECT_FALSE(visible_early) << "the run file was visible under its final name mid-run";
   ASSERT_EQ(s->inputs.size(), 2u);
   const auto& a = s->inputs[0];
   EXPECT_EQ(a.counters.records_read, 110000u);
@@ -196,6 +85,7 @@ TEST(Pass1, MixedInputsGiveCountsBoxesAndAReadableRun) {
   EXPECT_EQ(l.counters.rejected_nodata, 3942u);
   EXPECT_EQ(l.points_written, 4608u);
   EXPECT_EQ(s->header.point_count, 26107u + 4608u);
+  EXPECT_EQ(s->header.input_count, 2u);
   // Boxes from SOURCES.md: Eugene (-123.07, 44.05) and Luxembourg (5.74–6.53, 49.44–50.19).
   EXPECT_NEAR(s->header.lonlat.min_x, -123.0734, 2e-4);
   EXPECT_LT(s->header.lonlat.max_x, 6.533333);
@@ -213,18 +103,15 @@ TEST(Pass1, MixedInputsGiveCountsBoxesAndAReadableRun) {
   EXPECT_EQ(seen.back().done, 118550u);
   EXPECT_EQ(seen.back().total, 118550u);
 
-  auto r = RunFileReader::open(opt.output);
-  ASSERT_TRUE(r.ok()) << r.error().message;
-  std::vector<RunPoint> pts;
-  while (true) {
-    auto n = r->read(pts, 7000);
-    ASSERT_TRUE(n.ok());
-    if (*n == 0) break;
-  }
+  // Every accepted point was handed on, the first input's first, each with its input's tag.
+  const auto& pts = handed.points;
   ASSERT_EQ(pts.size(), 30715u);
   const geo::NormalisedMercator merc(geo::Projection::spherical);
+  double min_x = std::numeric_limits<double>::infinity(), max_z = -min_x;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const auto ll = merc.inverse(geo::MercatorXY{pts[i].x, pts[i].y});
+    min_x = std::min(min_x, pts[i].x);
+    max_z = std::max(max_z, pts[i].z);
     if (i < 26107) {
       ASSERT_EQ(pts[i].input, 0);
       ASSERT_EQ(pts[i].classification, 2);
@@ -240,11 +127,12 @@ TEST(Pass1, MixedInputsGiveCountsBoxesAndAReadableRun) {
       ASSERT_LE(pts[i].z, 547);
     }
   }
-  EXPECT_EQ(files_in(dir), 1u);
-  std::filesystem::remove_all(dir);
+  // The header describes the points handed on.
+  EXPECT_EQ(s->header.mercator.min_x, min_x);
+  EXPECT_EQ(s->header.max_z, max_z);
 }
 
-TEST(Pass1, AFailingInputLeavesNoRunFileAndNamesTheLine) {
+TEST(Pass1, AFailingInputNamesTheLine) {
   if (!have("luxembourg_elev.tif")) GTEST_SKIP() << "missing data";
   auto dir = scratch("failing");
   const auto bad = dir / "bad.xyz";
@@ -253,41 +141,34 @@ TEST(Pass1, AFailingInputLeavesNoRunFileAndNamesTheLine) {
   inputs[0].path = kData / "luxembourg_elev.tif";
   inputs[1].path = bad;
   inputs[1].reproject.crs = "EPSG:4326";
-  TransformOptions opt;
-  opt.output = dir / "pass1.run";
-  auto s = transform_sources(inputs, opt);
+  auto s = transform_sources(inputs, discarding());
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find(bad.string() + ": line 2"), std::string::npos)
       << s.error().message;
-  EXPECT_FALSE(std::filesystem::exists(opt.output));
-  EXPECT_EQ(files_in(dir), 1u);  // only bad.xyz: no partial file left
   std::filesystem::remove_all(dir);
 }
 
-TEST(Pass1, CancelLeavesNothing) {
+TEST(Pass1, CancelStopsThePass) {
   if (!have("N00E010.hgt")) GTEST_SKIP() << "missing data";
-  auto dir = scratch("cancel");
   std::vector<InputSpec> inputs(1);
   inputs[0].path = kData / "N00E010.hgt";
   TransformOptions opt;
-  opt.output = dir / "pass1.run";
+  Collector handed;
+  opt.on_points = handed.sink();
   opt.batch_size = 1000;
   int calls = 0;
   auto s = transform_sources(inputs, opt, [&](const Progress&) { return ++calls < 1; });
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::cancelled);
-  EXPECT_FALSE(std::filesystem::exists(opt.output));
-  EXPECT_EQ(files_in(dir), 0u);
-  std::filesystem::remove_all(dir);
+  EXPECT_EQ(calls, 1);
+  EXPECT_LE(handed.points.size(), 1000u);  // stopped at the first progress report
 }
 
 TEST(Pass1, EsriAsciiNeedsACrsAndWorksWithOne) {
   if (!have("boulder_srtmgl3.asc")) GTEST_SKIP() << "missing data";
-  auto dir = scratch("ascii");
   std::vector<InputSpec> inputs(1);
   inputs[0].path = kData / "boulder_srtmgl3.asc";
-  TransformOptions opt;
-  opt.output = dir / "pass1.run";
+  const TransformOptions opt = discarding();
   auto s = transform_sources(inputs, opt);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("--crs"), std::string::npos);
@@ -299,22 +180,25 @@ TEST(Pass1, EsriAsciiNeedsACrsAndWorksWithOne) {
   EXPECT_EQ(ok->header.max_z, 3286);
   EXPECT_NEAR(ok->header.lonlat.min_x, -105.55, 0.001);
   EXPECT_NEAR(ok->header.lonlat.max_y, 40.21, 0.001);
-  std::filesystem::remove_all(dir);
+}
+
+// One input: an XYZ file in `dir` holding `text` (lon lat h lines, EPSG:4326).
+std::vector<InputSpec> lonlat_xyz(const std::filesystem::path& dir, const std::string& text) {
+  const auto path = dir / "lonlat.xyz";
+  std::ofstream(path) << text;
+  std::vector<InputSpec> inputs(1);
+  inputs[0].path = path;
+  inputs[0].reproject.crs = "EPSG:4326";
+  return inputs;
 }
 
 TEST(Pass1, LatitudeOutsideTheMercatorSquareNamesTheRecord) {
   auto dir = scratch("polar");
-  const auto polar = dir / "polar.xyz";
-  std::ofstream(polar) << "10 60 1\n10 85.04 2\n10 85.06 3\n10 -89 4\n";
-  std::vector<InputSpec> inputs(1);
-  inputs[0].path = polar;
-  inputs[0].reproject.crs = "EPSG:4326";
-  TransformOptions opt;
-  opt.output = dir / "pass1.run";
+  std::vector<InputSpec> inputs = lonlat_xyz(dir, "10 60 1\n10 85.04 2\n10 85.06 3\n10 -89 4\n");
+  TransformOptions opt = discarding();
   auto s = transform_sources(inputs, opt);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("record 3"), std::string::npos) << s.error().message;
-  EXPECT_FALSE(std::filesystem::exists(opt.output));
   // The ellipsoidal projection reaches 85.0841°, so 85.06 fits there; -89 never does.
   inputs[0].source.invalid = sources::InvalidPolicy::skip;
   opt.projection = geo::Projection::ellipsoidal;
@@ -327,11 +211,31 @@ TEST(Pass1, LatitudeOutsideTheMercatorSquareNamesTheRecord) {
   std::filesystem::remove_all(dir);
 }
 
+// With every record skipped nothing is handed on and the header's boxes and z range are empty.
+TEST(Pass1, NoPointLeftGivesAnEmptyHeader) {
+  auto dir = scratch("none_left");
+  std::vector<InputSpec> inputs = lonlat_xyz(dir, "10 86 1\n10 -89 2\n");
+  inputs[0].source.invalid = sources::InvalidPolicy::skip;
+  TransformOptions opt;
+  Collector handed;
+  opt.on_points = handed.sink();
+  auto s = transform_sources(inputs, opt);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_TRUE(handed.points.empty());
+  EXPECT_EQ(s->header.point_count, 0u);
+  EXPECT_EQ(s->header.input_count, 1u);
+  EXPECT_EQ(s->inputs[0].outside_mercator, 2u);
+  EXPECT_TRUE(s->header.mercator.empty());
+  EXPECT_TRUE(s->header.lonlat.empty());
+  EXPECT_GT(s->header.min_z, s->header.max_z);
+  std::filesystem::remove_all(dir);
+}
+
 // Points in UTM 32N around (500 km, 5 000 km); `bad` lines get a northing far beyond the pole's
 // latitude limit (outside the Mercator square).
 std::filesystem::path utm_points(const std::filesystem::path& dir, int n,
                                  const std::vector<int>& bad = {}) {
-  const auto path = dir / "utm.xyz";
+  auto path = dir / "utm.xyz";
   std::ofstream out(path);
   for (int i = 1; i <= n; ++i) {
     const bool is_bad = std::find(bad.begin(), bad.end(), i) != bad.end();
@@ -342,7 +246,7 @@ std::filesystem::path utm_points(const std::filesystem::path& dir, int n,
   return path;
 }
 
-TEST(Pass1, HelperThreadWritesTheSameRunFile) {
+TEST(Pass1, HelperThreadHandsOnTheSamePointsAndHeader) {
   auto dir = scratch("helper");
   std::vector<InputSpec> inputs(2);
   inputs[0].path = utm_points(dir, 10'007);
@@ -351,15 +255,21 @@ TEST(Pass1, HelperThreadWritesTheSameRunFile) {
   inputs[1].weight = 3;
   TransformOptions opt;
   opt.batch_size = 1000;  // 11 batches per input: an odd one out at the end
-  opt.output = dir / "one.run";
+  Collector one_handed, two_handed;
+  opt.on_points = one_handed.sink();
   auto one = transform_sources(inputs, opt);
   ASSERT_TRUE(one.ok()) << one.error().message;
-  opt.output = dir / "two.run";
+  opt.on_points = two_handed.sink();
   opt.threads = 2;
   auto two = transform_sources(inputs, opt);
   ASSERT_TRUE(two.ok()) << two.error().message;
   EXPECT_EQ(two->header.point_count, 20'014u);
-  EXPECT_EQ(slurp(dir / "one.run"), slurp(dir / "two.run"));
+  expect_same_points(one_handed.points, two_handed.points, "1 vs 2 threads");
+  EXPECT_EQ(one->header.mercator.min_x, two->header.mercator.min_x);
+  EXPECT_EQ(one->header.mercator.max_y, two->header.mercator.max_y);
+  EXPECT_EQ(one->header.lonlat.max_x, two->header.lonlat.max_x);
+  EXPECT_EQ(one->header.min_z, two->header.min_z);
+  EXPECT_EQ(one->header.max_z, two->header.max_z);
   std::filesystem::remove_all(dir);
 }
 
@@ -367,10 +277,9 @@ TEST(Pass1, HelperThreadReportsTheFirstBadRecordInFileOrder) {
   auto dir = scratch("helper_bad");
   std::vector<InputSpec> inputs(1);
   inputs[0].reproject.crs = "EPSG:32632";
-  TransformOptions opt;
+  TransformOptions opt = discarding();
   opt.batch_size = 1000;
   opt.threads = 2;
-  opt.output = dir / "out.run";
   // Record 1500 is in the batch this thread transforms, record 700 in the helper's (earlier).
   inputs[0].path = utm_points(dir, 3000, {700, 1500});
   auto both = transform_sources(inputs, opt);
@@ -382,7 +291,6 @@ TEST(Pass1, HelperThreadReportsTheFirstBadRecordInFileOrder) {
   ASSERT_FALSE(second.ok());
   EXPECT_NE(second.error().message.find("record 1500:"), std::string::npos)
       << second.error().message;
-  EXPECT_FALSE(std::filesystem::exists(opt.output));
   // Skipped instead, both are counted.
   inputs[0].path = utm_points(dir, 3000, {700, 1500, 2999});
   inputs[0].source.invalid = sources::InvalidPolicy::skip;
@@ -393,8 +301,8 @@ TEST(Pass1, HelperThreadReportsTheFirstBadRecordInFileOrder) {
   std::filesystem::remove_all(dir);
 }
 
-// The points handed to on_points are the run file's, in its order, whatever the worker count;
-// an error from on_points stops the pass and leaves no run file.
+// The points handed to on_points are the same, in the same order, whatever the worker count; an
+// error from on_points stops the pass; without on_points the pass is refused.
 TEST(Pass1, WorkersHandEveryBatchOverInRecordOrder) {
   auto dir = scratch("on_points");
   std::vector<InputSpec> inputs(2);
@@ -404,41 +312,24 @@ TEST(Pass1, WorkersHandEveryBatchOverInRecordOrder) {
   inputs[1].weight = 2;
   TransformOptions opt;
   opt.batch_size = 500;
-  std::vector<unsigned char> first_run;
+  std::vector<RunPoint> first;
   for (unsigned threads : {1u, 2u, 3u}) {
     opt.threads = threads;
-    opt.output = dir / ("t" + std::to_string(threads) + ".run");
-    std::vector<RunPoint> handed;
-    opt.on_points = [&](std::span<const RunPoint> points) -> Status {
-      handed.insert(handed.end(), points.begin(), points.end());
-      return {};
-    };
+    Collector handed;
+    opt.on_points = handed.sink();
     auto s = transform_sources(inputs, opt);
     ASSERT_TRUE(s.ok()) << s.error().message;
-    auto reader = RunFileReader::open(opt.output);
-    ASSERT_TRUE(reader.ok());
-    std::vector<RunPoint> stored;
-    while (true) {
-      auto n = reader->read(stored, 4096);
-      ASSERT_TRUE(n.ok());
-      if (*n == 0) break;
-    }
-    ASSERT_EQ(handed.size(), 14'006u) << threads;
-    ASSERT_EQ(stored.size(), handed.size()) << threads;
-    for (std::size_t i = 0; i < handed.size(); ++i) {
-      ASSERT_EQ(handed[i].x, stored[i].x) << threads << " " << i;
-      ASSERT_EQ(handed[i].y, stored[i].y) << threads << " " << i;
-      ASSERT_EQ(handed[i].z, stored[i].z) << threads << " " << i;
-      ASSERT_EQ(handed[i].weight, stored[i].weight) << threads << " " << i;
-    }
-    if (first_run.empty()) {
-      first_run = slurp(opt.output);
+    ASSERT_EQ(handed.points.size(), 14'006u) << threads;
+    EXPECT_EQ(s->header.point_count, 14'006u) << threads;
+    EXPECT_EQ(handed.points[7'003].input, 1) << threads;
+    EXPECT_EQ(handed.points[7'003].weight, 2.0f) << threads;
+    if (first.empty()) {
+      first = handed.points;
     } else {
-      EXPECT_EQ(slurp(opt.output), first_run) << threads;
+      expect_same_points(first, handed.points, std::to_string(threads) + " threads");
     }
   }
   std::size_t calls = 0;
-  opt.output = dir / "stopped.run";
   opt.on_points = [&](std::span<const RunPoint>) -> Status {
     if (++calls == 5) return Error(ErrorCode::io_error, "pass 2 is full");
     return {};
@@ -447,85 +338,22 @@ TEST(Pass1, WorkersHandEveryBatchOverInRecordOrder) {
   ASSERT_FALSE(stopped.ok());
   EXPECT_EQ(stopped.error().message, "pass 2 is full");
   EXPECT_EQ(calls, 5u);
-  EXPECT_FALSE(std::filesystem::exists(opt.output));
-  std::filesystem::remove_all(dir);
-}
 
-// Without a run file path (the ingest's way) nothing is written, the same points are handed over
-// and the header is the one a run file would have had.
-TEST(Pass1, WithoutARunFileThePointsAndHeaderAreTheSame) {
-  auto dir = scratch("no_run_file");
-  std::vector<InputSpec> inputs(2);
-  inputs[0].path = utm_points(dir, 5'001);
-  inputs[0].reproject.crs = "EPSG:32632";
-  inputs[1] = inputs[0];
-  inputs[1].weight = 3;
-  TransformOptions opt;
-  opt.batch_size = 700;
-  opt.threads = 2;
-  std::vector<RunPoint> with_file, without_file;
-  auto collect = [](std::vector<RunPoint>& into) {
-    return [&into](std::span<const RunPoint> points) -> Status {
-      into.insert(into.end(), points.begin(), points.end());
-      return {};
-    };
-  };
-  opt.output = dir / "with.run";
-  opt.on_points = collect(with_file);
-  auto a = transform_sources(inputs, opt);
-  ASSERT_TRUE(a.ok()) << a.error().message;
-  std::filesystem::remove(opt.output);
-  const std::size_t files_before = files_in(dir);
-
-  opt.output.clear();
-  opt.on_points = collect(without_file);
-  auto b = transform_sources(inputs, opt);
-  ASSERT_TRUE(b.ok()) << b.error().message;
-  EXPECT_EQ(files_in(dir), files_before) << "a file was written without a run file path";
-  EXPECT_TRUE(b->run_file.empty());
-  unsigned char ha[kRunHeaderBytes], hb[kRunHeaderBytes];
-  encode_run_header(a->header, true, ha);
-  encode_run_header(b->header, true, hb);
-  EXPECT_EQ(std::memcmp(ha, hb, kRunHeaderBytes), 0);
-  EXPECT_EQ(b->header.point_count, 10'002u);
-  EXPECT_EQ(b->header.input_count, 2u);
-  EXPECT_LT(b->header.mercator.min_x, b->header.mercator.max_x);
-  ASSERT_EQ(without_file.size(), with_file.size());
-  for (std::size_t i = 0; i < with_file.size(); ++i) {
-    ASSERT_EQ(without_file[i].x, with_file[i].x) << i;
-    ASSERT_EQ(without_file[i].z, with_file[i].z) << i;
-    ASSERT_EQ(without_file[i].weight, with_file[i].weight) << i;
-  }
-  ASSERT_EQ(b->inputs.size(), 2u);
-  EXPECT_EQ(b->inputs[1].points_written, 5'001u);
-
-  // With neither a run file nor a consumer there is nothing to do: refused.
   opt.on_points = nullptr;
-  auto c = transform_sources(inputs, opt);
-  ASSERT_FALSE(c.ok());
-  EXPECT_EQ(c.error().code, ErrorCode::invalid_argument);
+  auto refused = transform_sources(inputs, opt);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::invalid_argument);
   std::filesystem::remove_all(dir);
 }
-
-}  // namespace
-}  // namespace tinstream::transform
-
-namespace tinstream::transform {
-namespace {
 
 // #22: heights far outside the Earth's range (an undeclared NODATA of -3.4e38, a z unit wrong by
 // 10^6) were accepted as terrain and published. They are errors naming the record, or invalid
 // records under --skip-invalid.
 TEST(Pass1, HeightsOutsideTheEarthsRangeAreRejectedOrCountedInvalid) {
   auto dir = scratch("heights");
-  const auto path = dir / "h.xyz";
-  std::ofstream(path) << "8.5 47.4 420\n8.6 47.4 -3.4e38\n8.5 47.5 100001\n8.6 47.5 -100000\n"
-                      << "8.55 47.45 8848\n";
-  std::vector<InputSpec> inputs(1);
-  inputs[0].path = path;
-  inputs[0].reproject.crs = "EPSG:4326";
-  TransformOptions opt;
-  opt.output = dir / "h.run";
+  std::vector<InputSpec> inputs = lonlat_xyz(
+      dir, "8.5 47.4 420\n8.6 47.4 -3.4e38\n8.5 47.5 100001\n8.6 47.5 -100000\n8.55 47.45 8848\n");
+  TransformOptions opt = discarding();
   for (unsigned threads : {1u, 2u}) {
     opt.threads = threads;
     auto s = transform_sources(inputs, opt);
@@ -534,7 +362,6 @@ TEST(Pass1, HeightsOutsideTheEarthsRangeAreRejectedOrCountedInvalid) {
     EXPECT_NE(s.error().message.find("record 2: height"), std::string::npos) << s.error().message;
     EXPECT_NE(s.error().message.find("outside the Earth's range"), std::string::npos);
     EXPECT_NE(s.error().message.find("--skip-invalid"), std::string::npos);
-    EXPECT_FALSE(std::filesystem::exists(opt.output));
   }
   inputs[0].source.invalid = sources::InvalidPolicy::skip;
   auto skipped = transform_sources(inputs, opt);
@@ -557,9 +384,8 @@ TEST(Pass1, AWorkerExceptionAThrowingReaderAndAFailedThreadStartAreErrors) {
   std::vector<InputSpec> inputs(1);
   inputs[0].path = utm_points(dir, 5'000);
   inputs[0].reproject.crs = "EPSG:32632";
-  TransformOptions opt;
+  TransformOptions opt = discarding();
   opt.batch_size = 500;
-  opt.output = dir / "out.run";
   struct Case {
     const char* point;
     std::uint64_t skip;
@@ -586,7 +412,6 @@ TEST(Pass1, AWorkerExceptionAThrowingReaderAndAFailedThreadStartAreErrors) {
     ASSERT_FALSE(s.ok());
     EXPECT_EQ(s.error().code, ErrorCode::internal);
     EXPECT_NE(s.error().message.find(c.message), std::string::npos) << s.error().message;
-    EXPECT_FALSE(std::filesystem::exists(opt.output));
   }
   // Nothing armed: the same input goes through.
   opt.threads = 3;

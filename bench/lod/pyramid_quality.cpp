@@ -1,0 +1,300 @@
+// bench/lod: what a stored pyramid says at the data's edge and how good its levels are (#20).
+// Not a test: a measurement over a real store, level by level, the way a client sees the tiles.
+//
+//   pyramid_quality STORE LAYER [--tiles]
+//
+// For every level: the recorded geometric error (the level's largest) against the error
+// *measured* at the finest level's data — every vertex of a finest data triangle (for a DEM or
+// LiDAR ingested without --epsilon: the input points, plus the edge points and corners on the
+// data) located in the level's tile above it and compared with that tile's surface (any of its
+// triangles, NODATA ones included: what Cesium draws), once in doubles and once through the tile's
+// quantized-mesh encoding as CesiumJS interpolates it (QuantizedMeshTerrainData.interpolateHeight:
+// the triangle holding the point in quantised (u, v), barycentric weights, the quantised height
+// scaled by the header's range). It also counts what issue #20 found: tile vertices below the
+// data's lowest height (walls), quantized-mesh height ranges that start below the data, pairs of
+// a tile's vertices closer than 1e-12, and zero-area triangles and repeated (u, v) positions in the
+// quantized-mesh encoding (decoded with the tests' independent decoder). --tiles adds one line per
+// tile. Everything is evaluated by code of this file and the independent decoder, not by the
+// library's error bookkeeping.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "../../core/terrain/tests/qm_decoder.hpp"
+#include "tinstream/geo/mercator.hpp"
+#include "tinstream/store/tile_store.hpp"
+#include "tinstream/terrain/quantized_mesh.hpp"
+
+namespace {
+
+using tinstream::geo::TileId;
+using tinstream::tile::TinTile;
+
+struct Point3 {
+  double x, y, z;
+};
+
+// A triangle mesh with a bucket grid for point location (largest smallest barycentric weight).
+class Locator {
+ public:
+  Locator(std::vector<Point3> p, std::vector<std::array<std::uint32_t, 3>> t) : p_(std::move(p)) {
+    t_ = std::move(t);
+    // The grid spans the small triangles (data that covers a corner of a coarse tile would
+    // otherwise fall into one cell); big triangles are clamped into the cells they reach.
+    std::vector<std::array<double, 4>> box(t_.size());
+    double all_x0 = std::numeric_limits<double>::infinity(), all_y0 = all_x0, all_x1 = -all_x0,
+           all_y1 = -all_x0;
+    for (std::uint32_t i = 0; i < t_.size(); ++i) {
+      double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+      for (auto v : t_[i]) {
+        x0 = std::min(x0, p_[v].x), x1 = std::max(x1, p_[v].x);
+        y0 = std::min(y0, p_[v].y), y1 = std::max(y1, p_[v].y);
+      }
+      box[i] = {x0, y0, x1, y1};
+      all_x0 = std::min(all_x0, x0), all_x1 = std::max(all_x1, x1);
+      all_y0 = std::min(all_y0, y0), all_y1 = std::max(all_y1, y1);
+    }
+    lo_x_ = lo_y_ = std::numeric_limits<double>::infinity();
+    hi_x_ = hi_y_ = -lo_x_;
+    const double limit = (all_x1 - all_x0) * (all_y1 - all_y0) / 4096.0;
+    for (const auto& b : box) {
+      if ((b[2] - b[0]) * (b[3] - b[1]) > limit) continue;
+      lo_x_ = std::min(lo_x_, b[0]), hi_x_ = std::max(hi_x_, b[2]);
+      lo_y_ = std::min(lo_y_, b[1]), hi_y_ = std::max(hi_y_, b[3]);
+    }
+    if (!(lo_x_ < hi_x_ && lo_y_ < hi_y_))
+      lo_x_ = all_x0, hi_x_ = all_x1, lo_y_ = all_y0, hi_y_ = all_y1;
+    g_ = static_cast<int>(std::clamp(std::sqrt(static_cast<double>(t_.size()) / 2.0), 1.0, 512.0));
+    cells_.assign(static_cast<std::size_t>(g_) * static_cast<std::size_t>(g_), {});
+    for (std::uint32_t i = 0; i < t_.size(); ++i) {
+      const double x0 = box[i][0], y0 = box[i][1], x1 = box[i][2], y1 = box[i][3];
+      for (int cy = cell(y0, lo_y_, hi_y_); cy <= cell(y1, lo_y_, hi_y_); ++cy) {
+        for (int cx = cell(x0, lo_x_, hi_x_); cx <= cell(x1, lo_x_, hi_x_); ++cx) {
+          cells_[static_cast<std::size_t>(cy * g_ + cx)].push_back(i);
+        }
+      }
+    }
+  }
+  // Interpolated height at (x, y), and the smallest barycentric weight of the best triangle.
+  double height(double x, double y, double* weight) const {
+    double best_w = -std::numeric_limits<double>::infinity(), best_h = 0;
+    const int cx = cell(x, lo_x_, hi_x_), cy = cell(y, lo_y_, hi_y_);
+    for (std::uint32_t i : cells_[static_cast<std::size_t>(cy * g_ + cx)]) {
+      const Point3 &a = p_[t_[i][0]], &b = p_[t_[i][1]], &c = p_[t_[i][2]];
+      const double det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+      if (det == 0) continue;
+      const double wb = ((x - a.x) * (c.y - a.y) - (y - a.y) * (c.x - a.x)) / det;
+      const double wc = ((b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x)) / det;
+      const double wa = 1 - wb - wc;
+      const double w = std::min({wa, wb, wc});
+      if (w > best_w) best_w = w, best_h = wa * a.z + wb * b.z + wc * c.z;
+    }
+    *weight = best_w;
+    return best_h;
+  }
+
+ private:
+  int cell(double v, double lo, double hi) const {
+    const double f = hi > lo ? (v - lo) / (hi - lo) : 0.0;
+    return std::clamp(static_cast<int>(std::floor(f * g_)), 0, g_ - 1);
+  }
+  std::vector<Point3> p_;
+  std::vector<std::array<std::uint32_t, 3>> t_;
+  std::vector<std::vector<std::uint32_t>> cells_;
+  double lo_x_, lo_y_, hi_x_, hi_y_;
+  int g_ = 1;
+};
+
+Locator tile_locator(const TinTile& t) {
+  std::vector<Point3> p;
+  for (const auto& v : t.vertices()) p.push_back({v.x, v.y, v.z});
+  return Locator(std::move(p), {t.triangles.begin(), t.triangles.end()});
+}
+
+// The tile as CesiumJS reconstructs it from the quantized mesh: (u, v) in 0…32767, heights from
+// the header's range; lookups in the same quantised (u, v) space.
+struct QmView {
+  tinstream::testing::DecodedMesh mesh;
+  tinstream::geo::LonLatRect rect{};
+  std::optional<Locator> locator;
+  std::size_t zero_area = 0, repeated_uv = 0;
+};
+
+QmView qm_view(const TinTile& t, const tinstream::geo::NormalisedMercator& merc) {
+  QmView q;
+  auto bytes = tinstream::terrain::encode_quantized_mesh(t, tinstream::geo::Projection::spherical);
+  if (!bytes) {
+    std::fprintf(stderr, "quantized-mesh of %s: %s\n", t.id.to_string().c_str(),
+                 bytes.error().message.c_str());
+    std::exit(1);
+  }
+  q.mesh = tinstream::testing::decode_quantized_mesh(*bytes);
+  q.rect = t.id.lonlat_bounds(merc);
+  std::vector<Point3> p;
+  const double lo = q.mesh.min_height, hi = q.mesh.max_height;
+  for (std::size_t i = 0; i < q.mesh.u.size(); ++i) {
+    p.push_back({double(q.mesh.u[i]), double(q.mesh.v[i]), lo + (hi - lo) * q.mesh.h[i] / 32767.0});
+  }
+  std::vector<std::array<std::uint32_t, 3>> tris;
+  for (std::size_t k = 0; k + 2 < q.mesh.indices.size(); k += 3) {
+    const auto a = q.mesh.indices[k], b = q.mesh.indices[k + 1], c = q.mesh.indices[k + 2];
+    const long long area = (long long)(p[b].x - p[a].x) * (long long)(p[c].y - p[a].y) -
+                           (long long)(p[b].y - p[a].y) * (long long)(p[c].x - p[a].x);
+    if (area == 0) ++q.zero_area;
+    tris.push_back({a, b, c});
+  }
+  std::map<std::pair<int, int>, int> uv;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (++uv[{int(p[i].x), int(p[i].y)}] == 2) ++q.repeated_uv;
+  }
+  q.locator.emplace(std::move(p), std::move(tris));
+  return q;
+}
+
+double qm_height(const QmView& q, const tinstream::geo::NormalisedMercator& merc, double x,
+                 double y) {
+  const double lon = tinstream::geo::NormalisedMercator::lon_from_x(x), lat = merc.lat_from_y(y);
+  const double u = (lon - q.rect.west) / (q.rect.east - q.rect.west) * 32767.0;
+  const double v = (lat - q.rect.south) / (q.rect.north - q.rect.south) * 32767.0;
+  double w;
+  return q.locator->height(u, v, &w);
+}
+
+std::size_t close_pairs(const TinTile& t, double limit) {
+  auto v = t.vertices();
+  std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.x < b.x; });
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (std::size_t j = i + 1; j < v.size() && v[j].x - v[i].x < limit; ++j) {
+      if (std::hypot(v[j].x - v[i].x, v[j].y - v[i].y) < limit) ++n;
+    }
+  }
+  return n;
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  const double n = static_cast<double>(v.size());
+  const auto k = static_cast<std::size_t>(std::min(n - 1, p * n));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::fprintf(stderr, "usage: %s STORE LAYER [--tiles]\n", argv[0]);
+    return 2;
+  }
+  const bool per_tile = argc > 3 && std::strcmp(argv[3], "--tiles") == 0;
+  auto store =
+      tinstream::store::TileStore::open(argv[1], tinstream::store::TileStore::Mode::read_only);
+  if (!store) return std::fprintf(stderr, "%s\n", store.error().message.c_str()), 1;
+  auto info = store->layer(argv[2]);
+  if (!info) return std::fprintf(stderr, "%s\n", info.error().message.c_str()), 1;
+  const tinstream::geo::NormalisedMercator merc(info->projection);
+  const bool spherical = info->projection == tinstream::geo::Projection::spherical;
+  auto read = [&](const TileId& id) {
+    auto t = store->read_tile(argv[2], id);
+    if (!t || !*t) {
+      std::fprintf(stderr, "cannot read %s\n", id.to_string().c_str());
+      std::exit(1);
+    }
+    return std::move(**t);
+  };
+
+  // The finest level's data: the vertices of its data triangles, by finest tile.
+  const std::uint32_t finest = info->max_level;
+  auto finest_ids = store->tile_ids(argv[2], finest);
+  std::map<TileId, std::vector<Point3>> data;
+  double data_lo = std::numeric_limits<double>::infinity(), data_hi = -data_lo;
+  for (const auto& id : *finest_ids) {
+    const TinTile t = read(id);
+    const auto mask = t.footprint_mask();
+    std::vector<std::uint8_t> used(t.vertex_count(), 0);
+    for (std::size_t k = 0; k < t.triangles.size(); ++k) {
+      if (mask[k]) {
+        for (auto i : t.triangles[k]) used[i] = 1;
+      }
+    }
+    auto& pts = data[id];
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      if (!used[i]) continue;
+      const auto& v = t.vertex(i);
+      pts.push_back({v.x, v.y, v.z});
+      data_lo = std::min(data_lo, v.z), data_hi = std::max(data_hi, v.z);
+    }
+  }
+  std::printf("%s layer %s: finest level %u, %zu finest tiles, data heights %.3f … %.3f m\n",
+              argv[1], argv[2], finest, finest_ids->size(), data_lo, data_hi);
+  std::printf(
+      "| level | tiles | vertices/tile | recorded max (m) | measured max (m) | recorded / measured "
+      "| "
+      "per-tile ratio min–max | lowest vertex (m) | QM lowest height (m) | Cesium max (m) | "
+      "Cesium p99 (m) | tiles with pairs < 1e-12 | QM zero-area triangles | QM repeated (u,v) |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (std::uint32_t z = finest + 1; z-- > info->min_level;) {
+    auto ids = store->tile_ids(argv[2], z);
+    double recorded = 0, measured = 0, lowest = std::numeric_limits<double>::infinity();
+    double qm_lowest = lowest, ratio_lo = lowest, ratio_hi = 0, cesium_max = 0;
+    std::vector<double> cesium_errors;
+    std::size_t vertices = 0, pair_tiles = 0, zero_area = 0, repeated = 0;
+    for (const auto& id : *ids) {
+      const TinTile t = read(id);
+      vertices += t.vertex_count();
+      recorded = std::max(recorded, t.geometric_error);
+      for (const auto& v : t.vertices()) lowest = std::min(lowest, v.z);
+      if (close_pairs(t, 1e-12) > 0) ++pair_tiles;
+      const Locator here = tile_locator(t);
+      std::optional<QmView> qm;
+      if (spherical) {
+        qm = qm_view(t, merc);
+        qm_lowest = std::min<double>(qm_lowest, qm->mesh.min_height);
+        zero_area += qm->zero_area, repeated += qm->repeated_uv;
+      }
+      double tile_measured = 0;
+      const std::uint32_t shift = finest - z;
+      for (const auto& [fid, pts] : data) {
+        if ((fid.x >> shift) != id.x || (fid.y >> shift) != id.y) continue;
+        for (const Point3& p : pts) {
+          double w;
+          const double h = here.height(p.x, p.y, &w);
+          tile_measured = std::max(tile_measured, std::abs(h - p.z));
+          if (qm) {
+            const double e = std::abs(qm_height(*qm, merc, p.x, p.y) - p.z);
+            cesium_errors.push_back(e);
+            cesium_max = std::max(cesium_max, e);
+          }
+        }
+      }
+      measured = std::max(measured, tile_measured);
+      if (z < finest && tile_measured > 0) {
+        const double r = t.geometric_error / tile_measured;
+        ratio_lo = std::min(ratio_lo, r), ratio_hi = std::max(ratio_hi, r);
+      }
+      if (per_tile) {
+        std::printf(
+            "  tile %s: %zu vertices, recorded %.4f m, measured %.4f m, nodata corners %d%d%d%d\n",
+            id.to_string().c_str(), t.vertex_count(), t.geometric_error, tile_measured,
+            t.corner_nodata[0], t.corner_nodata[1], t.corner_nodata[2], t.corner_nodata[3]);
+      }
+    }
+    char ratios[64] = "—";
+    if (ratio_hi > 0) std::snprintf(ratios, sizeof ratios, "%.2f–%.2f", ratio_lo, ratio_hi);
+    std::printf(
+        "| %u | %zu | %.0f | %.4f | %.4f | %s | %s | %.3f | %.3f | %.4f | %.4f | %zu | %zu | %zu "
+        "|\n",
+        z, ids->size(), double(vertices) / double(ids->size()), recorded, measured,
+        z < finest && measured > 0 ? std::to_string(recorded / measured).substr(0, 5).c_str() : "—",
+        ratios, lowest, qm_lowest, cesium_max, percentile(cesium_errors, 0.99), pair_tiles,
+        zero_area, repeated);
+    std::fflush(stdout);
+  }
+  return 0;
+}

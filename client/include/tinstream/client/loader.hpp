@@ -1,0 +1,119 @@
+// tinstream/client/loader.hpp — the download pool: up to eight workers that fetch, revalidate,
+// cache on disk and decode tiles, and hand finished meshes to the render thread.
+//
+//   render thread ──submit(wanted)──▶ RequestQueue ──pop──▶ worker k (own TileConnection)
+//        ▲                                                   │ disk cache get / put / touch
+//        └──────────────take_results() (swap)◀── ready list ◀┘ fetch → inflate → decode → mesh
+//
+// Neither submit() nor take_results() waits on a worker: both hold a lock only for a swap (or,
+// in submit, one hash lookup per request). Workers never touch the RAM or GPU tiers.
+// Every worker runs its jobs inside an exception barrier; a failure becomes a `failed` result.
+// The thread count can change at run time (set_threads): extra workers are parked, not joined.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tinstream/client/disk_cache.hpp"
+#include "tinstream/client/layer.hpp"
+#include "tinstream/client/render_mesh.hpp"
+#include "tinstream/client/request_queue.hpp"
+#include "tinstream/client/tile_source.hpp"
+
+namespace tinstream::client {
+
+enum class LoadStatus { loaded, absent, failed };
+// Where a loaded tile's bytes came from.
+enum class LoadOrigin { network, revalidated, disk, store };
+
+struct LoadResult {
+  TileKey key;
+  LoadStatus status = LoadStatus::failed;
+  LoadOrigin origin = LoadOrigin::network;
+  std::shared_ptr<const TileMesh> mesh;  // when loaded
+  std::string error;                     // when failed
+  std::uint64_t payload_bytes = 0;       // compressed bytes of the tile
+};
+
+// Cumulative counters (read with relaxed atomics: a consistent snapshot is not needed).
+struct LoaderCounters {
+  std::uint64_t requests = 0;     // fetches sent to the source (HTTP attempts or store reads)
+  std::uint64_t retries = 0;      // attempts beyond the first
+  std::uint64_t connections = 0;  // connections opened
+  std::uint64_t ok = 0, not_modified = 0, not_found = 0, failed = 0;
+  std::uint64_t wire_bytes = 0;        // bytes received from the network (headers and bodies)
+  std::uint64_t downloaded_bytes = 0;  // bodies of 200 answers (new bytes)
+  std::uint64_t decoded = 0, decode_errors = 0;
+  std::uint64_t dropped = 0;  // queued requests dropped because the view moved on
+  std::uint64_t queued = 0, in_flight = 0;
+  std::array<std::uint32_t, 31> in_flight_levels{};
+  double decode_seconds = 0;  // worker time spent inflating, decoding and building meshes
+};
+
+struct LoaderOptions {
+  int threads = 0;  // 0: one per core, at most 8
+};
+
+class TileLoader {
+ public:
+  // `disk` may be null; it is only used for remote sources.
+  TileLoader(std::shared_ptr<TileSource> source, std::vector<LayerDescription> layers,
+             std::shared_ptr<DiskCache> disk, LoaderOptions options = {});
+  ~TileLoader();  // cancels requests in flight and joins the workers
+  TileLoader(const TileLoader&) = delete;
+  TileLoader& operator=(const TileLoader&) = delete;
+
+  static int default_threads();
+  void set_threads(int threads);  // clamped to 1…8
+  int threads() const { return threads_; }
+  // Workers finish what is in flight but take nothing new while paused.
+  void set_paused(bool paused);
+
+  // Render thread: what the view lacks now, replacing the previous submission.
+  void submit(std::vector<TileRequest> wanted);
+  // Render thread: results finished since the last call (never blocks on a worker).
+  std::vector<LoadResult> take_results();
+  // Blocks until a result is ready or `timeout` passed (headless driver only).
+  bool wait_for_results(std::chrono::milliseconds timeout);
+
+  LoaderCounters counters() const;
+  const std::vector<LayerDescription>& layers() const { return layers_; }
+  const TileSource& source() const { return *source_; }
+  const DiskCache* disk() const { return disk_.get(); }
+
+ private:
+  void run_worker(std::size_t index);
+  LoadResult load(const TileRequest& request, std::unique_ptr<TileConnection>& connection);
+  LoadResult finish_payload(const TileKey& key, const LayerDescription& layer,
+                            std::vector<std::uint8_t> bytes, ContentEncoding encoding,
+                            LoadOrigin origin);
+
+  std::shared_ptr<TileSource> source_;
+  std::vector<LayerDescription> layers_;
+  std::shared_ptr<DiskCache> disk_;
+  RequestQueue queue_;
+  std::atomic<bool> cancel_{false};
+  int threads_ = 1;
+  std::vector<std::thread> workers_;  // grows up to 8, touched by the owner's thread only
+
+  std::mutex results_mutex_;
+  std::condition_variable results_ready_;
+  std::vector<LoadResult> results_;  // guarded by results_mutex_
+
+  struct Atomics {
+    std::atomic<std::uint64_t> requests{0}, retries{0}, connections{0}, ok{0}, not_modified{0},
+        not_found{0}, failed{0}, wire_bytes{0}, downloaded_bytes{0}, decoded{0}, decode_errors{0},
+        dropped{0}, decode_micros{0};
+  };
+  Atomics counters_;
+};
+
+}  // namespace tinstream::client

@@ -1,0 +1,164 @@
+// tinstream/client/streamer.hpp — what the render thread does with tiles each frame.
+//
+// update() runs on the render thread, once per frame, and never waits on I/O or a worker:
+//   1. take the loader's finished results (a swap): meshes go into the RAM tier, 404s into the
+//      set of absent tiles, failures into a short-lived failure list;
+//   2. select tiles on the WGS84 ellipsoid: from each layer's root tiles down, cull by frustum and
+//      horizon, refine while the screen-space error exceeds max_sse. A tile is replaced by its
+//      children only when every visible child is resident; until then it stays drawn and the
+//      missing children are requested (priority: this tile's screen-space error, so ancestors
+//      come before descendants and nearer, coarser-looking tiles first). Children that do not
+//      exist (404, or outside the layer's bounds) are covered by the parent's quadrant;
+//   3. upload decoded meshes from the RAM tier to the GPU tier, most urgent first, up to
+//      upload_bytes_per_frame (at least one per frame);
+//   4. hand the loader what is still missing (stale requests are dropped there).
+// Tiles drawn, and those on the path to them, are pinned in the frame and never evicted.
+//
+// The GPU is reached only through GpuUploader (the renderer implements it), so the selection and
+// the tiers are testable without OpenGL. Single-threaded: the render thread owns everything here.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "tinstream/client/bounds.hpp"
+#include "tinstream/client/camera.hpp"
+#include "tinstream/client/loader.hpp"
+#include "tinstream/client/lru_tier.hpp"
+
+namespace tinstream::client {
+
+// The box selection uses for a tile not loaded yet: its rectangle clipped to the layer's data
+// bounds, over the layer's height range (every drawn vertex lies inside both), as rectangle_obb.
+Obb unloaded_tile_bounds(const LayerDescription& layer, const geo::TileId& id);
+
+// GL object names of one uploaded mesh (0 = none), as the renderer made them.
+struct GpuMesh {
+  std::uint32_t vao = 0, vbo = 0, ibo = 0;
+  std::uint32_t index_count = 0, surface_index_count = 0;
+  bool wide_indices = false;
+  std::uint64_t bytes = 0;
+};
+
+class GpuUploader {
+ public:
+  virtual ~GpuUploader() = default;
+  virtual GpuMesh upload(const TileMesh& mesh) = 0;
+  virtual void release(GpuMesh& mesh) = 0;
+};
+
+// A tile in the GPU tier: the buffers and what selection and drawing need to know about it.
+struct ResidentTile {
+  GpuMesh gpu;
+  Vec3 centre;
+  std::array<Vec3, 3> frame{};
+  Obb bounds;
+  double geometric_error = 0;
+  double min_z = 0, max_z = 0;
+  std::uint8_t quadrant_data = 0;
+};
+
+struct DrawItem {
+  TileKey key;
+  const ResidentTile* tile = nullptr;  // valid until the next update()
+  std::uint8_t quadrant_mask = 0xF;    // bit q: draw quadrant q (quadkey digit) of the tile
+  double sse = 0;                      // screen-space error, pixels
+  double distance = 0;                 // metres from the camera to the tile's box
+};
+
+inline constexpr std::size_t kLevels = 31;
+
+struct FrameResult {
+  std::vector<DrawItem> draws;  // front to back
+  bool complete = false;   // nothing the view needs is missing, queued, in flight or unuploaded
+  std::size_t wanted = 0;  // tiles requested from the loader this frame
+  std::size_t upload_pending = 0;  // decoded tiles waiting for the upload budget
+  std::size_t uploaded = 0;
+  std::uint64_t uploaded_bytes = 0;
+  double max_sse_drawn = 0;
+  std::array<std::uint32_t, kLevels> drawn_per_level{};
+  std::array<std::uint32_t, kLevels> pending_per_level{};
+};
+
+struct LevelCounters {
+  std::uint64_t requested = 0;  // distinct tiles asked from the loader
+  std::uint64_t loaded = 0;     // meshes received
+  std::uint64_t absent = 0;     // 404s
+  std::uint64_t failed = 0;
+};
+
+struct StreamerOptions {
+  double max_sse = 2.0;                     // pixels
+  std::uint64_t gpu_budget = 512ull << 20;  // bytes
+  std::uint64_t ram_budget = 512ull << 20;  // bytes
+  std::uint64_t upload_bytes_per_frame = 8u << 20;
+  std::chrono::milliseconds failure_retry{10000};  // a failed tile is asked again after this
+};
+
+class TileStreamer {
+ public:
+  TileStreamer(TileLoader& loader, StreamerOptions options);
+
+  const FrameResult& update(const Camera& camera, GpuUploader& gpu);
+  // Frees every GPU buffer (before the GL context goes away).
+  void release_all(GpuUploader& gpu);
+
+  void set_max_sse(double pixels) { options_.max_sse = pixels; }
+  double max_sse() const { return options_.max_sse; }
+  const StreamerOptions& options() const { return options_; }
+
+  const FrameResult& last_frame() const { return frame_result_; }
+  const std::array<LevelCounters, kLevels>& level_counters() const { return levels_; }
+  const TierCounters& gpu_counters() const { return gpu_.counters(); }
+  const TierCounters& ram_counters() const { return ram_.counters(); }
+  std::uint64_t frames() const { return frame_; }
+  std::uint64_t failures() const { return failures_; }
+  const std::string& last_error() const { return last_error_; }
+  // Height of the lowest terrain any layer may have (for the globe and the horizon).
+  double lowest_height() const { return lowest_height_; }
+
+ private:
+  enum class State { absent, culled, not_ready, ready };
+  struct Probe {
+    State state = State::absent;
+    ResidentTile* tile = nullptr;
+    double distance = 0;
+  };
+  struct View;
+
+  void take_results();
+  Probe probe(const View& view, std::uint16_t layer, const geo::TileId& id, double priority);
+  void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
+  void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
+  void upload(GpuUploader& gpu);
+  bool failed_recently(const TileKey& key);
+
+  TileLoader& loader_;
+  StreamerOptions options_;
+  const std::vector<LayerDescription>& layers_;
+  std::vector<std::vector<geo::TileId>> roots_;  // per layer: its min_level tiles over its data
+  double lowest_height_ = 0;
+  HorizonOccluder occluder_;
+
+  std::uint64_t frame_ = 0;
+  LruTier<ResidentTile> gpu_;
+  LruTier<std::shared_ptr<const TileMesh>> ram_;
+  std::unordered_set<TileKey, TileKeyHash> absent_;
+  std::unordered_map<TileKey, std::chrono::steady_clock::time_point, TileKeyHash> failed_;
+  std::unordered_set<TileKey, TileKeyHash> requested_ever_;
+  std::array<LevelCounters, kLevels> levels_{};
+  std::uint64_t failures_ = 0;
+  std::string last_error_;
+
+  // Per frame.
+  FrameResult frame_result_;
+  std::vector<TileRequest> wanted_;
+  std::vector<TileRequest> uploads_;
+};
+
+}  // namespace tinstream::client

@@ -1,0 +1,108 @@
+#include "tinstream/client/layer.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include "tinstream/client/tile_key.hpp"
+#include "tinstream/store/tile_store.hpp"
+
+namespace tinstream::client {
+
+using nlohmann::json;
+
+double LayerDescription::level_error(std::uint32_t z) const {
+  return z < level_max_error.size() ? level_max_error[z] : 0.0;
+}
+
+std::string LayerDescription::cache_version() const {
+  return "v" + std::to_string(version) + "-" + std::to_string(created_unix);
+}
+
+bool LayerDescription::may_contain(const geo::TileId& id) const {
+  if (id.z < min_level || id.z > max_level) return false;
+  const geo::MercatorRect r = id.bounds();
+  return r.min_x <= mercator_bounds.max_x && r.max_x >= mercator_bounds.min_x &&
+         r.min_y <= mercator_bounds.max_y && r.max_y >= mercator_bounds.min_y;
+}
+
+namespace {
+
+Result<LayerDescription> from_json(const json& j) {
+  try {
+    LayerDescription l;
+    l.name = j.at("name").get<std::string>();
+    auto projection = geo::parse_projection(j.at("projection").get<std::string>());
+    if (!projection) return projection.error();
+    l.projection = *projection;
+    const json& b = j.at("bounds");
+    l.bounds = {b.at("west").get<double>(), b.at("south").get<double>(), b.at("east").get<double>(),
+                b.at("north").get<double>()};
+    const json& m = j.at("mercator_bounds");
+    l.mercator_bounds = {m.at("min_x").get<double>(), m.at("min_y").get<double>(),
+                         m.at("max_x").get<double>(), m.at("max_y").get<double>()};
+    l.min_level = j.at("min_level").get<std::uint32_t>();
+    l.max_level = j.at("max_level").get<std::uint32_t>();
+    l.min_z = j.at("min_z").get<double>();
+    l.max_z = j.at("max_z").get<double>();
+    l.level_max_error = j.at("level_max_error").get<std::vector<double>>();
+    l.tile_count = j.value("tile_count", std::uint64_t{0});
+    l.version = j.value("version", std::int64_t{0});
+    l.created_unix = j.value("created_unix", std::int64_t{0});
+    l.attribution = j.value("attribution", std::string());
+    if (l.min_level > l.max_level || l.max_level > static_cast<std::uint32_t>(geo::kMaxLevel))
+      return invalid_argument("layer \"" + l.name + "\": levels " + std::to_string(l.min_level) +
+                              "…" + std::to_string(l.max_level) + " out of order or above 30");
+    return l;
+  } catch (const json::exception& e) {
+    return invalid_argument(std::string("layer metadata: ") + e.what());
+  }
+}
+
+}  // namespace
+
+Result<LayerDescription> parse_layer_json(std::string_view text) {
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object())
+    return invalid_argument("layer metadata is not a JSON object");
+  return from_json(j);
+}
+
+Result<std::vector<LayerDescription>> parse_layers_json(std::string_view text) {
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.contains("layers") || !j["layers"].is_array())
+    return invalid_argument("the layer list is not {\"layers\": [...]}");
+  std::vector<LayerDescription> out;
+  for (const json& l : j["layers"]) {
+    auto d = from_json(l);
+    if (!d) return d.error();
+    out.push_back(std::move(*d));
+  }
+  return out;
+}
+
+LayerDescription from_store_info(const store::LayerInfo& info) {
+  LayerDescription l;
+  l.name = info.name;
+  l.projection = info.projection;
+  l.mercator_bounds = info.mercator_bounds;
+  l.bounds = info.bounds;
+  l.min_level = info.min_level;
+  l.max_level = info.max_level;
+  l.min_z = info.min_z;
+  l.max_z = info.max_z;
+  l.level_max_error = info.level_max_error;
+  l.tile_count = info.tile_count;
+  l.version = info.version;
+  l.created_unix = info.created_unix;
+  l.attribution = info.attribution;
+  return l;
+}
+
+std::string_view to_string(TileKind kind) {
+  switch (kind) {
+    case TileKind::terrain:
+      return "terrain";
+  }
+  return "terrain";
+}
+
+}  // namespace tinstream::client

@@ -1,0 +1,196 @@
+#include "tinstream/client/loader.hpp"
+
+#include <algorithm>
+#include <exception>
+
+namespace tinstream::client {
+
+namespace {
+constexpr int kMaxThreads = 8;
+}
+
+int TileLoader::default_threads() {
+  const unsigned hw = std::thread::hardware_concurrency();
+  return std::clamp(static_cast<int>(hw == 0 ? 1 : hw), 1, kMaxThreads);
+}
+
+TileLoader::TileLoader(std::shared_ptr<TileSource> source, std::vector<LayerDescription> layers,
+                       std::shared_ptr<DiskCache> disk, LoaderOptions options)
+    : source_(std::move(source)), layers_(std::move(layers)), disk_(std::move(disk)) {
+  if (!source_->remote()) disk_.reset();
+  set_threads(options.threads <= 0 ? default_threads() : options.threads);
+}
+
+TileLoader::~TileLoader() {
+  cancel_.store(true);
+  queue_.close();
+  for (std::thread& t : workers_)
+    if (t.joinable()) t.join();
+}
+
+void TileLoader::set_threads(int threads) {
+  threads_ = std::clamp(threads, 1, kMaxThreads);
+  queue_.set_active_workers(static_cast<std::size_t>(threads_));
+  while (static_cast<int>(workers_.size()) < threads_) {
+    const std::size_t index = workers_.size();
+    workers_.emplace_back([this, index] { run_worker(index); });
+  }
+}
+
+void TileLoader::set_paused(bool paused) { queue_.set_paused(paused); }
+
+void TileLoader::submit(std::vector<TileRequest> wanted) {
+  counters_.dropped.fetch_add(queue_.replace(std::move(wanted)), std::memory_order_relaxed);
+}
+
+std::vector<LoadResult> TileLoader::take_results() {
+  std::vector<LoadResult> out;
+  {
+    std::lock_guard lock(results_mutex_);
+    out.swap(results_);
+  }
+  std::vector<TileKey> keys;
+  keys.reserve(out.size());
+  for (const LoadResult& r : out) keys.push_back(r.key);
+  queue_.finish(keys);
+  return out;
+}
+
+bool TileLoader::wait_for_results(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(results_mutex_);
+  return results_ready_.wait_for(lock, timeout, [&] { return !results_.empty(); });
+}
+
+LoaderCounters TileLoader::counters() const {
+  const auto get = [](const std::atomic<std::uint64_t>& a) {
+    return a.load(std::memory_order_relaxed);
+  };
+  LoaderCounters c;
+  c.requests = get(counters_.requests);
+  c.retries = get(counters_.retries);
+  c.connections = get(counters_.connections);
+  c.ok = get(counters_.ok);
+  c.not_modified = get(counters_.not_modified);
+  c.not_found = get(counters_.not_found);
+  c.failed = get(counters_.failed);
+  c.wire_bytes = get(counters_.wire_bytes);
+  c.downloaded_bytes = get(counters_.downloaded_bytes);
+  c.decoded = get(counters_.decoded);
+  c.decode_errors = get(counters_.decode_errors);
+  c.dropped = get(counters_.dropped);
+  c.decode_seconds = static_cast<double>(get(counters_.decode_micros)) * 1e-6;
+  c.queued = queue_.queued();
+  c.in_flight = queue_.in_flight();
+  c.in_flight_levels = queue_.in_flight_per_level();
+  return c;
+}
+
+void TileLoader::run_worker(std::size_t index) {
+  std::unique_ptr<TileConnection> connection;
+  while (auto request = queue_.pop(index)) {
+    LoadResult result;
+    try {
+      result = load(*request, connection);
+    } catch (const std::exception& e) {  // the barrier: nothing escapes a worker
+      result = LoadResult{request->key,
+                          LoadStatus::failed,
+                          LoadOrigin::network,
+                          nullptr,
+                          std::string("internal error: ") + e.what(),
+                          0};
+      connection.reset();
+    } catch (...) {
+      result = LoadResult{request->key, LoadStatus::failed, LoadOrigin::network,
+                          nullptr,      "internal error",   0};
+      connection.reset();
+    }
+    if (result.status == LoadStatus::failed)
+      counters_.failed.fetch_add(1, std::memory_order_relaxed);
+    // The key stays in flight until the render thread takes the result (take_results), so a
+    // frame that looked for it before it was ready cannot queue it again.
+    {
+      std::lock_guard lock(results_mutex_);
+      results_.push_back(std::move(result));
+    }
+    results_ready_.notify_all();
+  }
+}
+
+LoadResult TileLoader::load(const TileRequest& request,
+                            std::unique_ptr<TileConnection>& connection) {
+  const TileKey& key = request.key;
+  const LayerDescription& layer = layers_.at(key.layer);
+  LoadResult failed{key, LoadStatus::failed, LoadOrigin::network, nullptr, {}, 0};
+  if (!connection) {
+    auto c = source_->connect();
+    if (!c) {
+      failed.error = c.error().message;
+      return failed;
+    }
+    connection = std::move(*c);
+  }
+  std::optional<DiskEntry> cached;
+  if (disk_) cached = disk_->get(key, layer);
+
+  FetchRequest fetch{key, &layer, cached ? std::optional<std::string>(cached->etag) : std::nullopt};
+  FetchResponse response = connection->fetch(fetch, cancel_);
+  counters_.requests.fetch_add(response.attempts, std::memory_order_relaxed);
+  counters_.retries.fetch_add(response.attempts > 0 ? response.attempts - 1 : 0,
+                              std::memory_order_relaxed);
+  counters_.connections.fetch_add(response.reconnects, std::memory_order_relaxed);
+  counters_.wire_bytes.fetch_add(response.wire_bytes, std::memory_order_relaxed);
+  const LoadOrigin fetched = source_->remote() ? LoadOrigin::network : LoadOrigin::store;
+
+  switch (response.status) {
+    case FetchResponse::Status::ok: {
+      counters_.ok.fetch_add(1, std::memory_order_relaxed);
+      counters_.downloaded_bytes.fetch_add(response.body.size(), std::memory_order_relaxed);
+      if (disk_) disk_->put(key, layer, DiskEntry{response.etag, response.encoding, response.body});
+      return finish_payload(key, layer, std::move(response.body), response.encoding, fetched);
+    }
+    case FetchResponse::Status::not_modified:
+      counters_.not_modified.fetch_add(1, std::memory_order_relaxed);
+      if (!cached) {
+        failed.error = "tile " + key.tile.quadkey() + ": 304 Not Modified without a cached copy";
+        return failed;
+      }
+      disk_->touch(key, layer);
+      return finish_payload(key, layer, std::move(cached->bytes), cached->encoding,
+                            LoadOrigin::revalidated);
+    case FetchResponse::Status::not_found:
+      counters_.not_found.fetch_add(1, std::memory_order_relaxed);
+      if (cached) disk_->erase(key, layer);
+      return LoadResult{key, LoadStatus::absent, fetched, nullptr, {}, 0};
+    case FetchResponse::Status::failed:
+      break;
+  }
+  // The source failed after its retries: a copy on disk is better than nothing (offline use).
+  if (cached && response.error.code != ErrorCode::cancelled)
+    return finish_payload(key, layer, std::move(cached->bytes), cached->encoding, LoadOrigin::disk);
+  failed.error = response.error.message;
+  return failed;
+}
+
+LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription& layer,
+                                      std::vector<std::uint8_t> bytes, ContentEncoding encoding,
+                                      LoadOrigin origin) {
+  const auto start = std::chrono::steady_clock::now();
+  auto mesh = decode_render_mesh(bytes, encoding, layer, key);
+  counters_.decode_micros.fetch_add(
+      static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                     std::chrono::steady_clock::now() - start)
+                                     .count()),
+      std::memory_order_relaxed);
+  if (!mesh) {
+    counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
+    // A damaged copy must not come back from the disk cache.
+    if (disk_) disk_->erase(key, layer);
+    return LoadResult{key, LoadStatus::failed, origin, nullptr, mesh.error().message, bytes.size()};
+  }
+  counters_.decoded.fetch_add(1, std::memory_order_relaxed);
+  return LoadResult{key,    LoadStatus::loaded,
+                    origin, std::make_shared<const TileMesh>(std::move(*mesh)),
+                    {},     bytes.size()};
+}
+
+}  // namespace tinstream::client

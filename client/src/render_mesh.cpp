@@ -1,0 +1,282 @@
+#include "tinstream/client/render_mesh.hpp"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "tinstream/geo/ecef.hpp"
+#include "tinstream/geo/mercator.hpp"
+#include "tinstream/tile/codec.hpp"
+
+namespace tinstream::client {
+
+std::string_view to_string(ContentEncoding e) {
+  switch (e) {
+    case ContentEncoding::identity:
+      return "identity";
+    case ContentEncoding::deflate:
+      return "deflate";
+    case ContentEncoding::gzip:
+      return "gzip";
+  }
+  return "identity";
+}
+
+namespace {
+
+Result<std::vector<std::uint8_t>> gunzip(std::span<const std::uint8_t> bytes,
+                                         std::size_t max_output) {
+  z_stream zs{};
+  if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) return io_error("gzip: inflateInit2 failed");
+  std::vector<std::uint8_t> out(
+      std::min<std::size_t>(std::max<std::size_t>(bytes.size() * 4, 4096), max_output + 1));
+  zs.next_in = const_cast<Bytef*>(bytes.data());
+  zs.avail_in = static_cast<uInt>(bytes.size());
+  int rc = Z_OK;
+  std::size_t produced = 0;
+  while (rc == Z_OK) {
+    if (produced == out.size()) {
+      if (out.size() > max_output) break;
+      out.resize(std::min(out.size() * 2, max_output + 1));
+    }
+    zs.next_out = out.data() + produced;
+    zs.avail_out = static_cast<uInt>(out.size() - produced);
+    rc = inflate(&zs, Z_NO_FLUSH);
+    produced = out.size() - zs.avail_out;
+  }
+  inflateEnd(&zs);
+  if (produced > max_output) return corrupt_data("gzip: inflates past the size limit");
+  if (rc != Z_STREAM_END) return corrupt_data("gzip: truncated or malformed stream");
+  out.resize(produced);
+  return out;
+}
+
+// 10-bit signed normalised component of the 2_10_10_10 format.
+std::uint32_t snorm10(double v) {
+  const auto i = static_cast<std::int32_t>(std::lround(std::clamp(v, -1.0, 1.0) * 511.0));
+  return static_cast<std::uint32_t>(i) & 0x3FFu;
+}
+
+std::uint32_t pack_normal(Vec3 n, bool skirt) {
+  return snorm10(n.x) | (snorm10(n.y) << 10) | (snorm10(n.z) << 20) | (skirt ? 1u << 30 : 0u);
+}
+
+std::uint16_t unorm16(double t) {
+  return static_cast<std::uint16_t>(std::lround(std::clamp(t, 0.0, 1.0) * 65535.0));
+}
+
+Vec3 to_vec(const geo::Ecef& e) { return {e.x, e.y, e.z}; }
+
+// The border vertex indices of each side, corners included, in edge order (tile numbering).
+std::array<std::vector<std::uint32_t>, 4> border_loops(const tile::TinTile& t) {
+  std::array<std::vector<std::uint32_t>, 4> sides;
+  std::uint32_t next = 4;
+  const auto side = [&](std::uint32_t first, std::size_t count, std::uint32_t last) {
+    std::vector<std::uint32_t> s{first};
+    for (std::size_t i = 0; i < count; ++i) s.push_back(next++);
+    s.push_back(last);
+    return s;
+  };
+  sides[0] = side(0, t.north.size(), 1);  // north: NW → NE
+  sides[1] = side(1, t.east.size(), 3);   // east: NE → SE
+  sides[2] = side(2, t.south.size(), 3);  // south: SW → SE
+  sides[3] = side(0, t.west.size(), 2);   // west: NW → SW
+  return sides;
+}
+
+std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
+  if (a > b) std::swap(a, b);
+  return (std::uint64_t{a} << 32) | b;
+}
+
+}  // namespace
+
+Result<std::vector<std::uint8_t>> inflate_payload(std::span<const std::uint8_t> bytes,
+                                                  ContentEncoding encoding,
+                                                  std::size_t max_output) {
+  switch (encoding) {
+    case ContentEncoding::deflate:
+      return tile::decompress(bytes, max_output);
+    case ContentEncoding::gzip:
+      return gunzip(bytes, max_output);
+    case ContentEncoding::identity:
+      if (bytes.size() > max_output) return corrupt_data("payload larger than the size limit");
+      return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
+  }
+  return unsupported("unknown content encoding");
+}
+
+std::size_t TileMesh::byte_size() const {
+  return vertices.size() * sizeof(MeshVertex) + indices16.size() * 2 + indices32.size() * 4;
+}
+
+double skirt_depth(const tile::TinTile& tile, const LayerDescription& layer) {
+  const geo::MercatorRect r = tile.id.bounds();
+  const double lat = geo::NormalisedMercator(layer.projection).lat_from_y((r.min_y + r.max_y) / 2);
+  const double width_m =
+      r.width() * std::numbers::pi * geo::kWgs84A * std::cos(lat * std::numbers::pi / 180.0);
+  const double coarser = tile.id.z > layer.min_level ? layer.level_error(tile.id.z - 1) : 0.0;
+  return tile.geometric_error + coarser + std::max(1e-3 * width_m, 0.05);
+}
+
+TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& layer, TileKey key) {
+  const geo::NormalisedMercator projection(layer.projection);
+  const std::vector<tile::Vertex> vertices = tile.vertices();
+  const geo::MercatorRect rect = tile.id.bounds();
+  const double mid_x = (rect.min_x + rect.max_x) / 2, mid_y = (rect.min_y + rect.max_y) / 2;
+
+  TileMesh mesh;
+  mesh.key = key;
+  mesh.geometric_error = tile.geometric_error;
+  mesh.skirt_depth = skirt_depth(tile, layer);
+
+  // Drawn triangles and the vertices they use.
+  std::vector<tile::Triangle> drawn;
+  drawn.reserve(tile.triangles.size());
+  std::vector<bool> used(vertices.size(), false);
+  const std::vector<std::uint8_t> footprint = tile.footprint_mask();
+  for (std::size_t i = 0; i < tile.triangles.size(); ++i) {
+    const tile::Triangle& t = tile.triangles[i];
+    if (!footprint[i]) {
+      ++mesh.nodata_triangles;
+      continue;
+    }
+    drawn.push_back(t);
+    double lo_x = vertices[t[0]].x, hi_x = lo_x, lo_y = vertices[t[0]].y, hi_y = lo_y;
+    for (const std::uint32_t v : t) {
+      used[v] = true;
+      lo_x = std::min(lo_x, vertices[v].x);
+      hi_x = std::max(hi_x, vertices[v].x);
+      lo_y = std::min(lo_y, vertices[v].y);
+      hi_y = std::max(hi_y, vertices[v].y);
+    }
+    // Quadkey digits: 0 NW, 1 NE, 2 SW, 3 SE.
+    const bool west = lo_x<mid_x, east = hi_x> mid_x, north = hi_y > mid_y, south = lo_y < mid_y;
+    mesh.quadrant_data |=
+        static_cast<std::uint8_t>((north && west ? 1 : 0) | (north && east ? 2 : 0) |
+                                  (south && west ? 4 : 0) | (south && east ? 8 : 0));
+  }
+  mesh.data_triangles = static_cast<std::uint32_t>(drawn.size());
+
+  // Double-precision ECEF of every vertex; the drawn height range.
+  std::vector<Vec3> ecef(vertices.size());
+  std::vector<geo::LonLat> lonlat(vertices.size());
+  double min_z = std::numeric_limits<double>::infinity(), max_z = -min_z;
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    lonlat[i] = projection.inverse({vertices[i].x, vertices[i].y});
+    ecef[i] = to_vec(geo::to_ecef({lonlat[i].lon, lonlat[i].lat, vertices[i].z}));
+    if (used[i]) {
+      min_z = std::min(min_z, vertices[i].z);
+      max_z = std::max(max_z, vertices[i].z);
+    }
+  }
+  if (drawn.empty()) min_z = max_z = 0;
+  mesh.min_z = min_z;
+  mesh.max_z = max_z;
+
+  const geo::LonLat centre_ll = projection.inverse({mid_x, mid_y});
+  mesh.centre = to_vec(geo::to_ecef({centre_ll.lon, centre_ll.lat, (min_z + max_z) / 2}));
+  mesh.frame = enu_frame(centre_ll.lon, centre_ll.lat);
+
+  // Area-weighted vertex normals (the cross product's length is twice the area).
+  std::vector<Vec3> normal(vertices.size());
+  for (const tile::Triangle& t : drawn) {
+    const Vec3 n = cross(ecef[t[1]] - ecef[t[0]], ecef[t[2]] - ecef[t[0]]);
+    for (const std::uint32_t v : t) normal[v] += n;
+  }
+  const double inv_w = 1.0 / rect.width(), inv_h = 1.0 / rect.height();
+  mesh.vertices.reserve(vertices.size() + 2 * (tile.north.size() + tile.east.size() +
+                                               tile.south.size() + tile.west.size() + 4));
+  const auto emit = [&](Vec3 p, double height, Vec3 n, bool skirt, const tile::Vertex& v) {
+    const Vec3 local = p - mesh.centre;
+    mesh.vertices.push_back(
+        {{static_cast<float>(local.x), static_cast<float>(local.y), static_cast<float>(local.z)},
+         static_cast<float>(height),
+         pack_normal(n, skirt),
+         unorm16((v.x - rect.min_x) * inv_w),
+         unorm16((rect.max_y - v.y) * inv_h)});
+  };
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const double len = length(normal[i]);
+    normal[i] = len > 0 ? normal[i] / len : mesh.frame[2];
+    emit(ecef[i], vertices[i].z, normal[i], false, vertices[i]);
+  }
+
+  // Skirts: under every border segment that is an edge of a drawn triangle.
+  std::unordered_set<std::uint64_t> border_edges;
+  const std::uint32_t border_end = static_cast<std::uint32_t>(
+      4 + tile.north.size() + tile.east.size() + tile.south.size() + tile.west.size());
+  for (const tile::Triangle& t : drawn)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = t[static_cast<std::size_t>(e)],
+                          b = t[static_cast<std::size_t>((e + 1) % 3)];
+      if (a < border_end && b < border_end) border_edges.insert(edge_key(a, b));
+    }
+  std::vector<std::uint32_t> skirt_triangles;
+  std::unordered_map<std::uint32_t, std::uint32_t> skirt_of;  // border vertex → skirt vertex
+  std::vector<Vec3> skirt_points;
+  const auto skirt_vertex = [&](std::uint32_t v) {
+    const auto [it, fresh] =
+        skirt_of.try_emplace(v, static_cast<std::uint32_t>(mesh.vertices.size()));
+    if (fresh) {
+      const Vec3 p =
+          to_vec(geo::to_ecef({lonlat[v].lon, lonlat[v].lat, vertices[v].z - mesh.skirt_depth}));
+      skirt_points.push_back(p);
+      emit(p, vertices[v].z, normal[v], true, vertices[v]);
+    }
+    return it->second;
+  };
+  for (const auto& side : border_loops(tile)) {
+    for (std::size_t i = 0; i + 1 < side.size(); ++i) {
+      const std::uint32_t a = side[i], b = side[i + 1];
+      if (!border_edges.contains(edge_key(a, b))) continue;
+      const std::uint32_t sa = skirt_vertex(a), sb = skirt_vertex(b);
+      skirt_triangles.insert(skirt_triangles.end(), {a, sa, sb, a, sb, b});
+    }
+  }
+
+  // Indices: surface first, then skirts; 16-bit when every index fits.
+  const std::size_t total = drawn.size() * 3 + skirt_triangles.size();
+  mesh.surface_index_count = static_cast<std::uint32_t>(drawn.size() * 3);
+  const auto fill = [&](auto& out) {
+    out.reserve(total);
+    using T = typename std::remove_reference_t<decltype(out)>::value_type;
+    for (const tile::Triangle& t : drawn)
+      for (const std::uint32_t v : t) out.push_back(static_cast<T>(v));
+    for (const std::uint32_t v : skirt_triangles) out.push_back(static_cast<T>(v));
+  };
+  if (mesh.vertices.size() <= 65536) {
+    fill(mesh.indices16);
+  } else {
+    fill(mesh.indices32);
+  }
+
+  // The box holds every vertex drawn: used surface vertices and all skirt vertices.
+  std::vector<Vec3> points;
+  points.reserve(vertices.size() + skirt_points.size());
+  for (std::size_t i = 0; i < vertices.size(); ++i)
+    if (used[i]) points.push_back(ecef[i]);
+  points.insert(points.end(), skirt_points.begin(), skirt_points.end());
+  if (points.empty()) points.push_back(mesh.centre);
+  mesh.bounds = fit_obb(points, mesh.centre, mesh.frame);
+  return mesh;
+}
+
+Result<TileMesh> decode_render_mesh(std::span<const std::uint8_t> payload, ContentEncoding encoding,
+                                    const LayerDescription& layer, TileKey key) {
+  const std::string name = "tile " + key.tile.quadkey() + " (" + key.tile.to_string() +
+                           ") of layer \"" + layer.name + "\"";
+  auto raw = inflate_payload(payload, encoding);
+  if (!raw) return Error(raw.error().code, name + ": " + raw.error().message);
+  auto decoded = tile::decode(*raw);
+  if (!decoded) return Error(decoded.error().code, name + ": " + decoded.error().message);
+  if (decoded->id != key.tile)
+    return corrupt_data(name + ": the payload holds tile " + decoded->id.to_string());
+  return build_render_mesh(*decoded, layer, key);
+}
+
+}  // namespace tinstream::client

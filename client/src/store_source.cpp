@@ -1,0 +1,91 @@
+// The tile store as a tile source: every connection is its own read-only TileStore (one SQLite
+// connection per worker thread, as the store requires).
+#include <utility>
+
+#include "tinstream/client/tile_source.hpp"
+#include "tinstream/store/tile_store.hpp"
+
+namespace tinstream::client {
+
+namespace {
+
+class StoreConnection final : public TileConnection {
+ public:
+  explicit StoreConnection(store::TileStore store) : store_(std::move(store)) {}
+
+  FetchResponse fetch(const FetchRequest& request, const std::atomic<bool>& cancel) override {
+    FetchResponse r;
+    r.attempts = 1;
+    if (cancel.load()) {
+      r.error = Error(ErrorCode::cancelled, "cancelled");
+      return r;
+    }
+    auto tile = store_.tile(request.layer->name, request.key.tile);
+    if (!tile) {
+      r.error = Error(tile.error().code, "tile " + request.key.tile.quadkey() + " of layer \"" +
+                                             request.layer->name + "\": " + tile.error().message);
+      return r;
+    }
+    if (!tile->has_value()) {
+      r.status = FetchResponse::Status::not_found;
+      return r;
+    }
+    store::StoredTile& stored = **tile;
+    r.status = FetchResponse::Status::ok;
+    r.etag = stored.etag;
+    r.encoding = ContentEncoding::deflate;  // the store keeps zlib streams
+    r.body = std::move(stored.compressed);
+    return r;
+  }
+
+ private:
+  store::TileStore store_;
+};
+
+class StoreSource final : public TileSource {
+ public:
+  explicit StoreSource(std::filesystem::path path) : path_(std::move(path)) {}
+
+  std::string describe() const override { return "store " + path_.string(); }
+  bool remote() const override { return false; }
+
+  Result<std::vector<LayerDescription>> layers(const std::vector<std::string>& names) override {
+    auto st = store::TileStore::open(path_, store::TileStore::Mode::read_only);
+    if (!st) return st.error();
+    std::vector<LayerDescription> out;
+    if (names.empty()) {
+      auto all = st->layers();
+      if (!all) return all.error();
+      for (const auto& info : *all) out.push_back(from_store_info(info));
+      return out;
+    }
+    for (const std::string& name : names) {
+      auto info = st->layer(name);
+      if (!info) return Error(info.error().code, path_.string() + ": " + info.error().message);
+      out.push_back(from_store_info(*info));
+    }
+    return out;
+  }
+
+  Result<std::unique_ptr<TileConnection>> connect() override {
+    auto st = store::TileStore::open(path_, store::TileStore::Mode::read_only);
+    if (!st) return st.error();
+    return std::unique_ptr<TileConnection>(std::make_unique<StoreConnection>(std::move(*st)));
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+}  // namespace
+
+Result<std::shared_ptr<TileSource>> open_store_source(const std::filesystem::path& store) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(store, ec))
+    return not_found("tile store " + store.string() + " does not exist");
+  auto st = store::TileStore::open(store, store::TileStore::Mode::read_only);
+  if (!st) return st.error();
+  return std::shared_ptr<TileSource>(std::make_shared<StoreSource>(store));
+}
+
+}  // namespace tinstream::client

@@ -1,0 +1,211 @@
+#include "tinstream/client/streamer.hpp"
+
+#include <algorithm>
+#include <limits>
+
+namespace tinstream::client {
+
+namespace {
+
+// More root tiles than this per layer (a layer whose coarsest level is fine and wide) are left out.
+constexpr std::size_t kMaxRoots = 4096;
+// Roots are asked for before anything else.
+constexpr double kRootPriority = 1e300;
+
+std::vector<geo::TileId> root_tiles(const LayerDescription& l) {
+  const geo::MercatorRect& b = l.mercator_bounds;
+  const geo::TileId nw = geo::TileId::containing({b.min_x, b.max_y}, l.min_level);
+  const geo::TileId se = geo::TileId::containing({b.max_x, b.min_y}, l.min_level);
+  std::vector<geo::TileId> roots;
+  for (std::uint32_t y = nw.y; y <= se.y; ++y)
+    for (std::uint32_t x = nw.x; x <= se.x; ++x) {
+      if (roots.size() >= kMaxRoots) return roots;
+      const geo::TileId id{l.min_level, x, y};
+      if (l.may_contain(id)) roots.push_back(id);
+    }
+  return roots;
+}
+
+}  // namespace
+
+Obb unloaded_tile_bounds(const LayerDescription& l, const geo::TileId& id) {
+  // Every drawn vertex lies inside the data's bounding rectangle and height range.
+  geo::MercatorRect r = id.bounds();
+  r.min_x = std::max(r.min_x, l.mercator_bounds.min_x);
+  r.max_x = std::min(r.max_x, l.mercator_bounds.max_x);
+  r.min_y = std::max(r.min_y, l.mercator_bounds.min_y);
+  r.max_y = std::min(r.max_y, l.mercator_bounds.max_y);
+  const geo::NormalisedMercator m(l.projection);
+  const geo::LonLatRect ll{geo::NormalisedMercator::lon_from_x(r.min_x), m.lat_from_y(r.min_y),
+                           geo::NormalisedMercator::lon_from_x(r.max_x), m.lat_from_y(r.max_y)};
+  return rectangle_obb(ll, l.min_z, l.max_z);
+}
+
+struct TileStreamer::View {
+  const Camera& camera;
+  Frustum frustum;
+  Vec3 eye;
+};
+
+TileStreamer::TileStreamer(TileLoader& loader, StreamerOptions options)
+    : loader_(loader),
+      options_(options),
+      layers_(loader.layers()),
+      gpu_(options.gpu_budget),
+      ram_(options.ram_budget) {
+  for (const LayerDescription& l : layers_) {
+    roots_.push_back(root_tiles(l));
+    lowest_height_ = std::min(lowest_height_, l.min_z);
+  }
+  // The occluder lies below the lowest terrain (its semi-axes shrunk by that depth sit inside
+  // the surface at that height; 100 m more covers the difference to a parallel surface).
+  occluder_ = HorizonOccluder(-lowest_height_ + 100.0);
+}
+
+bool TileStreamer::failed_recently(const TileKey& key) {
+  const auto it = failed_.find(key);
+  if (it == failed_.end()) return false;
+  if (std::chrono::steady_clock::now() < it->second) return true;
+  failed_.erase(it);
+  return false;
+}
+
+void TileStreamer::take_results() {
+  for (LoadResult& r : loader_.take_results()) {
+    LevelCounters& level = levels_[r.key.tile.z];
+    switch (r.status) {
+      case LoadStatus::loaded: {
+        ++level.loaded;
+        const std::uint64_t bytes = r.mesh->byte_size();
+        // Entries pinned in the previous frame (drawn, or waiting for upload) stay.
+        ram_.insert(r.key, std::move(r.mesh), bytes, frame_, frame_ - 1);
+        break;
+      }
+      case LoadStatus::absent:
+        ++level.absent;
+        absent_.insert(r.key);
+        break;
+      case LoadStatus::failed:
+        ++level.failed;
+        ++failures_;
+        last_error_ = r.error;
+        failed_[r.key] = std::chrono::steady_clock::now() + options_.failure_retry;
+        break;
+    }
+  }
+}
+
+TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
+                                        const geo::TileId& id, double priority) {
+  const TileKey key{TileKind::terrain, layer, id};
+  if (!layers_[layer].may_contain(id) || absent_.contains(key) || failed_recently(key)) return {};
+  ResidentTile* resident = gpu_.peek(key);
+  const Obb box = resident ? resident->bounds : unloaded_tile_bounds(layers_[layer], id);
+  if (!view.frustum.intersects(box) || occluder_.hides_all(view.eye, box.corners()))
+    return {State::culled, nullptr, 0};
+  const double distance = box.distance_to(view.eye);
+  if (resident) {
+    gpu_.find(key);  // a hit, promoted
+    gpu_.pin(key, frame_);
+    // Its RAM copy is not pinned: the GPU holds it, the RAM tier may give it up first.
+    return {State::ready, resident, distance};
+  }
+  gpu_.find(key);  // a miss
+  ++frame_result_.pending_per_level[id.z];
+  if (ram_.peek(key)) {
+    ram_.pin(key, frame_);
+    uploads_.push_back({key, priority, distance});
+  } else {
+    wanted_.push_back({key, priority, distance});
+    if (requested_ever_.insert(key).second) ++levels_[id.z].requested;
+  }
+  return {State::not_ready, nullptr, distance};
+}
+
+void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask) {
+  frame_result_.draws.push_back({key, p.tile, mask, sse, p.distance});
+  ++frame_result_.drawn_per_level[key.tile.z];
+  frame_result_.max_sse_drawn = std::max(frame_result_.max_sse_drawn, sse);
+}
+
+void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::TileId& id,
+                           const Probe& self) {
+  const TileKey key{TileKind::terrain, layer, id};
+  const double error = self.tile->geometric_error;
+  const double sse = view.camera.screen_space_error(error, self.distance);
+  if (sse <= options_.max_sse || error <= 0 || id.z >= layers_[layer].max_level ||
+      id.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) {
+    draw(key, self, sse, 0xF);
+    return;
+  }
+  const std::array<geo::TileId, 4> children = id.children();
+  std::array<Probe, 4> child;
+  bool waiting = false;
+  for (std::size_t i = 0; i < 4; ++i) {
+    child[i] = probe(view, layer, children[i], sse);
+    waiting |= child[i].state == State::not_ready;
+  }
+  if (waiting) {  // no holes: the parent stays until every visible child is resident
+    draw(key, self, sse, 0xF);
+    return;
+  }
+  std::uint8_t mask = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto bit = static_cast<std::uint8_t>(1u << i);
+    if (child[i].state == State::absent && (self.tile->quadrant_data & bit)) mask |= bit;
+    if (child[i].state == State::ready) descend(view, layer, children[i], child[i]);
+  }
+  if (mask) draw(key, self, sse, mask);
+}
+
+void TileStreamer::upload(GpuUploader& gpu) {
+  std::sort(uploads_.begin(), uploads_.end(),
+            [](const TileRequest& a, const TileRequest& b) { return less_urgent(b, a); });
+  const auto release = [&gpu](const TileKey&, ResidentTile& t) { gpu.release(t.gpu); };
+  std::uint64_t used = 0;
+  for (const TileRequest& r : uploads_) {
+    std::shared_ptr<const TileMesh>* mesh = ram_.find(r.key);
+    if (!mesh) continue;
+    const std::uint64_t bytes = (*mesh)->byte_size();
+    if (frame_result_.uploaded > 0 && used + bytes > options_.upload_bytes_per_frame) break;
+    const TileMesh& m = **mesh;
+    ResidentTile t{gpu.upload(m),     m.centre, m.frame, m.bounds,
+                   m.geometric_error, m.min_z,  m.max_z, m.quadrant_data};
+    const std::uint64_t gpu_bytes = t.gpu.bytes;
+    if (!gpu_.insert(r.key, std::move(t), gpu_bytes, frame_, frame_, release)) break;
+    used += bytes;
+    ++frame_result_.uploaded;
+  }
+  frame_result_.uploaded_bytes = used;
+  frame_result_.upload_pending = uploads_.size() - frame_result_.uploaded;
+}
+
+const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) {
+  ++frame_;
+  frame_result_ = FrameResult{};
+  wanted_.clear();
+  uploads_.clear();
+  take_results();
+
+  const View view{camera, camera.frustum(), camera.position()};
+  for (std::size_t l = 0; l < layers_.size(); ++l) {
+    const auto layer = static_cast<std::uint16_t>(l);
+    for (const geo::TileId& root : roots_[l]) {
+      const Probe p = probe(view, layer, root, kRootPriority);
+      if (p.state == State::ready) descend(view, layer, root, p);
+    }
+  }
+  std::sort(frame_result_.draws.begin(), frame_result_.draws.end(),
+            [](const DrawItem& a, const DrawItem& b) { return a.distance < b.distance; });
+  frame_result_.complete = wanted_.empty() && uploads_.empty();
+  frame_result_.wanted = wanted_.size();
+  upload(gpu);
+  loader_.submit(wanted_);
+  return frame_result_;
+}
+
+void TileStreamer::release_all(GpuUploader& gpu) {
+  gpu_.clear([&gpu](const TileKey&, ResidentTile& t) { gpu.release(t.gpu); });
+}
+
+}  // namespace tinstream::client

@@ -1,0 +1,219 @@
+// Native tile → render mesh, checked against docs/tile-format.md and independent geodesy.
+#include "tinstream/client/render_mesh.hpp"
+
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+
+#include "grid_tile.hpp"
+#include "tinstream/geo/ecef.hpp"
+#include "tinstream/tile/codec.hpp"
+
+namespace tinstream::client {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Spherical normalised Mercator inverse written out (DESIGN.md §2): λ = πx, φ = atan(sinh(πy)).
+Vec3 expected_ecef(double x, double y, double z) {
+  const double lon = x * 180.0, lat = std::atan(std::sinh(kPi * y)) * 180.0 / kPi;
+  const geo::Ecef e = geo::to_ecef({lon, lat, z});
+  return {e.x, e.y, e.z};
+}
+
+Vec3 world_of(const TileMesh& m, std::size_t i) {
+  const MeshVertex& v = m.vertices[i];
+  return m.centre + Vec3{v.position[0], v.position[1], v.position[2]};
+}
+
+LayerDescription layer_for(const geo::TileId& id) {
+  LayerDescription l;
+  l.name = "t";
+  l.min_level = 0;
+  l.max_level = id.z + 2;
+  l.level_max_error.assign(l.max_level + 1, 1.0);
+  return l;
+}
+
+std::uint32_t index_at(const TileMesh& m, std::size_t i) {
+  return m.indices16.empty() ? m.indices32[i] : m.indices16[i];
+}
+
+Vec3 unpack_normal(std::uint32_t n) {
+  const auto comp = [&](int shift) {
+    int v = static_cast<int>((n >> shift) & 0x3FF);
+    if (v >= 512) v -= 1024;
+    return v / 511.0;
+  };
+  return {comp(0), comp(10), comp(20)};
+}
+
+TEST(RenderMesh, SpecWorldTileDecodes) {
+  std::ifstream in(
+      std::string(TINSTREAM_SOURCE_DIR) + "/core/tile/fuzz/corpus/world_two_triangles.tint",
+      std::ios::binary);
+  ASSERT_TRUE(in) << "seed corpus file missing";
+  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(in), {}};
+  const TileKey key{TileKind::terrain, 0, {0, 0, 0}};
+  auto mesh = decode_render_mesh(bytes, ContentEncoding::identity, layer_for({0, 0, 0}), key);
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  auto tile = tile::decode(bytes);
+  ASSERT_TRUE(tile.ok());
+  EXPECT_EQ(mesh->data_triangles, 2u);
+  EXPECT_EQ(mesh->surface_index_count, 6u);
+  // The spec's triangles (SW, SE, NE), (SW, NE, NW) in order.
+  const std::uint32_t expected[6] = {2, 3, 1, 2, 1, 0};
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(index_at(*mesh, i), expected[i]);
+  // Corners at (∓1, ±1) in normalised Mercator; floats relative to a centre on the equator hold
+  // the world tile to about a metre.
+  const double cx[4] = {-1, 1, -1, 1}, cy[4] = {1, 1, -1, -1};
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Vec3 want = expected_ecef(cx[i], cy[i], tile->corners[i].z);
+    EXPECT_LT(length(world_of(*mesh, i) - want), 1.0) << "corner " << i;
+  }
+  // Four sides, each one segment: four skirt quads under the four corners.
+  EXPECT_EQ(mesh->vertices.size(), 8u);
+  EXPECT_EQ(mesh->index_count(), 6u + 4 * 6);
+}
+
+TEST(RenderMesh, FineTileKeepsMillimetres) {
+  const geo::TileId id{20, 549321, 355123};
+  const tile::TinTile t = testing::make_grid_tile(id, 9, testing::synthetic_height);
+  const auto payload = tile::compress(tile::encode(t));
+  auto mesh = decode_render_mesh(payload, ContentEncoding::deflate, layer_for(id),
+                                 {TileKind::terrain, 0, id});
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  const auto vertices = t.vertices();
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const Vec3 want = expected_ecef(vertices[i].x, vertices[i].y, vertices[i].z);
+    EXPECT_LT(length(world_of(*mesh, i) - want), 1e-3) << "vertex " << i;
+    EXPECT_FLOAT_EQ(mesh->vertices[i].height, static_cast<float>(vertices[i].z));
+  }
+  // u runs west → east, v north → south: NW (0, 0), SE (1, 1).
+  EXPECT_EQ(mesh->vertices[0].u, 0);
+  EXPECT_EQ(mesh->vertices[0].v, 0);
+  EXPECT_EQ(mesh->vertices[3].u, 65535);
+  EXPECT_EQ(mesh->vertices[3].v, 65535);
+  // A full tile: every border segment gets a skirt, 8 per side for a 9×9 grid.
+  EXPECT_EQ(mesh->data_triangles, 2u * 8 * 8);
+  EXPECT_EQ(mesh->index_count() - mesh->surface_index_count, 4u * 8 * 6);
+  EXPECT_EQ(mesh->quadrant_data, 0xF);
+}
+
+TEST(RenderMesh, BoundsHoldEveryVertexSkirtsIncluded) {
+  const geo::TileId id{14, 8490, 5610};
+  const tile::TinTile t = testing::make_grid_tile(id, 17, testing::synthetic_height);
+  const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
+    EXPECT_TRUE(mesh.bounds.contains(world_of(mesh, i))) << "vertex " << i;
+}
+
+TEST(RenderMesh, SkirtsHangByTheSkirtDepthAndNormalsPointUp) {
+  const geo::TileId id{16, 33960, 22440};
+  const tile::TinTile t = testing::make_grid_tile(id, 5, [](double, double) { return 250.0; });
+  LayerDescription layer = layer_for(id);
+  layer.level_max_error[id.z - 1] = 7.5;
+  const TileMesh mesh = build_render_mesh(t, layer, {TileKind::terrain, 0, id});
+  // The tile's own error (0) + the coarser level's 7.5 m + 1e-3 of the tile's width (≈ 390 m).
+  EXPECT_GT(mesh.skirt_depth, 7.5 + 0.3);
+  EXPECT_LT(mesh.skirt_depth, 7.5 + 0.5);
+  const std::size_t surface = t.vertex_count();
+  ASSERT_EQ(mesh.vertices.size(), surface + 16);  // one skirt vertex per border vertex
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const bool skirt = i >= surface;
+    EXPECT_EQ((mesh.vertices[i].normal >> 30) & 3u, skirt ? 1u : 0u);
+    // Flat at 250 m: the normal is the geodetic up (cos φ cos λ, cos φ sin λ, sin φ).
+    const geo::Geodetic g =
+        geo::from_ecef({world_of(mesh, i).x, world_of(mesh, i).y, world_of(mesh, i).z});
+    const double lon = g.lon * kPi / 180, lat = g.lat * kPi / 180;
+    const Vec3 up{std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat)};
+    EXPECT_GT(dot(unpack_normal(mesh.vertices[i].normal), up), 0.999) << i;
+    EXPECT_NEAR(g.height, skirt ? 250.0 - mesh.skirt_depth : 250.0, 1e-3) << i;
+  }
+}
+
+TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
+  const geo::TileId id{12, 2121, 1401};
+  tile::TinTile t = testing::make_grid_tile(id, 3, testing::synthetic_height);
+  // NE, SW and SE without data (z = 0), as tiles at the data's edge have them.
+  for (std::size_t c : {1u, 2u, 3u}) {
+    t.corner_nodata[c] = true;
+    t.corners[c].z = 0;
+  }
+  const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
+  // Of the 8 triangles of the 3×3 grid, 4 touch a NODATA corner; the 4 left reach NW (two),
+  // NE and SW (one each).
+  EXPECT_EQ(mesh.data_triangles, 4u);
+  EXPECT_EQ(mesh.nodata_triangles, 4u);
+  EXPECT_EQ(mesh.quadrant_data, 0b0111);
+  for (std::size_t i = 0; i < mesh.surface_index_count; ++i) {
+    const std::uint32_t v = index_at(mesh, i);
+    EXPECT_TRUE(v == 0 || v >= 4) << "a NODATA corner is drawn";
+  }
+  // Skirts only under the border segments of drawn triangles: NW–N and NW–W.
+  EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, 2u * 6);
+  // The box ignores the NODATA corners at z = 0 (the surface is near 300 m).
+  EXPECT_GT(mesh.min_z, 100);
+  EXPECT_LT(mesh.bounds.half[2], 100);
+}
+
+TEST(RenderMesh, WideIndicesBeyond65536Vertices) {
+  const geo::TileId id{18, 135000, 90000};
+  const tile::TinTile t = testing::make_grid_tile(id, 260, testing::synthetic_height);
+  const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
+  EXPECT_TRUE(mesh.indices16.empty());
+  EXPECT_EQ(mesh.indices32.size(), mesh.index_count());
+  EXPECT_EQ(mesh.byte_size(), mesh.vertices.size() * 24 + mesh.indices32.size() * 4);
+}
+
+TEST(RenderMesh, GzipAndDeflatePayloadsGiveTheSameMesh) {
+  const geo::TileId id{13, 4242, 2800};
+  const auto raw = tile::encode(testing::make_grid_tile(id, 7, testing::synthetic_height));
+  // gzip through zlib itself (not the code under test).
+  std::vector<std::uint8_t> gz(compressBound(static_cast<uLong>(raw.size())) + 64);
+  z_stream zs{};
+  ASSERT_EQ(deflateInit2(&zs, 6, Z_DEFLATED, 16 + MAX_WBITS, 8, Z_DEFAULT_STRATEGY), Z_OK);
+  zs.next_in = const_cast<Bytef*>(raw.data());
+  zs.avail_in = static_cast<uInt>(raw.size());
+  zs.next_out = gz.data();
+  zs.avail_out = static_cast<uInt>(gz.size());
+  ASSERT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
+  gz.resize(zs.total_out);
+  deflateEnd(&zs);
+  const TileKey key{TileKind::terrain, 0, id};
+  auto a = decode_render_mesh(gz, ContentEncoding::gzip, layer_for(id), key);
+  auto b = decode_render_mesh(tile::compress(raw), ContentEncoding::deflate, layer_for(id), key);
+  auto c = decode_render_mesh(raw, ContentEncoding::identity, layer_for(id), key);
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  EXPECT_EQ(a->vertices.size(), b->vertices.size());
+  EXPECT_EQ(0, std::memcmp(a->vertices.data(), b->vertices.data(), a->vertices.size() * 24));
+  EXPECT_EQ(0, std::memcmp(c->vertices.data(), b->vertices.data(), c->vertices.size() * 24));
+}
+
+TEST(RenderMesh, BadPayloadsAreErrorsNamingTheTile) {
+  const geo::TileId id{13, 4242, 2800};
+  const TileKey key{TileKind::terrain, 0, id};
+  const auto raw = tile::encode(testing::make_grid_tile(id, 5, testing::synthetic_height));
+  // Truncated.
+  auto truncated = decode_render_mesh(std::span(raw).first(raw.size() - 3),
+                                      ContentEncoding::identity, layer_for(id), key);
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_NE(truncated.error().message.find(id.quadkey()), std::string::npos);
+  // Not a zlib stream.
+  auto junk = decode_render_mesh(raw, ContentEncoding::deflate, layer_for(id), key);
+  ASSERT_FALSE(junk.ok());
+  EXPECT_NE(junk.error().message.find(id.quadkey()), std::string::npos);
+  // Another tile's bytes.
+  const TileKey other{TileKind::terrain, 0, {13, 4243, 2800}};
+  auto wrong = decode_render_mesh(raw, ContentEncoding::identity, layer_for(id), other);
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_NE(wrong.error().message.find("holds tile 13/4242/2800"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tinstream::client

@@ -1,0 +1,271 @@
+// Tile selection and streaming end to end on a real store (SQLite), without OpenGL: the GPU tier
+// is fed through a counting GpuUploader.
+#include "tinstream/client/streamer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <chrono>
+#include <map>
+
+#include "synthetic_store.hpp"
+#include "tinstream/geo/ecef.hpp"
+
+namespace tinstream::client {
+namespace {
+
+using testing::SyntheticLayer;
+using testing::TempDir;
+
+// Hands out fake buffer names; counts what is alive.
+class CountingUploader final : public GpuUploader {
+ public:
+  GpuMesh upload(const TileMesh& mesh) override {
+    GpuMesh g;
+    g.vao = ++next_;
+    g.index_count = static_cast<std::uint32_t>(mesh.index_count());
+    g.bytes = mesh.byte_size();
+    ++alive;
+    alive_bytes += g.bytes;
+    return g;
+  }
+  void release(GpuMesh& mesh) override {
+    ASSERT_NE(mesh.vao, 0u);
+    --alive;
+    alive_bytes -= mesh.bytes;
+    mesh.vao = 0;
+  }
+  int alive = 0;
+  std::uint64_t alive_bytes = 0;
+
+ private:
+  std::uint32_t next_ = 0;
+};
+
+struct Fixture {
+  explicit Fixture(const std::string& name, SyntheticLayer layer = testing::default_layer())
+      : dir(name), store(dir.path / "s.db") {
+    testing::write_layer(store, layer);
+    auto source = open_store_source(store);
+    if (!source) throw std::runtime_error(source.error().message);
+    auto layers = (*source)->layers({});
+    if (!layers) throw std::runtime_error(layers.error().message);
+    loader = std::make_unique<TileLoader>(*source, *layers, nullptr, LoaderOptions{2});
+  }
+  TempDir dir;
+  std::filesystem::path store;
+  std::unique_ptr<TileLoader> loader;
+};
+
+// Runs frames until the view is complete (or 60 s pass); checks the drawn set every frame.
+using FrameCheck = std::function<void(const FrameResult&)>;
+bool run_until_complete(TileStreamer& s, TileLoader& loader, const Camera& camera, GpuUploader& gpu,
+                        const FrameCheck& check = {}) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < until) {
+    const FrameResult& f = s.update(camera, gpu);
+    if (check) check(f);
+    if (f.complete) return true;
+    if (f.upload_pending == 0) loader.wait_for_results(std::chrono::milliseconds(50));
+  }
+  return false;
+}
+
+Camera above(double lon, double lat, double height) {
+  Camera c(1280, 720, 60);
+  c.set_pose({lon, lat, height, 0, -90});
+  return c;
+}
+
+// The layer's centre (the 4×4 block of level-12 tiles at 2120…2123, 1400…1403).
+geo::LonLat block_centre() {
+  const geo::TileId root{10, 530, 350};
+  const geo::MercatorRect r = root.bounds();
+  return geo::NormalisedMercator().inverse({(r.min_x + r.max_x) / 2, (r.min_y + r.max_y) / 2});
+}
+
+// The drawn tiles (with their quadrant masks) cover the root exactly once: no overlap, no hole.
+void expect_partition_of_root(const FrameResult& f, const geo::TileId& root) {
+  double area = 0;
+  for (const DrawItem& d : f.draws) {
+    ASSERT_GE(d.key.tile.z, root.z);
+    area += std::popcount(d.quadrant_mask) / 4.0 *
+            std::ldexp(1.0, -2 * static_cast<int>(d.key.tile.z - root.z));
+    for (const DrawItem& e : f.draws) {
+      if (&d == &e || e.key.tile.z <= d.key.tile.z) continue;
+      geo::TileId up = e.key.tile;
+      while (up.z > d.key.tile.z + 1) up = up.parent();
+      if (up.parent() != d.key.tile) continue;
+      EXPECT_FALSE(d.quadrant_mask & (1u << up.child_index()))
+          << d.key.tile.to_string() << " overlaps " << e.key.tile.to_string();
+    }
+  }
+  EXPECT_EQ(area, 1.0) << "drawn tiles do not cover the layer exactly";
+}
+
+TEST(TileStreamer, RefinesToTheFinestLevelWithoutHolesOrOverlaps) {
+  Fixture fx("streamer_refine");
+  StreamerOptions options;
+  options.max_sse = 0.01;  // everything down to the finest level
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  const Camera camera = above(c.lon, c.lat, 60000);
+  bool root_seen = false;
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, camera, gpu, [&](const FrameResult& f) {
+    if (f.draws.empty()) {
+      EXPECT_FALSE(root_seen) << "a frame without tiles after the root was drawn";
+      return;
+    }
+    root_seen = true;
+    expect_partition_of_root(f, {10, 530, 350});
+  }));
+  const FrameResult& f = s.last_frame();
+  EXPECT_EQ(f.draws.size(), 16u);
+  EXPECT_EQ(f.drawn_per_level[12], 16u);
+  EXPECT_EQ(f.max_sse_drawn, 0.0);  // finest tiles carry no error
+  EXPECT_EQ(s.level_counters()[10].loaded, 1u);
+  EXPECT_EQ(s.level_counters()[11].loaded, 4u);
+  EXPECT_EQ(s.level_counters()[12].loaded, 16u);
+  EXPECT_EQ(fx.loader->counters().failed, 0u);
+  EXPECT_EQ(gpu.alive, 21);
+  s.release_all(gpu);
+  EXPECT_EQ(gpu.alive, 0);
+}
+
+TEST(TileStreamer, ALowerCameraDrawsFinerLevels) {
+  Fixture fx("streamer_levels");
+  TileStreamer s(*fx.loader, StreamerOptions{});  // 2 px
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, above(c.lon, c.lat, 3000), gpu));
+  const auto low = s.last_frame().drawn_per_level;
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, above(c.lon, c.lat, 40000), gpu));
+  const auto high = s.last_frame().drawn_per_level;
+  const auto finest = [](const std::array<std::uint32_t, kLevels>& a) {
+    int z = -1;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      if (a[i]) z = static_cast<int>(i);
+    return z;
+  };
+  // 3 km up a level-11 tile's 20 m error is ≈ 4 px: the finest level shows; 40 km up the root's
+  // 40 m are < 1 px.
+  EXPECT_EQ(finest(low), 12);
+  EXPECT_LT(finest(high), 12);
+  EXPECT_LE(s.last_frame().max_sse_drawn, 2.0);
+  s.release_all(gpu);
+}
+
+TEST(TileStreamer, NothingBeyondTheHorizonIsRequested) {
+  Fixture fx("streamer_horizon");
+  TileStreamer s(*fx.loader, StreamerOptions{});
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  const double antipode_lon = c.lon > 0 ? c.lon - 180 : c.lon + 180;
+  const Camera camera = above(antipode_lon, -c.lat, 2e6);
+  for (int i = 0; i < 5; ++i) {
+    const FrameResult& f = s.update(camera, gpu);
+    EXPECT_TRUE(f.draws.empty());
+    EXPECT_EQ(f.wanted, 0u);
+    EXPECT_TRUE(f.complete);
+  }
+  EXPECT_EQ(fx.loader->counters().requests, 0u);
+}
+
+TEST(TileStreamer, MovingTheCameraDropsTheOldViewsQueuedRequests) {
+  Fixture fx("streamer_drop");
+  TileStreamer s(*fx.loader, StreamerOptions{});
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  // Load the coarse levels, then stop the workers and look closely: the finer tiles are queued.
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, above(c.lon, c.lat, 400000), gpu));
+  fx.loader->set_paused(true);
+  const auto before = fx.loader->counters();
+  const FrameResult& close = s.update(above(c.lon, c.lat, 1500), gpu);
+  const std::size_t queued = close.wanted;
+  ASSERT_GT(queued, 0u);
+  // Turn to look at the sky: nothing is needed any more, the queue is dropped.
+  Camera sky = above(c.lon, c.lat, 1500);
+  sky.set_pose({c.lon, c.lat, 1500, 0, 60});
+  EXPECT_EQ(s.update(sky, gpu).wanted, 0u);
+  fx.loader->set_paused(false);
+  for (int i = 0; i < 20; ++i) {
+    s.update(sky, gpu);
+    fx.loader->wait_for_results(std::chrono::milliseconds(10));
+  }
+  const auto after = fx.loader->counters();
+  EXPECT_EQ(after.dropped - before.dropped, queued);
+  EXPECT_EQ(after.requests, before.requests) << "a dropped request was sent";
+  s.release_all(gpu);
+}
+
+TEST(TileLoader, AResultNotYetTakenIsNotRequestedAgain) {
+  // A frame may look for a tile just before its worker finishes and submit it just after: the
+  // tile must stay "in flight" until the render thread has taken its result.
+  Fixture fx("loader_untaken");
+  const TileKey root{TileKind::terrain, 0, {10, 530, 350}};
+  fx.loader->submit({{root, 1, 1}});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  bool ready = false;
+  while (!ready && std::chrono::steady_clock::now() < until)
+    ready = fx.loader->wait_for_results(std::chrono::milliseconds(50));
+  ASSERT_TRUE(ready);
+  fx.loader->submit({{root, 1, 1}});  // the result is ready but not taken
+  EXPECT_EQ(fx.loader->counters().queued, 0u);
+  EXPECT_EQ(fx.loader->counters().in_flight, 1u);
+  const std::vector<LoadResult> results = fx.loader->take_results();
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_EQ(results[0].status, LoadStatus::loaded);
+  EXPECT_EQ(fx.loader->counters().in_flight, 0u);
+  EXPECT_EQ(fx.loader->counters().requests, 1u);
+}
+
+TEST(TileStreamer, AbsentChildrenAreCoveredByTheirParentsQuadrant) {
+  SyntheticLayer layer = testing::default_layer();
+  // Leave out the south-east 2×2 block: the level-11 tile 11/1061/701 does not exist.
+  std::erase_if(layer.finest, [](const geo::TileId& t) { return t.x >= 2122 && t.y >= 1402; });
+  Fixture fx("streamer_absent", layer);
+  StreamerOptions options;
+  options.max_sse = 0.01;
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  ASSERT_TRUE(
+      run_until_complete(s, *fx.loader, above(c.lon, c.lat, 60000), gpu, [&](const FrameResult& f) {
+        if (!f.draws.empty()) expect_partition_of_root(f, {10, 530, 350});
+      }));
+  const FrameResult& f = s.last_frame();
+  EXPECT_EQ(f.drawn_per_level[12], 12u);
+  ASSERT_EQ(f.drawn_per_level[10], 1u);
+  for (const DrawItem& d : f.draws)
+    if (d.key.tile.z == 10) {
+      EXPECT_EQ(d.quadrant_mask, 0b1000);
+    }
+  EXPECT_EQ(s.level_counters()[11].absent, 1u);
+  s.release_all(gpu);
+}
+
+TEST(TileStreamer, GpuAndRamBudgetsHoldWithinOneTile) {
+  Fixture fx("streamer_budget");
+  StreamerOptions options;
+  options.max_sse = 0.01;
+  options.gpu_budget = 40000;  // a few tiles of 9×9 vertices (≈ 3 KB each)… too few for the view
+  options.ram_budget = 30000;
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  const Camera camera = above(c.lon, c.lat, 60000);
+  for (int i = 0; i < 200; ++i) {
+    s.update(camera, gpu);
+    const TierCounters& g = s.gpu_counters();
+    ASSERT_LE(g.bytes, g.budget + g.largest_entry);
+    ASSERT_LE(s.ram_counters().bytes, s.ram_counters().budget + s.ram_counters().largest_entry);
+    ASSERT_EQ(static_cast<std::uint64_t>(gpu.alive_bytes), g.bytes);
+    fx.loader->wait_for_results(std::chrono::milliseconds(5));
+  }
+  EXPECT_GT(s.gpu_counters().inserts, 0u);
+  s.release_all(gpu);
+}
+
+}  // namespace
+}  // namespace tinstream::client

@@ -1,0 +1,127 @@
+// tinstream-viewer: the native streaming globe client (README "Viewing terrain").
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "tinstream/client/viewer.hpp"
+#include "window.hpp"
+
+namespace {
+
+using tinstream::client::ViewerOptions;
+
+bool parse_size(const std::string& text, int& w, int& h) {
+  const auto x = text.find('x');
+  if (x == std::string::npos) return false;
+  try {
+    std::size_t end = 0;
+    w = std::stoi(text.substr(0, x), &end);
+    if (end != x) return false;
+    h = std::stoi(text.substr(x + 1), &end);
+    if (end != text.size() - x - 1) return false;
+  } catch (const std::exception&) {
+    return false;
+  }
+  return w >= 16 && h >= 16 && w <= 16384 && h <= 16384;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ViewerOptions o;
+  CLI::App app{
+      "tinstream-viewer: streams TIN terrain tiles from a tinstream-server (--url) or a tile store "
+      "(--store) onto the WGS84 globe. Window mode (GLFW + Dear ImGui) by default; --headless "
+      "renders offscreen through EGL and writes a PNG and JSON statistics.",
+      "tinstream-viewer"};
+  auto* url =
+      app.add_option("--url", o.url, "tinstream-server base URL, e.g. http://127.0.0.1:8080");
+  auto* store =
+      app.add_option("--store", o.store, "read tiles straight from this tile store (SQLite)");
+  url->excludes(store);
+  app.add_option("--layer", o.layers, "layer to draw (repeatable; default: every layer)");
+  app.add_option("--threads", o.threads, "download threads 1..8 (default: one per core, at most 8)")
+      ->check(CLI::Range(1, 8));
+  app.add_option("--max-sse", o.max_sse,
+                 "quality: largest screen-space error in pixels (default 2)")
+      ->check(CLI::Range(0.05, 1000.0));
+  app.add_option("--gpu-mb", o.gpu_mb, "GPU tier budget in MB (default 512)")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option("--cache-mb", o.cache_mb, "RAM tier (decoded tiles) budget in MB (default 512)")
+      ->check(CLI::Range(1, 1 << 20));
+  app.add_option("--disk-cache", o.disk_cache,
+                 "directory of the disk tier (compressed tiles, kept across runs)");
+  app.add_option("--disk-mb", o.disk_mb, "disk tier budget in MB (default 2048)")
+      ->check(CLI::Range(1, 1 << 24));
+  app.add_option("--upload-mb", o.upload_mb, "largest GPU upload per frame in MB (default 8)")
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--request-timeout", o.http.request_timeout_ms,
+                 "per-request timeout in ms (default 10000)")
+      ->check(CLI::Range(50, 600000));
+  app.add_option("--retries", o.http.max_attempts,
+                 "attempts per tile on errors and 5xx (default 4)")
+      ->check(CLI::Range(1, 20));
+  app.add_flag("--headless", o.headless, "render offscreen (EGL, no display) and exit");
+  std::string size;
+  app.add_option("--size", size, "image or window size WxH (default 1280x720)");
+  std::string camera;
+  app.add_option("--camera", camera,
+                 "lon,lat,height[,heading[,pitch]]: degrees, metres above the ellipsoid, heading "
+                 "clockwise from north, pitch −90 = down (default: framing the layers)");
+  app.add_option("--fov", o.fov, "vertical field of view in degrees (default 60)")
+      ->check(CLI::Range(5.0, 120.0));
+  app.add_option("--out", o.out,
+                 "the PNG to write once the view is complete (window mode: the window, panel "
+                 "included, then it closes)");
+  app.add_option("--camera-path", o.camera_path,
+                 "fly this scripted path (headless: one JSON statistics line per frame)");
+  app.add_option("--fps", o.fps,
+                 "camera path: advance 1/fps seconds per frame instead of real time")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--stats", o.stats, "headless: write the JSON statistics here instead of stdout");
+  app.add_option("--timeout", o.timeout_s,
+                 "with --out: seconds to wait for a complete view (default 120)")
+      ->check(CLI::Range(0.0, 86400.0));
+  app.add_flag("--wireframe", o.wireframe, "draw the triangle edges over the terrain");
+  app.add_option("--msaa", o.msaa, "multisampling samples, 0 for none (default 4)")
+      ->check(CLI::Range(0, 16));
+  bool no_legend = false;
+  app.add_flag("--no-legend", no_legend, "leave the colour legend out");
+  app.add_flag("--log-depth", o.log_depth,
+               "use the logarithmic-depth fallback even with glClipControl");
+  std::string ramp;
+  app.add_option("--ramp", ramp,
+                 "MIN,MAX heights (m) of the colour ramp (default: the layers' range)");
+  CLI11_PARSE(app, argc, argv);
+
+  o.legend = !no_legend;
+  if (!size.empty() && !parse_size(size, o.width, o.height)) {
+    std::cerr << "tinstream-viewer: --size \"" << size << "\": expected WxH, 16..16384 each\n";
+    return 2;
+  }
+  if (!camera.empty()) {
+    auto pose = tinstream::client::parse_camera_pose(camera);
+    if (!pose) {
+      std::cerr << "tinstream-viewer: --" << pose.error().message << '\n';
+      return 2;
+    }
+    o.camera = *pose;
+  }
+  if (!ramp.empty()) {
+    std::istringstream in(ramp);
+    double lo = 0, hi = 0;
+    char comma = 0;
+    if (!(in >> lo >> comma >> hi) || comma != ',' || !(hi > lo)) {
+      std::cerr << "tinstream-viewer: --ramp \"" << ramp << "\": expected MIN,MAX with MIN < MAX\n";
+      return 2;
+    }
+    o.ramp = std::make_pair(lo, hi);
+  }
+  if (o.url.empty() && o.store.empty()) {
+    std::cerr << "tinstream-viewer: give a tile source: --url http://HOST:PORT or --store FILE "
+                 "(--help)\n";
+    return 2;
+  }
+  return o.headless ? tinstream::client::run_headless(o) : tinstream::client::run_window(o);
+}

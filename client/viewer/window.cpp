@@ -1,0 +1,394 @@
+// The interactive window: GLFW (OpenGL 3.3 core) + Dear ImGui. The render thread (this one)
+// streams, draws, handles input and the panel; the download pool works behind the streamer.
+//
+// Mouse: left drag pans (the grabbed point follows the cursor), right drag (or Ctrl + left)
+// orbits around the point under the cursor (horizontal: heading, vertical: tilt), wheel zooms
+// towards the cursor. Keys: W/S/A/D fly, Q/E down/up, arrows look around, Shift ×4 speed,
+// F flies to the selected layer, R frames every layer.
+// Scripted use: --camera-path flies the path in the window (input is ignored meanwhile); --out
+// writes the window (panel and legend included) to a PNG once the view is complete and the path
+// is flown, and closes it (exit status 3 when --timeout passed first).
+#include "window.hpp"
+
+// clang-format off
+#include <epoxy/gl.h>  // before GLFW, which must not include GL/gl.h
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+// clang-format on
+#include <backends/imgui_impl_glfw.h>
+#include <imgui.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <iostream>
+
+#include "tinstream/client/camera_path.hpp"
+#include "tinstream/client/navigation.hpp"
+#include "tinstream/client/png.hpp"
+#include "tinstream/geo/ecef.hpp"
+
+namespace tinstream::client {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct GlfwSession {
+  GLFWwindow* window = nullptr;
+  bool initialised = false;
+  ~GlfwSession() {
+    if (window) glfwDestroyWindow(window);
+    if (initialised) glfwTerminate();
+  }
+};
+
+// What the panel shows besides the streamer's own counters.
+struct PanelState {
+  std::deque<float> frame_ms;  // the last 240 frames
+  double rate_bytes_per_s = 0;
+  std::uint64_t last_wire_bytes = 0;
+  Clock::time_point last_rate = Clock::now();
+  int layer_choice = 0;
+  bool paused = false;
+  bool wireframe = false;
+  float max_sse = 2;
+  int threads = 1;
+  std::optional<geo::Geodetic> cursor;
+};
+
+// Mouse drags in progress.
+struct DragState {
+  enum class Mode { none, pan, orbit } mode = Mode::none;
+  Vec3 anchor;  // the grabbed point or the orbit pivot
+  double last_x = 0, last_y = 0;
+};
+
+Vec3 point_under(GlobeRenderer& renderer, const Camera& camera, double x, double y) {
+  if (auto p = renderer.pick(camera, static_cast<int>(x), static_cast<int>(y))) return *p;
+  if (auto hit = intersect_ellipsoid(camera.position(), camera.ray_direction(x, y))) return *hit;
+  // Beyond the limb: a point ahead, as far as the ellipsoid's centre.
+  return camera.position() + camera.ray_direction(x, y) * length(camera.position());
+}
+
+void handle_mouse(GLFWwindow* window, GlobeRenderer& renderer, Camera& camera, DragState& drag,
+                  double scale) {
+  ImGuiIO& io = ImGui::GetIO();
+  double x = 0, y = 0;
+  glfwGetCursorPos(window, &x, &y);
+  x *= scale;
+  y *= scale;
+  const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+  const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+                     glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+  const bool ctrl = glfwGetKey(window, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS ||
+                    glfwGetKey(window, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS;
+  if (drag.mode == DragState::Mode::none && !io.WantCaptureMouse && (left || right)) {
+    drag.mode = (right || ctrl) ? DragState::Mode::orbit : DragState::Mode::pan;
+    drag.anchor = point_under(renderer, camera, x, y);
+    drag.last_x = x;
+    drag.last_y = y;
+  }
+  if (!left && !right) drag.mode = DragState::Mode::none;
+  if (drag.mode == DragState::Mode::pan) pan(camera, drag.anchor, x, y);
+  if (drag.mode == DragState::Mode::orbit) {
+    const double dx = x - drag.last_x, dy = y - drag.last_y;
+    orbit(camera, drag.anchor, -dx * 0.005, -dy * 0.005);
+  }
+  drag.last_x = x;
+  drag.last_y = y;
+  if (!io.WantCaptureMouse && io.MouseWheel != 0) {
+    const Vec3 target = point_under(renderer, camera, x, y);
+    zoom_towards(camera, target, std::pow(0.85, io.MouseWheel));
+  }
+}
+
+void handle_keys(GLFWwindow* window, Camera& camera, double dt) {
+  if (ImGui::GetIO().WantCaptureKeyboard) return;
+  const auto down = [&](int key) { return glfwGetKey(window, key) == GLFW_PRESS; };
+  const CameraPose pose = camera.pose();
+  // Speed ∝ height above the ellipsoid (at least 20 m/s), ×4 with Shift.
+  const double speed =
+      std::max(std::abs(pose.height), 20.0) * (down(GLFW_KEY_LEFT_SHIFT) ? 4.0 : 1.0);
+  const double f = (down(GLFW_KEY_W) - down(GLFW_KEY_S)) * speed * dt;
+  const double r = (down(GLFW_KEY_D) - down(GLFW_KEY_A)) * speed * dt;
+  const double u = (down(GLFW_KEY_E) - down(GLFW_KEY_Q)) * speed * dt;
+  if (f != 0 || r != 0 || u != 0) fly(camera, f, r, u);
+  const double turn = 60 * dt;
+  const double h = (down(GLFW_KEY_RIGHT) - down(GLFW_KEY_LEFT)) * turn;
+  const double p = (down(GLFW_KEY_UP) - down(GLFW_KEY_DOWN)) * turn;
+  if (h != 0 || p != 0) look(camera, h, p);
+}
+
+std::string megabytes(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MB", static_cast<double>(bytes) / (1 << 20));
+  return text;
+}
+
+void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight, double frame_ms) {
+  ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(390, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("tinstream");
+  ImGui::TextUnformatted(s.source->describe().c_str());
+
+  // Layers and flying to them.
+  std::vector<const char*> names;
+  for (const LayerDescription& l : s.layers) names.push_back(l.name.c_str());
+  ImGui::Combo("layer", &ps.layer_choice, names.data(), static_cast<int>(names.size()));
+  ImGui::SameLine();
+  if (ImGui::Button("fly to")) {
+    flight =
+        FlyTo(camera.pose(), s.framing(camera, static_cast<std::size_t>(ps.layer_choice)), 2.5);
+  }
+  const CameraPose pose = camera.pose();
+  ImGui::Text("camera %.5f, %.5f  %.0f m  heading %.0f  pitch %.0f", pose.lon, pose.lat,
+              pose.height, pose.heading, pose.pitch);
+  if (ps.cursor)
+    ImGui::Text("cursor %.6f, %.6f  %.2f m", ps.cursor->lon, ps.cursor->lat, ps.cursor->height);
+  else
+    ImGui::TextUnformatted("cursor: sky");
+
+  // Controls.
+  if (ImGui::SliderFloat("max SSE (px)", &ps.max_sse, 0.25f, 32.0f, "%.2f",
+                         ImGuiSliderFlags_Logarithmic))
+    s.streamer->set_max_sse(ps.max_sse);
+  if (ImGui::SliderInt("threads", &ps.threads, 1, 8)) s.loader->set_threads(ps.threads);
+  ImGui::Checkbox("wireframe", &ps.wireframe);
+  ImGui::SameLine();
+  if (ImGui::Checkbox("pause streaming", &ps.paused)) s.loader->set_paused(ps.paused);
+
+  // Frame time.
+  ps.frame_ms.push_back(static_cast<float>(frame_ms));
+  if (ps.frame_ms.size() > 240) ps.frame_ms.pop_front();
+  const std::vector<float> graph(ps.frame_ms.begin(), ps.frame_ms.end());
+  char label[48];
+  std::snprintf(label, sizeof label, "%.1f ms", frame_ms);
+  ImGui::PlotLines("frame", graph.data(), static_cast<int>(graph.size()), 0, label, 0.0f, 50.0f,
+                   ImVec2(0, 50));
+
+  // Streaming.
+  const FrameResult& f = s.streamer->last_frame();
+  const LoaderCounters lc = s.loader->counters();
+  const auto now = Clock::now();
+  const double since = std::chrono::duration<double>(now - ps.last_rate).count();
+  if (since >= 0.5) {
+    ps.rate_bytes_per_s = static_cast<double>(lc.wire_bytes - ps.last_wire_bytes) / since;
+    ps.last_wire_bytes = lc.wire_bytes;
+    ps.last_rate = now;
+  }
+  ImGui::Text("%s  download %.2f MB/s  queued %llu", f.complete ? "complete" : "streaming",
+              ps.rate_bytes_per_s / (1 << 20), static_cast<unsigned long long>(lc.queued));
+  if (ImGui::BeginTable("levels", 5, ImGuiTableFlags_Borders | ImGuiTableFlags_SizingFixedFit)) {
+    for (const char* h : {"level", "drawn", "loaded", "pending", "in flight"})
+      ImGui::TableSetupColumn(h);
+    ImGui::TableHeadersRow();
+    for (std::size_t z = 0; z < kLevels; ++z) {
+      const LevelCounters& c = s.streamer->level_counters()[z];
+      if (!f.drawn_per_level[z] && !c.loaded && !f.pending_per_level[z] && !lc.in_flight_levels[z])
+        continue;
+      ImGui::TableNextRow();
+      const unsigned long long cells[5] = {z, f.drawn_per_level[z], c.loaded,
+                                           f.pending_per_level[z], lc.in_flight_levels[z]};
+      for (int i = 0; i < 5; ++i) {
+        ImGui::TableSetColumnIndex(i);
+        ImGui::Text("%llu", cells[i]);
+      }
+    }
+    ImGui::EndTable();
+  }
+  const TierCounters& g = s.streamer->gpu_counters();
+  const TierCounters& r = s.streamer->ram_counters();
+  ImGui::Text("GPU  %s / %s  (%llu tiles, %llu evicted)", megabytes(g.bytes).c_str(),
+              megabytes(g.budget).c_str(), static_cast<unsigned long long>(g.entries),
+              static_cast<unsigned long long>(g.evictions));
+  ImGui::Text("RAM  %s / %s  (%llu tiles, %llu evicted)", megabytes(r.bytes).c_str(),
+              megabytes(r.budget).c_str(), static_cast<unsigned long long>(r.entries),
+              static_cast<unsigned long long>(r.evictions));
+  if (s.disk) {
+    const TierCounters d = s.disk->counters();
+    ImGui::Text("disk %s / %s  (%llu hits, %llu misses)", megabytes(d.bytes).c_str(),
+                megabytes(d.budget).c_str(), static_cast<unsigned long long>(d.hits),
+                static_cast<unsigned long long>(d.misses));
+  }
+  ImGui::Text("requests %llu  304 %llu  404 %llu  failed %llu  dropped %llu",
+              static_cast<unsigned long long>(lc.requests),
+              static_cast<unsigned long long>(lc.not_modified),
+              static_cast<unsigned long long>(lc.not_found),
+              static_cast<unsigned long long>(lc.failed),
+              static_cast<unsigned long long>(lc.dropped));
+  if (!s.streamer->last_error().empty())
+    ImGui::TextWrapped("last error: %s", s.streamer->last_error().c_str());
+  ImGui::End();
+}
+
+}  // namespace
+
+int run_window(const ViewerOptions& o) {
+  auto session = open_session(o);
+  if (!session) {
+    std::cerr << "tinstream-viewer: " << session.error().message << '\n';
+    return 2;
+  }
+  Session& s = *session;
+  GlfwSession glfw;
+  glfwSetErrorCallback([](int code, const char* text) {
+    std::cerr << "GLFW error " << code << ": " << text << '\n';
+  });
+  if (!glfwInit()) {
+    std::cerr << "tinstream-viewer: no display for a window (use --headless --out shot.png)\n";
+    return 1;
+  }
+  glfw.initialised = true;
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  glfw.window = glfwCreateWindow(o.width, o.height, "tinstream-viewer", nullptr, nullptr);
+  if (!glfw.window) {
+    std::cerr << "tinstream-viewer: cannot open an OpenGL 3.3 core window\n";
+    return 1;
+  }
+  glfwMakeContextCurrent(glfw.window);
+  glfwSwapInterval(1);
+
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfw.window, &fb_w, &fb_h);
+  RendererOptions ro;
+  ro.width = fb_w;
+  ro.height = fb_h;
+  ro.msaa = o.msaa;
+  ro.force_log_depth = o.log_depth;
+  ro.globe_height = s.globe_height();
+  auto renderer = GlobeRenderer::create(ro);
+  if (!renderer) {
+    std::cerr << "tinstream-viewer: " << renderer.error().message << '\n';
+    return 1;
+  }
+  auto overlay = Overlay::create();
+  if (!overlay) {
+    std::cerr << "tinstream-viewer: " << overlay.error().message << '\n';
+    return 1;
+  }
+  ImGui_ImplGlfw_InitForOpenGL(glfw.window, true);
+
+  Camera camera(fb_w, fb_h, o.fov);
+  camera.log_depth = (*renderer)->log_depth();
+  // Start at --camera, or far out and fly to the layers.
+  FlyTo flight;
+  if (o.camera) {
+    camera.set_pose(*o.camera);
+  } else {
+    camera.set_pose(
+        {(s.extent.west + s.extent.east) / 2, (s.extent.south + s.extent.north) / 2, 2e7, 0, -90});
+    flight = FlyTo(camera.pose(), s.framing(camera), 3.0);
+  }
+  std::optional<PathPlayer> path;
+  double path_s = 0;  // the path's flight time, waits excluded
+  if (!o.camera_path.empty()) {
+    auto p = load_camera_path(o.camera_path);
+    if (!p) {
+      std::cerr << "tinstream-viewer: " << p.error().message << '\n';
+      return 2;
+    }
+    path_s = p->duration();
+    path.emplace(std::move(*p));
+    flight = FlyTo();
+  }
+  PanelState ps;
+  ps.wireframe = o.wireframe;
+  ps.max_sse = static_cast<float>(o.max_sse);
+  ps.threads = s.loader->threads();
+  DragState drag;
+  const auto start = Clock::now();
+  auto last = start;
+  double frame_ms = 0;
+  bool complete = false;
+  int complete_frames = 0;  // frames in a row with a complete view (the panel needs two to lay out)
+  int status = 0;
+
+  while (!glfwWindowShouldClose(glfw.window)) {
+    glfwPollEvents();
+    const auto now = Clock::now();
+    const double dt = std::chrono::duration<double>(now - last).count();
+    last = now;
+    glfwGetFramebufferSize(glfw.window, &fb_w, &fb_h);
+    if (fb_w > 0 && fb_h > 0 && (fb_w != (*renderer)->width() || fb_h != (*renderer)->height())) {
+      if (Status st = (*renderer)->resize(fb_w, fb_h); !st) {
+        std::cerr << "tinstream-viewer: " << st.error().message << '\n';
+        break;
+      }
+      camera.set_viewport(fb_w, fb_h);
+    }
+    int win_w = 1, win_h = 1;
+    glfwGetWindowSize(glfw.window, &win_w, &win_h);
+    const double scale = static_cast<double>(fb_w) / std::max(win_w, 1);
+
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    const bool scripted = path && !path->finished();
+    if (scripted) {
+      camera.set_pose(path->advance(dt, complete));
+    } else if (flight.active()) {
+      camera.set_pose(flight.advance(dt));
+    } else {
+      handle_mouse(glfw.window, **renderer, camera, drag, scale);
+      handle_keys(glfw.window, camera, dt);
+      if (!ImGui::GetIO().WantCaptureKeyboard) {
+        if (ImGui::IsKeyPressed(GLFW_KEY_F))
+          flight = FlyTo(camera.pose(),
+                         s.framing(camera, static_cast<std::size_t>(ps.layer_choice)), 2.5);
+        if (ImGui::IsKeyPressed(GLFW_KEY_R)) flight = FlyTo(camera.pose(), s.framing(camera), 2.5);
+      }
+    }
+    double cx = 0, cy = 0;
+    glfwGetCursorPos(glfw.window, &cx, &cy);
+    if (auto p =
+            (*renderer)->pick(camera, static_cast<int>(cx * scale), static_cast<int>(cy * scale)))
+      ps.cursor = geo::from_ecef({p->x, p->y, p->z});
+    else
+      ps.cursor.reset();
+
+    const auto t0 = Clock::now();
+    const FrameResult& f = s.streamer->update(camera, **renderer);
+    (*renderer)->render(camera, f.draws, s.render_settings(ps.wireframe));
+    (*renderer)->present(fb_w, fb_h);
+    draw_panel(s, camera, ps, flight, frame_ms);
+    draw_legend(s.legend);
+    (*overlay)->render(fb_w, fb_h);
+    complete = f.complete;
+    complete_frames = f.complete ? complete_frames + 1 : 0;
+    if (!o.out.empty()) {
+      const bool settled = complete_frames >= 3 && !flight.active() && !(path && !path->finished());
+      const bool timed_out =
+          std::chrono::duration<double>(Clock::now() - start).count() > o.timeout_s + path_s;
+      if (settled || timed_out) {
+        const Image shot{fb_w, fb_h, read_framebuffer_rgba(0, fb_w, fb_h)};
+        if (Status st = write_png(o.out, shot); !st) {
+          std::cerr << "tinstream-viewer: " << st.error().message << '\n';
+          status = 1;
+        } else {
+          std::cerr << "tinstream-viewer: wrote " << o.out.string() << '\n';
+          if (!settled) {
+            std::cerr << "tinstream-viewer: the view was not complete after " << o.timeout_s
+                      << " s (--timeout); the window shows what had arrived\n";
+            status = 3;
+          }
+        }
+        glfwSetWindowShouldClose(glfw.window, GLFW_TRUE);
+      }
+    }
+    glfwSwapBuffers(glfw.window);
+    frame_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  }
+  s.streamer->release_all(**renderer);
+  ImGui_ImplGlfw_Shutdown();
+  renderer->reset();
+  overlay->reset();
+  return status;
+}
+
+}  // namespace tinstream::client

@@ -1,0 +1,431 @@
+// tinstream-viewer --headless on real stores (the client_stores fixture: SRTM DEM and LiDAR
+// ingested by the real `tinstream ingest`), served by the real tinstream-server on 127.0.0.1 or
+// read directly. The tests look at the PNG (pixel classes in regions where the layer is and where
+// it is not) and at the JSON statistics.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "process.hpp"
+#include "synthetic_store.hpp"
+#include "tinstream/client/png.hpp"
+#include "tinstream/client/render_mesh.hpp"
+#include "tinstream/client/streamer.hpp"
+#include "tinstream/geo/ecef.hpp"
+#include "tinstream/store/tile_store.hpp"
+
+namespace tinstream::client {
+namespace {
+
+using nlohmann::json;
+using testing::TempDir;
+
+const std::filesystem::path kStores =
+    std::filesystem::path(TINSTREAM_BINARY_DIR) / "tests/client/stores";
+
+struct ViewerRun {
+  int status = -1;
+  json stats;                // the last JSON line of stdout
+  std::vector<json> frames;  // per-frame lines of a camera path
+  std::string err;
+};
+
+ViewerRun viewer(std::vector<std::string> args) {
+  testing::Child child(testing::binary("tinstream-viewer"), args, /*capture_stderr=*/true);
+  ViewerRun r;
+  r.status = child.wait(std::chrono::minutes(10));
+  r.err = child.err();
+  std::istringstream lines(child.out());
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line.front() != '{') continue;
+    json j = json::parse(line, nullptr, false);
+    if (j.is_discarded()) continue;
+    if (j.contains("frame"))
+      r.frames.push_back(j);
+    else
+      r.stats = j;
+  }
+  return r;
+}
+
+store::LayerInfo layer_info(const std::filesystem::path& store, const std::string& name) {
+  auto st = store::TileStore::open(store, store::TileStore::Mode::read_only);
+  if (!st) throw std::runtime_error(st.error().message);
+  auto info = st->layer(name);
+  if (!info) throw std::runtime_error(info.error().message);
+  return *info;
+}
+
+// Straight down over the centre of the layer's data, `height` metres above the ellipsoid.
+std::string camera_above(const store::LayerInfo& l, double height, double pitch = -90) {
+  std::ostringstream s;
+  s.precision(12);
+  s << (l.bounds.west + l.bounds.east) / 2 << ',' << (l.bounds.south + l.bounds.north) / 2 << ','
+    << height << ",0," << pitch;
+  return s.str();
+}
+
+// Metres from the layer's centre to its east and north edges (a sphere is close enough here).
+std::pair<double, double> half_extent_m(const store::LayerInfo& l) {
+  const double lat = (l.bounds.south + l.bounds.north) / 2 * M_PI / 180;
+  return {(l.bounds.east - l.bounds.west) / 2 * M_PI / 180 * 6378137 * std::cos(lat),
+          (l.bounds.north - l.bounds.south) / 2 * M_PI / 180 * 6378137};
+}
+
+enum class Pixel { sky, globe, terrain };
+// The globe is blue-dominant; the hypsometric ramp (greens, sand, browns, whites) never is; the
+// sky is near black.
+Pixel classify(const Image& img, int x, int y) {
+  const std::uint8_t* p = img.rgba.data() + (static_cast<std::size_t>(y) * img.width + x) * 4;
+  const int r = p[0], g = p[1], b = p[2];
+  if (r + g + b < 40) return Pixel::sky;
+  if (b > r + 25 && b > g + 10) return Pixel::globe;
+  return Pixel::terrain;
+}
+
+// Fraction of the pixels of class `c` in the box [x0, x1) × [y0, y1) (fractions of the image).
+double fraction(const Image& img, Pixel c, double x0, double y0, double x1, double y1) {
+  int hits = 0, total = 0;
+  for (int y = static_cast<int>(y0 * img.height); y < static_cast<int>(y1 * img.height); ++y)
+    for (int x = static_cast<int>(x0 * img.width); x < static_cast<int>(x1 * img.width); ++x) {
+      ++total;
+      hits += classify(img, x, y) == c;
+    }
+  return total ? static_cast<double>(hits) / total : 0;
+}
+
+double mean_luminance(const Image& img, double x0, double y0, double x1, double y1) {
+  double sum = 0;
+  int n = 0;
+  for (int y = static_cast<int>(y0 * img.height); y < static_cast<int>(y1 * img.height); ++y)
+    for (int x = static_cast<int>(x0 * img.width); x < static_cast<int>(x1 * img.width); ++x) {
+      const std::uint8_t* p = img.rgba.data() + (static_cast<std::size_t>(y) * img.width + x) * 4;
+      sum += 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+      ++n;
+    }
+  return sum / n;
+}
+
+Image png(const std::filesystem::path& path) {
+  auto img = read_png(path);
+  if (!img) throw std::runtime_error(img.error().message);
+  return *img;
+}
+
+std::vector<std::string> base_args(const std::filesystem::path& out, const std::string& camera) {
+  return {"--headless", "--size", "480x270",  "--msaa", "0",     "--no-legend",
+          "--timeout",  "300",    "--camera", camera,   "--out", out.string()};
+}
+
+std::vector<std::string> operator+(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+class Viewer : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dem_ = kStores / "dem.sqlite";
+    lidar_ = kStores / "lidar.sqlite";
+    ASSERT_TRUE(std::filesystem::exists(dem_) && std::filesystem::exists(lidar_))
+        << "the client_stores fixture did not run (tests/client/make_stores.sh)";
+  }
+  std::filesystem::path dem_, lidar_;
+};
+
+void expect_clean(const ViewerRun& r) {
+  EXPECT_EQ(r.status, 0) << r.err;
+  ASSERT_TRUE(r.stats.is_object()) << r.err;
+  EXPECT_TRUE(r.stats["complete"].get<bool>());
+  EXPECT_EQ(r.stats["requests"]["failed"].get<int>(), 0);
+  EXPECT_EQ(r.stats["tiles"]["failed"].get<int>(), 0);
+  EXPECT_EQ(r.stats["tiles"]["pending"].get<int>(), 0);
+}
+
+TEST_F(Viewer, DemIsTerrainWhereTheLayerIsAndGlobeElsewhere) {
+  TempDir dir("viewer_dem");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const auto [half_e, half_n] = half_extent_m(l);
+  // From this height a 60° view spans 2·h·tan 30° vertically: the layer fills a known centre.
+  const double height = 5 * half_n / std::tan(M_PI / 6) + l.max_z;
+  const ViewerRun r = viewer(base_args(dir.path / "dem.png", camera_above(l, height)) +
+                             std::vector<std::string>{"--store", dem_.string()});
+  expect_clean(r);
+  const Image img = png(dir.path / "dem.png");
+  EXPECT_EQ(img.width, 480);
+  EXPECT_EQ(img.height, 270);
+  // The layer covers about ±20 % of the height and ±(half_e/half_n)·20 % of the height around
+  // the centre; the middle is terrain, a frame around the border is globe.
+  EXPECT_GT(fraction(img, Pixel::terrain, 0.45, 0.42, 0.55, 0.58), 0.98);
+  EXPECT_GT(fraction(img, Pixel::globe, 0.0, 0.0, 1.0, 0.15), 0.98);
+  EXPECT_GT(fraction(img, Pixel::globe, 0.0, 0.85, 1.0, 1.0), 0.98);
+  EXPECT_GT(fraction(img, Pixel::globe, 0.0, 0.0, 0.1, 1.0), 0.98);
+  EXPECT_GT(r.stats["tiles"]["drawn"].get<int>(), 0);
+  EXPECT_LE(r.stats["max_sse_drawn"].get<double>(), 2.0);
+}
+
+TEST_F(Viewer, LidarIsTerrainWhereTheLayerIsAndNothingIsDrawnFarAway) {
+  TempDir dir("viewer_lidar");
+  const store::LayerInfo l = layer_info(lidar_, "lidar");
+  const auto [half_e, half_n] = half_extent_m(l);
+  const double height = 5 * half_n / std::tan(M_PI / 6) + l.max_z;
+  const ViewerRun r = viewer(base_args(dir.path / "l.png", camera_above(l, height)) +
+                             std::vector<std::string>{"--store", lidar_.string()});
+  expect_clean(r);
+  const Image img = png(dir.path / "l.png");
+  EXPECT_GT(fraction(img, Pixel::terrain, 0.45, 0.42, 0.55, 0.58), 0.98);
+  EXPECT_GT(fraction(img, Pixel::globe, 0.0, 0.0, 1.0, 0.15), 0.98);
+  // 2000 km away the layer is not drawn at all: no terrain pixel, nothing requested beyond the
+  // root tiles the horizon leaves in view.
+  const ViewerRun far = viewer(base_args(dir.path / "far.png", "60,30,2000000,0,-90") +
+                               std::vector<std::string>{"--store", lidar_.string()});
+  expect_clean(far);
+  EXPECT_EQ(far.stats["tiles"]["drawn"].get<int>(), 0);
+  const Image far_img = png(dir.path / "far.png");
+  EXPECT_EQ(fraction(far_img, Pixel::terrain, 0, 0, 1, 1), 0.0);
+  EXPECT_GT(fraction(far_img, Pixel::globe, 0.3, 0.3, 0.7, 0.7), 0.99);
+}
+
+TEST_F(Viewer, TheWireframeChangesTheImage) {
+  TempDir dir("viewer_wire");
+  const store::LayerInfo l = layer_info(lidar_, "lidar");
+  const std::string camera = camera_above(l, l.max_z + 150);
+  const auto args = std::vector<std::string>{"--store", lidar_.string(), "--layer", "lidar"};
+  const ViewerRun plain = viewer(base_args(dir.path / "plain.png", camera) + args);
+  const ViewerRun wire = viewer(base_args(dir.path / "wire.png", camera) + args +
+                                std::vector<std::string>{"--wireframe"});
+  expect_clean(plain);
+  expect_clean(wire);
+  EXPECT_EQ(plain.stats["drawn_tiles"], wire.stats["drawn_tiles"]);
+  const Image a = png(dir.path / "plain.png"), b = png(dir.path / "wire.png");
+  int differ = 0;
+  for (std::size_t i = 0; i < a.rgba.size(); i += 4)
+    differ +=
+        a.rgba[i] != b.rgba[i] || a.rgba[i + 1] != b.rgba[i + 1] || a.rgba[i + 2] != b.rgba[i + 2];
+  EXPECT_GT(differ, static_cast<int>(a.rgba.size() / 4 / 20))
+      << "fewer than 5 % of the pixels changed";
+  // The edges are dark: the terrain in the middle gets darker.
+  EXPECT_LT(mean_luminance(b, 0.4, 0.4, 0.6, 0.6), mean_luminance(a, 0.4, 0.4, 0.6, 0.6) - 5);
+}
+
+TEST_F(Viewer, ALowerCameraDrawsFinerLevels) {
+  // The level under the image centre: tiles elsewhere follow their own errors (a tile at the
+  // data's edge may carry a large one), the one looked at follows the distance.
+  TempDir dir("viewer_levels");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  std::vector<int> levels;
+  json nearest;
+  for (const double height : {400000.0, 60000.0, 1500.0}) {
+    const ViewerRun r = viewer(base_args(dir.path / "x.png", camera_above(l, l.max_z + height)) +
+                               std::vector<std::string>{"--store", dem_.string()});
+    expect_clean(r);
+    levels.push_back(r.stats["centre_level"].get<int>());
+    EXPECT_LE(r.stats["max_sse_drawn"].get<double>(), 2.0) << height;
+    nearest = r.stats;
+  }
+  EXPECT_GE(levels[0], 0);
+  EXPECT_LT(levels[0], levels[1]);
+  EXPECT_LT(levels[1], levels[2]);
+  // A coarser quality knob draws coarser tiles from the same camera.
+  const ViewerRun coarse =
+      viewer(base_args(dir.path / "c.png", camera_above(l, l.max_z + 1500.0)) +
+             std::vector<std::string>{"--store", dem_.string(), "--max-sse", "64"});
+  expect_clean(coarse);
+  EXPECT_LT(coarse.stats["centre_level"].get<int>(), levels[2]);
+  EXPECT_LT(coarse.stats["tiles"]["triangles"].get<double>(),
+            nearest["tiles"]["triangles"].get<double>());
+  EXPECT_LE(coarse.stats["max_sse_drawn"].get<double>(), 64.0);
+}
+
+TEST_F(Viewer, StoreAndUrlDrawTheSameTilesAndPixels) {
+  TempDir dir("viewer_same");
+  testing::Server server(lidar_);
+  const store::LayerInfo l = layer_info(lidar_, "lidar");
+  const std::string camera = camera_above(l, l.max_z + 300, -50);
+  const ViewerRun a =
+      viewer(base_args(dir.path / "store.png", camera) +
+             std::vector<std::string>{"--store", lidar_.string(), "--layer", "lidar"});
+  const ViewerRun b = viewer(base_args(dir.path / "url.png", camera) +
+                             std::vector<std::string>{"--url", server.url(), "--layer", "lidar"});
+  expect_clean(a);
+  expect_clean(b);
+  EXPECT_EQ(a.stats["drawn_tiles"], b.stats["drawn_tiles"]);
+  EXPECT_GT(a.stats["drawn_tiles"].size(), 0u);
+  EXPECT_GT(b.stats["requests"]["wire_bytes"].get<double>(), 0);
+  const Image x = png(dir.path / "store.png"), y = png(dir.path / "url.png");
+  EXPECT_EQ(x.rgba, y.rgba);
+}
+
+TEST_F(Viewer, AWarmDiskCacheDownloadsNothingNewAndBudgetsHold) {
+  TempDir dir("viewer_disk");
+  testing::Server server(dem_);
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const std::string camera = camera_above(l, l.max_z + 20000, -60);
+  const auto args = std::vector<std::string>{
+      "--url",     server.url(), "--disk-cache", (dir.path / "cache").string(),
+      "--gpu-mb",  "48",         "--cache-mb",   "24",
+      "--threads", "4"};
+  const ViewerRun cold = viewer(base_args(dir.path / "cold.png", camera) + args);
+  expect_clean(cold);
+  const json& c = cold.stats;
+  // (With these budgets a tile may leave both RAM and GPU and come back from the disk tier, 304,
+  // even in the cold run.)
+  EXPECT_GT(c["requests"]["downloaded_bytes"].get<double>(), 0);
+  EXPECT_GT(c["requests"]["ok"].get<int>(), 0);
+  const ViewerRun warm = viewer(base_args(dir.path / "warm.png", camera) + args);
+  expect_clean(warm);
+  const json& w = warm.stats;
+  EXPECT_EQ(w["requests"]["downloaded_bytes"].get<double>(), 0);
+  EXPECT_EQ(w["requests"]["ok"].get<int>(), 0);
+  EXPECT_EQ(w["requests"]["not_modified"].get<int>(), w["tiles"]["loaded"].get<int>());
+  EXPECT_EQ(w["cache"]["disk"]["hits"].get<int>(), w["tiles"]["loaded"].get<int>());
+  EXPECT_EQ(w["drawn_tiles"], c["drawn_tiles"]);
+  EXPECT_EQ(png(dir.path / "cold.png").rgba, png(dir.path / "warm.png").rgba);
+  // Every tier kept its budget, within one tile.
+  for (const json* s : {&c, &w})
+    for (const char* tier : {"gpu", "ram", "disk"}) {
+      const json& t = (*s)["cache"][tier];
+      EXPECT_LE(t["peak_bytes"].get<double>(),
+                t["budget"].get<double>() + t["largest_entry"].get<double>())
+          << tier;
+    }
+}
+
+TEST_F(Viewer, SmallBudgetsEvictDuringAFlightAndHold) {
+  TempDir dir("viewer_flight");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const double lon0 = l.bounds.west + 0.25 * (l.bounds.east - l.bounds.west);
+  const double lon1 = l.bounds.west + 0.75 * (l.bounds.east - l.bounds.west);
+  const double lat = (l.bounds.south + l.bounds.north) / 2;
+  // Two views 18 km apart, straight down from 4 km: each needs about 15 MB of GPU buffers (the
+  // coarse ancestors they share included), both together about 26 MB.
+  std::ofstream(dir.path / "path.txt")
+      << "0 " << lon0 << "," << lat << ",4000,0,-90\nwait complete\n"
+      << "1 " << lon1 << "," << lat << ",4000,0,-90\nwait complete\n";
+  const ViewerRun r =
+      viewer({"--headless", "--size", "320x180", "--msaa", "0", "--no-legend", "--store",
+              dem_.string(), "--camera-path", (dir.path / "path.txt").string(), "--fps", "10",
+              "--timeout", "300", "--gpu-mb", "20", "--cache-mb", "8"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  ASSERT_TRUE(r.stats.is_object());
+  ASSERT_GT(r.frames.size(), 3u);
+  EXPECT_TRUE(r.frames.back()["complete"].get<bool>());
+  for (const char* tier : {"gpu", "ram"}) {
+    const json& t = r.stats["cache"][tier];
+    EXPECT_GT(t["evictions"].get<int>(), 0) << tier;
+    EXPECT_LE(t["peak_bytes"].get<double>(),
+              t["budget"].get<double>() + t["largest_entry"].get<double>())
+        << tier;
+  }
+  EXPECT_EQ(r.stats["requests"]["failed"].get<int>(), 0);
+}
+
+TEST_F(Viewer, SphericalAndEllipsoidalLayersLandInTheSamePlace) {
+  TempDir dir("viewer_ell");
+  const store::LayerInfo l = layer_info(lidar_, "lidar");
+  const std::string camera = camera_above(l, l.max_z + 400, -70);
+  const ViewerRun s = viewer(base_args(dir.path / "s.png", camera) +
+                             std::vector<std::string>{"--store", lidar_.string(), "--layer",
+                                                      "lidar", "--ramp", "120,135"});
+  const ViewerRun e = viewer(base_args(dir.path / "e.png", camera) +
+                             std::vector<std::string>{"--store", lidar_.string(), "--layer",
+                                                      "lidar_ell", "--ramp", "120,135"});
+  expect_clean(s);
+  expect_clean(e);
+  const Image a = png(dir.path / "s.png"), b = png(dir.path / "e.png");
+  int same = 0, terrain = 0;
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x) {
+      terrain += classify(a, x, y) == Pixel::terrain;
+      same += classify(a, x, y) == classify(b, x, y);
+    }
+  EXPECT_GT(terrain, a.width * a.height / 10);
+  EXPECT_GT(same, static_cast<int>(0.995 * a.width * a.height));
+}
+
+TEST_F(Viewer, LogarithmicDepthDrawsTheSameScene) {
+  TempDir dir("viewer_logz");
+  const store::LayerInfo l = layer_info(lidar_, "lidar");
+  const std::string camera = camera_above(l, l.max_z + 250, -45);
+  const ViewerRun a =
+      viewer(base_args(dir.path / "a.png", camera) +
+             std::vector<std::string>{"--store", lidar_.string(), "--layer", "lidar"});
+  const ViewerRun b = viewer(
+      base_args(dir.path / "b.png", camera) +
+      std::vector<std::string>{"--store", lidar_.string(), "--layer", "lidar", "--log-depth"});
+  expect_clean(a);
+  expect_clean(b);
+  EXPECT_NE(b.stats["renderer"].get<std::string>().find("log depth"), std::string::npos);
+  const Image x = png(dir.path / "a.png"), y = png(dir.path / "b.png");
+  int close = 0;
+  for (std::size_t i = 0; i < x.rgba.size(); i += 4)
+    close += std::abs(x.rgba[i] - y.rgba[i]) + std::abs(x.rgba[i + 1] - y.rgba[i + 1]) +
+                 std::abs(x.rgba[i + 2] - y.rgba[i + 2]) <=
+             12;
+  EXPECT_GT(close, static_cast<int>(0.99 * x.width * x.height));
+}
+
+TEST_F(Viewer, BadInputGetsAClearErrorAndStatus2) {
+  const auto expect_error = [](const std::vector<std::string>& args, const std::string& says) {
+    const ViewerRun r = viewer(std::vector<std::string>{"--headless", "--timeout", "30"} + args);
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find(says), std::string::npos) << r.err;
+  };
+  expect_error({"--store", "/nonexistent/x.sqlite"}, "does not exist");
+  expect_error({"--store", lidar_.string(), "--layer", "nope"}, "nope");
+  expect_error(
+      {"--url", "http://127.0.0.1:" + std::to_string(testing::closed_port()), "--retries", "1"},
+      "cannot connect");
+  expect_error({"--store", lidar_.string(), "--camera", "1,2"}, "camera");
+  expect_error({"--store", lidar_.string(), "--size", "12by4"}, "--size");
+  expect_error({}, "tile source");
+}
+
+TEST_F(Viewer, BoundingVolumesHoldEveryVertexOfRealTiles) {
+  // Every tile of both stores: the loaded tile's fitted box, the box used before it is loaded
+  // (rectangle clipped to the data, layer heights), and the exact ECEF box of its rectangle with
+  // its own heights all contain every vertex it draws, computed here through GeographicLib.
+  std::size_t tiles = 0, vertices = 0;
+  for (const auto& [path, name] :
+       {std::pair{dem_, "dem"}, std::pair{lidar_, "lidar"}, std::pair{lidar_, "lidar_ell"}}) {
+    auto st = store::TileStore::open(path, store::TileStore::Mode::read_only);
+    ASSERT_TRUE(st.ok());
+    const LayerDescription layer = from_store_info(*st->layer(name));
+    const geo::NormalisedMercator merc(layer.projection);
+    auto ids = st->tile_ids(name);
+    ASSERT_TRUE(ids.ok());
+    for (const geo::TileId& id : *ids) {
+      auto t = st->read_tile(name, id);
+      ASSERT_TRUE(t.ok() && t->has_value());
+      const tile::TinTile& tile = **t;
+      const TileMesh mesh = build_render_mesh(tile, layer, {TileKind::terrain, 0, id});
+      const Obb before = unloaded_tile_bounds(layer, id);
+      const Aabb exact = rectangle_aabb(id.lonlat_bounds(merc), tile.min_z, tile.max_z);
+      const auto all = tile.vertices();
+      std::vector<bool> drawn(all.size(), false);
+      for (std::size_t k = 0; k < tile.triangles.size(); ++k)
+        if (!tile.is_nodata_triangle(k))
+          for (std::uint32_t v : tile.triangles[k]) drawn[v] = true;
+      for (std::size_t i = 0; i < all.size(); ++i) {
+        if (!drawn[i]) continue;
+        const geo::LonLat ll = merc.inverse({all[i].x, all[i].y});
+        const geo::Ecef e = geo::to_ecef({ll.lon, ll.lat, all[i].z});
+        const Vec3 p{e.x, e.y, e.z};
+        ASSERT_TRUE(mesh.bounds.contains(p)) << name << " " << id.to_string() << " vertex " << i;
+        ASSERT_TRUE(before.contains(p)) << name << " " << id.to_string() << " vertex " << i;
+        ASSERT_TRUE(exact.contains(p)) << name << " " << id.to_string() << " vertex " << i;
+        ++vertices;
+      }
+      ++tiles;
+    }
+  }
+  EXPECT_GT(tiles, 50u);
+  EXPECT_GT(vertices, 100000u);
+}
+
+}  // namespace
+}  // namespace tinstream::client
