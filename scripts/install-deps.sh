@@ -6,7 +6,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake ninja-build ccache pkg-config git
+  build-essential cmake ninja-build ccache pkg-config git lld   # lld: the linker (CMake)
   libboost-dev                     # Beast/Asio (header-only, 1.74; CGAL needs this one)
   libgeographiclib-dev libproj-dev proj-data libgdal-dev gdal-bin
   libssl-dev                       # libcrypto: sha256 of decoded LAZ records (las-info, tests)
@@ -16,6 +16,7 @@ packages=(
   libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
   clang-format clang-tidy curl
   libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
+  wrk python3                      # the server's abuse/load test (ctest Server.Abuse)
 )
 # The browser viewers and their tests: Node.js + npm build web/ (web/build.mjs: CesiumJS and
 # MapLibre GL JS from npm) and drive Debian's Chromium through playwright-core (tests/web).
@@ -26,7 +27,7 @@ if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
   packages+=(nodejs npm)
 fi
 if [[ ${1:-} == --bench ]]; then
-  packages+=(wrk nginx time)  # (Node.js for the delatin peer: above)
+  packages+=(nginx time)  # (Node.js for the delatin peer: above; wrk: above)
 fi
 
 missing=()

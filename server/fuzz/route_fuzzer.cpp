@@ -2,7 +2,7 @@
 // Input: "<METHOD>\n<target>". Invariants checked: no crash, no sanitizer report; a parsed route
 // that names a layer names a valid one; tile routes carry a valid tile id; errors carry a 4xx
 // status and a message.
-//   build/bin/route_fuzzer server/fuzz/corpus -max_total_time=60
+//   scripts/fuzz.sh (build-fuzz/bin/route_fuzzer server/fuzz/corpus/route -max_total_time=60)
 #include <cstdint>
 #include <cstdlib>
 #include <string_view>

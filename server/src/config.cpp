@@ -60,6 +60,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
                                 "max_header_bytes",
                                 "max_body_bytes",
                                 "max_connections",
+                                "max_connections_per_ip",
+                                "linger_ms",
                                 "read_timeout_ms",
                                 "write_timeout_ms",
                                 "cache_max_age_s",
@@ -73,7 +75,9 @@ Result<ServerConfig> config_from_json(std::string_view text) {
                                 "max_queued_jobs",
                                 "shutdown_grace_ms",
                                 "log_level",
-                                "access_log"};
+                                "access_log",
+                                "tls_cert",
+                                "tls_key"};
   for (const auto& [key, value] : j.items()) {
     bool known = false;
     for (const char* k : kKeys) known = known || key == k;
@@ -93,6 +97,8 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "max_header_bytes", c.max_header_bytes))) return st.error();
   if (!(st = read_uint(j, "max_body_bytes", c.max_body_bytes))) return st.error();
   if (!(st = read_uint(j, "max_connections", c.max_connections))) return st.error();
+  if (!(st = read_uint(j, "max_connections_per_ip", c.max_connections_per_ip))) return st.error();
+  if (!(st = read_uint(j, "linger_ms", c.linger_ms))) return st.error();
   if (!(st = read_uint(j, "read_timeout_ms", c.read_timeout_ms))) return st.error();
   if (!(st = read_uint(j, "write_timeout_ms", c.write_timeout_ms))) return st.error();
   if (!(st = read_uint(j, "cache_max_age_s", c.cache_max_age_s))) return st.error();
@@ -115,6 +121,12 @@ Result<ServerConfig> config_from_json(std::string_view text) {
   if (!(st = read_uint(j, "max_queued_jobs", c.max_queued_jobs))) return st.error();
   if (!(st = read_uint(j, "shutdown_grace_ms", c.shutdown_grace_ms))) return st.error();
   if (!(st = read_string(j, "log_level", c.log_level))) return st.error();
+  if (!(st = read_path(j, "tls_cert", c.tls_cert))) return st.error();
+  if (!(st = read_path(j, "tls_key", c.tls_key))) return st.error();
+  if (c.tls_cert.empty() != c.tls_key.empty()) {
+    return invalid_argument(
+        "config keys \"tls_cert\" and \"tls_key\": set both (HTTPS) or neither");
+  }
   for (auto [key, flag] : {std::pair{"access_log", &c.access_log}, {"sendfile", &c.sendfile}}) {
     if (!j.contains(key)) continue;
     if (!j[key].is_boolean()) {

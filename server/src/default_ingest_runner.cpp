@@ -6,19 +6,16 @@
 //   pyramid (bool), memory_mb, threads, attribution, crs, vertical, z_units, skip_invalid (bool).
 // Runs on the job worker thread (jobs.hpp); run_ingest opens its own read-write store and
 // publishes the layer atomically; a sink returning false (shutdown) cancels it.
+#include "default_ingest_runner.hpp"
+
 #include "tinstream/server/ingest_options.hpp"
 #include "tinstream/server/server.hpp"
-
-#ifdef TINSTREAM_SERVER_WITH_INGEST
-#include "tinstream/ingest/ingest.hpp"
-#endif
 
 namespace tinstream::server {
 
 #ifdef TINSTREAM_SERVER_WITH_INGEST
-namespace {
 
-Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
+Result<ingest::IngestOptions> ingest_options_for(const IngestJobSpec& job) {
   const nlohmann::json& o = job.options;
   // The admin API checked them before queueing the job; a runner called another way checks too.
   if (Status valid = validate_ingest_options(o); !valid) return valid.error();
@@ -32,6 +29,7 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   }
   ingest::IngestOptions out;
   out.store_path = job.store_path;
+  out.tmp_dir = job.scratch_dir;  // private to the server; empty: the system's
   out.layer = job.layer;
   try {
     if (o.contains("projection")) {
@@ -62,6 +60,9 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
         in.reproject.z_unit = *unit;
       }
       if (o.value("skip_invalid", false)) in.source.invalid = sources::InvalidPolicy::skip;
+      // The job's thread budget also bounds LAZ chunk decoding (as `tinstream ingest --threads`);
+      // 0 (the default) is one per core for both.
+      in.source.decode_threads = out.threads;
       out.inputs.push_back(std::move(in));
     }
   } catch (const nlohmann::json::exception& e) {
@@ -73,11 +74,9 @@ Result<ingest::IngestOptions> to_options(const IngestJobSpec& job) {
   return out;
 }
 
-}  // namespace
-
 IngestRunner default_ingest_runner() {
   return [](const IngestJobSpec& job, const ProgressSink& progress) -> Status {
-    auto options = to_options(job);
+    auto options = ingest_options_for(job);
     if (!options) return options.error();
     auto summary = ingest::run_ingest(*options, progress);
     if (!summary) return summary.error();

@@ -61,6 +61,7 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
   }
   IngestJobSpec spec;
   spec.store_path = ctx.config.store;
+  spec.scratch_dir = ctx.scratch_dir;
   std::vector<std::filesystem::path> delete_after;
   if (is_upload(req)) {
     if (req.body_file.empty()) return json_error(400, "upload body missing");
@@ -90,6 +91,7 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
                         "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
     }
     spec.sources.push_back(final_path);
+    spec.source_names.push_back(name);
     spec.root = final_path.parent_path();
     spec.allow_vrt = false;
     delete_after.push_back(final_path);
@@ -128,13 +130,15 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
     spec.root = ctx.config.data_root;
     for (const auto& s : body["sources"]) {
       if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
-      auto p = resolve_source(ctx.config.data_root, s.get<std::string>());
-      if (!p)
-        return json_error(p.error().code == ErrorCode::not_found
+      auto held = HeldSource::open(ctx.config.data_root, s.get<std::string>());
+      if (!held)
+        return json_error(held.error().code == ErrorCode::not_found
                               ? 404
-                              : (p.error().code == ErrorCode::invalid_argument ? 400 : 403),
-                          p.error().message);
-      spec.sources.push_back(*p);
+                              : (held.error().code == ErrorCode::invalid_argument ? 400 : 403),
+                          held.error().message);
+      spec.sources.push_back((*held)->path());
+      spec.source_names.push_back(s.get<std::string>());
+      spec.held.push_back(std::move(*held));
     }
     if (body.contains("options")) {
       if (!body["options"].is_object())
@@ -144,7 +148,8 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
       spec.options = body["options"];
     }
   }
-  auto id = ctx.jobs->submit(std::move(spec), std::move(delete_after));
+  // A copy: when the job is refused (503) the upload is removed here, not by the job.
+  auto id = ctx.jobs->submit(std::move(spec), delete_after);
   if (!id) {
     for (const auto& p : delete_after) remove_quietly(p);
     return json_error(503, id.error().message);

@@ -1,5 +1,9 @@
 #include "tinstream/server/ingest_paths.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <system_error>
 
 namespace tinstream::server {
@@ -39,6 +43,40 @@ Result<std::filesystem::path> resolve_source(const std::filesystem::path& data_r
                             "\" is not a file or directory");
   }
   return real;
+}
+
+Result<std::shared_ptr<const HeldSource>> HeldSource::open(const std::filesystem::path& data_root,
+                                                           std::string_view requested) {
+  namespace fs = std::filesystem;
+  auto real = resolve_source(data_root, requested);
+  if (!real) return real.error();
+  std::error_code ec;
+  const bool folder = fs::is_directory(*real, ec);
+  const fs::path held = folder ? *real : real->parent_path();
+  auto source = std::shared_ptr<HeldSource>(new HeldSource());
+  source->fd_ = ::open(held.c_str(), O_PATH | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
+  const auto changed = [&] {
+    return Error(ErrorCode::unsupported,
+                 "ingest source \"" + std::string(requested) + "\" changed while it was checked");
+  };
+  if (source->fd_ < 0) return changed();
+  // The folder opened is the one checked: nothing was swapped between the check and the open.
+  const fs::path by_fd = "/proc/self/fd/" + std::to_string(source->fd_);
+  if (fs::read_symlink(by_fd, ec) != held || ec) return changed();
+  if (folder) {
+    source->path_ = by_fd;
+    return std::shared_ptr<const HeldSource>(std::move(source));
+  }
+  struct stat st {};
+  const std::string name = real->filename().string();
+  if (::fstatat(source->fd_, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISREG(st.st_mode))
+    return changed();
+  source->path_ = by_fd / name;
+  return std::shared_ptr<const HeldSource>(std::move(source));
+}
+
+HeldSource::~HeldSource() {
+  if (fd_ >= 0) ::close(fd_);
 }
 
 Result<std::string> sanitize_filename(std::string_view name) {

@@ -79,7 +79,11 @@ Result<std::string> JobManager::submit(IngestJobSpec spec,
   spec.job_id = job->status.id;
   job->status.layer = spec.layer;
   job->status.created_unix = now_unix();
-  for (const auto& s : spec.sources) job->status.sources.push_back(s.filename().string());
+  if (!spec.source_names.empty()) {
+    job->status.sources = spec.source_names;
+  } else {
+    for (const auto& s : spec.sources) job->status.sources.push_back(s.filename().string());
+  }
   job->spec = std::move(spec);
   job->delete_after = std::move(delete_after);
   jobs_[id] = job;
@@ -149,6 +153,7 @@ void JobManager::shutdown() {
     if (stopping_ && !worker_.joinable()) return;
     stopping_ = true;
     for (auto& job : queue_) {
+      job->spec.held.clear();
       job->status.state = JobState::cancelled;
       job->status.error = "server shut down before the job started";
       job->status.finished_unix = now_unix();
@@ -195,6 +200,7 @@ void JobManager::work() {
       std::filesystem::remove(p, ec);
     }
     std::lock_guard lock(mutex_);
+    job->spec.held.clear();  // the sources' descriptors: the finished job stays in the list
     job->status.finished_unix = now_unix();
     if (result.ok()) {
       job->status.state = JobState::succeeded;

@@ -70,6 +70,12 @@ std::string Metrics::render(const JobCounts& jobs) const {
   out += "# TYPE tinstream_http_rejected_connections_total counter\n";
   out += fmt::format("tinstream_http_rejected_connections_total {}\n",
                      rejected_connections_.load(std::memory_order_relaxed));
+  out +=
+      "# HELP tinstream_accept_errors_total Failed accept() calls (out of descriptors: retried "
+      "after a pause).\n";
+  out += "# TYPE tinstream_accept_errors_total counter\n";
+  out += fmt::format("tinstream_accept_errors_total {}\n",
+                     accept_errors_.load(std::memory_order_relaxed));
   out += "# HELP tinstream_ingest_jobs Ingest jobs by state.\n";
   out += "# TYPE tinstream_ingest_jobs gauge\n";
   out += fmt::format("tinstream_ingest_jobs{{state=\"queued\"}} {}\n", jobs.queued);

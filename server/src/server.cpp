@@ -16,6 +16,8 @@
 #include "tinstream/server/server.hpp"
 
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <atomic>
@@ -29,6 +31,7 @@
 #include "server_state.hpp"
 #include "session.hpp"
 #include "tinstream/store/tile_store.hpp"
+#include "tls.hpp"
 
 namespace tinstream::server {
 
@@ -42,6 +45,58 @@ namespace {
 // process (the CLI publishing into the served store) is seen within it. Admin ingests and
 // deletes clear the cache at once.
 constexpr std::uint32_t kLayerRowTtlMs = 1000;
+
+// How long the listener waits before accepting again when accept() found no descriptor (or
+// memory) left.
+constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);
+
+// Raises the open-files soft limit to the hard one, and returns max_connections as the server
+// can keep it: below that limit by an eighth of it (at least 128 descriptors), for the stores,
+// the body files, the listeners, the logs and the ingest's files.
+std::uint32_t connection_limit(std::uint32_t configured) {
+  rlimit files{};
+  if (::getrlimit(RLIMIT_NOFILE, &files) != 0) return configured;
+  const rlim_t most = std::min<rlim_t>(files.rlim_max, rlim_t{1} << 20);
+  if (files.rlim_cur < most) {
+    rlimit raised = files;
+    raised.rlim_cur = most;
+    if (::setrlimit(RLIMIT_NOFILE, &raised) == 0) files = raised;
+  }
+  const rlim_t reserve = std::max<rlim_t>(128, files.rlim_cur / 8);
+  const rlim_t room = files.rlim_cur > reserve + 1 ? files.rlim_cur - reserve : 1;
+  if (configured <= room) return configured;
+  spdlog::warn("max_connections {} lowered to {}: the open-files limit is {}", configured, room,
+               static_cast<std::uint64_t>(files.rlim_cur));
+  return static_cast<std::uint32_t>(room);
+}
+
+// Upload files of an earlier run (a crash mid-upload or mid-job): the server's own names,
+// upload-<16 hex> with or without "-<name>".
+void remove_orphan_uploads(const std::filesystem::path& folder) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool ours = name.size() >= 23 && name.rfind("upload-", 0) == 0 &&
+                      name.find_first_not_of("0123456789abcdef", 7) >= 23 &&
+                      (name.size() == 23 || name[23] == '-');
+    std::error_code type_ec;
+    if (!ours || !e.is_regular_file(type_ec)) continue;
+    std::error_code rm;
+    std::filesystem::remove(e.path(), rm);
+    if (!rm) spdlog::info("removed an upload left by an earlier run: {}", name);
+  }
+}
+
+// The folder for ingest jobs' temporary files: .tinstream-scratch beside the store, 0700 (the
+// system temp folder is shared with every user of the machine).
+std::filesystem::path private_scratch_dir(const std::filesystem::path& store) {
+  const auto dir = (store.has_parent_path() ? store.parent_path() : std::filesystem::path(".")) /
+                   ".tinstream-scratch";
+  ::mkdir(dir.c_str(), 0700);
+  ::chmod(dir.c_str(), 0700);
+  std::error_code ec;
+  return std::filesystem::is_directory(dir, ec) ? dir : std::filesystem::path();
+}
 
 // Each io thread's own read-only store, opened on first use, keyed by the server's serial number
 // (unique per process, unlike its address) and released when the thread leaves run().
@@ -79,6 +134,23 @@ Status listen(tcp::acceptor& acceptor, const std::string& address_text, std::uin
 
 }  // namespace
 
+bool AddressCounts::acquire(const std::string& address, std::uint32_t limit) {
+  std::lock_guard lock(mutex_);
+  std::uint32_t& n = counts_[address];
+  if (n >= limit) {
+    if (n == 0) counts_.erase(address);
+    return false;
+  }
+  ++n;
+  return true;
+}
+
+void AddressCounts::release(const std::string& address) {
+  std::lock_guard lock(mutex_);
+  auto it = counts_.find(address);
+  if (it != counts_.end() && --it->second == 0) counts_.erase(it);
+}
+
 struct Server::Impl {
   ~Impl();
   Impl(const ServerConfig& c, unsigned n_shards)
@@ -111,15 +183,19 @@ struct Server::Impl {
   Clock::time_point stop_deadline;
   std::vector<std::unique_ptr<Shard>> shards;  // at least one; shard 0 also runs what follows
   tcp::acceptor acceptor;
-  tcp::acceptor admin_acceptor;  // open when config.admin_address is set
+  tcp::acceptor admin_acceptor;            // open when config.admin_address is set
+  std::shared_ptr<net::ssl::context> tls;  // set when config.tls_cert is: every listener is HTTPS
   net::signal_set signals;
   net::steady_timer grace;
   std::size_t next_shard = 0;  // round robin; the accept handlers only (shard 0's thread)
   // Deferred answers (layer deletes). Declared after the shards: stopped first (~Impl).
   BlockingWorker blocking;
 
+  Clock::time_point last_accept_warning;  // accept failures are logged once a second at most
+
   void do_accept(tcp::acceptor& from);
   void on_accept(tcp::acceptor& from, Shard& target, beast::error_code ec, tcp::socket socket);
+  void admit(tcp::acceptor& from, Shard& target, tcp::socket socket);
   void sweep(Shard& shard);
   void stop();
   void watch_drain();
@@ -152,22 +228,81 @@ void Server::Impl::do_accept(tcp::acceptor& from) {
   });
 }
 
+// True for accept errors that say "no resources now" (descriptors, kernel memory): retrying at
+// once would fail again, at 100 % CPU.
+bool out_of_resources(const beast::error_code& ec) {
+  return ec == net::error::no_descriptors || ec == beast::errc::too_many_files_open_in_system ||
+         ec == net::error::no_buffer_space || ec == net::error::no_memory;
+}
+
 void Server::Impl::on_accept(tcp::acceptor& from, Shard& target, beast::error_code ec,
                              tcp::socket socket) {
   if (ec) {
     if (!from.is_open() || state.stopping) return;
-    spdlog::warn("accept failed: {}", ec.message());
+    state.metrics.accept_failed();
+    const auto now = Clock::now();
+    if (now - last_accept_warning >= std::chrono::seconds(1)) {
+      last_accept_warning = now;
+      spdlog::warn("accept failed: {}", ec.message());
+    }
+    if (out_of_resources(ec)) {
+      // The connection stays in the backlog; try again once something may have been freed.
+      auto retry = std::make_shared<net::steady_timer>(from.get_executor(), kAcceptBackoff);
+      retry->async_wait([this, &from, retry](beast::error_code wait_ec) {
+        if (!wait_ec && !state.stopping) do_accept(from);
+      });
+      return;
+    }
   } else if (!state.stopping) {
-    beast::error_code nd;
-    socket.set_option(tcp::no_delay(true), nd);  // responses go out in one write; no Nagle wait
-    auto session =
-        std::make_shared<Session>(std::move(socket), state, target, &from == &admin_acceptor);
-    const bool reject =
-        state.metrics.open_connections() > static_cast<std::int64_t>(state.config.max_connections);
-    if (reject) state.metrics.connection_rejected();
-    net::post(target.ioc, [session = std::move(session), reject] { session->start(reject); });
+    admit(from, target, std::move(socket));
   }
   if (!state.stopping) do_accept(from);
+}
+
+// Over max_connections (or its address's share) a connection gets a 503 and is closed; when
+// refusals pile up (another quarter of max_connections, at least 16) it is closed at once,
+// without an answer.
+void Server::Impl::admit(tcp::acceptor& from, Shard& target, tcp::socket socket) {
+  beast::error_code ec;
+  socket.set_option(tcp::no_delay(true), ec);  // responses go out in one write; no Nagle wait
+  const ServerConfig& c = state.config;
+  const std::int64_t open = state.metrics.open_connections();
+  if (open >= static_cast<std::int64_t>(c.max_connections) +
+                  std::max<std::int64_t>(c.max_connections / 4, 16)) {
+    state.metrics.connection_rejected();
+    socket.close(ec);
+    return;
+  }
+  std::string refusal;
+  bool counted = false;
+  if (open >= static_cast<std::int64_t>(c.max_connections)) {
+    refusal = "too many connections";
+  } else if (c.max_connections_per_ip > 0) {
+    const auto peer = socket.remote_endpoint(ec);
+    counted = !ec && state.addresses.acquire(peer.address().to_string(), c.max_connections_per_ip);
+    if (!counted) refusal = "too many connections from this address (max_connections_per_ip)";
+  }
+  std::string peer;
+  if (tls) {
+    // The session serves the plain end of a socket pair; TLS is terminated beside it (tls.hpp).
+    const auto endpoint = socket.remote_endpoint(ec);
+    if (!ec) peer = endpoint.address().to_string();
+    auto plain = start_tls_pump(std::move(socket), tls, target.ioc,
+                                std::chrono::milliseconds(c.read_timeout_ms));
+    if (!plain) {
+      state.metrics.connection_rejected();
+      if (counted) state.addresses.release(peer);
+      spdlog::warn("connection refused: {}", plain.error().message);
+      return;
+    }
+    socket = std::move(*plain);
+  }
+  if (!refusal.empty()) state.metrics.connection_rejected();
+  auto session = std::make_shared<Session>(std::move(socket), state, target,
+                                           &from == &admin_acceptor, counted, std::move(peer));
+  net::post(target.ioc, [session = std::move(session), refusal = std::move(refusal)]() mutable {
+    session->start(std::move(refusal));
+  });
 }
 
 void Server::Impl::sweep(Shard& shard) {
@@ -229,7 +364,9 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   }
   const unsigned threads =
       config.threads > 0 ? config.threads : std::max(1u, std::thread::hardware_concurrency());
-  auto impl = std::make_unique<Impl>(config, threads);
+  ServerConfig applied = config;
+  applied.max_connections = connection_limit(config.max_connections);
+  auto impl = std::make_unique<Impl>(applied, threads);
   Impl* raw = impl.get();
   // A finished job may have published or replaced a layer: forget cached layer rows.
   IngestRunner wrapped = [runner = std::move(runner), raw](const IngestJobSpec& job,
@@ -243,7 +380,7 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   if (config.terrain_cache_bytes > 0)
     impl->cache = std::make_unique<TerrainCache>(config.terrain_cache_bytes);
   Context& ctx = impl->state.ctx;
-  ctx.config = config;
+  ctx.config = applied;
   ctx.admin_token = resolve_admin_token(config);
   ctx.metrics = &impl->state.metrics;
   ctx.jobs = impl->jobs.get();
@@ -251,8 +388,15 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   ctx.layer_cache = &impl->layers;
   ctx.store = [raw] { return thread_store(raw->serial, raw->state.config.store); };
   ctx.path_redactions = server_path_redactions(config);
+  ctx.scratch_dir = private_scratch_dir(config.store);
+  if (!config.upload_dir.empty()) remove_orphan_uploads(config.upload_dir);
   impl->state.blocking = &impl->blocking;
 
+  if (!config.tls_cert.empty()) {
+    auto tls = make_tls_context(config);
+    if (!tls) return tls.error();
+    impl->tls = std::move(*tls);
+  }
   if (Status listening = listen(impl->acceptor, config.address, config.port); !listening)
     return listening.error();
   if (!config.admin_address.empty()) {
@@ -267,6 +411,8 @@ std::uint16_t Server::port() const {
   beast::error_code ec;
   return impl_->acceptor.local_endpoint(ec).port();
 }
+
+std::uint32_t Server::max_connections() const { return impl_->state.config.max_connections; }
 
 std::uint16_t Server::admin_port() const {
   if (!impl_->admin_acceptor.is_open()) return 0;
@@ -293,8 +439,9 @@ void Server::run(bool handle_signals) {
       net::post(shard->ioc, [&s, sh = shard.get()] { s.sweep(*sh); });
     }
   }
-  spdlog::info("tinstream-server listening on {}:{} with {} threads, store {}",
-               s.state.config.address, port(), s.shards.size(), s.state.config.store.string());
+  spdlog::info("tinstream-server listening on {}:{} ({}) with {} threads, store {}",
+               s.state.config.address, port(), s.tls ? "HTTPS" : "HTTP", s.shards.size(),
+               s.state.config.store.string());
   std::vector<std::thread> threads;
   auto serve_shard = [&s](Shard& shard) {
     shard.ioc.run();

@@ -11,7 +11,10 @@
 #include <boost/asio/steady_timer.hpp>
 #include <chrono>
 #include <cstdint>
+#include <mutex>
 #include <optional>
+#include <string>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "blocking_worker.hpp"
@@ -45,6 +48,19 @@ struct Shard {
   BodyFile bodies;  // cached bodies this shard's sessions send with sendfile
 };
 
+// Open connections per peer address (config max_connections_per_ip). Thread-safe: acquire() on
+// the accepting thread, release() from the session's shard when it closes.
+class AddressCounts {
+ public:
+  // Counts one more connection from `address` unless it has `limit` already (false then).
+  bool acquire(const std::string& address, std::uint32_t limit);
+  void release(const std::string& address);
+
+ private:
+  std::mutex mutex_;  // guards counts_
+  std::unordered_map<std::string, std::uint32_t> counts_;
+};
+
 // The server-wide state every session reads. `config` and `ctx` are fixed once the server runs;
 // the rest is atomic or thread-safe.
 struct ServerState {
@@ -54,6 +70,9 @@ struct ServerState {
   Context ctx;  // the handler's view of the server (handler.hpp)
   std::atomic<bool> stopping{false};
   std::atomic<std::int64_t> live_sessions{0};
+  std::atomic<std::int64_t> lingering{0};   // sessions draining before their close
+  std::atomic<std::uint64_t> uploading{0};  // bytes reserved by uploads in progress
+  AddressCounts addresses;
   BlockingWorker* blocking = nullptr;  // runs deferred answers (Response::deferred)
 };
 

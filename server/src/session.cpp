@@ -1,6 +1,9 @@
 #include "session.hpp"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
 
 #include <algorithm>
 #include <array>
@@ -10,6 +13,8 @@
 #include <boost/asio/write.hpp>
 #include <boost/beast/core/bind_handler.hpp>
 #include <boost/beast/http/error.hpp>
+#include <cerrno>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -21,6 +26,11 @@ namespace {
 
 // Bytes asked of the socket per read when the buffer has less room: a few requests' worth.
 constexpr std::size_t kReadSize = 4096;
+// Buffers larger than this (a big request body, a big answer) are released after the response,
+// so that an idle keep-alive connection holds no more.
+constexpr std::size_t kKeptBufferBytes = 64u << 10;
+// What a closing connection drains at most before it is closed hard.
+constexpr std::size_t kMaxDrainBytes = 64u << 10;
 
 std::string random_hex(std::size_t n) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
@@ -39,13 +49,18 @@ std::size_t whole_buffers(const beast::error_code& ec, std::size_t) {
 
 }  // namespace
 
-Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener)
-    : socket_(std::move(socket)), server_(server), shard_(shard) {
+Session::Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener,
+                 bool counted, std::string peer)
+    : socket_(std::move(socket)), server_(server), shard_(shard), counted_(counted) {
   server_.metrics.connection_opened();
   server_.live_sessions.fetch_add(1);
-  beast::error_code ec;
-  const auto peer = socket_.remote_endpoint(ec);
-  if (!ec) req_.remote = peer.address().to_string();
+  if (!peer.empty()) {
+    req_.remote = std::move(peer);
+  } else {
+    beast::error_code ec;
+    const auto endpoint = socket_.remote_endpoint(ec);
+    if (!ec) req_.remote = endpoint.address().to_string();
+  }
   req_.admin_listener = admin_listener;
 }
 
@@ -56,17 +71,22 @@ Session::~Session() {
     std::error_code ec;
     std::filesystem::remove(upload_path_, ec);
   }
+  if (counted_) server_.addresses.release(req_.remote);
+  release_upload_space();
+  if (lingering_) server_.lingering.fetch_sub(1);
   server_.live_sessions.fetch_sub(1);
 }
 
-void Session::start(bool reject) {
+void Session::start(std::string refusal) {
   shard_.sessions.insert(this);
   beast::error_code ec;
   socket_.native_non_blocking(true, ec);  // the sendfile writer calls send/sendfile itself
-  if (!reject) return do_read();
+  if (refusal.empty()) return do_read();
   start_ = Clock::now();
   reset_request();
-  do_write(json_error(503, "too many connections"), true);
+  do_write(json_error(503, refusal), true);
+  // A refused client gets a second at most to take its 503.
+  expires_after(std::min<std::uint32_t>(cfg().write_timeout_ms, 1000));
 }
 
 // The wait for a next request is cancelled, not closed: the reactor may already have read the
@@ -145,7 +165,10 @@ void Session::parse_buffered() {
     }
     if (ec) break;
   }
-  if (!ec && !complete()) return do_read_some();
+  if (!ec && !complete()) {
+    if (!reading_header_ && upload_file_.is_open()) extend_upload_deadline(Clock::now());
+    return do_read_some();
+  }
   on_parsed(ec);
 }
 
@@ -229,17 +252,77 @@ std::optional<Response> Session::begin_upload(const boost::optional<std::uint64_
     return json_error(
         413, "upload larger than max_upload_bytes = " + std::to_string(cfg().max_upload_bytes));
   }
+  if (auto refused = reserve_upload_space(length ? *length : cfg().max_upload_bytes))
+    return refused;
+  // The folder and the file are the server's own: 0700 and 0600, never through a symlink.
   std::error_code fs_ec;
-  std::filesystem::create_directories(cfg().upload_dir, fs_ec);
-  upload_path_ = cfg().upload_dir / ("upload-" + random_hex(16));
-  beast::error_code open_ec;
-  upload_file_.open(upload_path_.c_str(), beast::file_mode::write_new, open_ec);
-  if (open_ec) {
-    upload_path_.clear();
-    return json_error(500, "upload: cannot create a file in upload_dir: " + open_ec.message());
+  if (!std::filesystem::exists(cfg().upload_dir, fs_ec)) {
+    std::filesystem::create_directories(cfg().upload_dir.parent_path(), fs_ec);
+    ::mkdir(cfg().upload_dir.c_str(), 0700);
   }
+  upload_path_ = cfg().upload_dir / ("upload-" + random_hex(16));
+  const int fd =
+      ::open(upload_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (fd < 0) {
+    const std::string why = std::strerror(errno);
+    upload_path_.clear();
+    return json_error(500, "upload: cannot create a file in upload_dir: " + why);
+  }
+  upload_file_.native_handle(fd);
   parser_->write_body_to(upload_file_);
+  upload_start_ = Clock::now();
   return std::nullopt;
+}
+
+// Room for an upload of `bytes`: within max_upload_total_bytes together with the uploads in
+// progress and the upload files waiting for their jobs, and leaving upload_min_free_bytes on
+// the disk. Reserved until the body is complete (or the session ends); 507 otherwise.
+std::optional<Response> Session::reserve_upload_space(std::uint64_t bytes) {
+  std::uint64_t waiting = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(cfg().upload_dir, ec)) {
+    std::error_code size_ec;
+    if (e.path().filename().string().rfind("upload-", 0) == 0 && e.is_regular_file(size_ec))
+      waiting += e.file_size(size_ec);
+  }
+  const std::uint64_t before = server_.uploading.fetch_add(bytes);
+  upload_reserved_ = bytes;
+  if (before + waiting + bytes > cfg().max_upload_total_bytes) {
+    release_upload_space();
+    return json_error(507,
+                      "upload: uploads in progress and waiting for their jobs would exceed "
+                      "max_upload_total_bytes = " +
+                          std::to_string(cfg().max_upload_total_bytes));
+  }
+  struct statvfs disk {};
+  const auto& where = std::filesystem::exists(cfg().upload_dir, ec)
+                          ? cfg().upload_dir
+                          : cfg().upload_dir.parent_path();
+  if (::statvfs(where.empty() ? "." : where.c_str(), &disk) == 0) {
+    const std::uint64_t free_bytes =
+        static_cast<std::uint64_t>(disk.f_bavail) * static_cast<std::uint64_t>(disk.f_frsize);
+    if (free_bytes < bytes || free_bytes - bytes < cfg().upload_min_free_bytes) {
+      release_upload_space();
+      return json_error(507, "upload: not enough free disk space (upload_min_free_bytes = " +
+                                 std::to_string(cfg().upload_min_free_bytes) + ")");
+    }
+  }
+  return std::nullopt;
+}
+
+void Session::release_upload_space() {
+  server_.uploading.fetch_sub(upload_reserved_);
+  upload_reserved_ = 0;
+}
+
+// An upload's body has read_timeout_ms without a byte, and in all read_timeout_ms plus the time
+// its bytes so far take at upload_min_bytes_per_s.
+void Session::extend_upload_deadline(Clock::time_point now) {
+  const std::uint64_t rate = std::max<std::uint32_t>(1, cfg().upload_min_bytes_per_s);
+  const auto earned = std::chrono::milliseconds(parser_->body_bytes() * 1000 / rate);
+  const auto idle = now + std::chrono::milliseconds(cfg().read_timeout_ms);
+  deadline_ =
+      std::min(idle, upload_start_ + std::chrono::milliseconds(cfg().read_timeout_ms) + earned);
 }
 
 // Reads the body (on_body once complete) within read_timeout_ms, after a 100 Continue when the
@@ -247,6 +330,7 @@ std::optional<Response> Session::begin_upload(const boost::optional<std::uint64_
 void Session::read_body(bool expect_continue) {
   if (!expect_continue) {
     expires_after(cfg().read_timeout_ms);
+    upload_start_ = Clock::now();
     return parse_buffered();
   }
   static const std::string kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
@@ -271,6 +355,7 @@ void Session::on_body(beast::error_code ec) {
   if (upload) {
     upload_file_.close(ec);
     if (ec) return do_write(json_error(500, "upload: " + ec.message()), true);
+    release_upload_space();  // the file now counts as waiting for its job
     req_.body_file_size = parser_->body_bytes();
     req_.body_file = std::move(upload_path_);  // handle() owns the file from here
     upload_path_.clear();
@@ -351,7 +436,7 @@ void Session::on_write(beast::error_code ec, std::size_t) {
   }
   prebuilt_.reset();
   shared_body_.reset();
-  body_.clear();
+  release_large_buffers();
   if (ec) return close_now();
   if (close_after_) return do_close();
   // Stopping or not, the client was told the connection stays open and may already have sent
@@ -362,19 +447,41 @@ void Session::on_write(beast::error_code ec, std::size_t) {
 
 // ---- 3. Closing ----------------------------------------------------------------------------
 
+void Session::release_large_buffers() {
+  if (body_.capacity() > kKeptBufferBytes) {
+    std::string().swap(body_);
+  } else {
+    body_.clear();
+  }
+  if (req_.body.capacity() > kKeptBufferBytes) std::string().swap(req_.body);
+  if (buffer_.size() == 0 && buffer_.capacity() > kKeptBufferBytes) buffer_.shrink_to_fit();
+}
+
+// ---- 3. Closing ----------------------------------------------------------------------------
+
 void Session::do_close() {
   beast::error_code ec;
   socket_.shutdown(tcp::socket::shutdown_send, ec);
+  const std::int64_t most = std::max<std::int64_t>(1, cfg().max_connections / 4);
+  if (server_.lingering.fetch_add(1) >= most) {
+    server_.lingering.fetch_sub(1);
+    return close_now();
+  }
+  lingering_ = true;
   drained_ = 0;
-  on_drain({}, 0);
+  expires_after(cfg().linger_ms);  // once: the bytes that come do not extend it
+  do_drain();
+}
+
+void Session::do_drain() {
+  socket_.async_read_some(net::buffer(drain_buffer_),
+                          beast::bind_front_handler(&Session::on_drain, shared_from_this()));
 }
 
 void Session::on_drain(beast::error_code ec, std::size_t n) {
   drained_ += n;
-  if (ec || drained_ > (4u << 20)) return close_now();
-  expires_after(std::min<std::uint32_t>(cfg().read_timeout_ms, 2000));
-  socket_.async_read_some(net::buffer(drain_buffer_),
-                          beast::bind_front_handler(&Session::on_drain, shared_from_this()));
+  if (ec || drained_ > kMaxDrainBytes) return close_now();
+  do_drain();
 }
 
 }  // namespace tinstream::server

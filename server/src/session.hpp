@@ -40,12 +40,17 @@ class Session : public std::enable_shared_from_this<Session> {
  public:
   using tcp = boost::asio::ip::tcp;
 
-  // `admin_listener`: accepted on the admin listener (config admin_address).
-  Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener = false);
+  // `admin_listener`: accepted on the admin listener (config admin_address). `counted`: the
+  // connection holds one of its address's slots (AddressCounts), released by the destructor.
+  // `peer`: the client's address when `socket` is not the client's own (the plain end of a TLS
+  // connection, tls.hpp); empty: the socket's remote address.
+  Session(tcp::socket&& socket, ServerState& server, Shard& shard, bool admin_listener = false,
+          bool counted = false, std::string peer = {});
   ~Session();
 
-  // On the shard's thread. `reject`: answer 503 and close (over max_connections).
-  void start(bool reject);
+  // On the shard's thread. `refusal` non-empty: answer 503 with it and close (over
+  // max_connections or max_connections_per_ip).
+  void start(std::string refusal = {});
   // On the shard's thread, when the server stops: idle connections close now, busy ones after
   // their response (bounded by the timeouts and shutdown_grace_ms), with `Connection: close`.
   void shutdown();
@@ -67,6 +72,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void on_parsed(beast::error_code ec);
   void on_header(beast::error_code ec);
   std::optional<Response> begin_upload(const boost::optional<std::uint64_t>& length);
+  std::optional<Response> reserve_upload_space(std::uint64_t bytes);
+  void release_upload_space();
+  void extend_upload_deadline(Clock::time_point now);
   void read_body(bool expect_continue);
   void on_body(beast::error_code ec);
 
@@ -76,9 +84,14 @@ class Session : public std::enable_shared_from_this<Session> {
   void do_write(Response res, bool close_after);
   void on_write(beast::error_code ec, std::size_t n);
 
-  // 3. Closing: half-close, then drain what the client still sends (bounded in bytes and time)
-  //    so that it reads the response instead of a connection reset.
+  void release_large_buffers();
+
+  // 3. Closing: half-close, then drain what the client still sends so that it reads the
+  //    response instead of a connection reset: bounded in bytes, in total time (linger_ms, not
+  //    renewed by the bytes) and in number (a quarter of max_connections drain at once; the
+  //    others close at once).
   void do_close();
+  void do_drain();
   void on_drain(beast::error_code ec, std::size_t n);
 
   tcp::socket socket_;
@@ -94,6 +107,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<const HeaderBlock> prebuilt_;            // holds a shared head being written
   SendfileJob sendfile_;               // sendfile path: what is left (head in head_/prebuilt_)
   std::filesystem::path upload_path_;  // removed by the destructor unless handed to handle()
+  std::uint64_t upload_reserved_ = 0;  // of ServerState::uploading, until the body is complete
+  Clock::time_point upload_start_;
   Request req_;
   Clock::time_point start_;
   std::string route_ = "other";
@@ -103,6 +118,8 @@ class Session : public std::enable_shared_from_this<Session> {
   bool keep_alive_ = false;
   bool close_after_ = false;
   bool reading_header_ = false;
+  bool counted_ = false;    // holds a slot of its address (AddressCounts)
+  bool lingering_ = false;  // counted in ServerState::lingering
   std::size_t drained_ = 0;
   std::array<char, 8192> drain_buffer_{};
 };

@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "default_ingest_runner.hpp"
 #include "test_support.hpp"
 #include "tinstream/server/handler.hpp"
 
@@ -289,6 +291,52 @@ TEST_F(AdminHardeningTest, OnlyTheExactTokenIsAccepted) {
   ok.authorization = "Bearer " + want;
   EXPECT_EQ(handle(ok, ctx_).status, 200);
 }
+
+#ifdef TINSTREAM_SERVER_WITH_INGEST
+// The job's `threads` bounds the ingest's pool and the LAZ chunk decoding of every source, as
+// `tinstream ingest --threads` does; absent, both are 0 (one per core).
+TEST(DefaultIngestRunner, ThreadsAlsoBoundLazDecoding) {
+  IngestJobSpec job;
+  job.layer = "lux";
+  job.sources = {"/data/a.laz", "/data/b.laz"};
+  job.root = "/data";
+  job.options = json{{"threads", 3}};
+  auto options = ingest_options_for(job);
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  EXPECT_EQ(options->threads, 3u);
+  ASSERT_EQ(options->inputs.size(), 2u);
+  for (const auto& in : options->inputs) EXPECT_EQ(in.source.decode_threads, 3u);
+
+  job.options = json::object();
+  options = ingest_options_for(job);
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  EXPECT_EQ(options->threads, 0u);
+  for (const auto& in : options->inputs) EXPECT_EQ(in.source.decode_threads, 0u);
+}
+
+// Every source of an admin job is confined to the job's root (finding 2): GDAL's policy has the
+// root, and a VRT is refused when the job says so (uploads: a VRT's sources were not uploaded).
+TEST(DefaultIngestRunner, SourcesAreConfinedToTheJobsRoot) {
+  IngestJobSpec job;
+  job.layer = "lux";
+  job.sources = {"/up/upload-0123456789abcdef-a.tif"};
+  job.root = "/up";
+  job.allow_vrt = false;
+  auto options = ingest_options_for(job);
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  ASSERT_EQ(options->inputs.size(), 1u);
+  const auto& raster = options->inputs[0].source.raster;
+  EXPECT_EQ(raster.root, std::filesystem::path("/up"));
+  EXPECT_EQ(std::count(raster.drivers.begin(), raster.drivers.end(), "VRT"), 0);
+  EXPECT_EQ(std::count(raster.drivers.begin(), raster.drivers.end(), "GTiff"), 1);
+  EXPECT_TRUE(options->inputs[0].reproject.confined);
+  job.allow_vrt = true;
+  options = ingest_options_for(job);
+  ASSERT_TRUE(options.ok()) << options.error().message;
+  const auto& drivers = options->inputs[0].source.raster.drivers;
+  EXPECT_EQ(std::count(drivers.begin(), drivers.end(), "VRT"), 1);
+}
+#endif
 
 }  // namespace
 }  // namespace tinstream::server

@@ -1,15 +1,19 @@
 // The server library on a real loopback socket (port 0), against a real SQLite store.
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <netinet/in.h>
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <csignal>
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -45,6 +49,8 @@ struct RunnerState {
   bool mid_write_open = true;
   bool paused = false;
   std::vector<std::uintmax_t> source_sizes;
+  std::vector<std::string> source_contents;  // read once the gate opened
+  std::filesystem::path scratch_dir;         // of the last job
   int runs = 0;
 };
 
@@ -56,7 +62,13 @@ IngestRunner make_runner(std::shared_ptr<RunnerState> state) {
       for (const auto& s : job.sources)
         state->source_sizes.push_back(std::filesystem::file_size(s));
       ++state->runs;
+      state->scratch_dir = job.scratch_dir;
       state->cv.wait(lock, [&] { return state->open; });
+      for (const auto& s : job.sources) {
+        std::ifstream in(s, std::ios::binary);
+        state->source_contents.emplace_back(std::istreambuf_iterator<char>(in),
+                                            std::istreambuf_iterator<char>());
+      }
     }
     if (!progress({"read", 1, 3, "steps"})) return Error(ErrorCode::cancelled, "cancelled");
     auto st = store::TileStore::open(job.store_path, store::TileStore::Mode::read_write);
@@ -118,6 +130,7 @@ class ServerTest : public ::testing::Test {
     c.max_header_bytes = 2048;
     c.max_body_bytes = 4096;
     c.max_upload_bytes = 100000;
+    c.upload_min_free_bytes = 0;  // whatever the build disk has left
     c.read_timeout_ms = 5000;
     c.write_timeout_ms = 5000;
     c.log_level = "warn";
@@ -1274,6 +1287,353 @@ TEST_F(ServerTest, AdminAndMetricsAnswerOnlyOnTheAdminListener) {
   EXPECT_EQ(http_get(admin, "/healthz").status, 200);
   EXPECT_EQ(http_get(admin, "/tiles/lux/" + kTile.quadkey()).status, 404);
   EXPECT_EQ(http_get(port_, "/layers/lux").status, 200);
+}
+
+// ---- Connection slots (#22 finding 1) ---------------------------------------------------------
+
+// Sends one byte every `every` until the server has closed the connection (a send fails) or
+// `limit` has passed; true when it closed.
+bool trickle_until_closed(HttpConnection& c, std::chrono::milliseconds every,
+                          std::chrono::milliseconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    if (!c.send_raw("x")) return true;
+    std::this_thread::sleep_for(every);
+  }
+  return false;
+}
+
+// After `Connection: close` the server drains what the client still sends, so that it reads the
+// answer rather than a reset — for at most linger_ms in all, however the bytes trickle in. (The
+// drain's deadline was renewed by every byte, for up to 4 MiB: a byte every 1.9 s held the
+// connection, and its slot, for days.)
+TEST_F(ServerTest, LingeringCloseHasAHardTotalDeadline) {
+  stop();
+  start([](ServerConfig& c) { c.linger_ms = 500; });
+  HttpConnection c(port_);
+  ASSERT_TRUE(c.send_raw("GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"));
+  EXPECT_EQ(c.read_response().status, 200);
+  EXPECT_TRUE(trickle_until_closed(c, std::chrono::milliseconds(50), std::chrono::seconds(8)));
+}
+
+// 20 clients that each take a 400 (the connection ends) and then trickle bytes into its
+// lingering close cannot keep a normal client out for long: lingering is bounded in time and
+// in number (a quarter of max_connections; beyond that a connection closes at once).
+TEST_F(ServerTest, CloseTricklersCannotHoldEverySlot) {
+  stop();
+  start([](ServerConfig& c) {
+    c.max_connections = 20;
+    c.max_connections_per_ip = 0;
+    c.linger_ms = 60000;  // the count bound alone must let the normal client in
+  });
+  std::vector<std::unique_ptr<HttpConnection>> tricklers;
+  for (int i = 0; i < 20; ++i) {
+    tricklers.push_back(std::make_unique<HttpConnection>(port_));
+    ASSERT_TRUE(tricklers.back()->send_raw("BROKEN\r\n\r\n"));
+    EXPECT_EQ(tricklers.back()->read_response().status, 400) << i;
+    tricklers.back()->send_raw("x");
+  }
+  // Keep trickling while a normal client asks, a few times, for a tile.
+  std::atomic<bool> done{false};
+  std::thread trickle([&] {
+    while (!done) {
+      for (auto& t : tricklers) t->send_raw("x");
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  });
+  int status = 0;
+  for (int attempt = 0; attempt < 50 && status != 200; ++attempt) {
+    status = http_get(port_, "/tiles/lux/" + kTile.quadkey()).status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  done = true;
+  trickle.join();
+  EXPECT_EQ(status, 200);
+}
+
+// At most max_connections_per_ip connections from one address; the others are answered 503 and
+// closed. Another address (127.0.0.2 is loopback too) is served meanwhile.
+TEST_F(ServerTest, ConnectionsPerAddressAreCapped) {
+  stop();
+  start([](ServerConfig& c) { c.max_connections_per_ip = 3; });
+  std::vector<std::unique_ptr<HttpConnection>> held;
+  for (int i = 0; i < 3; ++i) {
+    held.push_back(std::make_unique<HttpConnection>(port_));
+    ASSERT_EQ(held.back()->request("GET", "/healthz").status, 200) << i;
+  }
+  HttpConnection fourth(port_);
+  const auto refused = fourth.request("GET", "/healthz");
+  EXPECT_EQ(refused.status, 503);
+  EXPECT_NE(refused.body.find("this address"), std::string::npos) << refused.body;
+  HttpConnection other(port_, 0, "127.0.0.2");
+  EXPECT_EQ(other.request("GET", "/healthz").status, 200);
+  held.pop_back();  // one slot of 127.0.0.1 frees up once the server sees the close
+  int status = 0;
+  for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+    HttpConnection again(port_);
+    status = again.request("GET", "/healthz").status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(status, 200);
+}
+
+// The open-files limit is raised to its hard limit at start, and max_connections is kept well
+// below it (the store, the body files, the listeners and the ingest need descriptors too).
+TEST_F(ServerTest, OpenFilesLimitIsRaisedAndConnectionsStayBelowIt) {
+  stop();
+  rlimit low{256, 512};  // this test's own process: ctest runs every test in one
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  start([](ServerConfig& c) { c.max_connections = 100000; });
+  rlimit now{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &now), 0);
+  EXPECT_EQ(now.rlim_cur, 512u);
+  EXPECT_LE(server_->max_connections(), 512u - 128u);
+  EXPECT_GE(server_->max_connections(), 256u);
+}
+
+std::size_t open_descriptors() {
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
+}
+
+std::uint64_t metric(std::uint16_t port, const std::string& name) {
+  const auto body = http_get(port, "/metrics").body;
+  const auto at = body.find("\n" + name + " ");
+  return at == std::string::npos ? ~std::uint64_t{0}
+                                 : std::stoull(body.substr(at + name.size() + 2));
+}
+
+// Out of file descriptors, accept() fails with EMFILE while the connection waits in the backlog:
+// the listener waits a moment before trying again instead of retrying at once (a loop at 100 %
+// CPU writing a warning each time), and serves again once descriptors are free.
+TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+  struct Restore {
+    rlimit limit;
+    ~Restore() { ::setrlimit(RLIMIT_NOFILE, &limit); }
+  } restore{before};
+  ASSERT_EQ(http_get(port_, "/healthz").status, 200);
+  const std::uint64_t errors_before = metric(port_, "tinstream_accept_errors_total");
+  rlimit tight = before;
+  tight.rlim_cur = open_descriptors() + 16;
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  // The clients live in a child process (its own descriptor table), which connects once this
+  // process has used up its descriptors: their connections wait in the listener's backlog.
+  int go[2];
+  ASSERT_EQ(::pipe(go), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    char c;
+    if (::read(go[0], &c, 1) != 1) ::_exit(1);
+    for (int i = 0; i < 4; ++i) {
+      const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+      sockaddr_in addr{};
+      addr.sin_family = AF_INET;
+      addr.sin_port = htons(port_);
+      ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+      if (fd >= 0) ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+    }
+    ::pause();
+    ::_exit(0);
+  }
+  std::vector<int> filler;
+  for (int fd; (fd = ::dup(go[1])) >= 0;) filler.push_back(fd);
+  ASSERT_EQ(::write(go[1], "g", 1), 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // the window being measured
+  for (int fd : filler) ::close(fd);
+  ::setrlimit(RLIMIT_NOFILE, &before);
+  ::kill(child, SIGKILL);
+  ::waitpid(child, nullptr, 0);
+  ::close(go[0]);
+  ::close(go[1]);
+  int status = 0;
+  for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+    status = http_get(port_, "/healthz").status;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_EQ(status, 200);
+  const std::uint64_t errors = metric(port_, "tinstream_accept_errors_total");
+  ASSERT_NE(errors, ~std::uint64_t{0}) << "no tinstream_accept_errors_total in /metrics";
+  EXPECT_GE(errors - errors_before, 1u);
+  EXPECT_LE(errors - errors_before, 40u) << "accept retried without waiting";
+}
+
+long resident_kib() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return resident * (::sysconf(_SC_PAGESIZE) / 1024);
+}
+
+// A keep-alive connection between requests holds no large buffer: not the 900 KiB of its last
+// request body, not the 500 KiB of its last answer (40 idle connections would hold 56 MiB).
+TEST_F(ServerTest, IdleConnectionsKeepNoLargeBuffers) {
+  stop();
+  testing::write_test_layer(store_path_, "dense", geo::Projection::spherical, 129);
+  start([](ServerConfig& c) {
+    c.max_body_bytes = 1u << 20;
+    c.terrain_cache_bytes = 0;
+  });
+  const std::string big(900u << 10, ' ');
+  const std::string native = "/tiles/dense/" + kTile.quadkey();
+  ASSERT_GT(http_get(port_, native).body.size(), 400u << 10);
+  ::malloc_trim(0);
+  const long before = resident_kib();
+  std::vector<std::unique_ptr<HttpConnection>> idle;
+  for (int i = 0; i < 40; ++i) {
+    idle.push_back(std::make_unique<HttpConnection>(port_));
+    EXPECT_EQ(idle.back()->request("POST", "/admin/ingest", kAdmin, big).status, 400);
+    EXPECT_EQ(idle.back()->request("GET", native).status, 200);
+  }
+  ::malloc_trim(0);
+  const long grown = resident_kib() - before;
+  EXPECT_LT(grown, 16 * 1024) << "KiB held by 40 idle connections";
+  for (auto& c : idle) EXPECT_EQ(c->request("GET", "/healthz").status, 200);
+}
+
+// ---- Uploads, sources and scratch files (#22 finding 7) ----------------------------------------
+
+// Upload files left by a server that died mid-upload or mid-job are removed at start (only the
+// server's own upload-<16 hex>… names).
+TEST_F(ServerTest, OrphanUploadsAreRemovedAtStart) {
+  stop();
+  const auto uploads = dir_.path / "uploads";
+  std::filesystem::create_directories(uploads);
+  std::ofstream(uploads / "upload-0123456789abcdef") << "partial";
+  std::ofstream(uploads / "upload-fedcba9876543210-points.xyz") << "1 2 3\n";
+  std::ofstream(uploads / "keep.txt") << "not ours";
+  start({});
+  EXPECT_FALSE(std::filesystem::exists(uploads / "upload-0123456789abcdef"));
+  EXPECT_FALSE(std::filesystem::exists(uploads / "upload-fedcba9876543210-points.xyz"));
+  EXPECT_TRUE(std::filesystem::exists(uploads / "keep.txt"));
+}
+
+const std::map<std::string, std::string> kUpload = {{"Authorization", "Bearer tok"},
+                                                    {"Content-Type", "application/octet-stream"}};
+
+std::string upload_head(const std::string& layer, std::size_t length) {
+  return "POST /admin/ingest?layer=" + layer +
+         "&filename=p.xyz HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer tok\r\n"
+         "Content-Type: application/octet-stream\r\nContent-Length: " +
+         std::to_string(length) + "\r\n\r\n";
+}
+
+// Uploads in progress and upload files waiting for their job share max_upload_total_bytes:
+// beyond it an upload is refused (507) before a byte is written; once the space is free again
+// it is accepted. The upload file is private to the server (0600, in a 0700 directory).
+TEST_F(ServerTest, UploadsShareATotalQuotaAndArePrivate) {
+  stop();
+  start([](ServerConfig& c) { c.max_upload_total_bytes = 150000; });
+  HttpConnection first(port_);
+  ASSERT_TRUE(first.send_raw(upload_head("a", 100000) + std::string(50000, 'x')));
+  // The first upload's file exists once its body is being written.
+  const auto uploads = dir_.path / "uploads";
+  std::filesystem::path file;
+  for (int i = 0; i < 500 && file.empty(); ++i) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(uploads, ec)) file = e.path();
+    if (file.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(file.empty());
+  EXPECT_EQ(std::filesystem::status(file).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_EQ(std::filesystem::status(uploads).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_all);
+  const auto refused =
+      http_request(port_, "POST", "/admin/ingest?layer=b", kUpload, std::string(100000, 'y'));
+  EXPECT_EQ(refused.status, 507) << refused.body;
+  ASSERT_TRUE(first.send_raw(std::string(50000, 'x')));
+  const auto accepted = first.read_response();
+  ASSERT_EQ(accepted.status, 202) << accepted.body;
+  EXPECT_EQ(wait_for_submitted(accepted)["state"], "succeeded");
+  const auto again =
+      http_request(port_, "POST", "/admin/ingest?layer=b", kUpload, std::string(100000, 'y'));
+  EXPECT_EQ(again.status, 202) << again.body;
+}
+
+// An upload that would leave less than upload_min_free_bytes on the upload directory's file
+// system is refused (507) before a byte is written.
+TEST_F(ServerTest, UploadsRefusedWhenTheDiskWouldFillUp) {
+  stop();
+  start([](ServerConfig& c) { c.upload_min_free_bytes = 1ull << 62; });
+  const auto r =
+      http_request(port_, "POST", "/admin/ingest?layer=big", kUpload, std::string(1000, 'x'));
+  EXPECT_EQ(r.status, 507) << r.body;
+  EXPECT_TRUE(!std::filesystem::exists(dir_.path / "uploads") ||
+              std::filesystem::is_empty(dir_.path / "uploads"));
+}
+
+// An upload's body may take longer than read_timeout_ms as long as it keeps coming (no pause
+// of read_timeout_ms, at least upload_min_bytes_per_s on average); a stalled one is cut off.
+TEST_F(ServerTest, UploadDeadlineFollowsProgress) {
+  stop();
+  start([](ServerConfig& c) {
+    c.read_timeout_ms = 1000;
+    c.upload_min_bytes_per_s = 1000;
+  });
+  HttpConnection steady(port_);
+  ASSERT_TRUE(steady.send_raw(upload_head("steady", 30000)));
+  for (int i = 0; i < 15; ++i) {  // 2,000 bytes every 150 ms: 2.25 s in all
+    ASSERT_TRUE(steady.send_raw(std::string(2000, 'x'))) << i;
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  }
+  const auto done = steady.read_response();
+  EXPECT_EQ(done.status, 202) << done.body;
+  HttpConnection stalled(port_);
+  ASSERT_TRUE(stalled.send_raw(upload_head("stalled", 30000) + std::string(1000, 'x')));
+  EXPECT_TRUE(stalled.closed_by_peer());  // within the client's 10 s receive timeout
+}
+
+// A source is resolved and opened once, when the job is submitted: renaming its folder and
+// putting a symlink out of the data root in its place before the job runs changes nothing —
+// the job reads the file that was checked.
+TEST_F(ServerTest, SourceSwappedForASymlinkAfterTheCheckIsNotFollowed) {
+  const auto data = dir_.path / "data";
+  std::filesystem::create_directories(dir_.path / "outside");
+  std::ofstream(dir_.path / "outside" / "points.xyz") << "secret\n";
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = false;
+  }
+  const auto submitted =
+      http_request(port_, "POST", "/admin/ingest", kAdmin,
+                   json{{"layer", "swap"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(submitted.status, 202) << submitted.body;
+  for (int i = 0; i < 2000; ++i) {  // the job has started and waits at the gate
+    {
+      std::lock_guard lock(runner_->mutex);
+      if (runner_->runs == 1) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::filesystem::rename(data / "sub", data / "sub-moved");
+  std::filesystem::create_directory_symlink(dir_.path / "outside", data / "sub");
+  {
+    std::lock_guard lock(runner_->mutex);
+    runner_->open = true;
+  }
+  runner_->cv.notify_all();
+  EXPECT_EQ(wait_for_submitted(submitted)["state"], "succeeded");
+  std::lock_guard lock(runner_->mutex);
+  ASSERT_EQ(runner_->source_contents.size(), 1u);
+  EXPECT_EQ(runner_->source_contents[0], "6.1 49.6 300\n6.2 49.7 310\n");
+}
+
+// Ingest jobs get a private scratch directory (0700, under the store's folder), not the shared
+// system temp directory.
+TEST_F(ServerTest, IngestScratchFilesArePrivate) {
+  const auto r = http_request(port_, "POST", "/admin/ingest", kAdmin,
+                              json{{"layer", "s"}, {"sources", {"sub/points.xyz"}}}.dump());
+  ASSERT_EQ(wait_for_submitted(r)["state"], "succeeded");
+  std::lock_guard lock(runner_->mutex);
+  ASSERT_FALSE(runner_->scratch_dir.empty());
+  EXPECT_TRUE(std::filesystem::is_directory(runner_->scratch_dir));
+  EXPECT_EQ(
+      std::filesystem::status(runner_->scratch_dir).permissions() & std::filesystem::perms::all,
+      std::filesystem::perms::owner_all);
 }
 
 }  // namespace

@@ -20,6 +20,13 @@ std::optional<RouteError> error_of(const RouteResult& r) {
   return std::nullopt;
 }
 
+// The answer's status: the error's, or 200 for a parsed route. (Never `error_of(r)->status`:
+// on a parsed route that reads an empty optional, which may happen to hold an earlier status.)
+int status_of(const RouteResult& r) {
+  if (const auto e = std::get_if<RouteError>(&r)) return e->status;
+  return 200;
+}
+
 TEST(Routes, NativeTileByQuadkey) {
   const auto r = parse_route("GET", "/tiles/lux/0231");
   const auto t = as<NativeTileRoute>(r);
@@ -43,12 +50,12 @@ TEST(Routes, TerrainTileConvertsTmsRows) {
   EXPECT_EQ(t->id.z, 12u);
   EXPECT_EQ(t->id.x, 2120u);
   EXPECT_EQ(t->id.y, 4095u - 2695u);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/4/0.terrain"))->status,
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/2/4/0.terrain")),
             400);  // x out of range
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/-1.terrain"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/x.terrain"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/2/1/1.gif"))->status, 404);  // .png: raster-DEM
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/99999999999/1/1.terrain"))->status, 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/2/1/-1.terrain")), 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/2/1/x.terrain")), 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/2/1/1.gif")), 404);  // .png: raster-DEM
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/99999999999/1/1.terrain")), 400);
 }
 
 TEST(Routes, LayerJsonAndMetadata) {
@@ -73,14 +80,14 @@ TEST(Routes, TraversalInLayerNamesIsRejected) {
     EXPECT_EQ(e->status, 400) << target;
   }
   // A decoded "/" cannot split a segment into two.
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux%2F0/1"))->status, 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux%2F0/1")), 400);
   // ".." as a path segment is just an unknown path.
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/../../etc/passwd"))->status, 404);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/../../etc/passwd")), 404);
 }
 
 TEST(Routes, QuadkeyTraversalIsRejected) {
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/%2e%2e"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", "/tiles/lux/..%2f..%2fetc"))->status, 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/%2e%2e")), 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles/lux/..%2f..%2fetc")), 400);
 }
 
 TEST(Routes, WrongMethodIs405WithAllow) {
@@ -88,17 +95,23 @@ TEST(Routes, WrongMethodIs405WithAllow) {
   ASSERT_TRUE(e.has_value());
   EXPECT_EQ(e->status, 405);
   EXPECT_NE(e->allow.find("GET"), std::string::npos);
-  EXPECT_EQ(error_of(parse_route("GET", "/admin/ingest"))->status, 405);
-  EXPECT_EQ(error_of(parse_route("GET", "/admin/layers/lux"))->status, 405);
-  EXPECT_EQ(error_of(parse_route("DELETE", "/layers/lux"))->status, 405);
+  EXPECT_EQ(status_of(parse_route("GET", "/admin/ingest")), 405);
+  EXPECT_EQ(status_of(parse_route("GET", "/admin/layers/lux")), 405);
+  EXPECT_EQ(status_of(parse_route("DELETE", "/layers/lux")), 405);
 }
 
 TEST(Routes, UnknownPathsAndBadTargets) {
-  EXPECT_EQ(error_of(parse_route("GET", "/nope"))->status, 404);
-  EXPECT_EQ(error_of(parse_route("GET", "/"))->status, 404);
-  EXPECT_EQ(error_of(parse_route("GET", "http://example.com/layers"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", "*"))->status, 400);
-  EXPECT_EQ(error_of(parse_route("GET", ""))->status, 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/nope")), 404);
+  EXPECT_EQ(status_of(parse_route("GET", "/admin")), 404);
+  EXPECT_EQ(status_of(parse_route("GET", "/tiles")), 404);
+  EXPECT_EQ(status_of(parse_route("GET", "/maplibre/x")), 404);
+  // "/" is the web viewer's page (family "web"), not an unknown path.
+  const auto root = as<WebPageRoute>(parse_route("GET", "/"));
+  ASSERT_TRUE(root.has_value());
+  EXPECT_EQ(root->page, "index.html");
+  EXPECT_EQ(status_of(parse_route("GET", "http://example.com/layers")), 400);
+  EXPECT_EQ(status_of(parse_route("GET", "*")), 400);
+  EXPECT_EQ(status_of(parse_route("GET", "")), 400);
 }
 
 TEST(Routes, AdminRoutes) {
@@ -109,7 +122,7 @@ TEST(Routes, AdminRoutes) {
   const auto j = as<JobRoute>(parse_route("GET", "/admin/jobs/12"));
   ASSERT_TRUE(j.has_value());
   EXPECT_EQ(j->id, "12");
-  EXPECT_EQ(error_of(parse_route("GET", "/admin/jobs/..%2f1"))->status, 400);
+  EXPECT_EQ(status_of(parse_route("GET", "/admin/jobs/..%2f1")), 400);
   EXPECT_TRUE(as<JobsRoute>(parse_route("GET", "/admin/jobs")).has_value());
   EXPECT_TRUE(as<DeleteLayerRoute>(parse_route("DELETE", "/admin/layers/lux")).has_value());
   EXPECT_TRUE(as<PreflightRoute>(parse_route("OPTIONS", "/tiles/lux/0")).has_value());

@@ -81,8 +81,19 @@ std::string HttpResponse::header(const std::string& name) const {
   return it == headers.end() ? std::string() : it->second;
 }
 
-HttpConnection::HttpConnection(std::uint16_t port, int receive_buffer) {
+HttpConnection::HttpConnection(std::uint16_t port, int receive_buffer, const std::string& from) {
   fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd_ < 0) return;
+  if (!from.empty()) {
+    sockaddr_in local{};
+    local.sin_family = AF_INET;
+    ::inet_pton(AF_INET, from.c_str(), &local.sin_addr);
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0) {
+      ::close(fd_);
+      fd_ = -1;
+      return;
+    }
+  }
   if (receive_buffer > 0)
     ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   timeval tv{10, 0};
@@ -159,6 +170,7 @@ HttpResponse HttpConnection::read_response(bool head_request) {
   }
   r.body = buffer_.substr(0, length);
   buffer_.erase(0, length);
+  buffer_.shrink_to_fit();  // a connection kept open holds no more than what is left unread
   r.status = status;
   return r;
 }

@@ -39,7 +39,8 @@ class HttpConnection {
  public:
   // receive_buffer > 0: the socket's SO_RCVBUF, set before connecting (the kernel's minimum for
   // small values), so that answers the client leaves unread back up into the server's buffers.
-  explicit HttpConnection(std::uint16_t port, int receive_buffer = 0);
+  // from: the local address to connect from (any 127.x.y.z is loopback).
+  explicit HttpConnection(std::uint16_t port, int receive_buffer = 0, const std::string& from = {});
   ~HttpConnection();
   HttpConnection(const HttpConnection&) = delete;
   HttpConnection& operator=(const HttpConnection&) = delete;

@@ -222,7 +222,7 @@ TEST(IngestImagery, TileOfAQuadkeyCoversExactlyTheQuadtreeTileOfThatQuadkey) {
   const double scale = 20037508.342789244;
   const fs::path path = dir / "aligned.tif";
   std::mt19937_64 rng(11);
-  std::vector<std::array<std::uint8_t, 3>> pixels(512 * 512);
+  std::vector<std::array<std::uint8_t, 3>> pixels(std::size_t{512} * 512);
   for (auto& p : pixels)
     p = {static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng()),
          static_cast<std::uint8_t>(rng())};
@@ -237,7 +237,7 @@ TEST(IngestImagery, TileOfAQuadkeyCoversExactlyTheQuadtreeTileOfThatQuadkey) {
     GDALAllRegister();
     GDALDatasetH ds = GDALOpen(path.c_str(), GA_Update);
     ASSERT_NE(ds, nullptr);
-    std::vector<std::uint8_t> plane(512 * 512);
+    std::vector<std::uint8_t> plane(std::size_t{512} * 512);
     for (int b = 0; b < 3; ++b) {
       for (std::size_t i = 0; i < plane.size(); ++i)
         plane[i] = pixels[i][static_cast<std::size_t>(b)];
@@ -289,8 +289,9 @@ TEST(IngestImagery, TileOfAQuadkeyCoversExactlyTheQuadtreeTileOfThatQuadkey) {
       for (int ch = 0; ch < 3; ++ch) {
         double sum = 0;
         for (int d = 0; d < 4; ++d) {
-          sum += linear(pixels[static_cast<std::size_t>(2 * y + d / 2) * 512 + 2 * x + d % 2]
-                              [static_cast<std::size_t>(ch)]);
+          sum +=
+              linear(pixels[static_cast<std::size_t>(2 * y + d / 2) * 512 +
+                            static_cast<std::size_t>(2 * x + d % 2)][static_cast<std::size_t>(ch)]);
         }
         EXPECT_NEAR(parent.at(x, y)[ch], srgb(sum / 4), 1.01) << x << "," << y;
       }
@@ -450,7 +451,7 @@ TEST(IngestImagery, BadSourcesGetClearErrors) {
                                  3, GDT_Byte, nullptr);
     double gt[6] = {390000, 4, 0, 3800000, 0, -4};
     GDALSetGeoTransform(ds, gt);
-    std::vector<std::uint8_t> plane(64 * 64, 200);
+    std::vector<std::uint8_t> plane(std::size_t{64} * 64, 200);
     for (int b = 1; b <= 3; ++b) {
       ASSERT_EQ(GDALRasterIO(GDALGetRasterBand(ds, b), GF_Write, 0, 0, 64, 64, plane.data(), 64, 64,
                              GDT_Byte, 0, 0),

@@ -31,6 +31,7 @@ TEST(Removal, RemovingAnInteriorVertexGivesTheTriangulationWithoutIt) {
   const auto pts = test::uniform_points(400, 31);
   Triangulation t;
   std::vector<VertexId> ids;
+  ids.reserve(pts.size());
   for (const auto& p : pts) ids.push_back(t.insert(p).vertex);
   std::mt19937 rng(5);
   for (int round = 0; round < 40; ++round) {

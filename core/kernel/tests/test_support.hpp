@@ -130,9 +130,9 @@ inline long double hull_area(std::vector<Point3> pts) {
   };
   std::vector<Point3> h(2 * pts.size() + 1);
   std::size_t k = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    while (k >= 2 && cross(h[k - 2], h[k - 1], pts[i]) <= 0) --k;
-    h[k++] = pts[i];
+  for (const Point3& p : pts) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], p) <= 0) --k;
+    h[k++] = p;
   }
   for (std::size_t i = pts.size() - 1, t = k + 1; i-- > 0;) {
     while (k >= t && cross(h[k - 2], h[k - 1], pts[i]) <= 0) --k;

@@ -520,8 +520,7 @@ Status LayerWriter::Impl::flush() {
         "geometric_error, vertex_count, triangle_count) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
     if (!q) return q.error();
-    for (std::size_t i = 0; i < pending.size(); ++i) {
-      const StoredTile& t = pending[i];
+    for (const StoredTile& t : pending) {
       q->bind(1, version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
       q->bind_blob(5, t.compressed).bind(6, t.etag);
       q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
@@ -614,6 +613,8 @@ Result<std::optional<StoredTile>> LayerWriter::get_stored(const geo::TileId& id)
   if (Status s = impl_->usable(); !s) return s.error();
   if (!id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + id.to_string());
   // The latest put of the id wins: look at the pending batch first, newest first.
+  // Not std::views::reverse: clang-tidy 14 (clang 14) cannot parse libstdc++ 12's ranges.
+  // NOLINTNEXTLINE(modernize-loop-convert)
   for (auto it = impl_->pending.rbegin(); it != impl_->pending.rend(); ++it) {
     if (it->id == id) return std::optional<StoredTile>(*it);
   }

@@ -163,6 +163,7 @@ TEST(Subdivide, TinyMemoryBudgetForcesMultiPassMergeWithSameResult) {
 // order (key, x, y, lowest z, highest weight), then the first of every equal (x, y) kept.
 std::vector<SortedPoint> reference_run(const std::vector<InputPoint>& input) {
   std::vector<SortedPoint> all;
+  all.reserve(input.size());
   for (const auto& p : input) all.push_back({cell_key(p.x, p.y), p.x, p.y, p.z, p.weight, 0});
   std::sort(all.begin(), all.end(), [](const SortedPoint& a, const SortedPoint& b) {
     return std::tie(a.key, a.x, a.y, a.z, b.weight) < std::tie(b.key, b.x, b.y, b.z, a.weight);
@@ -196,6 +197,7 @@ TEST(Subdivide, RadixOrderEqualsComparatorOrderOnAdversarialKeys) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::uniform_int_distribution<int> small(0, 3);
   std::vector<InputPoint> pts;
+  pts.reserve(3000);
   for (int i = 0; i < 3000; ++i) {  // all over the map
     pts.push_back({u(rng), u(rng), 10.0 * small(rng), static_cast<float>(small(rng))});
   }
@@ -323,6 +325,7 @@ TEST(Subdivide, DuplicatesMergedLowestZWins) {
 TEST(Subdivide, LevelCappedWhenPointsCannotBeSeparated) {
   TempDir tmp;
   std::vector<InputPoint> pts;
+  pts.reserve(50);
   for (int i = 0; i < 50; ++i) pts.push_back({0.25 + i * 1e-15, 0.25, 1.0 * i});
   SubdivideOptions opt;
   opt.tmp_dir = tmp.path();

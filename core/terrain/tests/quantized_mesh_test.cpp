@@ -223,7 +223,8 @@ TEST(QuantizedMesh, OctVertexNormalsPointAwayFromTheEarth) {
   ASSERT_TRUE(d.mesh.oct_normals.has_value());
   for (std::uint32_t i = 0; i < d.mesh.u.size(); ++i) {
     double n[3];
-    testing::oct_decode((*d.mesh.oct_normals)[2 * i], (*d.mesh.oct_normals)[2 * i + 1], n);
+    testing::oct_decode((*d.mesh.oct_normals)[std::size_t{2} * i],
+                        (*d.mesh.oct_normals)[std::size_t{2} * i + 1], n);
     const double lo = d.lon(i) * M_PI / 180, la = d.lat(i) * M_PI / 180;
     const double up[3] = {std::cos(la) * std::cos(lo), std::cos(la) * std::sin(lo), std::sin(la)};
     EXPECT_GT(n[0] * up[0] + n[1] * up[1] + n[2] * up[2], 0.95) << "vertex " << i;

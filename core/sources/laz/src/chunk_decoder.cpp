@@ -206,26 +206,6 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
   return stream_health();
 }
 
-void ChunkDecoder::decode_layered_record(std::uint8_t* out) {
-  point14_->decode(out);
-  const std::uint32_t channel = point14_->channel();
-  for (std::size_t i = 0; i < layered_items_.size(); ++i) {
-    std::uint8_t* dst = out + offsets_[i + 1];
-    LayeredItem& item = layered_items_[i];
-    switch (item.index()) {
-      case 0:
-        std::get_if<Rgb14Layered>(&item)->decode(dst, channel);
-        break;
-      case 1:
-        std::get_if<Byte14Layered>(&item)->decode(dst, channel);
-        break;
-      default:
-        std::get_if<WavePacket14Layered>(&item)->decode(dst, channel);
-        break;
-    }
-  }
-}
-
 Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
   if (n > left_) return Error(ErrorCode::internal, "asked for more records than the chunk holds");
   if (n == 0) return {};
@@ -237,7 +217,7 @@ Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
     first_pending_ = false;
   }
   if (layered_) {
-    for (std::uint64_t i = 0; i < n; ++i, out += record_length_) decode_layered_record(out);
+    decode_layered(*point14_, layered_items_, offsets_.data(), record_length_, out, n);
   } else {
     decode_pointwise(pointwise_, offsets_.data(), record_length_, dec_, out, n);
   }

@@ -84,9 +84,6 @@ class ChunkDecoder {
   std::size_t layer_count() const { return layer_sizes_.size(); }
 
  private:
-  using LayeredItem = std::variant<Rgb14Layered, Byte14Layered, WavePacket14Layered>;
-
-  void decode_layered_record(std::uint8_t* out);
   Status stream_health() const;
   std::vector<Layer*> all_layers();
 

@@ -352,8 +352,8 @@ class Point14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t i) const { return wanted_[i]; }
   void start(const std::uint8_t* raw);
-  void decode(std::uint8_t* out);
-  std::uint32_t channel() const { return current_; }  // scanner channel: the other items' context
+  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out);  // (only decode_layered calls it)
+  std::uint32_t channel() const { return current_; }    // scanner channel: the other items' context
 
  private:
   struct Context;
@@ -401,7 +401,7 @@ class Rgb14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t i) const { return i == 0 ? want_rgb_ : want_nir_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
-  void decode(std::uint8_t* out, std::uint32_t channel);
+  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out, std::uint32_t channel);
 
  private:
   struct Context {
@@ -426,7 +426,7 @@ class Byte14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
-  void decode(std::uint8_t* out, std::uint32_t channel);
+  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out, std::uint32_t channel);
 
  private:
   struct Context {
@@ -458,5 +458,14 @@ class WavePacket14Layered {
   std::array<std::unique_ptr<WavePacketCoder>, 4> contexts_;
   ChannelSwitch channels_;
 };
+
+using LayeredItem = std::variant<Rgb14Layered, Byte14Layered, WavePacket14Layered>;
+
+// Decodes the next n records of a layered chunk: POINT14 at byte 0 of each record, items[i] at
+// byte offsets[i + 1]. One loop in the items' source, so that their decode steps inline into it
+// (a call per item and record before).
+void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
+                    const std::uint16_t* offsets, std::uint16_t record_length, std::uint8_t* out,
+                    std::uint64_t n);
 
 }  // namespace tinstream::laz::detail

@@ -127,7 +127,7 @@ std::int32_t scan_angle_from(std::int32_t decoded) { return static_cast<std::int
 
 }  // namespace
 
-void Point14Layered::decode(std::uint8_t* out) {
+TINSTREAM_LAZ_INLINE void Point14Layered::decode(std::uint8_t* out) {
   Context* c = contexts_[current_].get();
   ArithmeticDecoder& xy = layers_[kLayerXY].dec;
 
@@ -261,7 +261,7 @@ void Rgb14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
   open(channel, first);
 }
 
-void Rgb14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
+TINSTREAM_LAZ_INLINE void Rgb14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
   const std::uint32_t source = channels_.follow(
       channel, version4_,
       [this](std::uint32_t ch, std::uint32_t from) { open(ch, contexts_[from]->last); });
@@ -315,7 +315,7 @@ void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
   open(channel, raw);
 }
 
-void Byte14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
+TINSTREAM_LAZ_INLINE void Byte14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
   const std::uint32_t source =
       channels_.follow(channel, version4_, [this](std::uint32_t ch, std::uint32_t from) {
         open(ch, contexts_[from]->last.data());  // distinct contexts: no aliasing
@@ -368,6 +368,34 @@ void WavePacket14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
   coder.decode(layer_.dec, out);
   contexts_[source]->overwrite_last(out);
   coder.overwrite_last(own.data());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The record loop
+
+void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
+                    const std::uint16_t* offsets, std::uint16_t record_length, std::uint8_t* out,
+                    std::uint64_t n) {
+  for (std::uint64_t r = 0; r < n; ++r, out += record_length) {
+    point14.decode(out);
+    const std::uint32_t channel = point14.channel();
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      std::uint8_t* dst = out + offsets[i + 1];
+      LayeredItem& item = items[i];
+      // An explicit switch (not std::visit) so that the items inline into this loop.
+      switch (item.index()) {
+        case 0:
+          std::get_if<Rgb14Layered>(&item)->decode(dst, channel);
+          break;
+        case 1:
+          std::get_if<Byte14Layered>(&item)->decode(dst, channel);
+          break;
+        default:
+          std::get_if<WavePacket14Layered>(&item)->decode(dst, channel);
+          break;
+      }
+    }
+  }
 }
 
 }  // namespace tinstream::laz::detail

@@ -121,7 +121,7 @@ Result<LaszipVlr> parse_laszip_vlr(std::span<const std::uint8_t> body, std::uint
   if (count == 0) return corrupt_data(at + "lists no items");
   std::uint32_t total = 0;
   for (std::uint16_t i = 0; i < count; ++i) {
-    const std::uint8_t* e = p + 34 + 6 * i;
+    const std::uint8_t* e = p + 34 + std::size_t{6} * i;
     const std::uint16_t type = le16(e);
     LaszipItem item;
     item.size = le16(e + 2);

@@ -57,7 +57,10 @@ Decoded decode_all(const std::filesystem::path& path, RecordOptions options, std
     EXPECT_TRUE(n.ok()) << (n.ok() ? "" : n.error().message);
     if (!n.ok() || *n == 0) break;
     EVP_DigestUpdate(ctx, buf.data(), *n * rl);
-    if (keep) out.bytes.insert(out.bytes.end(), buf.begin(), buf.begin() + *n * rl);
+    if (keep) {
+      out.bytes.insert(out.bytes.end(), buf.begin(),
+                       buf.begin() + static_cast<std::ptrdiff_t>(*n * rl));
+    }
     out.records += *n;
   }
   unsigned char md[EVP_MAX_MD_SIZE];

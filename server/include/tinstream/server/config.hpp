@@ -24,9 +24,18 @@ struct ServerConfig {
   std::filesystem::path data_root;   // server-side ingest sources must be under it; empty: off
   std::filesystem::path upload_dir;  // uploaded sources are streamed here; empty: off
   std::uint64_t max_upload_bytes = 1ull << 30;
+  // Uploads in progress plus upload files waiting for their job, all together (507 beyond).
+  std::uint64_t max_upload_total_bytes = 4ull << 30;
+  // An upload must leave this much free on upload_dir's file system (507 otherwise).
+  std::uint64_t upload_min_free_bytes = 256ull << 20;
+  // An upload body may take longer than read_timeout_ms while it arrives at this average rate
+  // (and never pauses for read_timeout_ms).
+  std::uint32_t upload_min_bytes_per_s = 16384;
   std::uint32_t max_header_bytes = 8192;
-  std::uint64_t max_body_bytes = 1u << 20;  // non-upload request bodies
-  std::uint32_t max_connections = 1024;
+  std::uint64_t max_body_bytes = 1u << 20;     // non-upload request bodies
+  std::uint32_t max_connections = 1024;        // kept below the open-files limit (Server::create)
+  std::uint32_t max_connections_per_ip = 256;  // 0: no per-address cap
+  std::uint32_t linger_ms = 1000;  // closing: at most this long draining what the client sends
   std::uint32_t read_timeout_ms = 30000;   // per request header (then body), idle time included
   std::uint32_t write_timeout_ms = 30000;  // per response write
   std::uint32_t cache_max_age_s = 86400;   // Cache-Control max-age for tiles
@@ -45,8 +54,13 @@ struct ServerConfig {
   bool sendfile = true;
   std::uint32_t max_queued_jobs = 8;        // ingest jobs waiting or running
   std::uint32_t shutdown_grace_ms = 10000;  // in-flight responses get this long on SIGTERM
-  std::string log_level = "info";           // trace, debug, info, warn, error, critical, off
-  bool access_log = true;                   // one line per request at info level
+  // HTTPS: with both set, every listener (the admin one included) speaks TLS 1.2 or later with
+  // this certificate chain and private key (PEM files); both empty: plain HTTP/1.1 (loopback,
+  // or behind a proxy that terminates TLS).
+  std::filesystem::path tls_cert;
+  std::filesystem::path tls_key;
+  std::string log_level = "info";  // trace, debug, info, warn, error, critical, off
+  bool access_log = true;          // one line per request at info level
 };
 
 // Parses configuration JSON over the defaults. Errors name the key.

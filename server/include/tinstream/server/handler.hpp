@@ -35,6 +35,7 @@ struct Context {
   JobManager* jobs = nullptr;
   TerrainCache* terrain_cache = nullptr;  // may be null
   LayerCache* layer_cache = nullptr;      // may be null: every request reads the layer row
+  std::filesystem::path scratch_dir;      // private folder for ingest jobs' temporary files
   // Server paths and what answers say instead (server_path_redactions()); empty: handle()
   // derives them from `config` on each error answer.
   std::vector<std::pair<std::string, std::string>> path_redactions;

@@ -27,6 +27,7 @@
 
 #include "tinstream/base/progress.hpp"
 #include "tinstream/base/result.hpp"
+#include "tinstream/server/ingest_paths.hpp"
 #include "tinstream/server/metrics.hpp"
 
 namespace tinstream::server {
@@ -37,6 +38,12 @@ struct IngestJobSpec {
   std::vector<std::filesystem::path> sources;  // canonical, existing, under data_root or uploads
   nlohmann::json options = nlohmann::json::object();  // passed through from the request
   std::filesystem::path store_path;                   // the server's store (open it read-write)
+  std::filesystem::path scratch_dir;  // private (0700) folder for temporary files; may be empty
+  // How the job names its sources to the admin (relative to the data root, or the uploaded
+  // name); empty: their file names.
+  std::vector<std::string> source_names;
+  // Sources opened when the job was submitted (ingest_paths.hpp), held until the job is gone.
+  std::vector<std::shared_ptr<const HeldSource>> held;
   // Ingest confinement (sources::RasterPolicy): every file the ingest reads, a VRT's sources
   // included, lies under `root` — the data root, or the upload directory for an upload (which
   // may not be a VRT: its sources could not have been uploaded with it).

@@ -21,8 +21,8 @@ class Metrics {
   // Route labels known to the server (every route's kName, routes.hpp); anything else is
   // counted as "other".
   static constexpr auto kRoutes = kRouteLabels;
-  static constexpr std::array<int, 16> kStatuses = {200, 202, 204, 304, 400, 401, 403, 404,
-                                                    405, 409, 413, 415, 431, 500, 503, 0};
+  static constexpr std::array<int, 19> kStatuses = {
+      200, 202, 204, 304, 400, 401, 403, 404, 405, 409, 411, 413, 415, 431, 500, 503, 507, 408, 0};
   // Latency histogram upper bounds, seconds.
   static constexpr std::array<double, 12> kBuckets = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005,
                                                       0.01,   0.025,   0.05,   0.1,   0.5,    2.5};
@@ -34,6 +34,7 @@ class Metrics {
     return open_connections_.load(std::memory_order_relaxed);
   }
   void connection_rejected() { rejected_connections_.fetch_add(1, std::memory_order_relaxed); }
+  void accept_failed() { accept_errors_.fetch_add(1, std::memory_order_relaxed); }
 
   std::string render(const JobCounts& jobs) const;
 
@@ -48,6 +49,7 @@ class Metrics {
   std::atomic<std::uint64_t> bytes_sent_{0};
   std::atomic<std::int64_t> open_connections_{0};
   std::atomic<std::uint64_t> rejected_connections_{0};
+  std::atomic<std::uint64_t> accept_errors_{0};
 };
 
 }  // namespace tinstream::server

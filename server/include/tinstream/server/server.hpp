@@ -31,6 +31,9 @@ class Server {
   ~Server();
 
   std::uint16_t port() const;
+  // max_connections as the server applies it: the configured value, or less when the open-files
+  // limit (raised to its hard limit by create()) leaves too little room.
+  std::uint32_t max_connections() const;
   // The admin listener's port (config admin_address); 0 when there is none.
   std::uint16_t admin_port() const;
   // Serves until stop(). When handle_signals, SIGINT/SIGTERM call stop().

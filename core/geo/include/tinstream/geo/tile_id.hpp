@@ -49,6 +49,8 @@ struct TileId {
   std::uint32_t x = 0;
   std::uint32_t y = 0;
 
+  // clang-tidy 14 reads the comparison category's literal 0 in a defaulted <=> as a null pointer.
+  // NOLINTNEXTLINE(modernize-use-nullptr)
   friend auto operator<=>(const TileId&, const TileId&) = default;
 
   // Requires for all members below: valid().
