@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The main job on the built-in sample (what `make demo` runs after installing and building):
-#   1. generate a synthetic LiDAR point cloud (fractal mountains, LAS, EPSG:32632),
-#   2. ingest it into an SQLite tile store (TIN tiles + LOD pyramid) and verify it,
+#   1. generate a synthetic LiDAR point cloud (fractal mountains, LAS, EPSG:32632) and an
+#      orthophoto of the same mountains (RGB GeoTIFF),
+#   2. ingest both into an SQLite tile store (TIN tiles + LOD pyramid, imagery tiles on the same
+#      quadtree) and verify the terrain,
 #   3. serve it with tinstream-server and show what a client gets (layers, a native tile,
 #      Cesium layer.json and a quantized-mesh tile, an OBJ export),
 #   4. render it with tinstream-viewer --headless (EGL on Mesa) into $build/demo/snapshot.png and
@@ -17,12 +19,16 @@ mkdir -p "$out"
 step() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
 
 step "1. Sample data: synthetic LiDAR over fractal mountains"
-"$bin/tinstream" sample --out "$out/sample.las" --points 300000 --density 0.05
+"$bin/tinstream" sample --out "$out/sample.las" --points 300000 --density 0.05 \
+  --ortho "$out/sample-ortho.tif"
 
 step "2. Ingest into $out/demo.sqlite (finest TIN tiles + level-of-detail pyramid)"
 rm -f "$out/demo.sqlite" "$out/demo.sqlite-wal" "$out/demo.sqlite-shm"
 "$bin/tinstream" ingest --store "$out/demo.sqlite" --layer sample --epsilon 0.5 "$out/sample.las"
 "$bin/tinstream" verify --store "$out/demo.sqlite" --layer sample -q | head -12
+echo "its imagery (layer of the same name: the browser viewers drape it):"
+"$bin/tinstream" ingest-imagery --store "$out/demo.sqlite" --layer sample --format webp \
+  "$out/sample-ortho.tif"
 
 if [[ ! -x "$bin/tinstream-server" ]]; then
   echo "tinstream-server was not built; stopping after the ingest."

@@ -71,6 +71,21 @@ await run('web_cesium', async ({ server, browser }) => {
   const colours = await distinctColours(browser, shot);
   check(colours >= 1000, `only ${colours} distinct colours in the middle of the view`);
 
+  // The layer picker: filled from /layers, switching loads the other layer's terrain (its
+  // layer.json and tiles, 200) and points the MapLibre link at it.
+  const options = await page.$$eval('#layer option', (os) => os.map((o) => o.value));
+  check(options.includes('demo') && options.includes('coarse'), `layer picker offers ${options}`);
+  await page.selectOption('#layer', 'coarse');
+  await waitFor('the coarse layer shown', async () => /^coarse: levels/.test(await page.textContent('#status')), 60000);
+  await waitFor('coarse terrain tiles (200)', () => responsesMatching(log, /\/tiles\/coarse\/\d+\/\d+\/\d+\.terrain/)
+    .filter((r) => r.status === 200).length >= 1, 60000);
+  const coarseJson = responsesMatching(log, /\/tiles\/coarse\/layer\.json/);
+  check(coarseJson.length > 0 && coarseJson.every((r) => r.status === 200), `coarse layer.json: ${JSON.stringify(coarseJson)}`);
+  const link = await page.getAttribute('#maplibre-link', 'href');
+  check(link === '/maplibre?layer=coarse', `MapLibre link after switching: ${link}`);
+  check(responsesMatching(log, /\.terrain/).every((r) => r.status === 200), 'a terrain tile failed after switching');
+  mark('layer switched');
+
   checkNoForeignRequests(log, server.base);
   check(log.pageErrors.length === 0, `page errors: ${log.pageErrors.join('\n')}`);
   check(log.failed.length === 0, `failed requests: ${JSON.stringify(log.failed.slice(0, 5))}`);

@@ -48,6 +48,27 @@ async function checkEncoding(browser, server, encoding) {
     check(h !== null && Math.abs(h - p.height) <= HEIGHT_TOLERANCE,
           `${encoding}: queryTerrainElevation at ${p.lon},${p.lat} is ${h} m, the DEM says ${p.height} m`);
   });
+  // No wall at the data's edge: the layer's bounding box (lon/lat) reaches past the UTM
+  // rectangle of the DEM, into the NODATA triangles of the edge tiles. Seen whole, every point of
+  // it must stand within the layer's height range (a transparent NODATA pixel, premultiplied by
+  // the browser, would read as −32768 m in Terrarium, −10000 m in Terrain-RGB).
+  const edge = await page.evaluate(async ({ b }) => {
+    const map = window.tinstream.map;
+    map.fitBounds([[b.west, b.south], [b.east, b.north]], { pitch: 0, bearing: 0, padding: 20, duration: 0 });
+    await new Promise((resolve) => map.once('idle', resolve));
+    const out = [];
+    for (let i = 0; i <= 12; ++i) {
+      for (let j = 0; j <= 12; ++j) {
+        const lon = b.west + (b.east - b.west) * (0.001 + 0.998 * i / 12);
+        const lat = b.south + (b.north - b.south) * (0.001 + 0.998 * j / 12);
+        out.push({ lon, lat, h: map.queryTerrainElevation([lon, lat]) });
+      }
+    }
+    return out;
+  }, { b: layer.bounds });
+  const walls = edge.filter((p) => p.h === null || p.h < layer.min_z - 1 || p.h > layer.max_z + 1);
+  check(walls.length === 0, `${encoding}: heights outside ${layer.min_z}–${layer.max_z} m in the ` +
+        `layer's bounds: ${JSON.stringify(walls.slice(0, 4))}`);
   const finest = new RegExp(`/tiles/demo/${layer.max_level}/\\d+/\\d+\\.png`);
   check(responsesMatching(log, finest).length > 0, `no raster-DEM tile of level ${layer.max_level} was read`);
   mark('heights checked');

@@ -14,6 +14,9 @@ const runs = [
   [env('TINSTREAM_TEST_RASTERS'), ['--out', dir]],
   [cli, ['ingest', '--quiet', '--store', path.join(dir, 'store.sqlite'), '--layer', 'demo',
          '--threads', '2', path.join(dir, 'dem.tif')]],
+  // A second terrain layer (the same DEM, coarser: 5 m error) for the CesiumJS layer picker.
+  [cli, ['ingest', '--quiet', '--store', path.join(dir, 'store.sqlite'), '--layer', 'coarse',
+         '--epsilon', '5', '--threads', '2', path.join(dir, 'dem.tif')]],
   [cli, ['ingest-imagery', '--quiet', '--store', path.join(dir, 'store.sqlite'), '--layer', 'demo',
          '--format', 'jpeg', '--threads', '2', path.join(dir, 'ortho.tif')]],
 ];

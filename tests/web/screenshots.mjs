@@ -2,14 +2,17 @@
 // in headless Chromium once every tile they asked for has arrived. Not a test.
 //
 //   TINSTREAM_SERVER=build/bin/tinstream-server TINSTREAM_WEB_ROOT=build/web \
-//   TINSTREAM_WEB_NPM=build/web-npm node tests/web/screenshots.mjs STORE LAYER OUT_DIR
+//   TINSTREAM_WEB_NPM=build/web-npm node tests/web/screenshots.mjs STORE LAYER OUT_DIR [WxH]
+// (WxH: the viewport, 1100x640 by default; docs/images/demo-cesium.png is `make demo`'s store,
+// build/demo/demo.sqlite, layer sample, at 720x420.)
 import fs from 'node:fs';
 import path from 'node:path';
 import { launchBrowser, recordedPage, startServer, waitFor } from './harness.mjs';
 
-const [store, layer, out] = process.argv.slice(2);
-if (!store || !layer || !out) {
-  console.error('usage: node tests/web/screenshots.mjs STORE LAYER OUT_DIR');
+const [store, layer, out, size = '1100x640'] = process.argv.slice(2);
+const [width, height] = size.split('x').map(Number);
+if (!store || !layer || !out || !(width > 0 && height > 0)) {
+  console.error('usage: node tests/web/screenshots.mjs STORE LAYER OUT_DIR [WxH]');
   process.exit(2);
 }
 
@@ -29,7 +32,7 @@ const server = await startServer(path.resolve(store));
 const browser = await launchBrowser();
 try {
   fs.mkdirSync(out, { recursive: true });
-  const viewport = { width: 1100, height: 640 };
+  const viewport = { width, height };
   {
     const { page, log } = await recordedPage(browser, viewport);
     await page.goto(`${server.base}/?layer=${encodeURIComponent(layer)}&fly=0`);
@@ -37,7 +40,7 @@ try {
     await page.evaluate(() => window.tinstream.ready);
     await waitFor('globe.tilesLoaded', () => page.evaluate(() => window.tinstream.viewer.scene.globe.tilesLoaded), 240000);
     await settle(log);
-    await page.mouse.click(600, 380);
+    await page.mouse.click(Math.round(width * 0.55), Math.round(height * 0.6));
     await waitFor('a picked height', () => page.getAttribute('#pick-height', 'data-height'), 60000);
     await page.screenshot({ path: path.join(out, 'cesium.png') });
     await page.context().close();

@@ -116,6 +116,7 @@ async function showLayer(name) {
   app.terrainProvider = await terrainFor(layer);
   viewer.terrainProvider = app.terrainProvider;
   app.layer = layer;
+  document.getElementById('maplibre-link').href = `/maplibre?layer=${encodeURIComponent(name)}`;
   await flyTo(layer);
   const range = `${layer.min_z.toFixed(1)}–${layer.max_z.toFixed(1)} m`;
   status(`${name}: levels ${layer.min_level}–${layer.max_level}, heights ${range}`);
@@ -187,7 +188,6 @@ async function start() {
     app.imagery.map((i) => ({ value: i.name, label: `${i.name} (${i.format})` }))), wantedImagery);
   setImagery(wantedImagery);
   await showLayer(wanted);
-  document.getElementById('maplibre-link').href = `/maplibre?layer=${encodeURIComponent(wanted)}`;
 }
 
 layerSelect.addEventListener('change', () => {

@@ -1,7 +1,14 @@
 // `tinstream sample`: writes a synthetic LiDAR-like point cloud (fractal mountain terrain) as a
 // LAS 1.2 file in UTM zone 32N (EPSG:32632, metres) — the built-in sample of `make demo` and the
 // input generator of the ingest benchmark. Streams: memory does not grow with --points.
+// --ortho also writes an "orthophoto" of the same mountains (an RGB GeoTIFF in the same CRS:
+// height tint and hillshade from the surface the points sample), the demo's imagery layer.
+#include <cpl_conv.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -21,6 +28,8 @@ struct SampleArgs {
   double points = 1e6;
   double density = 4.0;  // points per square metre, like airborne LiDAR
   std::uint64_t seed = 1;
+  std::string ortho;                            // an RGB GeoTIFF of the same surface, when given
+  double ortho_pixel = 2.0;                     // its pixel size, metres
   double easting = 395000, northing = 5093000;  // near the Matterhorn (45.98 N, 7.65 E)
 };
 
@@ -61,6 +70,89 @@ void put(std::vector<char>& buf, std::size_t offset, T value) {
   std::memcpy(buf.data() + offset, &value, sizeof value);
 }
 
+// The colour of the ground at relative height t (0 the sample's lowest point, 1 its highest)
+// whose surface rises by (dx, dy) per metre east and north: a height tint (forest, meadow, rock,
+// snow) lit from the north-west.
+std::array<std::uint8_t, 3> ground_colour(double t, double dx, double dy) {
+  struct Stop {
+    double t, r, g, b;
+  };
+  static constexpr std::array<Stop, 5> kRamp = {{{0.0, 46, 88, 38},
+                                                 {0.3, 98, 130, 62},
+                                                 {0.6, 150, 132, 100},
+                                                 {0.85, 165, 162, 156},
+                                                 {1.0, 248, 248, 252}}};
+  std::array<double, 3> c = {kRamp.back().r, kRamp.back().g, kRamp.back().b};
+  if (t <= kRamp.front().t) c = {kRamp.front().r, kRamp.front().g, kRamp.front().b};
+  for (std::size_t k = 0; k + 1 < kRamp.size(); ++k) {
+    const Stop &lo = kRamp[k], &hi = kRamp[k + 1];
+    if (t > lo.t && t <= hi.t) {
+      const double f = (t - lo.t) / (hi.t - lo.t);
+      c = {lo.r + f * (hi.r - lo.r), lo.g + f * (hi.g - lo.g), lo.b + f * (hi.b - lo.b)};
+    }
+  }
+  // Lambert shading: normal (-dx, -dy, 1), light from azimuth 315°, 45° up.
+  const double len = std::sqrt(dx * dx + dy * dy + 1);
+  const double lx = -0.5, ly = 0.5, lz = std::sqrt(0.5);
+  const double shade = std::max(0.0, (-dx * lx - dy * ly + lz) / len);
+  std::array<std::uint8_t, 3> out{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    out[k] = static_cast<std::uint8_t>(std::clamp(c[k] * (0.45 + 0.75 * shade), 0.0, 255.0));
+  }
+  return out;
+}
+
+// Writes the orthophoto of the square [0, side]² (local metres from the LAS offset) row by row,
+// tinted over the points' height range [low, high].
+int write_ortho(const SampleArgs& a, double side, double low, double high) {
+  GDALAllRegister();
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  if (gtiff == nullptr) {
+    std::cerr << "tinstream sample: GDAL has no GTiff driver\n";
+    return 1;
+  }
+  const int n = std::max(1, static_cast<int>(std::ceil(side / a.ortho_pixel)));
+  char** options = nullptr;
+  options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
+  options = CSLSetNameValue(options, "TILED", "YES");
+  options = CSLSetNameValue(options, "PHOTOMETRIC", "RGB");
+  GDALDataset* ds = gtiff->Create(a.ortho.c_str(), n, n, 3, GDT_Byte, options);
+  CSLDestroy(options);
+  if (ds == nullptr) {
+    std::cerr << "tinstream sample: cannot create " << a.ortho << ": " << CPLGetLastErrorMsg()
+              << "\n";
+    return 1;
+  }
+  const double p = a.ortho_pixel;
+  std::array<double, 6> gt = {a.easting, p, 0, a.northing + n * p, 0, -p};
+  OGRSpatialReference srs;
+  srs.importFromEPSG(32632);
+  bool ok = ds->SetGeoTransform(gt.data()) == CE_None && ds->SetSpatialRef(&srs) == CE_None;
+  std::vector<std::uint8_t> row(static_cast<std::size_t>(n) * 3);
+  const double d = p / 2;  // finite differences over one pixel
+  for (int j = 0; ok && j < n; ++j) {
+    const double north = (n - j - 0.5) * p;
+    for (int i = 0; i < n; ++i) {
+      const double east = (i + 0.5) * p;
+      const double h = terrain(east, north, a.seed);
+      const double dx = (terrain(east + d, north, a.seed) - terrain(east - d, north, a.seed)) / p;
+      const double dy = (terrain(east, north + d, a.seed) - terrain(east, north - d, a.seed)) / p;
+      const auto c = ground_colour((h - low) / std::max(high - low, 1.0), dx, dy);
+      std::copy(c.begin(), c.end(), row.begin() + static_cast<std::ptrdiff_t>(i) * 3);
+    }
+    ok = ds->RasterIO(GF_Write, 0, j, n, 1, row.data(), n, 1, GDT_Byte, 3, nullptr, 3, 0, 1,
+                      nullptr) == CE_None;
+  }
+  if (!ok)
+    std::cerr << "tinstream sample: write to " << a.ortho << " failed: " << CPLGetLastErrorMsg()
+              << "\n";
+  GDALClose(ds);
+  if (!ok) return 1;
+  std::cout << "wrote a " << n << " x " << n << " px orthophoto (" << p
+            << " m pixels, EPSG:32632) to " << a.ortho << "\n";
+  return 0;
+}
+
 int run(const SampleArgs& a) {
   if (!(a.points >= 1 && a.points <= 4e9) || !(a.density > 0)) {
     std::cerr << "tinstream sample: --points must be in [1, 4e9] and --density > 0\n";
@@ -68,6 +160,12 @@ int run(const SampleArgs& a) {
   }
   const auto count = static_cast<std::uint64_t>(a.points);
   const double side = std::sqrt(static_cast<double>(count) / a.density);
+  if (!a.ortho.empty() && (!(a.ortho_pixel >= 0.1) || side / a.ortho_pixel > 16384)) {
+    std::cerr << "tinstream sample: --ortho-pixel must be at least 0.1 m and give at most 16384 "
+                 "pixels a side (the sample is "
+              << std::lround(side) << " m a side)\n";
+    return 2;
+  }
   // Flight strips along x, as a scanner writes them: about 100 m wide, dividing the square
   // exactly (a clipped last strip would pile its points onto the north edge as one line).
   const auto strips = static_cast<std::uint64_t>(std::max(1.0, std::round(side / 100.0)));
@@ -115,7 +213,7 @@ int run(const SampleArgs& a) {
   double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300, min_z = 1e300,
          max_z = -1e300;
   std::vector<char> records;
-  records.reserve(20 * 65536);
+  records.reserve(std::size_t{20} * 65536);
   std::uint64_t written = 0;
   for (std::uint64_t s = 0; s < strips && written < count; ++s) {
     const std::uint64_t in_strip = (count - written) / (strips - s);
@@ -137,7 +235,7 @@ int run(const SampleArgs& a) {
       min_x = std::min(min_x, ex), max_x = std::max(max_x, ex);
       min_y = std::min(min_y, ny), max_y = std::max(max_y, ny);
       min_z = std::min(min_z, hz), max_z = std::max(max_z, hz);
-      if (records.size() >= 20 * 65536) {
+      if (records.size() >= std::size_t{20} * 65536) {
         out.write(records.data(), static_cast<std::streamsize>(records.size()));
         records.clear();
       }
@@ -156,7 +254,7 @@ int run(const SampleArgs& a) {
   std::cout << "wrote " << written << " points (" << std::lround(side) << " m x "
             << std::lround(side) << " m, EPSG:32632, heights " << std::lround(min_z) << "-"
             << std::lround(max_z) << " m) to " << a.out << "\n";
-  return 0;
+  return a.ortho.empty() ? 0 : write_ortho(a, side, min_z, max_z);
 }
 
 const CommandRegistration kRegistration{
@@ -169,6 +267,11 @@ const CommandRegistration kRegistration{
       sub.add_option("--points", a->points, "Number of points (e.g. 1e7)")->capture_default_str();
       sub.add_option("--density", a->density, "Points per square metre")->capture_default_str();
       sub.add_option("--seed", a->seed, "Random seed (same seed, same file)")
+          ->capture_default_str();
+      sub.add_option("--ortho", a->ortho,
+                     "Also write an RGB GeoTIFF 'orthophoto' of the same surface (height tint and "
+                     "hillshade; imagery for ingest-imagery)");
+      sub.add_option("--ortho-pixel", a->ortho_pixel, "Pixel size of --ortho, metres")
           ->capture_default_str();
       return [a] { return run(*a); };
     }};
