@@ -43,7 +43,8 @@ release:
 	$(MAKE) check BUILD=build-release CMAKE_FLAGS="-DCMAKE_BUILD_TYPE=Release"
 
 asan:
-	$(MAKE) check BUILD=build-asan CMAKE_FLAGS='-DTINSTREAM_ASAN=ON $(SAN_FLAGS)'
+	LSAN_OPTIONS="suppressions=$(CURDIR)/.ci/lsan.supp $${LSAN_OPTIONS:-}" \
+	  $(MAKE) check BUILD=build-asan CMAKE_FLAGS='-DTINSTREAM_ASAN=ON $(SAN_FLAGS)'
 
 tsan: build-tsan/build.ninja
 	cmake --build build-tsan -j $(JOBS) --target $(TSAN_TARGETS) tinstream tinstream-server
