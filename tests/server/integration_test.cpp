@@ -5,6 +5,7 @@
 #include <netinet/in.h>
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
@@ -1408,6 +1409,12 @@ std::uint64_t metric(std::uint16_t port, const std::string& name) {
 // the listener waits a moment before trying again instead of retrying at once (a loop at 100 %
 // CPU writing a warning each time), and serves again once descriptors are free.
 TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
+#if defined(__SANITIZE_ADDRESS__)
+  // UBSan's vptr check probes memory through a pipe; with every descriptor taken it reports a
+  // false "invalid vptr" inside fmt and aborts (seen in CI's ASan+UBSan tree). The Release and
+  // TSan trees run this test.
+  GTEST_SKIP() << "the sanitizer runtime itself needs free descriptors in this tree";
+#endif
   rlimit before{};
   ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
   struct Restore {
@@ -1426,6 +1433,7 @@ TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
   const pid_t child = ::fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);  // never outlive a parent that failed mid-test
     char c;
     if (::read(go[0], &c, 1) != 1) ::_exit(1);
     for (int i = 0; i < 4; ++i) {
@@ -1436,7 +1444,7 @@ TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
       ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
       if (fd >= 0) ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
     }
-    ::pause();
+    ::sleep(60);  // bounded: the parent kills this child after its one-second window
     ::_exit(0);
   }
   std::vector<int> filler;
