@@ -27,6 +27,12 @@ function(tinstream_setup_toolchain)
   if(TINSTREAM_TSAN)
     add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
     add_link_options(-fsanitize=thread)
+    # GCC 12 warns (-Wtsan) wherever Boost.Asio's std_fenced_block uses atomic_thread_fence
+    # (TSan does not model fences): a warning, not an error, in every TSan target (the server's
+    # stop() and TLS handlers reach it since 3e2b1dd). TSan still reports any race it sees.
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      add_compile_options(-Wno-error=tsan)
+    endif()
   endif()
   # lld when installed (scripts/install-deps.sh installs it): several times faster than GNU ld
   # on the test executables (tens of MB with debug info, 31 of them per tree in CI).
