@@ -15,6 +15,10 @@
 # Budget: 45 minutes on a 2-core machine (docs/SECURITY.md, "CI", has the measured breakdown).
 set -uo pipefail
 cd "$(dirname "$0")/.."
+# Advisory steps run and print their findings but do not fail the pipeline. tidy is advisory
+# until the 48 findings of the 2026-11-27 fresh-clone run (24 files, mostly tests and
+# core/sources; docs/SECURITY.md "CI") are fixed: then remove it from this list.
+advisory=" ${CI_ADVISORY-tidy} "
 steps=("$@")
 ((${#steps[@]})) || steps=(release asan tsan format tidy fuzz)
 mkdir -p build-ci
@@ -38,7 +42,9 @@ for step in "${steps[@]}"; do
   read -r wall user sys < <(tail -n 1 build-ci/time.$step)
   cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.0f", u + s }')
   result=ok
-  if ((rc != 0)); then result=FAILED; failed+=("$step"); fi
+  if ((rc != 0)); then
+    if [[ $advisory == *" $step "* ]]; then result=ADVISORY-FAILED; else result=FAILED; failed+=("$step"); fi
+  fi
   printf '%s\t%s\t%.0f\t%s\n' "$step" "$result" "$wall" "$cpu" >>"$timings"
   echo "=== pipeline: $step: $result in ${wall%.*} s (CPU ${cpu} s)"
 done
