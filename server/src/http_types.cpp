@@ -92,7 +92,10 @@ Response json_response(int status, std::string body) {
 }
 
 Response json_error(int status, std::string_view message) {
-  return json_response(status, nlohmann::json{{"error", message}, {"status", status}}.dump());
+  // The message may quote the request (a path, a header): invalid UTF-8 there is replaced
+  // (U+FFFD) instead of throwing from dump() (request_fuzzer found the throw: std::terminate).
+  return json_response(status, nlohmann::json{{"error", message}, {"status", status}}.dump(
+                                   -1, ' ', false, nlohmann::json::error_handler_t::replace));
 }
 
 }  // namespace tinstream::server
