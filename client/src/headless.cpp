@@ -165,6 +165,7 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
                               {"render_ms", render_ms},
                               {"drawn", f.draws.size()},
                               {"triangles", rs.triangles},
+                              {"skirt_triangles", rs.skirt_triangles},
                               {"wanted", f.wanted},
                               {"upload_pending", f.upload_pending},
                               {"uploaded", f.uploaded},

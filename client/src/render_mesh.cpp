@@ -114,13 +114,12 @@ std::size_t TileMesh::byte_size() const {
   return vertices.size() * sizeof(MeshVertex) + indices16.size() * 2 + indices32.size() * 4;
 }
 
-double skirt_depth(const tile::TinTile& tile, const LayerDescription& layer) {
+double skirt_margin(const tile::TinTile& tile, const LayerDescription& layer) {
   const geo::MercatorRect r = tile.id.bounds();
   const double lat = geo::NormalisedMercator(layer.projection).lat_from_y((r.min_y + r.max_y) / 2);
   const double width_m =
       r.width() * std::numbers::pi * geo::kWgs84A * std::cos(lat * std::numbers::pi / 180.0);
-  const double coarser = tile.id.z > layer.min_level ? layer.level_error(tile.id.z - 1) : 0.0;
-  return tile.geometric_error + coarser + std::max(1e-3 * width_m, 0.05);
+  return std::max(1e-5 * width_m, 0.05);
 }
 
 TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& layer, TileKey key) {
@@ -132,7 +131,7 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
   TileMesh mesh;
   mesh.key = key;
   mesh.geometric_error = tile.geometric_error;
-  mesh.skirt_depth = skirt_depth(tile, layer);
+  mesh.skirt_margin = skirt_margin(tile, layer);
 
   // Drawn triangles and the vertices they use.
   std::vector<tile::Triangle> drawn;
@@ -206,7 +205,11 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
     emit(ecef[i], vertices[i].z, normal[i], false, vertices[i]);
   }
 
-  // Skirts: under every border segment that is an edge of a drawn triangle.
+  // Skirts: under every border segment that is an edge of a drawn triangle, side by side. A
+  // skirt vertex sits at its border vertex (the shader lowers it); for the box, its deepest
+  // point: the layer's lowest height less the margin (the floor never lies below it).
+  const double deepest = std::min(layer.min_z, min_z) - mesh.skirt_margin;
+  mesh.skirt_lowest = deepest;
   std::unordered_set<std::uint64_t> border_edges;
   const std::uint32_t border_end = static_cast<std::uint32_t>(
       4 + tile.north.size() + tile.east.size() + tile.south.size() + tile.west.size());
@@ -223,20 +226,22 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
     const auto [it, fresh] =
         skirt_of.try_emplace(v, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (fresh) {
-      const Vec3 p =
-          to_vec(geo::to_ecef({lonlat[v].lon, lonlat[v].lat, vertices[v].z - mesh.skirt_depth}));
-      skirt_points.push_back(p);
-      emit(p, vertices[v].z, normal[v], true, vertices[v]);
+      skirt_points.push_back(
+          to_vec(geo::to_ecef({lonlat[v].lon, lonlat[v].lat, std::min(vertices[v].z, deepest)})));
+      emit(ecef[v], vertices[v].z, normal[v], true, vertices[v]);
     }
     return it->second;
   };
-  for (const auto& side : border_loops(tile)) {
-    for (std::size_t i = 0; i + 1 < side.size(); ++i) {
-      const std::uint32_t a = side[i], b = side[i + 1];
+  const auto sides = border_loops(tile);
+  for (std::size_t s = 0; s < sides.size(); ++s) {
+    const std::size_t before = skirt_triangles.size();
+    for (std::size_t i = 0; i + 1 < sides[s].size(); ++i) {
+      const std::uint32_t a = sides[s][i], b = sides[s][i + 1];
       if (!border_edges.contains(edge_key(a, b))) continue;
       const std::uint32_t sa = skirt_vertex(a), sb = skirt_vertex(b);
       skirt_triangles.insert(skirt_triangles.end(), {a, sa, sb, a, sb, b});
     }
+    mesh.skirt_index_count[s] = static_cast<std::uint32_t>(skirt_triangles.size() - before);
   }
 
   // Indices: surface first, then skirts; 16-bit when every index fits.

@@ -22,7 +22,8 @@ constexpr int kPatchCells = 16;
 
 struct TerrainProgram {
   GLuint id = 0;
-  GLint mvp = -1, light = -1, ramp = -1, mask = -1, log_coef = -1, stops = -1;
+  GLint mvp = -1, light = -1, ramp = -1, mask = -1, log_coef = -1, stops = -1, centre = -1,
+        skirt = -1;
 };
 
 struct GlobeProgram {
@@ -153,6 +154,8 @@ struct GlobeRenderer::Impl {
       p.mask = glGetUniformLocation(p.id, "u_mask");
       p.log_coef = glGetUniformLocation(p.id, "u_log_coef");
       p.stops = glGetUniformLocation(p.id, "u_stops");
+      p.centre = glGetUniformLocation(p.id, "u_centre");
+      p.skirt = glGetUniformLocation(p.id, "u_skirt");
     }
     auto program = gl::build_program(
         "globe",
@@ -285,6 +288,7 @@ GpuMesh GlobeRenderer::upload(const TileMesh& mesh) {
   glBindVertexArray(0);
   g.index_count = static_cast<std::uint32_t>(mesh.index_count());
   g.surface_index_count = mesh.surface_index_count;
+  g.skirt_index_count = mesh.skirt_index_count;
   g.bytes = mesh.vertices.size() * sizeof(MeshVertex) + index_bytes;
   return g;
 }
@@ -336,11 +340,37 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
     glUniform3f(p.light, static_cast<float>(sun.x), static_cast<float>(sun.y),
                 static_cast<float>(sun.z));
     glUniform1i(p.mask, d.quadrant_mask);
+    glUniform3f(p.centre, static_cast<float>(t.centre.x), static_cast<float>(t.centre.y),
+                static_cast<float>(t.centre.z));
+    glUniform2f(p.skirt, static_cast<float>(d.skirt_depth), static_cast<float>(d.skirt_floor));
     glBindVertexArray(t.gpu.vao);
-    glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(t.gpu.index_count),
-                   t.gpu.wide_indices ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT, nullptr);
+    // The surface, then the sides that hang a skirt this frame (adjacent ones in one call).
+    const GLenum type = t.gpu.wide_indices ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT;
+    const std::size_t index_size = t.gpu.wide_indices ? 4 : 2;
+    std::uint32_t first = 0, count = t.gpu.surface_index_count, next = count;
+    const auto flush = [&] {
+      if (count == 0) return;
+      // GL takes the byte offset into the bound index buffer as a pointer.
+      glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(count), type,
+                     reinterpret_cast<const void*>(  // NOLINT(performance-no-int-to-ptr)
+                         std::uintptr_t{first} * index_size));
+      stats.triangles += count / 3;
+    };
+    for (std::size_t s = 0; s < 4; ++s) {
+      const std::uint32_t n = t.gpu.skirt_index_count[s];
+      if (d.skirt_sides & (1u << s)) {
+        if (first + count != next) {
+          flush();
+          first = next;
+          count = 0;
+        }
+        count += n;
+        stats.skirt_triangles += n / 3;
+      }
+      next += n;
+    }
+    flush();
     ++stats.tiles;
-    stats.triangles += t.gpu.index_count / 3;
   }
 
   // The ellipsoid, last: hidden wherever terrain was drawn (early depth test), back faces culled.

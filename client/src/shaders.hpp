@@ -12,6 +12,11 @@ layout(location = 1) in float a_height;
 layout(location = 2) in vec4 a_normal;
 layout(location = 3) in vec2 a_uv;
 uniform mat4 u_mvp;
+// Skirts: a skirt vertex (a_normal.w = 1) sits at its border vertex and goes down along the
+// ellipsoid normal by u_skirt.x metres, never below the height u_skirt.y (skirts.hpp).
+uniform vec3 u_centre;  // the tile's centre, ECEF (float is plenty for a direction)
+uniform vec2 u_skirt;
+const vec3 kGeodetic = vec3(1.0, 1.0, 1.0067394967422765);  // (1, 1, a²/b²) of WGS84
 #ifdef WIREFRAME
 out VS_OUT {
 #else
@@ -25,7 +30,12 @@ out FS_IN {
   noperspective vec3 bary;
 } vs;
 void main() {
-  gl_Position = u_mvp * vec4(a_position, 1.0);
+  vec3 p = a_position;
+  if (a_normal.w > 0.5) {
+    vec3 up = normalize((u_centre + a_position) * kGeodetic);
+    p -= up * clamp(a_height - u_skirt.y, 0.0, u_skirt.x);
+  }
+  gl_Position = u_mvp * vec4(p, 1.0);
   vs.normal = a_normal.xyz;
   vs.height = a_height;
   vs.uv = a_uv;

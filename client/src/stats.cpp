@@ -95,6 +95,7 @@ std::string summary_json(const ViewerOptions& o, const Session& s, const RunSumm
       {"tiles",
        {{"drawn", f.draws.size()},
         {"triangles", run.render.triangles},
+        {"skirt_triangles", run.render.skirt_triangles},
         {"requested", requested},
         {"loaded", loaded},
         {"absent", absent},

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "tinstream/client/skirts.hpp"
+
 namespace tinstream::client {
 
 namespace {
@@ -169,8 +171,8 @@ void TileStreamer::upload(GpuUploader& gpu) {
     const std::uint64_t bytes = (*mesh)->byte_size();
     if (frame_result_.uploaded > 0 && used + bytes > options_.upload_bytes_per_frame) break;
     const TileMesh& m = **mesh;
-    ResidentTile t{gpu.upload(m),     m.centre, m.frame, m.bounds,
-                   m.geometric_error, m.min_z,  m.max_z, m.quadrant_data};
+    ResidentTile t{gpu.upload(m), m.centre, m.frame,         m.bounds,       m.geometric_error,
+                   m.min_z,       m.max_z,  m.quadrant_data, m.skirt_margin, m.skirt_lowest};
     const std::uint64_t gpu_bytes = t.gpu.bytes;
     if (!gpu_.insert(r.key, t, gpu_bytes, frame_, frame_, release)) break;
     used += bytes;
@@ -197,6 +199,7 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   }
   std::sort(frame_result_.draws.begin(), frame_result_.draws.end(),
             [](const DrawItem& a, const DrawItem& b) { return a.distance < b.distance; });
+  plan_skirts(frame_result_.draws);
   frame_result_.complete = wanted_.empty() && uploads_.empty();
   frame_result_.wanted = wanted_.size();
   upload(gpu);

@@ -102,6 +102,7 @@ TEST(RenderMesh, FineTileKeepsMillimetres) {
   // A full tile: every border segment gets a skirt, 8 per side for a 9×9 grid.
   EXPECT_EQ(mesh->data_triangles, 2u * 8 * 8);
   EXPECT_EQ(mesh->index_count() - mesh->surface_index_count, 4u * 8 * 6);
+  EXPECT_EQ(mesh->skirt_index_count, (std::array<std::uint32_t, 4>{48, 48, 48, 48}));
   EXPECT_EQ(mesh->quadrant_data, 0xF);
 }
 
@@ -113,17 +114,27 @@ TEST(RenderMesh, BoundsHoldEveryVertexSkirtsIncluded) {
     EXPECT_TRUE(mesh.bounds.contains(world_of(mesh, i))) << "vertex " << i;
 }
 
-TEST(RenderMesh, SkirtsHangByTheSkirtDepthAndNormalsPointUp) {
+TEST(RenderMesh, SkirtVerticesSitOnTheBorderAndTheBoxHoldsTheirDeepest) {
   const geo::TileId id{16, 33960, 22440};
   const tile::TinTile t = testing::make_grid_tile(id, 5, [](double, double) { return 250.0; });
   LayerDescription layer = layer_for(id);
-  layer.level_max_error[id.z - 1] = 7.5;
+  layer.min_z = 200;
   const TileMesh mesh = build_render_mesh(t, layer, {TileKind::terrain, 0, id});
-  // The tile's own error (0) + the coarser level's 7.5 m + 1e-3 of the tile's width (≈ 390 m).
-  EXPECT_GT(mesh.skirt_depth, 7.5 + 0.3);
-  EXPECT_LT(mesh.skirt_depth, 7.5 + 0.5);
+  // 1e-5 of the tile's width (about 390 m at this latitude) is below the 5 cm minimum.
+  EXPECT_DOUBLE_EQ(mesh.skirt_margin, 0.05);
+  EXPECT_DOUBLE_EQ(mesh.skirt_lowest, 200 - mesh.skirt_margin);
+  // A 5×5 grid: 4 segments per side, one quad (6 indices) each, side by side N, E, S, W.
+  for (std::size_t s = 0; s < 4; ++s) EXPECT_EQ(mesh.skirt_index_count[s], 4u * 6) << s;
   const std::size_t surface = t.vertex_count();
   ASSERT_EQ(mesh.vertices.size(), surface + 16);  // one skirt vertex per border vertex
+  // Each north skirt quad (a, sa, sb, a, sb, b) hangs from a north border vertex pair.
+  const auto north = t.border(geo::Direction::north);
+  for (std::size_t q = 0; q < 4; ++q) {
+    const std::size_t at = mesh.surface_index_count + q * 6;
+    const Vec3 a = world_of(mesh, index_at(mesh, at)), b = world_of(mesh, index_at(mesh, at + 5));
+    EXPECT_LT(length(a - expected_ecef(north[q].x, north[q].y, 250.0)), 1e-3) << q;
+    EXPECT_LT(length(b - expected_ecef(north[q + 1].x, north[q + 1].y, 250.0)), 1e-3) << q;
+  }
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const bool skirt = i >= surface;
     EXPECT_EQ((mesh.vertices[i].normal >> 30) & 3u, skirt ? 1u : 0u);
@@ -133,7 +144,13 @@ TEST(RenderMesh, SkirtsHangByTheSkirtDepthAndNormalsPointUp) {
     const double lon = g.lon * kPi / 180, lat = g.lat * kPi / 180;
     const Vec3 up{std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat)};
     EXPECT_GT(dot(unpack_normal(mesh.vertices[i].normal), up), 0.999) << i;
-    EXPECT_NEAR(g.height, skirt ? 250.0 - mesh.skirt_depth : 250.0, 1e-3) << i;
+    // Skirt vertices sit at their border vertex (the shader lowers them) ...
+    EXPECT_NEAR(g.height, 250.0, 1e-3) << i;
+    // ... and the box holds them at the lowest a floor may put them.
+    if (skirt) {
+      const geo::Ecef deep = geo::to_ecef({g.lon, g.lat, 200 - mesh.skirt_margin});
+      EXPECT_TRUE(mesh.bounds.contains({deep.x, deep.y, deep.z})) << i;
+    }
   }
 }
 
@@ -145,7 +162,9 @@ TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
     t.corner_nodata[c] = true;
     t.corners[c].z = 0;
   }
-  const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
+  LayerDescription layer = layer_for(id);
+  layer.min_z = 170;  // synthetic_height ≥ 300 − 120 + 0.37·lat
+  const TileMesh mesh = build_render_mesh(t, layer, {TileKind::terrain, 0, id});
   // Of the 8 triangles of the 3×3 grid, 4 touch a NODATA corner; the 4 left reach NW (two),
   // NE and SW (one each).
   EXPECT_EQ(mesh.data_triangles, 4u);
@@ -155,9 +174,12 @@ TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
     const std::uint32_t v = index_at(mesh, i);
     EXPECT_TRUE(v == 0 || v >= 4) << "a NODATA corner is drawn";
   }
-  // Skirts only under the border segments of drawn triangles: NW–N and NW–W.
+  // Skirts only under the border segments of drawn triangles: NW–N (north) and NW–W (west);
+  // none along the east and south sides, whose every segment touches a NODATA corner.
   EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, std::size_t{12});  // 2 quads × 6
-  // The box ignores the NODATA corners at z = 0 (the surface is near 300 m).
+  EXPECT_EQ(mesh.skirt_index_count, (std::array<std::uint32_t, 4>{6, 0, 0, 6}));
+  // The box ignores the NODATA corners at z = 0 (the surface is near 300 m, the layer's lowest
+  // height, where skirts may reach, 170 m).
   EXPECT_GT(mesh.min_z, 100);
   EXPECT_LT(mesh.bounds.half[2], 100);
 }

@@ -4,9 +4,12 @@
 // it is not) and at the JSON statistics.
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -34,7 +37,7 @@ struct ViewerRun {
   std::string err;
 };
 
-ViewerRun viewer(std::vector<std::string> args) {
+ViewerRun viewer(const std::vector<std::string>& args) {
   testing::Child child(testing::binary("tinstream-viewer"), args, /*capture_stderr=*/true);
   ViewerRun r;
   r.status = child.wait(std::chrono::minutes(10));
@@ -76,11 +79,16 @@ std::pair<double, double> half_extent_m(const store::LayerInfo& l) {
           (l.bounds.north - l.bounds.south) / 2 * M_PI / 180 * 6378137};
 }
 
+const std::uint8_t* pixel(const Image& img, int x, int y) {
+  const auto w = static_cast<std::size_t>(img.width);
+  return img.rgba.data() + (static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x)) * 4;
+}
+
 enum class Pixel { sky, globe, terrain };
 // The globe is blue-dominant; the hypsometric ramp (greens, sand, browns, whites) never is; the
 // sky is near black.
 Pixel classify(const Image& img, int x, int y) {
-  const std::uint8_t* p = img.rgba.data() + (static_cast<std::size_t>(y) * img.width + x) * 4;
+  const std::uint8_t* p = pixel(img, x, y);
   const int r = p[0], g = p[1], b = p[2];
   if (r + g + b < 40) return Pixel::sky;
   if (b > r + 25 && b > g + 10) return Pixel::globe;
@@ -103,7 +111,7 @@ double mean_luminance(const Image& img, double x0, double y0, double x1, double 
   int n = 0;
   for (int y = static_cast<int>(y0 * img.height); y < static_cast<int>(y1 * img.height); ++y)
     for (int x = static_cast<int>(x0 * img.width); x < static_cast<int>(x1 * img.width); ++x) {
-      const std::uint8_t* p = img.rgba.data() + (static_cast<std::size_t>(y) * img.width + x) * 4;
+      const std::uint8_t* p = pixel(img, x, y);
       sum += 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
       ++n;
     }
@@ -370,6 +378,175 @@ TEST_F(Viewer, LogarithmicDepthDrawsTheSameScene) {
                  std::abs(x.rgba[i + 2] - y.rgba[i + 2]) <=
              12;
   EXPECT_GT(close, static_cast<int>(0.99 * x.width * x.height));
+}
+
+// Calls visit(name, layer, tile, its render mesh) for every tile of the DEM and LiDAR layers.
+template <typename Visit>
+void for_each_real_tile(const std::filesystem::path& dem, const std::filesystem::path& lidar,
+                        const Visit& visit) {
+  for (const auto& [path, name] :
+       {std::pair{dem, "dem"}, std::pair{lidar, "lidar"}, std::pair{lidar, "lidar_ell"}}) {
+    auto st = store::TileStore::open(path, store::TileStore::Mode::read_only);
+    ASSERT_TRUE(st.ok());
+    const LayerDescription layer = from_store_info(*st->layer(name));
+    auto ids = st->tile_ids(name);
+    ASSERT_TRUE(ids.ok());
+    for (const geo::TileId& id : *ids) {
+      auto t = st->read_tile(name, id);
+      ASSERT_TRUE(t.ok() && t->has_value());
+      visit(std::string(name), layer, **t,
+            build_render_mesh(**t, layer, {TileKind::terrain, 0, id}));
+    }
+  }
+}
+
+// Where the image row of a point lies, by a pinhole camera written out here (not the client's):
+// heading 0 (north), pitch p, vertical field of view fov, rows top to bottom.
+struct Pinhole {
+  Vec3 eye, forward, up;
+  double rows, fov_y;
+  Pinhole(double lon, double lat, double h, double pitch_deg, double fov_deg, int image_rows)
+      : rows(image_rows), fov_y(fov_deg * M_PI / 180) {
+    const double l = lon * M_PI / 180, f = lat * M_PI / 180, p = pitch_deg * M_PI / 180;
+    const geo::Ecef e = geo::to_ecef({lon, lat, h});
+    eye = {e.x, e.y, e.z};
+    const Vec3 east{-std::sin(l), std::cos(l), 0};
+    const Vec3 north{-std::sin(f) * std::cos(l), -std::sin(f) * std::sin(l), std::cos(f)};
+    const Vec3 vertical{std::cos(f) * std::cos(l), std::cos(f) * std::sin(l), std::sin(f)};
+    forward = north * std::cos(p) + vertical * std::sin(p);
+    up = cross(east, forward);
+  }
+  // nullopt behind the camera.
+  std::optional<double> row(const Vec3& point) const {
+    const Vec3 v = point - eye;
+    const double z = dot(v, forward);
+    if (z <= 0) return std::nullopt;
+    return rows / 2 - dot(v, up) / z * (rows / 2) / std::tan(fov_y / 2);
+  }
+};
+
+TEST_F(Viewer, NoCurtainHangsFromTheDataEdgeSeenFromALowAngle) {
+  // From 7 km south of the DEM's data, 2500 m up, looking north 12° down: the data's south edge
+  // crosses the view. In each image column, no terrain may appear below the lowest row that a
+  // data triangle of a drawn tile reaches there (a triangle's image lies within its vertices'
+  // rows and columns; projected here by a pinhole camera of our own): below it, only the globe.
+  // Skirts hung along the data's edge (down by the errors, hundreds of metres) were
+  // terrain-coloured curtains reaching below it.
+  TempDir dir("viewer_edge");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const double lon = (l.bounds.west + l.bounds.east) / 2, lat = l.bounds.south - 0.063;
+  const double height = 2500, pitch = -12;
+  std::ostringstream camera;
+  camera.precision(12);
+  camera << lon << ',' << lat << ',' << height << ",0," << pitch;
+  const ViewerRun r = viewer(base_args(dir.path / "edge.png", camera.str()) +
+                             std::vector<std::string>{"--store", dem_.string()});
+  expect_clean(r);
+  const Image img = png(dir.path / "edge.png");
+  const Pinhole pinhole(lon, lat, height, pitch, 60, img.height);
+  const double focal = img.height / 2.0 / std::tan(M_PI / 6);
+
+  auto st = store::TileStore::open(dem_, store::TileStore::Mode::read_only);
+  ASSERT_TRUE(st.ok());
+  const geo::NormalisedMercator merc(l.projection);
+  std::vector<double> lowest(static_cast<std::size_t>(img.width), -1e9);  // per column
+  for (const json& drawn : r.stats["drawn_tiles"]) {
+    const std::string name = drawn.get<std::string>();  // "dem/QUADKEY:MASK"
+    auto id = geo::TileId::from_quadkey(name.substr(4, name.find(':') - 4));
+    ASSERT_TRUE(id.ok()) << name;
+    auto t = st->read_tile("dem", *id);
+    ASSERT_TRUE(t.ok() && t->has_value()) << name;
+    const tile::TinTile& tile = **t;
+    const auto all = tile.vertices();
+    std::vector<std::optional<std::pair<double, double>>> at(all.size());  // (column, row)
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      const geo::LonLat ll = merc.inverse({all[i].x, all[i].y});
+      const geo::Ecef e = geo::to_ecef({ll.lon, ll.lat, all[i].z});
+      const Vec3 v = Vec3{e.x, e.y, e.z} - pinhole.eye;
+      const double z = dot(v, pinhole.forward);
+      if (z <= 0) continue;
+      const Vec3 right = cross(pinhole.forward, pinhole.up);
+      at[i] = {img.width / 2.0 + dot(v, right) / z * focal, *pinhole.row(Vec3{e.x, e.y, e.z})};
+    }
+    for (std::size_t k = 0; k < tile.triangles.size(); ++k) {
+      if (tile.is_nodata_triangle(k)) continue;
+      const tile::Triangle& tri = tile.triangles[k];
+      if (!at[tri[0]] || !at[tri[1]] || !at[tri[2]]) continue;
+      double c0 = 1e9, c1 = -1e9, row = -1e9;
+      for (const std::uint32_t v : tri) {
+        c0 = std::min(c0, at[v]->first);
+        c1 = std::max(c1, at[v]->first);
+        row = std::max(row, at[v]->second);
+      }
+      for (int c = std::max(0, static_cast<int>(std::floor(c0)) - 1);
+           c <= std::min(img.width - 1, static_cast<int>(std::ceil(c1)) + 1); ++c)
+        lowest[static_cast<std::size_t>(c)] = std::max(lowest[static_cast<std::size_t>(c)], row);
+    }
+  }
+  // Two rows of slack for rasterisation; below, only globe. A skirt between two tiles of
+  // different levels may still show as a thin fin where that border meets the data's edge
+  // (seen from outside, under the surface: at most the two tiles' errors deep): a few columns;
+  // a curtain along the edge fills most of them.
+  int columns_with_terrain_below = 0, below = 0, edge_columns = 0;
+  for (int x = 0; x < img.width; ++x) {
+    const double edge = lowest[static_cast<std::size_t>(x)];
+    if (edge < 0.3 * img.height || edge > 0.8 * img.height) continue;  // the edge is not here
+    ++edge_columns;
+    bool terrain = false;
+    for (int y = static_cast<int>(std::ceil(edge)) + 2; y < img.height; ++y) {
+      ++below;
+      terrain |= classify(img, x, y) != Pixel::globe;
+    }
+    columns_with_terrain_below += terrain;
+  }
+  // The data's edge crosses most of the picture, with room below it.
+  EXPECT_GT(edge_columns, img.width / 2);
+  EXPECT_GT(below, img.width * 40);
+  EXPECT_LE(columns_with_terrain_below, edge_columns / 100)
+      << "of " << edge_columns << " columns, terrain below the data's edge";
+  EXPECT_GT(r.stats["tiles"]["skirt_triangles"].get<double>(), 0);  // skirts between levels stay
+}
+
+TEST_F(Viewer, SkirtsOfRealTilesLieUnderFootprintBorderSegmentsOnly) {
+  // Every tile of both stores: each side's skirt quads are exactly the border segments on that
+  // side that are an edge of a data (footprint) triangle, counted here from the tile's
+  // coordinates (a segment lies on the north side when both ends have y == the tile's max_y).
+  std::size_t tiles = 0, segments = 0, nodata_tiles = 0;
+  const auto check = [&](const std::string& name, const LayerDescription&,
+                         const tile::TinTile& tile, const TileMesh& mesh) {
+    const geo::TileId& id = tile.id;
+    const geo::MercatorRect r = id.bounds();
+    const auto all = tile.vertices();
+    std::array<std::set<std::pair<std::uint32_t, std::uint32_t>>, 4> on_side;
+    for (std::size_t k = 0; k < tile.triangles.size(); ++k) {
+      const tile::Triangle& tri = tile.triangles[k];
+      const bool data = !tile.is_nodata_vertex(tri[0]) && !tile.is_nodata_vertex(tri[1]) &&
+                        !tile.is_nodata_vertex(tri[2]);
+      if (!data) continue;
+      for (int e = 0; e < 3; ++e) {
+        const std::uint32_t a = tri[static_cast<std::size_t>(e)],
+                            b = tri[static_cast<std::size_t>((e + 1) % 3)];
+        const tile::Vertex &p = all[a], &q = all[b];
+        const std::pair key{std::min(a, b), std::max(a, b)};
+        if (p.y == r.max_y && q.y == r.max_y) on_side[0].insert(key);
+        if (p.x == r.max_x && q.x == r.max_x) on_side[1].insert(key);
+        if (p.y == r.min_y && q.y == r.min_y) on_side[2].insert(key);
+        if (p.x == r.min_x && q.x == r.min_x) on_side[3].insert(key);
+      }
+    }
+    for (std::size_t s = 0; s < 4; ++s) {
+      EXPECT_EQ(mesh.skirt_index_count[s], 6 * on_side[s].size())
+          << name << " " << id.to_string() << " side " << s;
+      segments += on_side[s].size();
+    }
+    nodata_tiles += tile.has_nodata_triangles();
+    ++tiles;
+  };
+
+  for_each_real_tile(dem_, lidar_, check);
+  EXPECT_GT(tiles, 50u);
+  EXPECT_GT(nodata_tiles, 5u);  // tiles at the data's edge are among them
+  EXPECT_GT(segments, 1000u);
 }
 
 TEST_F(Viewer, BadInputGetsAClearErrorAndStatus2) {

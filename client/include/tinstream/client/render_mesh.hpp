@@ -6,11 +6,18 @@
 // relative to the tile's centre (millimetres survive even at level 30). Each vertex gets an
 // area-weighted normal, its height (for the colour ramp) and its position in the tile (for the
 // quadrant masks that stand in for absent children). Only the tile's data footprint is drawn:
-// NODATA triangles are left out (TinTile::footprint_mask, docs/tile-format.md §2.1); skirts hang
-// from every border segment of a drawn triangle.
+// NODATA triangles are left out (TinTile::footprint_mask, docs/tile-format.md §2.1).
+//
+// Skirts: every border segment of a drawn triangle gets a skirt quad, grouped by side (north,
+// east, south, west, each in edge order) so that the renderer draws only the sides that need one
+// in a frame (skirts.hpp decides: a drawn neighbour of another level across the side). A skirt
+// vertex sits *at* its border vertex, flagged; the vertex shader lowers it along the ellipsoid
+// normal by the frame's depth, never below the frame's floor (how deep depends on the neighbours,
+// known only when drawing). The bounding box holds the deepest a skirt may hang: down to the
+// layer's lowest height less the margin (no neighbour surface lies lower).
 //
 //   surface vertices (tile numbering)  skirt vertices (one per border vertex that is drawn)
-//   indices: surface triangles, then skirt quads as triangle pairs
+//   indices: surface triangles, then skirt quads (triangle pairs): north, east, south, west
 //
 // The result owns plain vectors; it is immutable once built and shared between the RAM tier and
 // the upload queue (std::shared_ptr<const TileMesh>).
@@ -37,6 +44,7 @@ struct MeshVertex {
   float position[3];     // metres, ECEF relative to TileMesh::centre
   float height;          // metres above the ellipsoid (colour ramp)
   std::uint32_t normal;  // GL_INT_2_10_10_10_REV: x, y, z signed normalised; w: 1 = skirt
+                         // (then position = the border vertex's; the shader lowers it)
   std::uint16_t u, v;    // unorm16 position in the tile: u west → east, v north → south
 };
 static_assert(sizeof(MeshVertex) == 24);
@@ -58,10 +66,14 @@ struct TileMesh {
   std::vector<std::uint16_t> indices16;   // used when vertices.size() ≤ 65536
   std::vector<std::uint32_t> indices32;   // otherwise
   std::uint32_t surface_index_count = 0;  // the first indices; skirts follow
-  Obb bounds;                             // every drawn vertex, skirts included
-  double geometric_error = 0;             // the tile's own (header), metres
-  double min_z = 0, max_z = 0;            // of the drawn vertices
-  double skirt_depth = 0;
+  // Indices of each side's skirt quads (0 north, 1 east, 2 south, 3 west), in that order after
+  // the surface: side s starts at surface_index_count + the counts of the sides before it.
+  std::array<std::uint32_t, 4> skirt_index_count{};
+  Obb bounds;                   // every drawn vertex, skirts at their deepest included
+  double geometric_error = 0;   // the tile's own (header), metres
+  double min_z = 0, max_z = 0;  // of the drawn vertices
+  double skirt_margin = 0;      // metres added to a skirt's depth against rounding
+  double skirt_lowest = 0;      // the lowest height a skirt may reach (the box holds it)
   std::uint32_t data_triangles = 0, nodata_triangles = 0;
   std::uint8_t quadrant_data = 0;  // bit q (quadkey digit): a drawn triangle reaches quadrant q
 
@@ -72,10 +84,10 @@ struct TileMesh {
   std::size_t byte_size() const;
 };
 
-// How far the skirts hang below the border: the tile's own error plus the largest error of the
-// level above (the gap to a coarser neighbour, the usual case of a crack), plus 1e-3 of the
-// tile's width against float rounding.
-double skirt_depth(const tile::TinTile& tile, const LayerDescription& layer);
+// What a skirt hangs deeper than the crack it hides, against float rounding: 1e-5 of the
+// tile's width (float positions relative to the tile's centre round at ~1e-7 of it), at least
+// 5 cm. (1e-3 made a level-6 tile's skirt 500 m deeper than any crack.)
+double skirt_margin(const tile::TinTile& tile, const LayerDescription& layer);
 
 // Builds the mesh of a decoded tile. Requires: tile.id == key.tile and the indices are in range
 // (tile::decode checks them).

@@ -43,7 +43,8 @@ struct RenderSettings {
 
 struct RenderStats {
   std::uint32_t tiles = 0;
-  std::uint64_t triangles = 0;  // terrain triangles drawn (skirts included)
+  std::uint64_t triangles = 0;        // terrain triangles drawn (skirts included)
+  std::uint64_t skirt_triangles = 0;  // of which skirts
   std::uint32_t globe_patches = 0;
 };
 

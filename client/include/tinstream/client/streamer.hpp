@@ -11,7 +11,9 @@
 //      exist (404, or outside the layer's bounds) are covered by the parent's quadrant;
 //   3. upload decoded meshes from the RAM tier to the GPU tier, most urgent first, up to
 //      upload_bytes_per_frame (at least one per frame);
-//   4. hand the loader what is still missing (stale requests are dropped there).
+//   4. decide which tile sides hang a skirt this frame (skirts.hpp: only towards a drawn tile of
+//      another level, never at the data's edge);
+//   5. hand the loader what is still missing (stale requests are dropped there).
 // Tiles drawn, and those on the path to them, are pinned in the frame and never evicted.
 //
 // The GPU is reached only through GpuUploader (the renderer implements it), so the selection and
@@ -41,6 +43,7 @@ Obb unloaded_tile_bounds(const LayerDescription& layer, const geo::TileId& id);
 struct GpuMesh {
   std::uint32_t vao = 0, vbo = 0, ibo = 0;
   std::uint32_t index_count = 0, surface_index_count = 0;
+  std::array<std::uint32_t, 4> skirt_index_count{};  // per side, after the surface (TileMesh)
   bool wide_indices = false;
   std::uint64_t bytes = 0;
 };
@@ -61,6 +64,7 @@ struct ResidentTile {
   double geometric_error = 0;
   double min_z = 0, max_z = 0;
   std::uint8_t quadrant_data = 0;
+  double skirt_margin = 0, skirt_lowest = 0;  // TileMesh's
 };
 
 struct DrawItem {
@@ -69,6 +73,10 @@ struct DrawItem {
   std::uint8_t quadrant_mask = 0xF;    // bit q: draw quadrant q (quadkey digit) of the tile
   double sse = 0;                      // screen-space error, pixels
   double distance = 0;                 // metres from the camera to the tile's box
+  // Skirts of this frame (skirts.hpp): bit s = side s (0 N, 1 E, 2 S, 3 W) hangs its skirt,
+  // lowered skirt_depth metres but never below the height skirt_floor.
+  std::uint8_t skirt_sides = 0;
+  double skirt_depth = 0, skirt_floor = 0;
 };
 
 inline constexpr std::size_t kLevels = 31;
