@@ -201,6 +201,7 @@ TEST(HttpSource, RefusedConnectionsAndBadUrls) {
 // Loads every tile of the layer through a loader and returns the results.
 std::vector<LoadResult> load_all(TileLoader& loader, const std::vector<geo::TileId>& ids) {
   std::vector<TileRequest> wanted;
+  wanted.reserve(ids.size());
   for (const geo::TileId& id : ids) wanted.push_back({{TileKind::terrain, 0, id}, 1.0, 0.0});
   std::vector<LoadResult> results;
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);

@@ -26,6 +26,7 @@ struct TileKey {
   geo::TileId tile;
 
   friend bool operator==(const TileKey&, const TileKey&) = default;
+  // NOLINTNEXTLINE(modernize-use-nullptr): clang-tidy flags the defaulted comparison itself
   friend auto operator<=>(const TileKey&, const TileKey&) = default;
 };
 
