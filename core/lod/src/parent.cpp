@@ -170,7 +170,7 @@ ThinInput merge(const geo::TileId& parent, const Children& children, const Sourc
   in.east = kids.outer_side(D::east);
   in.south = kids.outer_side(D::south);
   in.west = kids.outer_side(D::west);
-  if (sources.depth == 1) {
+  if (sources.depth == 1 || sources.candidates_from_children) {
     for (const auto& c : children.tiles) {
       if (c) append(in.interior, c->tile.interior);
     }
@@ -249,7 +249,13 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
   const std::size_t merged = 4 + in.north.size() + in.east.size() + in.south.size() +
                              in.west.size() + in.interior.size() + in.orphans.size();
   if (merged > options.max_points) {
-    for (const LodTile* t : finer) append(in.interior, t->witnesses);
+    if (sources.candidates_from_children) {
+      for (const auto& c : children.tiles) {
+        if (c) append(in.interior, c->witnesses);
+      }
+    } else {
+      for (const LodTile* t : finer) append(in.interior, t->witnesses);
+    }
   }
   auto thinned = thin_tile(in, options, stats);
   if (!thinned.ok()) return thinned.error();

@@ -429,6 +429,10 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
               break;
             }
           }
+          // All the data under one child, thinned from the same sources (the same counts give
+          // the same source level): its vertices are the candidates, the sources only measure.
+          const bool one_child = std::count_if(reads->begin(), reads->end(),
+                                               [](const auto& r) { return r.has_value(); }) == 1;
           auto sources = std::make_shared<std::vector<ReadTile>>();
           if (depth > 1) {
             const auto [b, e] = under(pid, z + depth);
@@ -439,31 +443,33 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
               sources->push_back(std::move(**t));
             }
           }
-          return TilePool::Job([reads, sources, depth, pid, lod, absent_z]() -> Result<Built> {
-            Children kids;
-            kids.absent_corner_z = absent_z;
-            for (std::size_t i = 0; i < 4; ++i) {
-              if (!(*reads)[i]) continue;
-              auto decoded = decode_lod_tile(*(*reads)[i]);
-              if (!decoded) return decoded.error();
-              kids.tiles[i] = std::move(*decoded);
-              (*reads)[i].reset();  // the compressed copy is not needed any more
-            }
-            Sources src;
-            src.depth = depth;
-            src.tiles.reserve(sources->size());
-            for (auto& r : *sources) {
-              auto decoded = decode_lod_tile(r);
-              if (!decoded) return decoded.error();
-              src.tiles.push_back(std::move(*decoded));
-              r = ReadTile{};
-            }
-            auto parent = build_from_sources(pid, kids, src, lod);
-            if (!parent) return parent.error();
-            auto stored = store::prepare_tile(parent->tile);
-            if (!stored) return stored.error();
-            return Built{std::move(*stored), detail::encode_side(*parent)};
-          });
+          return TilePool::Job(
+              [reads, sources, depth, one_child, pid, lod, absent_z]() -> Result<Built> {
+                Children kids;
+                kids.absent_corner_z = absent_z;
+                for (std::size_t i = 0; i < 4; ++i) {
+                  if (!(*reads)[i]) continue;
+                  auto decoded = decode_lod_tile(*(*reads)[i]);
+                  if (!decoded) return decoded.error();
+                  kids.tiles[i] = std::move(*decoded);
+                  (*reads)[i].reset();  // the compressed copy is not needed any more
+                }
+                Sources src;
+                src.depth = depth;
+                src.candidates_from_children = one_child && depth > 1;
+                src.tiles.reserve(sources->size());
+                for (auto& r : *sources) {
+                  auto decoded = decode_lod_tile(r);
+                  if (!decoded) return decoded.error();
+                  src.tiles.push_back(std::move(*decoded));
+                  r = ReadTile{};
+                }
+                auto parent = build_from_sources(pid, kids, src, lod);
+                if (!parent) return parent.error();
+                auto stored = store::prepare_tile(parent->tile);
+                if (!stored) return stored.error();
+                return Built{std::move(*stored), detail::encode_side(*parent)};
+              });
         },
         [&](Built&& b) -> Status {
           account(b.stored);

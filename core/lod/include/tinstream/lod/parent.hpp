@@ -53,6 +53,10 @@ struct Children {
 struct Sources {
   std::uint32_t depth = 1;
   std::vector<LodTile> tiles;
+  // The interior candidates (and orphans, witnesses) come from the children as for depth 1, the
+  // chained error from the sources: for a parent whose data all lie under one child that was
+  // thinned from these same sources, where thinning them again would mostly repeat its choice.
+  bool candidates_from_children = false;
 };
 
 // The parent's corners and outer border come from `children` (which its neighbours share, so
