@@ -5,8 +5,10 @@
 // version. Its sources are its tiles at the finest level s > z where it has at most
 // 4^source_depth tiles (its children when no deeper level qualifies): the finest tiles
 // themselves for the three levels above the finest, and wherever the data under a parent fit
-// that many finest tiles (above the level where the data fit one tile, every level is thinned
-// from the same finest tiles). Thinning from a finer surface than the children's keeps the coarse
+// that many finest tiles (above the level where the data fit one tile, every level measures
+// against the same finest tiles, and a parent with one child takes that child's vertices as its
+// candidates rather than thinning them again: Sources::candidates_from_children). Thinning from
+// a finer surface than the children's keeps the coarse
 // levels closer to greedy insertion from the data, and the chained error bound (error.hpp) runs
 // through about (L − z) / source_depth steps instead of L − z, so it stays close to the measured
 // error (bench/lod/RESULTS.md). The parent records at least its children's error. The summary's
