@@ -51,6 +51,7 @@ TEST(Parent, NeighbouringParentsBuiltIndependentlyAreWatertight) {
   const std::uint32_t z = 9, x0 = 100, y0 = 140;
   const auto kids = children_block(z, x0, y0, 0.05);
   std::vector<TinTile> child_level;
+  child_level.reserve(kids.size());
   for (const auto& [id, t] : kids) child_level.push_back(t.tile);
   ASSERT_TRUE(check_level_watertight(child_level).ok());
   LodOptions o;
@@ -156,6 +157,7 @@ TEST(Watertight, DetectsADifferentSharedPoint) {
   const std::uint32_t z = 9, x0 = 100, y0 = 140;
   auto kids = children_block(z, x0, y0, 0.1);
   std::vector<TinTile> level;
+  level.reserve(kids.size());
   for (const auto& [id, t] : kids) level.push_back(t.tile);
   ASSERT_TRUE(check_level_watertight(level).ok());
   ASSERT_FALSE(level[0].east.empty());
@@ -399,6 +401,7 @@ TEST(SurfaceDifference, ParentAgainstItsFourChildrenMatchesABruteForceOverlay) {
   auto p = build_parent(pid, kids, o);
   ASSERT_TRUE(p.ok()) << p.error().message;
   std::vector<const TinTile*> fines;
+  fines.reserve(copies.size());
   for (const auto& c : copies) fines.push_back(&c);
   const double brute = brute_max_difference(*p, fines);
   EXPECT_GT(brute, 1.0);

@@ -283,7 +283,7 @@ TEST(Pyramid, RealDemCropReducedAndThinnedThroughTheStore) {
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(dem.c_str(), GA_ReadOnly));
   ASSERT_NE(ds, nullptr);
   constexpr int kCells = 256, kOffX = 420, kOffY = 180;
-  std::vector<float> crop((kCells + 1) * (kCells + 1));
+  std::vector<float> crop(std::size_t{kCells + 1} * (kCells + 1));
   ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kCells + 1, kCells + 1,
                                            crop.data(), kCells + 1, kCells + 1, GDT_Float32, 0, 0),
             CE_None);
