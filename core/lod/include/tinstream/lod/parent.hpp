@@ -1,4 +1,4 @@
-// tinstream/lod/parent.hpp — one parent tile from its four children (DESIGN.md §3, pass 4).
+// tinstream/lod/parent.hpp — one parent tile from its four children (docs/DESIGN.md §3.5, pass 4).
 //
 // Merge rule: the children's interior points, plus the children's edge points that lie on the
 // parent's outer border, plus the children's corners at the midpoints of the parent's sides
