@@ -4,6 +4,7 @@
 #include <cmath>
 #include <deque>
 #include <string>
+#include <vector>
 
 #include "tinstream/kernel/triangulation.hpp"
 #include "triangulation_detail.hpp"
@@ -26,10 +27,37 @@ Status Triangulation::insert_constraint(VertexId a, VertexId b) {
     return unsupported(seg_name(a, b) +
                        ": needs a two-dimensional triangulation (three non-collinear points)");
   }
+  const std::size_t budget = 16 + 4 * segments_.size();
+  intersections_left_ = budget;
   segments_.push_back({a, b});
   has_constraints_ = true;
   randomize_walk_ = true;
-  return insert_segment(a, b);
+  Status inserted = insert_segment(a, b);
+  // Crossing constraints: each crossed one is re-routed through a rounded intersection vertex,
+  // which can leave a flipped edge outside the ones restore_delaunay was given (kernel_fuzzer
+  // found such non-Delaunay edges after segments of 1e9 units crossing unit ones). Rare in real
+  // data (border chains and breaklines seldom cross), so then every edge is checked: O(n).
+  if (inserted.ok()) {
+    if (intersections_left_ != budget) restore_delaunay_everywhere();
+    return inserted;
+  }
+  // The segment could not be made a chain (rounded intersection points of long, nearly parallel
+  // crossing constraints can cascade; found by kernel_fuzzer). Its flips were all valid, so the
+  // mesh is still a triangulation, but edges it flipped may not be Delaunay and a constraint it
+  // crossed may be half re-routed. Leave a valid constrained Delaunay triangulation behind, and
+  // forget every recorded segment that is no longer a chain of constrained edges, by name in the
+  // error.
+  restore_delaunay_everywhere();
+  std::string dropped;
+  std::erase_if(segments_, [&](const std::array<VertexId, 2>& s) {
+    if (segment_chain_present(s[0], s[1])) return false;
+    dropped += (dropped.empty() ? "" : ", ") + std::to_string(s[0]) + "-" + std::to_string(s[1]);
+    return true;
+  });
+  hint_ = mesh_.vertex_triangle(a);
+  return Error(inserted.error().code, inserted.error().message +
+                                          " (the triangulation stays valid without segment(s) " +
+                                          dropped + ")");
 }
 
 Result<std::array<VertexId, 2>> Triangulation::insert_constraint(const Point3& a, const Point3& b) {
@@ -46,7 +74,7 @@ Result<std::array<VertexId, 2>> Triangulation::insert_constraint(const Point3& a
 
 // Inserts the intersection of segment a-b with the constrained edge opposite v[edge] of t; the
 // constrained edge becomes the chain c1-X-c2. Returns X (an existing vertex when X rounds onto
-// one), or kNone when it cannot be inserted.
+// one), or kNone when it cannot be inserted or the cascade budget (intersections_left_) is spent.
 VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t, int edge) {
   const VertexId c1 = mesh_.tri(t).v[next3(edge)], c2 = mesh_.tri(t).v[prev3(edge)];
   const XY &pa = mesh_.xy(a), &pb = mesh_.xy(b), &p1 = mesh_.xy(c1), &p2 = mesh_.xy(c2);
@@ -58,6 +86,8 @@ VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t
   if (s > 1.0) s = 1.0;
   Point3 x{pa.x + s * dx, pa.y + s * dy, mesh_.z(a) + s * (mesh_.z(b) - mesh_.z(a)),
            std::max(mesh_.weight(a), mesh_.weight(b))};
+  if (intersections_left_ == 0) return kNone;
+  --intersections_left_;
   hint_ = t;
   const InsertResult r = insert(x);
   if (r.vertex == kNone) return kNone;
@@ -78,6 +108,20 @@ VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t
     restore_delaunay(edges);
   }
   return r.vertex;
+}
+
+// Lawson flips from every finite edge: they converge to the constrained Delaunay triangulation
+// from any triangulation with the same constrained edges.
+void Triangulation::restore_delaunay_everywhere() {
+  std::vector<std::array<VertexId, 2>> edges;
+  for (TriangleId t = 0; t < mesh_.triangle_slots(); ++t) {
+    if (!mesh_.is_live(t) || mesh_.is_ghost(t)) continue;
+    const Triangle& T = mesh_.tri(t);
+    for (int i = 0; i < 3; ++i) {
+      if (T.v[next3(i)] < T.v[prev3(i)]) edges.push_back({T.v[next3(i)], T.v[prev3(i)]});
+    }
+  }
+  restore_delaunay(edges);
 }
 
 // Lawson flips starting from the given edges (vertex pairs) until every unconstrained edge
@@ -155,9 +199,13 @@ Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
     for (;;) {
       if (mesh_.constrained(cur, ci)) {
         const VertexId x = insert_intersection(s, e, cur, ci);
-        if (x == kNone)
+        if (x == kNone) {
           return Error(ErrorCode::internal,
-                       seg_name(s, e) + ": could not insert the intersection point");
+                       seg_name(s, e) + (intersections_left_ == 0
+                                             ? ": its crossings with rounded intersection points "
+                                               "cascade (too many intersection vertices)"
+                                             : ": could not insert the intersection point"));
+        }
         work.push_back({x, e});
         work.push_back({s, x});
         split = true;

@@ -1,4 +1,6 @@
-// A parent tile from its four children: merge (drop the internal cross), thin, measure.
+// A parent tile from its four children and its sources (the tiles some levels below): merge
+// (corners and outer border from the children, the rest from the sources, whose inner grid lines
+// are orphans), thin, measure. With the children as sources:
 //
 //        parent                      children (quadkey digits)
 //   NW ────── mN ────── NE            ┌────┬────┐
@@ -10,7 +12,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <set>
 #include <string>
+#include <tuple>
 
 #include "tinstream/lod/error.hpp"
 
@@ -21,91 +26,174 @@ using tile::Vertex;
 
 namespace {
 
-// The corner shared by the children listed as (child, corner) pairs, from the first child present.
-// nullopt when none is present or that corner has no data.
-std::optional<Vertex> shared_corner(const std::array<std::optional<LodTile>, 4>& ch,
-                                    std::initializer_list<std::pair<int, int>> where) {
-  for (auto [c, k] : where) {
-    const auto& t = ch[static_cast<std::size_t>(c)];
-    if (!t) continue;
-    if (t->tile.corner_nodata[static_cast<std::size_t>(k)]) return std::nullopt;
-    return t->tile.corners[static_cast<std::size_t>(k)];
-  }
-  return std::nullopt;
-}
-
 void append(std::vector<Vertex>& out, const std::vector<Vertex>& in) {
   out.insert(out.end(), in.begin(), in.end());
 }
 
-// The children's points as the parent's thinning input (the merge rule of parent.hpp).
-ThinInput merge_children(const geo::TileId& parent, const Children& children) {
-  const auto& ch = children.tiles;
+// Tiles `depth` levels under a parent as a sparse n × n grid (n = 2^depth), column i from the
+// west, row j from the north.
+class TileGrid {
+ public:
+  template <typename Tiles, typename Get>
+  TileGrid(const geo::TileId& parent, std::uint32_t depth, const Tiles& tiles, Get get)
+      : n_(std::uint64_t{1} << depth) {
+    for (const auto& t : tiles) {
+      const TinTile* tt = get(t);
+      if (!tt) continue;
+      const std::uint64_t i = tt->id.x - (std::uint64_t{parent.x} << depth);
+      const std::uint64_t j = tt->id.y - (std::uint64_t{parent.y} << depth);
+      cells_.emplace(std::pair{i, j}, tt);
+    }
+  }
+  std::uint64_t n() const { return n_; }
+  const std::map<std::pair<std::uint64_t, std::uint64_t>, const TinTile*>& cells() const {
+    return cells_;
+  }
+  const TinTile* at(std::uint64_t i, std::uint64_t j) const {
+    if (i >= n_ || j >= n_) return nullptr;  // off the grid (unsigned wrap included)
+    const auto it = cells_.find({i, j});
+    return it == cells_.end() ? nullptr : it->second;
+  }
+  // The data corner at grid vertex (gi, gj) (0 … n each way), from the first present tile of
+  // those that meet there, in the order NW, NE, SW, SE of the vertex; nullopt when none is
+  // present or that corner has no data.
+  std::optional<Vertex> corner(std::uint64_t gi, std::uint64_t gj) const {
+    const std::array<std::tuple<std::uint64_t, std::uint64_t, std::size_t>, 4> around = {
+        {{gi - 1, gj - 1, 3}, {gi, gj - 1, 2}, {gi - 1, gj, 1}, {gi, gj, 0}}};
+    for (const auto& [i, j, k] : around) {
+      const TinTile* t = at(i, j);
+      if (!t) continue;
+      if (t->corner_nodata[k]) return std::nullopt;
+      return t->corners[k];
+    }
+    return std::nullopt;
+  }
+
+  // The points of the outer side `d`, in the parent's edge order (west to east, north to
+  // south): each present tile's side, with the data corners between consecutive tiles.
+  std::vector<Vertex> outer_side(geo::Direction d) const {
+    using D = geo::Direction;
+    const bool along_x = d == D::north || d == D::south;
+    const std::uint64_t fixed = (d == D::north || d == D::west) ? 0 : n_ - 1;
+    const std::uint64_t vfixed = fixed == 0 ? 0 : n_;
+    std::vector<std::pair<std::uint64_t, const TinTile*>> line;  // by position along the side
+    for (const auto& [ij, t] : cells_) {
+      const auto [i, j] = ij;
+      if ((along_x ? j : i) == fixed) line.emplace_back(along_x ? i : j, t);
+    }
+    std::sort(line.begin(), line.end());
+    auto vertex = [&](std::uint64_t s) { return along_x ? corner(s, vfixed) : corner(vfixed, s); };
+    std::vector<Vertex> out;
+    for (std::size_t q = 0; q < line.size(); ++q) {
+      const auto [s, t] = line[q];
+      const bool previous_present = q > 0 && line[q - 1].first + 1 == s;
+      if (s > 0 && !previous_present) {
+        if (auto c = vertex(s)) out.push_back(*c);
+      }
+      append(out, side(*t, d));
+      if (s + 1 < n_) {
+        if (auto c = vertex(s + 1)) out.push_back(*c);
+      }
+    }
+    return out;
+  }
+
+  // The points on the inner grid lines (one copy of each shared side, then the inner grid
+  // vertices): cut artefacts, the thinning's orphans.
+  void inner_lines(std::vector<Vertex>& out) const {
+    // (line, position along it, side): vertical lines, then horizontal ones, each in order.
+    std::vector<std::tuple<std::uint64_t, std::uint64_t, const std::vector<Vertex>*>> vertical,
+        horizontal;
+    std::set<std::pair<std::uint64_t, std::uint64_t>> vertices;  // (gj, gi)
+    for (const auto& [ij, t] : cells_) {
+      const auto [i, j] = ij;
+      if (i + 1 < n_) vertical.emplace_back(i + 1, j, &t->east);
+      if (i > 0 && !at(i - 1, j)) vertical.emplace_back(i, j, &t->west);
+      if (j + 1 < n_) horizontal.emplace_back(j + 1, i, &t->south);
+      if (j > 0 && !at(i, j - 1)) horizontal.emplace_back(j, i, &t->north);
+      for (std::uint64_t c = 0; c < 4; ++c) {
+        const std::uint64_t gi = i + (c & 1), gj = j + (c >> 1);
+        if (gi > 0 && gi < n_ && gj > 0 && gj < n_) vertices.emplace(gj, gi);
+      }
+    }
+    std::sort(vertical.begin(), vertical.end());
+    std::sort(horizontal.begin(), horizontal.end());
+    for (const auto& [line, s, side_points] : vertical) append(out, *side_points);
+    for (const auto& [line, s, side_points] : horizontal) append(out, *side_points);
+    for (const auto& [gj, gi] : vertices) {
+      if (auto c = corner(gi, gj)) out.push_back(*c);
+    }
+  }
+
+ private:
+  static const std::vector<Vertex>& side(const TinTile& t, geo::Direction d) {
+    switch (d) {
+      case geo::Direction::north:
+        return t.north;
+      case geo::Direction::east:
+        return t.east;
+      case geo::Direction::south:
+        return t.south;
+      case geo::Direction::west:
+        break;
+    }
+    return t.west;
+  }
+
+  std::uint64_t n_;
+  std::map<std::pair<std::uint64_t, std::uint64_t>, const TinTile*> cells_;
+};
+
+// The thinning input of a parent (the merge rule of parent.hpp): corners and outer border from
+// the children, interior points from the sources, their inner grid lines as orphans (and, for
+// sources deeper than the children, their points on the outer border too: part of the surface,
+// but the border's candidates are the children's, which the neighbour shares).
+ThinInput merge(const geo::TileId& parent, const Children& children, const Sources& sources) {
+  const TileGrid kids(parent, 1, children.tiles,
+                      [](const std::optional<LodTile>& t) { return t ? &t->tile : nullptr; });
   ThinInput in;
   in.id = parent;
   const geo::MercatorRect r = parent.bounds();
   const std::array<std::array<double, 2>, 4> corner_xy = {
       {{r.min_x, r.max_y}, {r.max_x, r.max_y}, {r.min_x, r.min_y}, {r.max_x, r.min_y}}};
   for (std::size_t k = 0; k < 4; ++k) {
-    if (ch[k]) {
-      in.corners[k] = ch[k]->tile.corners[k];
-      in.corner_nodata[k] = ch[k]->tile.corner_nodata[k];
+    if (const auto& c = children.tiles[k]) {
+      in.corners[k] = c->tile.corners[k];
+      in.corner_nodata[k] = c->tile.corner_nodata[k];
     } else {
       in.corners[k] = Vertex{corner_xy[k][0], corner_xy[k][1], children.absent_corner_z[k], 0.0};
       in.corner_nodata[k] = true;
     }
   }
-  auto side_of = [&](int c, geo::Direction d) -> const std::vector<Vertex>* {
-    const auto& t = ch[static_cast<std::size_t>(c)];
-    if (!t) return nullptr;
-    switch (d) {
-      case geo::Direction::north:
-        return &t->tile.north;
-      case geo::Direction::east:
-        return &t->tile.east;
-      case geo::Direction::south:
-        return &t->tile.south;
-      case geo::Direction::west:
-        return &t->tile.west;
-    }
-    return nullptr;
-  };
   using D = geo::Direction;
-  // Outer border: first half, midpoint, second half, in the parent's edge order.
-  auto outer = [&](std::vector<Vertex>& list, int c0, int c1, D d, std::optional<Vertex> mid) {
-    if (const auto* s = side_of(c0, d)) append(list, *s);
-    if (mid) list.push_back(*mid);
-    if (const auto* s = side_of(c1, d)) append(list, *s);
-  };
-  outer(in.north, 0, 1, D::north, shared_corner(ch, {{0, 1}, {1, 0}}));
-  outer(in.east, 1, 3, D::east, shared_corner(ch, {{1, 3}, {3, 1}}));
-  outer(in.south, 2, 3, D::south, shared_corner(ch, {{2, 3}, {3, 2}}));
-  outer(in.west, 0, 2, D::west, shared_corner(ch, {{0, 2}, {2, 0}}));
-  for (const auto& c : ch) {
-    if (c) append(in.interior, c->tile.interior);
-  }
-  // The internal cross: one copy of each shared child side, and the centre.
-  auto cross = [&](int a, D da, int b, D db) {
-    if (const auto* s = side_of(a, da)) {
-      append(in.orphans, *s);
-    } else if (const auto* t = side_of(b, db)) {
-      append(in.orphans, *t);
+  in.north = kids.outer_side(D::north);
+  in.east = kids.outer_side(D::east);
+  in.south = kids.outer_side(D::south);
+  in.west = kids.outer_side(D::west);
+  if (sources.depth == 1 || sources.candidates_from_children) {
+    for (const auto& c : children.tiles) {
+      if (c) append(in.interior, c->tile.interior);
     }
-  };
-  cross(0, D::east, 1, D::west);
-  cross(2, D::east, 3, D::west);
-  cross(0, D::south, 2, D::north);
-  cross(1, D::south, 3, D::north);
-  if (auto c = shared_corner(ch, {{0, 3}, {1, 2}, {2, 1}, {3, 0}})) in.orphans.push_back(*c);
+    kids.inner_lines(in.orphans);
+    return in;
+  }
+  const TileGrid grid(parent, sources.depth, sources.tiles,
+                      [](const LodTile& t) { return &t.tile; });
+  for (const auto& t : sources.tiles) append(in.interior, t.tile.interior);
+  grid.inner_lines(in.orphans);
+  for (const D d : {D::north, D::east, D::south, D::west}) append(in.orphans, grid.outer_side(d));
   return in;
 }
 
 }  // namespace
 
-Result<LodTile> build_parent(const geo::TileId& parent, Children children,
-                             const LodOptions& options, ThinStats* stats) {
-  if (!parent.valid() || parent.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) {
-    return invalid_argument("lod: invalid parent tile " + parent.to_string());
+Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& children,
+                                   const Sources& sources, const LodOptions& options,
+                                   ThinStats* stats) {
+  if (!parent.valid() || parent.z >= static_cast<std::uint32_t>(geo::kMaxLevel) ||
+      sources.depth < 1 || sources.depth > geo::kMaxLevel - parent.z) {
+    return invalid_argument("lod: invalid parent tile " + parent.to_string() + " or source depth " +
+                            std::to_string(sources.depth));
   }
   const auto kids = parent.children();
   bool any = false;
@@ -118,25 +206,55 @@ Result<LodTile> build_parent(const geo::TileId& parent, Children children,
                               " is " + c->tile.id.to_string() + ", expected " +
                               kids[i].to_string());
     }
-    if (!c->bounds.empty() && c->bounds.size() != c->tile.triangles.size()) {
-      return invalid_argument("lod: child " + c->tile.id.to_string() + " has " +
-                              std::to_string(c->bounds.size()) + " triangle bounds for " +
-                              std::to_string(c->tile.triangles.size()) + " triangles");
-    }
   }
   if (!any) return invalid_argument("lod: parent " + parent.to_string() + " has no children");
+  if (sources.depth > 1 && sources.tiles.empty()) {
+    return invalid_argument("lod: parent " + parent.to_string() + " has no source tiles");
+  }
+  std::set<geo::TileId> seen;
+  for (const auto& t : sources.tiles) {
+    const geo::TileId& id = t.tile.id;
+    if (sources.depth == 1 || id.z != parent.z + sources.depth ||
+        (id.x >> sources.depth) != parent.x || (id.y >> sources.depth) != parent.y) {
+      return invalid_argument("lod: tile " + id.to_string() + " is not a source of " +
+                              parent.to_string() + " at depth " + std::to_string(sources.depth));
+    }
+    if (!seen.insert(id).second) {
+      return invalid_argument("lod: source tile " + id.to_string() + " given twice");
+    }
+  }
+  // The tiles the parent is thinned from and measured against.
+  std::vector<const LodTile*> finer;
+  if (sources.depth == 1) {
+    for (const auto& c : children.tiles) {
+      if (c) finer.push_back(&*c);
+    }
+  } else {
+    for (const auto& t : sources.tiles) finer.push_back(&t);
+  }
+  for (const LodTile* t : finer) {
+    if (!t->bounds.empty() && t->bounds.size() != t->tile.triangles.size()) {
+      return invalid_argument("lod: tile " + t->tile.id.to_string() + " has " +
+                              std::to_string(t->bounds.size()) + " triangle bounds for " +
+                              std::to_string(t->tile.triangles.size()) + " triangles");
+    }
+  }
 
-  ThinInput in = merge_children(parent, children);
-  // The children's witnesses join the candidates only where the children's own points exceed the
+  ThinInput in = merge(parent, children, sources);
+  // The finer tiles' witnesses join the candidates only where their own points exceed the
   // budget: when they fit, the parent keeps them all (thin_tile drops at most the few corners it
-  // adds), and a witness could only displace a child's vertex whose removal the thinning judges
+  // adds), and a witness could only displace a finer vertex whose removal the thinning judges
   // at the known points alone, not at the finest data under it (measured on one-tile levels of a
   // 512 x 512 DEM: 1.44x the error of the level below with witnesses, bench/lod/RESULTS.md).
   const std::size_t merged = 4 + in.north.size() + in.east.size() + in.south.size() +
                              in.west.size() + in.interior.size() + in.orphans.size();
   if (merged > options.max_points) {
-    for (const auto& c : children.tiles) {
-      if (c) append(in.interior, c->witnesses);
+    if (sources.candidates_from_children) {
+      for (const auto& c : children.tiles) {
+        if (c) append(in.interior, c->witnesses);
+      }
+    } else {
+      for (const LodTile* t : finer) append(in.interior, t->witnesses);
     }
   }
   auto thinned = thin_tile(in, options, stats);
@@ -144,28 +262,35 @@ Result<LodTile> build_parent(const geo::TileId& parent, Children children,
   LodTile out;
   out.tile = std::move(*thinned);
 
-  // Error against the finest data (error.hpp), chained through the children's witnesses and
+  // Error against the finest data (error.hpp), chained through the finer tiles' witnesses and
   // bounds; the parent's own witnesses come out of it.
-  std::vector<ChainInput> finer;
-  for (const auto& c : children.tiles) {
-    if (!c) continue;
-    out.tile.source_points += c->tile.source_points;
-    finer.push_back(c->as_chain_input());
+  std::vector<ChainInput> chain;
+  chain.reserve(finer.size());
+  double finer_error = 0;
+  for (const LodTile* t : finer) {
+    out.tile.source_points += t->tile.source_points;
+    chain.push_back(t->as_chain_input());
+    finer_error = std::max(finer_error, t->tile.geometric_error);
   }
-  ChainedError e = chain_error(out.tile, finer, witness_count(options));
+  for (const auto& c : children.tiles) {
+    if (c) finer_error = std::max(finer_error, c->tile.geometric_error);
+  }
+  ChainedError e = chain_error(out.tile, chain, witness_count(options));
   // Monotone up the pyramid (a client refines while a tile's error is too large, so a parent's
   // must not promise less than a child's): the chained bound, an upper bound of the parent's error
-  // over the data, can come out below a child's looser one; the larger of the two still bounds it.
-  double children_error = 0;
-  for (const auto& c : children.tiles) {
-    if (c) children_error = std::max(children_error, c->tile.geometric_error);
-  }
-  out.tile.geometric_error = std::max(e.geometric_error, children_error);
+  // over the data, can come out below a child's (or a source's) looser one; the larger still
+  // bounds it.
+  out.tile.geometric_error = std::max(e.geometric_error, finer_error);
   out.tile.rms_error = e.rms_error;
   out.bounds = std::move(e.bounds);
   out.reaches = std::move(e.reaches);
   out.witnesses = std::move(e.witnesses);
   return out;
+}
+
+Result<LodTile> build_parent(const geo::TileId& parent, const Children& children,
+                             const LodOptions& options, ThinStats* stats) {
+  return build_from_sources(parent, children, Sources{}, options, stats);
 }
 
 Result<TinTile> build_parent(const geo::TileId& parent,
@@ -187,7 +312,7 @@ Result<TinTile> build_parent(const geo::TileId& parent,
     }
     ch.absent_corner_z[k] = best ? best->z : 0.0;
   }
-  auto built = build_parent(parent, std::move(ch), options, stats);
+  auto built = build_parent(parent, ch, options, stats);
   if (!built) return built.error();
   return std::move(built->tile);
 }

@@ -366,6 +366,28 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   }
 
   // ---- levels finest-1 … min_level -----------------------------------------------------------
+  // A parent at level z is thinned from its sources: the tiles under it at the finest level
+  // whose tiles there number at most 4^source_depth (at least its children). Every level's tile
+  // ids stay listed (Morton order) and its side records kept, since any coarser level may read it.
+  const std::uint32_t k = std::clamp<std::uint32_t>(options.source_depth, 1, 8);
+  const std::size_t max_sources = std::size_t{1} << (2 * k);
+  std::vector<std::vector<std::pair<std::uint64_t, geo::TileId>>> levels(finest_level + 1);
+  auto index_level = [&](std::uint32_t z, const std::vector<geo::TileId>& ids) {
+    auto& l = levels[z];
+    l.reserve(ids.size());
+    for (const auto& id : ids) l.emplace_back(id.morton(), id);
+    std::sort(l.begin(), l.end());
+  };
+  // The tiles of level s under `p` (a contiguous Morton range).
+  auto under = [&](const geo::TileId& p, std::uint32_t s) {
+    const auto& l = levels[s];
+    const std::uint32_t shift = 2 * (s - p.z);
+    const std::uint64_t lo = p.morton() << shift, hi = (p.morton() + 1) << shift;
+    const auto b = std::lower_bound(l.begin(), l.end(), std::pair{lo, geo::TileId{}});
+    const auto e = std::lower_bound(b, l.end(), std::pair{hi, geo::TileId{}});
+    return std::pair{b, e};
+  };
+  index_level(finest_level, *finest_ids);
   std::vector<geo::TileId> child_ids = std::move(*finest_ids);
   for (std::uint32_t z = finest_level; z-- > min_level;) {
     std::set<geo::TileId> parent_set;
@@ -390,7 +412,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
             auto t = read(ids[i]);
             if (!t.ok()) return t.error();
             if (*t) {
-              account((*t)->stored);
+              if (z + 1 == finest_level) account((*t)->stored);  // each finest tile once
               (*reads)[i] = std::move(**t);
               continue;
             }
@@ -398,33 +420,67 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
             if (!z_corner) return z_corner.error();
             absent_z[i] = *z_corner;
           }
-          return TilePool::Job([reads, pid, lod, absent_z]() -> Result<Built> {
-            Children kids;
-            kids.absent_corner_z = absent_z;
-            for (std::size_t i = 0; i < 4; ++i) {
-              if (!(*reads)[i]) continue;
-              auto decoded = decode_lod_tile(*(*reads)[i]);
-              if (!decoded) return decoded.error();
-              kids.tiles[i] = std::move(*decoded);
-              (*reads)[i].reset();  // the compressed copy is not needed any more
+          // The deepest level whose tiles under the parent fit max_sources.
+          std::uint32_t depth = 1;
+          for (std::uint32_t sl = finest_level; sl > z + 1; --sl) {
+            const auto [b, e] = under(pid, sl);
+            if (static_cast<std::size_t>(e - b) <= max_sources) {
+              depth = sl - z;
+              break;
             }
-            auto parent = build_parent(pid, std::move(kids), lod);
-            if (!parent) return parent.error();
-            auto stored = store::prepare_tile(parent->tile);
-            if (!stored) return stored.error();
-            return Built{std::move(*stored), detail::encode_side(*parent)};
-          });
+          }
+          // All the data under one child, thinned from the same sources (the same counts give
+          // the same source level): its vertices are the candidates, the sources only measure.
+          const bool one_child = std::count_if(reads->begin(), reads->end(),
+                                               [](const auto& r) { return r.has_value(); }) == 1;
+          auto sources = std::make_shared<std::vector<ReadTile>>();
+          if (depth > 1) {
+            const auto [b, e] = under(pid, z + depth);
+            for (auto it = b; it != e; ++it) {
+              auto t = read(it->second);
+              if (!t.ok()) return t.error();
+              if (!*t) return not_found("lod: tile " + it->second.to_string() + " vanished");
+              sources->push_back(std::move(**t));
+            }
+          }
+          return TilePool::Job(
+              [reads, sources, depth, one_child, pid, lod, absent_z]() -> Result<Built> {
+                Children kids;
+                kids.absent_corner_z = absent_z;
+                for (std::size_t i = 0; i < 4; ++i) {
+                  if (!(*reads)[i]) continue;
+                  auto decoded = decode_lod_tile(*(*reads)[i]);
+                  if (!decoded) return decoded.error();
+                  kids.tiles[i] = std::move(*decoded);
+                  (*reads)[i].reset();  // the compressed copy is not needed any more
+                }
+                Sources src;
+                src.depth = depth;
+                src.candidates_from_children = one_child && depth > 1;
+                src.tiles.reserve(sources->size());
+                for (auto& r : *sources) {
+                  auto decoded = decode_lod_tile(r);
+                  if (!decoded) return decoded.error();
+                  src.tiles.push_back(std::move(*decoded));
+                  r = ReadTile{};
+                }
+                auto parent = build_from_sources(pid, kids, src, lod);
+                if (!parent) return parent.error();
+                auto stored = store::prepare_tile(parent->tile);
+                if (!stored) return stored.error();
+                return Built{std::move(*stored), detail::encode_side(*parent)};
+              });
         },
         [&](Built&& b) -> Status {
-          if (b.stored.id.z == min_level) account(b.stored);
+          account(b.stored);
           const geo::TileId id = b.stored.id;
           if (Status st = put(std::move(b)); !st.ok()) return st;
           written.push_back(id);
           return {};
         });
     if (!s.ok()) return s.error();
-    side.forget_level(z + 1);
     summary.tiles_built += written.size();
+    index_level(z, written);
     child_ids = std::move(written);
   }
   if (Status s = report(true); !s.ok()) return s.error();

@@ -1,7 +1,7 @@
 // What pass 4 hands from one level to the next beside the stored tiles (lod_tile.hpp): each
 // tile's per-triangle error bounds and its witnesses, serialised, in one append-only scratch file
-// per level (or in memory), dropped as soon as the next coarser level is built. Never published:
-// it only lives while the pyramid is built.
+// per level (or in memory), kept until the pyramid is built (pyramid.hpp: any coarser level may
+// read a level's records). Never published: it only lives while the pyramid is built.
 //
 //   record  = u32 triangles, triangles × (f32 above, f32 below),
 //             u32 reaches, reaches × (u32 triangle, f64 reach),

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <map>
+#include <string>
 #include <tuple>
 
 #include "lod_test_support.hpp"
@@ -153,6 +154,75 @@ TEST(Parent, RejectsWrongOrNoChildren) {
   EXPECT_FALSE(build_parent(pid, wrong, LodOptions{}).ok());
 }
 
+// A parent from its 16 grandchildren (sources at depth 2): corners and border exactly as from its
+// children alone (what its neighbours share), an error bound over the grandchildren's data, and
+// the bad inputs named.
+TEST(Parent, FromGrandchildrenKeepsTheChildrensBorderAndBoundsTheError) {
+  const geo::TileId pid{9, 100, 140};
+  const auto grandchildren = children_block(10, 200, 280, 0.05);  // the 4 × 4 under pid
+  std::map<geo::TileId, LodTile> children;
+  LodOptions o;
+  o.max_points = 300;
+  for (const auto& c : pid.children()) {
+    auto built = build_parent(c, kids_of(c, grandchildren), o);
+    ASSERT_TRUE(built.ok()) << built.error().message;
+    children.emplace(c, std::move(*built));
+  }
+  const Children kids = kids_of(pid, children);
+  Sources sources;
+  sources.depth = 2;
+  std::vector<TinTile> finest;
+  for (const auto& [id, t] : grandchildren) {
+    sources.tiles.push_back(t);
+    finest.push_back(t.tile);
+  }
+  auto deep = build_from_sources(pid, kids, sources, o);
+  ASSERT_TRUE(deep.ok()) << deep.error().message;
+  auto shallow = build_parent(pid, kids, o);
+  ASSERT_TRUE(shallow.ok()) << shallow.error().message;
+  const TinTile &d = deep->tile, &s = shallow->tile;
+  EXPECT_TRUE(tile::check_structure(d).ok());
+  EXPECT_LE(d.vertex_count(), o.max_points);
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(d.corners[k].z, s.corners[k].z) << k;
+    EXPECT_EQ(d.corner_nodata[k], s.corner_nodata[k]) << k;
+  }
+  auto same = [](const std::vector<tile::Vertex>& a, const std::vector<tile::Vertex>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (a[i].x != b[i].x || a[i].y != b[i].y || a[i].z != b[i].z) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(same(d.north, s.north) && same(d.east, s.east) && same(d.south, s.south) &&
+              same(d.west, s.west));
+  // The grandchildren are reduced grids: their own bounds plus the parent's difference to them.
+  double grandchildren_error = 0;
+  for (const auto& t : finest)
+    grandchildren_error = std::max(grandchildren_error, t.geometric_error);
+  EXPECT_GE(d.geometric_error, testing::data_point_max_difference(d, finest));
+  for (const auto& [id, c] : children) EXPECT_GE(d.geometric_error, c.tile.geometric_error);
+  EXPECT_GT(d.geometric_error, grandchildren_error);
+
+  auto error_of = [&](const Sources& bad) {
+    auto r = build_from_sources(pid, kids, bad, o);
+    return r.ok() ? std::string("accepted") : r.error().message;
+  };
+  Sources none;
+  none.depth = 2;
+  EXPECT_NE(error_of(none).find("no source tiles"), std::string::npos) << error_of(none);
+  Sources twice = sources;
+  twice.tiles.push_back(sources.tiles.front());
+  EXPECT_NE(error_of(twice).find("given twice"), std::string::npos) << error_of(twice);
+  Sources outside = sources;
+  outside.tiles.front().tile.id.x += 4;  // the next parent's grandchild
+  EXPECT_NE(error_of(outside).find("is not a source of"), std::string::npos) << error_of(outside);
+  Sources wrong_level = sources;
+  wrong_level.depth = 3;
+  EXPECT_NE(error_of(wrong_level).find("is not a source of"), std::string::npos)
+      << error_of(wrong_level);
+}
+
 TEST(Watertight, DetectsADifferentSharedPoint) {
   const std::uint32_t z = 9, x0 = 100, y0 = 140;
   auto kids = children_block(z, x0, y0, 0.1);
@@ -189,7 +259,7 @@ double brute_max_difference(const TinTile& coarse, const std::vector<const TinTi
       bool nodata = false;
       for (auto i : tr) nodata = nodata || (i < 4 && t.corner_nodata[i]);
       if (nodata && data_only) continue;
-      for (int k = 0; k < 3; ++k) e.emplace_back(v[tr[k]], v[tr[(k + 1) % 3]]);
+      for (std::size_t k = 0; k < 3; ++k) e.emplace_back(v[tr[k]], v[tr[(k + 1) % 3]]);
     }
     return e;
   };

@@ -204,6 +204,7 @@ class Triangulation {
 
   Status insert_segment(VertexId a, VertexId b);
   void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
+  void restore_delaunay_everywhere();
   VertexId insert_intersection(VertexId a, VertexId b, TriangleId t, int edge);
 
   // Vertex removal (remove.cpp): plan_removal fills the hole (the re-triangulated star, in
@@ -221,6 +222,10 @@ class Triangulation {
   std::optional<Rect> domain_;
   std::vector<VertexId> pending_;  // vertices while dimension < 2
   std::vector<std::array<VertexId, 2>> segments_;
+  // Intersection vertices the current insert_constraint may still add: rounded intersection
+  // points bend the crossed constraints, which can cross others near them again; this bounds
+  // that cascade (set from the number of recorded segments).
+  std::size_t intersections_left_ = 0;
   // Flip stack storage: its size is its capacity (grown by legalize, never shrunk); how much of
   // it is in use is legalize's local `top`.
   std::vector<std::pair<TriangleId, int>> stack_ = std::vector<std::pair<TriangleId, int>>(64);

@@ -1,29 +1,39 @@
-// tinstream/lod/parent.hpp — one parent tile from its four children (docs/DESIGN.md §3.5, pass 4).
+// tinstream/lod/parent.hpp — one coarse tile from the finer tiles under it (docs/DESIGN.md §3.5,
+// pass 4): its four children, and optionally its "sources", the tiles several levels below it
+// (build_from_sources), so that a coarse level is thinned from a finer surface than its
+// children's already thinned one and its chained error bound (error.hpp) runs through fewer
+// levels (pyramid.hpp chooses the sources).
 //
-// Merge rule: the children's interior points, plus the children's edge points that lie on the
-// parent's outer border, plus the children's corners at the midpoints of the parent's sides
-// (unless NODATA), plus the children's witnesses (lod_tile.hpp: finest data points where a child
-// deviates most), become the parent's candidates. The children's points on the internal cross
-// (the two lines that split the parent) are cut artefacts: they are not candidates, but they do
-// feed the thinning's error estimate as orphans, since they are part of the surface.
+// Merge rule. Corners and outer border come from the children, always: the parent's corner k is
+// child k's corner k (NODATA flag and height); its sides are the children's edge points on them
+// plus the children's corners at the midpoints of its sides (unless NODATA). A neighbour builds
+// its side from the same children's sides, so same-level tiles stay watertight whatever their
+// sources. The interior candidates are the sources' interior points (depth 1: the children's),
+// plus the sources' witnesses (lod_tile.hpp: finest data points where a source deviates most)
+// where the sources' points exceed the budget. The sources' points on the inner grid lines
+// (depth 1: the internal cross, the two lines that split the parent) and the inner grid vertices
+// are cut artefacts: they are not candidates, but they do feed the thinning's error estimate as
+// orphans, since they are part of the surface; for depth > 1 so are the sources' points on the
+// outer border (the border's candidates are the children's).
 //
-// Corners: the parent's corner k is child k's corner k, NODATA flag and height. An absent child
-// (no data) gives a NODATA corner whose height the caller supplies (Children::absent_corner_z):
-// docs/tile-format.md §2.1 takes it from the tiles of the children's level around that corner,
-// which the pyramid reads; deciding it from the children alone could disagree with the tile
-// across the corner, whose children are different tiles.
+// An absent child (no data) gives a NODATA corner whose height the caller supplies
+// (Children::absent_corner_z): docs/tile-format.md §2.1 takes it from the tiles of the children's
+// level around that corner, which the pyramid reads; deciding it from the children alone could
+// disagree with the tile across the corner, whose children are different tiles.
 //
-// Error (error.hpp): per-triangle bounds chained over the overlay with the children and their
+// Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
-// triangles included); geometric_error is their largest, rms_error by Minkowski. Both are upper
-// bounds of the error against the finest data, monotone non-decreasing towards the root.
-// Witnesses: among the candidates and the cross points, the ones the parent deviates most from.
+// triangles included); geometric_error is their largest (and at least every child's and
+// source's), rms_error by Minkowski. Both are upper bounds of the error against the finest data,
+// monotone non-decreasing towards the root. Witnesses: among the candidates and the orphans, the
+// ones the parent deviates most from.
 //
 // Threads: pure function on values.
 #pragma once
 
 #include <array>
 #include <optional>
+#include <vector>
 
 #include "tinstream/base/result.hpp"
 #include "tinstream/lod/lod_tile.hpp"
@@ -38,8 +48,30 @@ struct Children {
   std::array<double, 4> absent_corner_z{};
 };
 
+// A coarse tile's sources beside its children: the tiles `depth` levels below it that exist
+// (any order). depth 1: the children themselves (tiles empty).
+struct Sources {
+  std::uint32_t depth = 1;
+  std::vector<LodTile> tiles;
+  // The interior candidates (and orphans, witnesses) come from the children as for depth 1, the
+  // chained error from the sources: for a parent whose data all lie under one child that was
+  // thinned from these same sources, where thinning them again would mostly repeat its choice.
+  bool candidates_from_children = false;
+};
+
+// The parent's corners and outer border come from `children` (which its neighbours share, so
+// same-level tiles stay watertight whatever depth each one's sources have), its interior
+// candidates, orphans, witnesses and chained error from the sources; it records at least every
+// child's and every source's error. Errors: no child, a child with the wrong id, no source (depth
+// > 1), a source that is not `depth` levels under `parent` or is given twice, a broken
+// triangulation.
+Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& children,
+                                   const Sources& sources, const LodOptions& options = {},
+                                   ThinStats* stats = nullptr);
+
+// build_from_sources with the four children (depth 1).
 // Errors: every child missing, a child with the wrong id, a broken triangulation.
-Result<LodTile> build_parent(const geo::TileId& parent, Children children,
+Result<LodTile> build_parent(const geo::TileId& parent, const Children& children,
                              const LodOptions& options = {}, ThinStats* stats = nullptr);
 
 // The same for unreduced finest children (their bounds are exact), the parent's tile only; an

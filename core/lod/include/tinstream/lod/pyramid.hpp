@@ -1,18 +1,31 @@
 // tinstream/lod/pyramid.hpp — pass 4 driver: levels L-1 … min_level from the finest level L.
 //
 // For z = L-1 down to min_level, every parent of an existing level z+1 tile is built from its
-// four children (build_parent) and written to the same unpublished layer version. The summary's
+// children and its sources (build_from_sources) and written to the same unpublished layer
+// version. Its sources are its tiles at the finest level s > z where it has at most
+// 4^source_depth tiles (its children when no deeper level qualifies): the finest tiles
+// themselves for the three levels above the finest, and wherever the data under a parent fit
+// that many finest tiles (above the level where the data fit one tile, every level measures
+// against the same finest tiles, and a parent with one child takes that child's vertices as its
+// candidates rather than thinning them again: Sources::candidates_from_children). Thinning from
+// a finer surface than the children's keeps the coarse
+// levels closer to greedy insertion from the data, and the chained error bound (error.hpp) runs
+// through about (L − z) / source_depth steps instead of L − z, so it stays close to the measured
+// error (bench/lod/RESULTS.md). The parent records at least its children's error. The summary's
 // per-level max errors are what store::LayerInfo::level_max_error wants.
 //
-// What a level hands to the next beside its tiles (lod_tile.hpp: per-triangle error bounds,
-// witnesses) is kept in a side file under PyramidOptions::scratch (in memory when empty), never
-// in the store. A parent whose child k is absent gets its NODATA corner k's height by the rule of
+// What a level hands to the coarser ones beside its tiles (lod_tile.hpp: per-triangle error
+// bounds, witnesses) is kept in a side file per level under PyramidOptions::scratch (in memory
+// when empty), never in the store, until the pyramid is built (any coarser level may read it).
+// A parent whose child k is absent gets its NODATA corner k's height by the rule of
 // docs/tile-format.md §2.1: from a tile of the children's level around that corner, else from
 // the nearest data vertex of that level (searched in rings of tiles around the corner).
 //
-// Threads: the LayerWriter is used only on the calling thread (reads of children, writes of
-// parents); build_parent runs on `threads` workers. At most `max_in_flight` parents (and their
-// children) are in memory at once, so memory is bounded by options, not by the layer's size.
+// Threads: the LayerWriter is used only on the calling thread (reads of children and sources,
+// writes of parents); build_from_sources runs on `threads` workers. At most `max_in_flight`
+// parents (and their children and sources, at most 4 + 4^source_depth tiles of at most
+// max_points each) are in memory at once, so memory is bounded by options, not by the layer's
+// size; the tile ids of every level are listed in memory (16 bytes + 12 per tile).
 // The progress sink is called on the calling thread (phase "lod", unit "tiles"); returning false
 // cancels (ErrorCode::cancelled).
 #pragma once
@@ -35,6 +48,10 @@ struct PyramidOptions {
   // Thin the finest tiles first (reduce_finest_tile with lod.epsilon / lod.max_points) and
   // rewrite them: the "reduced TIN" for gridded input.
   bool reduce_finest = false;
+  // A parent's sources are its tiles at the finest level where they number at most
+  // 4^source_depth (at least its children); 1 … 8. Memory per parent in flight grows as
+  // 4^source_depth × max_points.
+  std::uint32_t source_depth = 3;
   // Directory for the side file (bounds and witnesses between levels); empty: kept in memory.
   std::filesystem::path scratch;
 };
