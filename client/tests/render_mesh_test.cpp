@@ -19,7 +19,8 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// Spherical normalised Mercator inverse written out (DESIGN.md §2): λ = πx, φ = atan(sinh(πy)).
+// Spherical normalised Mercator inverse written out (docs/DESIGN.md §2):
+// λ = πx, φ = atan(sinh(πy)).
 Vec3 expected_ecef(double x, double y, double z) {
   const double lon = x * 180.0, lat = std::atan(std::sinh(kPi * y)) * 180.0 / kPi;
   const geo::Ecef e = geo::to_ecef({lon, lat, z});

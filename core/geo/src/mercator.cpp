@@ -40,7 +40,8 @@ double NormalisedMercator::lon_from_x(double x) { return x * 180.0; }
 
 // y·π = asinh(τ'), τ' = tan χ with χ the conformal latitude; Math::taupf evaluates τ' from
 // τ = tan φ without the cancellation of the textbook ln(tan(π/4 + φ/2)…) near the equator.
-// This equals the DESIGN.md formula: ln(tan(π/4+φ/2)·((1−e sinφ)/(1+e sinφ))^(e/2)) = asinh(τ').
+// This equals the formula of docs/DESIGN.md §2:
+// ln(tan(π/4+φ/2)·((1−e sinφ)/(1+e sinφ))^(e/2)) = asinh(τ').
 double NormalisedMercator::y_from_lat(double lat_deg) const {
   const double tau = GeographicLib::Math::tand(lat_deg);
   // On the sphere (e = 0) τ' = τ: taupf(τ, 0) = hypot(1, sinh 0)·τ − sinh(0)·hypot(1, τ) is τ to

@@ -18,7 +18,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// The textbook formula of DESIGN.md §2 in long double, written independently of the library's
+// The textbook formula of docs/DESIGN.md §2 in long double, written independently of the library's
 // conformal-latitude form, as a reference.
 long double textbook_y(long double lat_deg, long double e) {
   const long double phi = lat_deg * std::numbers::pi_v<long double> / 180.0L;

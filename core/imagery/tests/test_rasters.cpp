@@ -133,9 +133,10 @@ bool write_orthophoto_from_dem(const std::filesystem::path& dem, const std::file
   VSILFILE* f = VSIFOpenL(ramp_path.c_str(), "wb");
   VSIFWriteL(ramp.data(), 1, ramp.size(), f);
   VSIFCloseL(f);
-  const auto dem_processing = [&](const char* mode, std::vector<const char*> args,
+  const auto dem_processing = [&](const char* mode, const std::vector<const char*>& args,
                                   const char* colours) {
     std::vector<char*> argv;
+    argv.reserve(args.size() + 1);
     for (const char* a : args) argv.push_back(const_cast<char*>(a));
     argv.push_back(nullptr);
     GDALDEMProcessingOptions* o = GDALDEMProcessingOptionsNew(argv.data(), nullptr);

@@ -31,7 +31,7 @@ class IngestTest : public ::testing::Test {
 
   // Hilly synthetic terrain near Zürich as lon/lat/height text (EPSG:4326).
   fs::path write_xyz(const std::string& name, std::size_t n, std::uint64_t seed) {
-    const fs::path p = dir_ / name;
+    fs::path p = dir_ / name;
     std::ofstream out(p);
     out.precision(12);
     std::mt19937_64 rng(seed);

@@ -17,8 +17,12 @@ void advise_huge_pages(const void* p, std::size_t bytes) {
   const std::uintptr_t first = (begin + kHuge - 1) & ~(kHuge - 1);
   const std::uintptr_t last = (begin + bytes) & ~(kHuge - 1);
   // Only whole huge pages inside the block: the hint never reaches a neighbouring allocation.
-  // A refusal (THP disabled) changes nothing but speed, so the result is ignored.
-  if (last > first) (void)madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+  // A refusal (THP disabled) changes nothing but speed, so the result is ignored. The aligned
+  // start is derived from `p` by an offset (not cast back from the integer), keeping provenance.
+  if (last > first) {
+    void* start = const_cast<char*>(static_cast<const char*>(p)) + (first - begin);
+    (void)madvise(start, last - first, MADV_HUGEPAGE);
+  }
 #else
   (void)p;
   (void)bytes;

@@ -171,6 +171,7 @@ TEST(CgalDelaunay, RemovingHalfThePointsMatchesCgalRemove) {
 TEST(CgalConstrained, TileBorderAndRandomSegmentsMatchCgal) {
   auto pts = test::uniform_points(100000, 78, 0.001, 0.999);
   std::vector<std::array<Point3, 2>> segs;
+  segs.reserve(4 + 100 * 100);
   const Point3 corners[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
   for (int i = 0; i < 4; ++i) segs.push_back({corners[i], corners[(i + 1) % 4]});
   std::mt19937_64 rng(79);

@@ -239,6 +239,7 @@ TEST(Delaunay, PerturbedTiesGiveOneTriangulationWhateverTheInsertionOrder) {
     std::vector<InsertResult> inserted(pts.size(), InsertResult{InsertOutcome::rejected, kNone});
     if (bulk) {
       std::vector<Point3> permuted;
+      permuted.reserve(order.size());
       for (std::size_t i : order) permuted.push_back(pts[i]);
       const auto r = t.insert_bulk(permuted);
       for (std::size_t k = 0; k < order.size(); ++k) inserted[order[k]] = r[k];

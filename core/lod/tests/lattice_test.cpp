@@ -20,7 +20,6 @@ namespace tinstream::lod {
 namespace {
 
 using detail::find_lattice;
-using detail::Lattice;
 using tile::Vertex;
 
 const geo::TileId kTile{10, 300, 200};

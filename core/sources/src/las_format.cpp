@@ -43,9 +43,9 @@ Result<Header> parse_header(std::span<const unsigned char> bytes, std::uint64_t 
   const std::uint8_t raw_format = p[104];
   h.record_length = load_le16(p + 105);
   const std::uint32_t legacy_count = load_le32(p + 107);
-  for (int i = 0; i < 3; ++i) {
-    h.scale[static_cast<std::size_t>(i)] = load_le_double(p + 131 + 8 * i);
-    h.offset[static_cast<std::size_t>(i)] = load_le_double(p + 155 + 8 * i);
+  for (std::size_t i = 0; i < 3; ++i) {
+    h.scale[i] = load_le_double(p + 131 + 8 * i);
+    h.offset[i] = load_le_double(p + 155 + 8 * i);
   }
   h.max_x = load_le_double(p + 179);
   h.min_x = load_le_double(p + 187);

@@ -123,7 +123,7 @@ class LasSource final : public PointSource {
     } else {
       std::fill(keep.begin(), keep.end(), true);
       keep[7] = keep[18] = false;
-      info_.notes.push_back(
+      info_.notes.emplace_back(
           "class filter: no ground points (class 2): keeping every class except noise 7 and 18");
     }
     keep_ = std::move(keep);
@@ -167,6 +167,11 @@ struct CrsRecords {
   std::vector<VlrEntry> directory;
 };
 
+// The error about one (E)VLR: "<path>: <what><detail>", e.g. "a.las: VLR 2 of 3: truncated header".
+Error record_error(const std::string& path, const std::string& what, const std::string& detail) {
+  return corrupt_data(path + ": " + what + detail);
+}
+
 Status inspect_record(std::FILE* f, const std::string& path, const std::string& what,
                       std::string_view user, std::uint16_t id, std::uint64_t body_offset,
                       std::uint64_t body_length, CrsRecords& out) {
@@ -174,13 +179,13 @@ Status inspect_record(std::FILE* f, const std::string& path, const std::string& 
   if (user == laz::kLaszipUserId && id == laz::kLaszipRecordId && body_length <= 65535) {
     std::vector<unsigned char> body(static_cast<std::size_t>(body_length));
     if (!seek(f, body_offset) || !read_exact(f, body.data(), body.size())) {
-      return corrupt_data(path + ": " + what + ": cannot read the LASzip VLR body");
+      return record_error(path, what, ": cannot read the LASzip VLR body");
     }
     out.laszip = std::move(body);
   } else if (id == 2112 && body_length <= kMaxWktBytes) {
     std::vector<unsigned char> body(static_cast<std::size_t>(body_length));
     if (!seek(f, body_offset) || !read_exact(f, body.data(), body.size())) {
-      return corrupt_data(path + ": " + what + ": cannot read the WKT body");
+      return record_error(path, what, ": cannot read the WKT body");
     }
     std::string wkt = trim_c_string(body.data(), body.size());
     if (projection) {
@@ -191,7 +196,7 @@ Status inspect_record(std::FILE* f, const std::string& path, const std::string& 
   } else if (projection && id == 34735 && body_length <= 65535) {
     std::vector<unsigned char> body(static_cast<std::size_t>(body_length));
     if (!seek(f, body_offset) || !read_exact(f, body.data(), body.size())) {
-      return corrupt_data(path + ": " + what + ": cannot read the GeoKey directory");
+      return record_error(path, what, ": cannot read the GeoKey directory");
     }
     auto keys = las::parse_geokeys(body, path);
     if (!keys.ok()) return keys.error();
@@ -206,20 +211,23 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
   for (std::uint32_t i = 0; i < h.vlr_count; ++i) {
     const std::string what = "VLR " + std::to_string(i + 1) + " of " + std::to_string(h.vlr_count);
     if (pos + 54 > h.offset_to_points) {
-      return corrupt_data(path + ": " + what + ": its 54-byte header at byte " +
-                          std::to_string(pos) + " runs past the start of point data (" +
-                          std::to_string(h.offset_to_points) + ")");
+      return record_error(path, what,
+                          ": its 54-byte header at byte " + std::to_string(pos) +
+                              " runs past the start of point data (" +
+                              std::to_string(h.offset_to_points) + ")");
     }
     unsigned char vh[54];
     if (!seek(f, pos) || !read_exact(f, vh, sizeof vh)) {
-      return corrupt_data(path + ": " + what + ": truncated header");
+      return record_error(path, what, ": truncated header");
     }
     const std::string user = trim_c_string(vh + 2, 16);
     const std::uint16_t id = load_le16(vh + 18);
     const std::uint16_t length = load_le16(vh + 20);
     if (pos + 54 + length > h.offset_to_points) {
-      return corrupt_data(path + ": " + what + " (" + user + " " + std::to_string(id) + "): its " +
-                          std::to_string(length) + "-byte body runs past the start of point data");
+      return record_error(path, what,
+                          " (" + user + " " + std::to_string(id) + "): its " +
+                              std::to_string(length) +
+                              "-byte body runs past the start of point data");
     }
     if (auto st = inspect_record(f, path, what, user, id, pos + 54, length, out); !st.ok()) {
       return st;
@@ -233,20 +241,22 @@ Status scan_vlrs(std::FILE* f, const las::Header& h, std::uint64_t file_size,
       const std::string what =
           "EVLR " + std::to_string(i + 1) + " of " + std::to_string(h.evlr_count);
       if (pos > file_size || file_size - pos < 60) {
-        return corrupt_data(path + ": " + what + ": its 60-byte header at byte " +
-                            std::to_string(pos) + " is beyond the end of the file");
+        return record_error(path, what,
+                            ": its 60-byte header at byte " + std::to_string(pos) +
+                                " is beyond the end of the file");
       }
       unsigned char vh[60];
       if (!seek(f, pos) || !read_exact(f, vh, sizeof vh)) {
-        return corrupt_data(path + ": " + what + ": truncated header");
+        return record_error(path, what, ": truncated header");
       }
       const std::string user = trim_c_string(vh + 2, 16);
       const std::uint16_t id = load_le16(vh + 18);
       const std::uint64_t length = load_le64(vh + 20);
       if (length > file_size - pos - 60) {
-        return corrupt_data(path + ": " + what + " (" + user + " " + std::to_string(id) +
-                            "): its " + std::to_string(length) +
-                            "-byte body runs past the end of the file");
+        return record_error(path, what,
+                            " (" + user + " " + std::to_string(id) + "): its " +
+                                std::to_string(length) +
+                                "-byte body runs past the end of the file");
       }
       if (auto st = inspect_record(f, path, what, user, id, pos + 60, length, out); !st.ok()) {
         return st;
@@ -482,7 +492,7 @@ Result<std::unique_ptr<PointSource>> open_las(const std::filesystem::path& fs_pa
     } else if (valid(k.geographic_type) && !(k.model_type && *k.model_type == 1)) {
       info.crs = "EPSG:" + std::to_string(*k.geographic_type);
     } else {
-      info.notes.push_back(
+      info.notes.emplace_back(
           "GeoKeys describe a user-defined CRS that this reader does not decode; give the CRS "
           "explicitly (--crs)");
     }

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cstdio>
 #include <cstring>
+#include <string>
+#include <string_view>
 
 #include "binary_io.hpp"
 #include "tinstream/sources/point_source.hpp"
@@ -68,11 +70,11 @@ Result<std::vector<std::uint8_t>> parse_class_list(const std::string& text) {
   std::size_t start = 0;
   while (start <= text.size()) {
     const std::size_t end = std::min(text.find(',', start), text.size());
-    const std::string item = text.substr(start, end - start);
+    const std::string_view item = std::string_view(text).substr(start, end - start);
     unsigned value = 0;
     const auto [p, ec] = std::from_chars(item.data(), item.data() + item.size(), value);
     if (item.empty() || ec != std::errc() || p != item.data() + item.size() || value > 255) {
-      return invalid_argument("bad class list '" + text + "': '" + item +
+      return invalid_argument("bad class list '" + text + "': '" + std::string(item) +
                               "' is not a class number 0–255");
     }
     out.push_back(static_cast<std::uint8_t>(value));

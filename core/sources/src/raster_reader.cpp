@@ -300,12 +300,9 @@ Result<fs::path> confined_file(const fs::path& file, const RasterPolicy& policy,
   if (!policy.root.empty()) {
     const fs::path root = fs::canonical(policy.root, ec);
     if (ec) return not_found("data root " + policy.root.string() + " does not exist");
-    auto r = root.begin();
-    auto p = real.begin();
-    for (; r != root.end(); ++r, ++p) {
-      if (p == real.end() || *p != *r) {
-        return unsupported(what + " " + text + " lies outside the data root");
-      }
+    // Inside when every component of the root is the same leading component of the file.
+    if (std::mismatch(root.begin(), root.end(), real.begin(), real.end()).first != root.end()) {
+      return unsupported(what + " " + text + " lies outside the data root");
     }
   }
   return real;
@@ -546,7 +543,7 @@ Result<std::unique_ptr<PointSource>> open_raster(const std::filesystem::path& fs
   if (!info.crs.empty()) {
     info.crs_origin = "GDAL";
   } else {
-    info.notes.push_back(
+    info.notes.emplace_back(
         "the raster has no CRS (ESRI ASCII grids carry none without a .prj): "
         "the caller must give one (--crs)");
   }

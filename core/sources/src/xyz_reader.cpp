@@ -227,7 +227,7 @@ Result<std::unique_ptr<PointSource>> open_xyz(const std::filesystem::path& fs_pa
   SourceInfo info;
   info.path = path;
   info.format = "XYZ";
-  info.notes.push_back("text has no CRS: the caller must give one");
+  info.notes.emplace_back("text has no CRS: the caller must give one");
   auto source = std::make_unique<XyzSource>(std::move(file), std::move(info), options);
   if (options.text.header_lines) source->set_header_lines(*options.text.header_lines);
   return std::unique_ptr<PointSource>(std::move(source));

@@ -33,6 +33,7 @@ std::vector<TestPoint> sample_points() {
   // Classes 1, 2, 7, 18 and 6, with distinct coordinates.
   std::vector<TestPoint> pts;
   const std::uint8_t classes[] = {1, 2, 7, 18, 6, 2, 1};
+  pts.reserve(std::size(classes));
   for (int i = 0; i < 7; ++i) {
     pts.push_back(TestPoint{1000 * i - 3000, -250 * i + 17, 31 * i + 5, classes[i], false});
   }

@@ -70,9 +70,9 @@ inline std::vector<unsigned char> build_las(const LasSpec& s) {
   put_value<std::uint16_t>(b, 105, record_length);
   const auto n = static_cast<std::uint32_t>(s.points.size());
   put_value<std::uint32_t>(b, 107, s.legacy_count_zero ? 0u : n);
-  for (int i = 0; i < 3; ++i) {
-    put_value<double>(b, static_cast<std::size_t>(131 + 8 * i), s.scale[i]);
-    put_value<double>(b, static_cast<std::size_t>(155 + 8 * i), s.offset[i]);
+  for (std::size_t i = 0; i < 3; ++i) {
+    put_value<double>(b, 131 + 8 * i, s.scale[i]);
+    put_value<double>(b, 155 + 8 * i, s.offset[i]);
   }
   // Bounds: max x, min x, max y, min y, max z, min z.
   if (!s.points.empty()) {
@@ -85,9 +85,9 @@ inline std::vector<unsigned char> build_las(const LasSpec& s) {
         hi[a] = std::max(hi[a], d);
       }
     }
-    for (int a = 0; a < 3; ++a) {
-      put_value<double>(b, static_cast<std::size_t>(179 + 16 * a), hi[a]);
-      put_value<double>(b, static_cast<std::size_t>(187 + 16 * a), lo[a]);
+    for (std::size_t a = 0; a < 3; ++a) {
+      put_value<double>(b, 179 + 16 * a, hi[a]);
+      put_value<double>(b, 187 + 16 * a, lo[a]);
     }
   }
   for (const auto& v : s.vlrs) {

@@ -194,9 +194,9 @@ TEST_F(RasterPolicyTest, RastersTooBigToAllocateFailCleanlyBeforeAnyRead) {
   const char* strip[] = {"TILED=YES", "BLOCKXSIZE=64", "BLOCKYSIZE=64", nullptr};
   write_tif(root_ / "strip.tif", 64, 64, GDT_Float32, NAN, {}, strip);
   SourceOptions blocks;
-  blocks.raster.max_block_bytes = 64 * 64 * 4 - 1;
+  blocks.raster.max_block_bytes = std::uint64_t{64} * 64 * 4 - 1;
   expect_refused(open_source(root_ / "strip.tif", blocks), "has blocks of 64 × 64");
-  blocks.raster.max_block_bytes = 64 * 64 * 4;
+  blocks.raster.max_block_bytes = std::uint64_t{64} * 64 * 4;
   EXPECT_TRUE(open_source(root_ / "strip.tif", blocks).ok());
   // A VRT's source is held to the same limits.
   SourceOptions source_limit;
@@ -228,7 +228,7 @@ TEST_F(RasterPolicyTest, OnlyTheAllowedDriversOpenAnInput) {
                  "virtual file systems");
   // A policy naming the driver lets it in (to the next check: a PGM has no georeferencing).
   SourceOptions with_pnm;
-  with_pnm.raster.drivers.push_back("PNM");
+  with_pnm.raster.drivers.emplace_back("PNM");
   expect_refused(open_source(pgm, with_pnm), "no geotransform");
 }
 

@@ -27,7 +27,7 @@ Result<std::vector<SourcePoint>> read_all(PointSource& src, std::size_t batch = 
 // value = 10·row + col, NODATA -9999 at (0,1), NaN at (2,3).
 std::filesystem::path make_geotiff(const std::filesystem::path& dir) {
   GDALAllRegister();
-  const auto path = dir / "small.tif";
+  auto path = dir / "small.tif";
   GDALDriverH drv = GDALGetDriverByName("GTiff");
   GDALDatasetH ds = GDALCreate(drv, path.c_str(), 4, 3, 1, GDT_Float32, nullptr);
   double gt[6] = {500000, 10, 0, 4000300, 0, -100};

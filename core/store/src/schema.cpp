@@ -110,8 +110,9 @@ std::string quadkey_expression(const std::string& z, const std::string& x, const
   for (int i = 0; i < 30; ++i) {
     const std::string shift = "(" + z + " - " + std::to_string(i + 1) + ")";
     if (!e.empty()) e += " || ";
-    e += "(CASE WHEN " + z + " > " + std::to_string(i) + " THEN (((" + y + " >> " + shift +
-         ") & 1) * 2 + ((" + x + " >> " + shift + ") & 1)) ELSE '' END)";
+    e.append("(CASE WHEN ").append(z).append(" > ").append(std::to_string(i));
+    e.append(" THEN (((").append(y).append(" >> ").append(shift).append(") & 1) * 2 + ((");
+    e.append(x).append(" >> ").append(shift).append(") & 1)) ELSE '' END)");
   }
   return e;
 }

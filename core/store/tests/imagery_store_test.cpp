@@ -40,7 +40,8 @@ StoredImage image(const geo::TileId& id, std::uint8_t seed, std::size_t size = 3
   out.id = id;
   out.data.resize(size);
   for (std::size_t i = 0; i < size; ++i) {
-    out.data[i] = static_cast<std::uint8_t>(seed * 31 + i * 7 + id.x * 3 + id.y + id.z);
+    out.data[i] = static_cast<std::uint8_t>(std::size_t{seed} * 31 + i * 7 + std::size_t{id.x} * 3 +
+                                            id.y + id.z);
   }
   return out;
 }

@@ -442,6 +442,7 @@ TEST(QueuedWriter, TheQueueFillsToItsBoundAndNoFurtherWhileTheStoreIsBusy) {
     tiles.push_back(prepared(make_grid_tile({10, i, 7}, 2 + i % 4, 2, rng)));
   }
   std::vector<std::size_t> sizes;
+  sizes.reserve(tiles.size());
   for (const auto& t : tiles) sizes.push_back(t.compressed.size());
   // Tiles after the first (held by the paused thread) that fit `max_bytes` one after another.
   auto fitting = [&](std::size_t capacity, std::size_t max_bytes) {

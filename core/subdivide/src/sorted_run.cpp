@@ -482,12 +482,14 @@ class TileTally {
   void coarsen_to(std::uint32_t level) {
     const std::uint32_t by = 2 * (level_ - level);
     std::size_t out = 0;
-    for (std::size_t i = 0; i < entries_.size(); ++i) {
-      const std::uint64_t parent = entries_[i].prefix >> by;
+    // out <= the index of `e`: each write lands on an entry already read (or on `e` itself,
+    // after its count was read into the new value).
+    for (const Entry& e : entries_) {
+      const std::uint64_t parent = e.prefix >> by;
       if (out > 0 && entries_[out - 1].prefix == parent) {
-        entries_[out - 1].count += entries_[i].count;
+        entries_[out - 1].count += e.count;
       } else {
-        entries_[out++] = {parent, entries_[i].count};
+        entries_[out++] = Entry{parent, e.count};
       }
     }
     entries_.resize(out);
@@ -589,6 +591,7 @@ struct RunSlice {
 
 std::vector<RunSlice> whole_runs(const std::vector<std::filesystem::path>& runs) {
   std::vector<RunSlice> out;
+  out.reserve(runs.size());
   for (const auto& p : runs) out.push_back({p});
   return out;
 }

@@ -192,7 +192,8 @@ TEST(Codec, Version1RejectsInvalidFields) {
   expect_bad(b, "column out of range");
   b = bytes;
   const double nan = std::nan("");
-  std::memcpy(b.data() + 84 + 32 * 5 + 16, &nan, 8);
+  // Vertex k is at 84 + 32·k, its z at +16 (docs/tile-format.md): vertex 5's z.
+  std::memcpy(b.data() + 84 + std::ptrdiff_t{32} * 5 + 16, &nan, 8);
   expect_bad(b, "NaN height");
   b = bytes;
   b[b.size() - 2] = 9;  // last triangle's last index (16-bit) → 9 = vertex_count
@@ -205,6 +206,7 @@ TEST(Codec, Version1RejectsInvalidFields) {
 TEST(Codec, MiniFuzzRandomByteFlips) {
   std::mt19937_64 rng(19);
   std::vector<std::vector<std::uint8_t>> seeds;
+  seeds.reserve(20);
   for (int i = 0; i < 20; ++i) seeds.push_back(encode(random_tile(rng, 5), kVersions[i % 2]));
   int accepted = 0;
   for (int i = 0; i < 30000; ++i) {

@@ -54,18 +54,14 @@ TinTile decode_or_fail(std::span<const std::uint8_t> b) {
 
 // A finite double from random bits, with the hard cases mixed in.
 double adversarial_double(std::mt19937_64& rng) {
-  static constexpr std::array<double, 12> kSpecial{0.0,
-                                                   -0.0,
-                                                   std::numeric_limits<double>::denorm_min(),
-                                                   -std::numeric_limits<double>::denorm_min(),
-                                                   std::numeric_limits<double>::min(),
-                                                   std::numeric_limits<double>::max(),
-                                                   std::numeric_limits<double>::lowest(),
-                                                   1e-310,
-                                                   -1e300,
-                                                   1.0,
-                                                   std::nextafter(1.0, 2.0),
-                                                   -8848.86};
+  static constexpr std::array<double, 12> kSpecial{
+      0.0, -0.0, std::numeric_limits<double>::denorm_min(),
+      -std::numeric_limits<double>::denorm_min(), std::numeric_limits<double>::min(),
+      std::numeric_limits<double>::max(), std::numeric_limits<double>::lowest(), 1e-310, -1e300,
+      1.0,
+      // nextafter(1.0, 2.0); std::nextafter is not
+      // constexpr before C++23
+      1.0 + std::numeric_limits<double>::epsilon(), -8848.86};
   if (rng() % 3 == 0) return kSpecial[rng() % kSpecial.size()];
   for (;;) {
     const double d = std::bit_cast<double>(rng());
@@ -248,6 +244,7 @@ TEST(CodecV2, DamagedBlobsGiveErrorsThatNameTheProblem) {
 TEST(CodecV2, MiniFuzzRandomDamage) {
   std::mt19937_64 rng(37);
   std::vector<std::vector<std::uint8_t>> seeds;
+  seeds.reserve(10);
   for (int i = 0; i < 10; ++i) {
     seeds.push_back(encode(random_grid_tile(rng, 6)));
   }

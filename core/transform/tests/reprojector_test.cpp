@@ -261,6 +261,7 @@ TEST(Reprojector, Egm96AddsTheGeoidUndulationReadIndependentlyWithGdal) {
   const std::vector<std::pair<double, double>> places = {
       {-123.071, 44.0507}, {10.5, 0.5}, {-105.45, 40.15}, {6.1, 49.8}};
   std::vector<SourcePoint> in;
+  in.reserve(places.size());
   for (const auto& [lon, lat] : places)
     in.push_back(SourcePoint{lon, lat, 100.0, in.size() + 1, 0});
   std::vector<GeoPoint> out;

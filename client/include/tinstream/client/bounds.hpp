@@ -1,6 +1,6 @@
 // tinstream/client/bounds.hpp — bounding volumes of tiles in ECEF and the ellipsoid's horizon.
 //
-// Two volumes per tile (DESIGN.md §6):
+// Two volumes per tile (../shared/DESIGN.md §6, the client; docs/DESIGN.md has no client section):
 //  * before a tile is loaded, rectangle_aabb(): the exact axis-aligned ECEF box of its geodetic
 //    rectangle between two heights. Exact because each ECEF coordinate is monotone in latitude
 //    and height and a cosine/sine in longitude, so its extremes lie at rectangle corners, at the

@@ -1,4 +1,4 @@
-// tinstream/geo/mercator.hpp — the internal planar frame: normalised Mercator (DESIGN.md §2).
+// tinstream/geo/mercator.hpp — the internal planar frame: normalised Mercator (docs/DESIGN.md §2).
 //
 //   x = λ / π                        ∈ [-1, 1]
 //   y = (1/π) · ln( tan(π/4 + φ/2) · ((1 − e sinφ)/(1 + e sinφ))^(e/2) )   ∈ [-1, 1]

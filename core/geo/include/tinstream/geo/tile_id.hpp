@@ -1,4 +1,4 @@
-// tinstream/geo/tile_id.hpp — the global Mercator quadtree (DESIGN.md §2).
+// tinstream/geo/tile_id.hpp — the global Mercator quadtree (docs/DESIGN.md §2).
 //
 // Level z, column x (west → east), row y (north → south), as Bing/XYZ. Tile (z, x, y) covers
 //   x ∈ [-1 + 2x/2^z, -1 + 2(x+1)/2^z],   y ∈ [1 − 2(y+1)/2^z, 1 − 2y/2^z]   (normalised Mercator)

@@ -1,4 +1,4 @@
-// tinstream/ingest/ingest.hpp — the whole ingest (DESIGN.md §3): sources → sorted runs of
+// tinstream/ingest/ingest.hpp — the whole ingest (docs/DESIGN.md §3): sources → sorted runs of
 // transformed points (pass 1) → one Morton-sorted run (pass 2) → finest TIN tiles (pass 3) → LOD
 // pyramid (pass 4) → SQLite store, published atomically.
 //

@@ -1,6 +1,6 @@
 // tinstream/ingest/verify.hpp — `tinstream verify`: checks a published layer tile by tile.
 //
-// Checks (DESIGN.md §8): every tile decodes and passes tile::check_structure (exact
+// Checks (docs/DESIGN.md §6): every tile decodes and passes tile::check_structure (exact
 // orientation, border geometry); every tile is Delaunay across each interior edge (exact
 // incircle; the tile border is the only constraint); same-level neighbours share bit-identical
 // borders (watertight); every tile above the finest level has children under it, a geometric

@@ -1,5 +1,5 @@
-// tinstream/lod/parent.hpp — one coarse tile from the finer tiles under it (DESIGN.md §3, pass 4):
-// its four children, and optionally its "sources", the tiles several levels below it
+// tinstream/lod/parent.hpp — one coarse tile from the finer tiles under it (docs/DESIGN.md §3.5,
+// pass 4): its four children, and optionally its "sources", the tiles several levels below it
 // (build_from_sources), so that a coarse level is thinned from a finer surface than its
 // children's already thinned one and its chained error bound (error.hpp) runs through fewer
 // levels (pyramid.hpp chooses the sources).

@@ -1,7 +1,7 @@
 // tinstream/lod/thinning.hpp — thinning one tile: greedy insertion, then error-ordered point
 // removal (Lee 1989 drop heuristic).
 //
-// Contract (DESIGN.md §3, pass 4):
+// Contract (docs/DESIGN.md §3.5, pass 4):
 //  * Border first, deterministically, from the border points alone. Each side (both corners
 //    included, in the tile's edge order) is thinned in 1-D: a side point's error is the largest
 //    vertical difference, over every point of the side's *input* between its surviving

@@ -1,4 +1,5 @@
-// tinstream/sources/point_source.hpp — streaming point readers for ingest pass 1 (DESIGN.md §3).
+// tinstream/sources/point_source.hpp — streaming point readers for ingest pass 1
+// (docs/DESIGN.md §3.1).
 //
 // Contract:
 // - A PointSource reads one input file (LAS 1.0–1.4, XYZ/CSV text, or any GDAL raster) and

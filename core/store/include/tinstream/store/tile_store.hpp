@@ -1,4 +1,4 @@
-// tinstream/store/tile_store.hpp — the SQLite tile store (DESIGN.md §4; schema in
+// tinstream/store/tile_store.hpp — the SQLite tile store (docs/DESIGN.md §4; schema in
 // docs/store-format.md).
 //
 // One SQLite file holds any number of layers. A layer is a named, published *version*; tiles are

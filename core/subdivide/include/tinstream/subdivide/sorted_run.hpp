@@ -1,5 +1,5 @@
-// tinstream/subdivide/sorted_run.hpp — pass 2 of the ingest (DESIGN.md §3): choose the finest
-// level and put every point into Morton (quadkey) order, with bounded memory.
+// tinstream/subdivide/sorted_run.hpp — pass 2 of the ingest (docs/DESIGN.md §3.2): choose the
+// finest level and put every point into Morton (quadkey) order, with bounded memory.
 //
 // Input: any stream of points in normalised Mercator (x, y ∈ [-1, 1]) with ellipsoidal heights.
 // Output: ONE sorted run file of fixed 40-byte records (SortedPoint, key included) plus an

@@ -14,12 +14,13 @@
 // ellipsoidal layers cover different latitudes than the EPSG:3857 tile of the same z/x/y, so
 // encode() refuses them with ErrorCode::unsupported instead of producing misplaced terrain.
 //
-// Quantisation (DESIGN.md §5): u = (lon − west)/(east − west), v = (lat − south)/(north − south)
-// in the tile's geodetic rectangle — linear in *latitude*, which is how CesiumJS and
-// cesium-native interpolate v even for Web Mercator tiles. Every vertex keeps its true lon/lat;
-// straight triangle edges in Mercator become straight in lon/lat instead (a sub-pixel change for
-// tiles of level ≥ 6, visible only as slightly different interior shading at coarse levels).
-// Border vertices land exactly on u/v = 0 or 32767, so neighbours share their edge vertices.
+// Quantisation (docs/DESIGN.md §2, "Cesium's v"):
+// u = (lon − west)/(east − west), v = (lat − south)/(north − south) in the tile's geodetic
+// rectangle — linear in *latitude*, which is how CesiumJS and cesium-native interpolate v even for
+// Web Mercator tiles. Every vertex keeps its true lon/lat; straight triangle edges in Mercator
+// become straight in lon/lat instead (a sub-pixel change for tiles of level ≥ 6, visible only as
+// slightly different interior shading at coarse levels). Border vertices land exactly on u/v = 0 or
+// 32767, so neighbours share their edge vertices.
 //
 // Triangles that rounding to the 15-bit grid turns clockwise or flat are left out (slivers
 // thinner than one quantum, which happen in coarse tiles over dense data and where two edge

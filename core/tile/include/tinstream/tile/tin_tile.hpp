@@ -2,7 +2,7 @@
 //
 // A tile is a rectangle of the quadtree (geo::TileId) with an exact border: its four corners,
 // the points where the triangulation meets each border (edge points), interior points and the
-// triangles over all of them (DESIGN.md §3, pass 3).
+// triangles over all of them (docs/DESIGN.md §3.3, pass 3).
 //
 // Vertex numbering used by `triangles` (and by the render mesh of every encoding):
 //

@@ -1,4 +1,4 @@
-// tinstream/transform/pass1.hpp — ingest pass 1 (DESIGN.md §3): read every input, reproject
+// tinstream/transform/pass1.hpp — ingest pass 1 (docs/DESIGN.md §3.1): read every input, reproject
 // to WGS84, map to normalised Mercator, and hand the points on in batches (on_points, the ingest
 // gives them to pass 2, whose sorted spills are the only files of transformed points); the
 // summary keeps the run's header (count, boxes, height range).

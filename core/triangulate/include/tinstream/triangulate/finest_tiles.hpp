@@ -1,4 +1,5 @@
-// tinstream/triangulate/finest_tiles.hpp — pass 3 of the ingest (DESIGN.md §3): the finest tiles.
+// tinstream/triangulate/finest_tiles.hpp — the finest tiles: pass 3 of the ingest
+// (docs/DESIGN.md §3.3).
 //
 // Each finest tile is the Delaunay triangulation of the GLOBAL point set restricted to the tile
 // rectangle R: Delaunay edges that cross R's border give edge points (intersection, elevation
