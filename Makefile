@@ -2,7 +2,7 @@
 #   make demo     install deps, build, ingest the built-in sample, serve it, show it
 #   make test     install deps, then everything CI checks (.ci/pipeline.sh): the Release (-O3)
 #                 build and the whole suite, the ASan+UBSan build and the whole suite, the TSan
-#                 build and the threaded suites, format-check, clang-tidy, the fuzzers 60 s each
+#                 build and the threaded suites, format-check, clang-tidy, the fuzzers 30 s each
 # Developer targets: build, check (the suite in $(BUILD), no install), release, asan, tsan, fuzz,
 # format, format-check, tidy, crash (the crash-safety harnesses, 200 kills), bench.
 BUILD ?= build

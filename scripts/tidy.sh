@@ -46,11 +46,15 @@ check_one() {
   fi
 }
 jobs=$(nproc)
+# Each check's pid is waited for by pid: `wait -n` in a loop that tests `jobs -r` first loses the
+# status of a check that ended before the loop looked (it then said "clean" after a finding).
+pids=()
 for f in "${todo[@]}"; do
-  while (($(jobs -rp | wc -l) >= jobs)); do wait -n || failed=1; done
+  while (($(jobs -rp | wc -l) >= jobs)); do sleep 0.2; done
   check_one "$f" &
+  pids+=($!)
 done
-while (($(jobs -rp | wc -l) > 0)); do wait -n || failed=1; done
+for pid in "${pids[@]}"; do wait "$pid" || failed=1; done
 if ((failed)); then
   echo "tidy: FAILED (logs in $logs)"
   exit 1
