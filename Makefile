@@ -54,7 +54,7 @@ build-tsan/build.ninja:
 	cmake -S . -B build-tsan -G Ninja -DTINSTREAM_TSAN=ON $(SAN_FLAGS)
 
 fuzz:
-	bash scripts/fuzz.sh --seconds $${FUZZ_SECONDS:-60}
+	bash scripts/fuzz.sh --seconds $${FUZZ_SECONDS:-60} $${FUZZ_SEED:+--seed $$FUZZ_SEED}
 
 format: $(BUILD)/build.ninja
 	cmake --build $(BUILD) --target format

@@ -34,7 +34,7 @@ for step in "${steps[@]}"; do
     tsan) cmd=(make tsan) ;;
     format) cmd=(make format-check BUILD=build-release) ;;
     tidy) cmd=(make tidy BUILD=build-release) ;;
-    fuzz) cmd=(env FUZZ_SECONDS="${FUZZ_SECONDS:-30}" make fuzz) ;;
+    fuzz) cmd=(env FUZZ_SECONDS="${FUZZ_SECONDS:-30}" FUZZ_SEED="${FUZZ_SEED:-1}" make fuzz) ;;
     *) echo "pipeline: unknown step $step" >&2; exit 2 ;;
   esac
   echo "=== pipeline: $step: ${cmd[*]}"

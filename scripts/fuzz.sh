@@ -5,6 +5,10 @@
 #   scripts/fuzz.sh --seconds 1800        longer
 #   scripts/fuzz.sh --runs 10000000       a fixed number of executions per target (a long run)
 #   scripts/fuzz.sh --only kernel_fuzzer,qmesh_fuzzer --jobs 1
+#   scripts/fuzz.sh --seed 1              libFuzzer's random seed (default: a new one each run).
+#                                         CI passes --seed 1 and a fresh corpus: the same inputs in
+#                                         the same order every time, so its result does not depend
+#                                         on luck; exploration is the long runs' job.
 # Options: --build DIR (default build-fuzz), --out DIR (default DIR/fuzz-out), --no-build,
 #          --jobs N (targets at once; default: the number of cores).
 # Targets are whatever cmake/TinstreamFuzz.cmake registered (build-fuzz/fuzzers.tsv): a module
@@ -21,6 +25,7 @@ build=build-fuzz
 out=
 seconds=60
 runs=
+seed=
 jobs=$(nproc)
 only=
 do_build=1
@@ -29,6 +34,7 @@ while (($#)); do
     --seconds) seconds=$2; shift 2 ;;
     --minutes) seconds=$(($2 * 60)); shift 2 ;;
     --runs) runs=$2; shift 2 ;;
+    --seed) seed=$2; shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
     --only) only=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
@@ -76,6 +82,7 @@ run_one() {
               -artifact_prefix="$dir/artifacts/")
   if [[ -n $runs ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
   [[ $dict != - ]] && args+=(-dict="$dict")
+  [[ -n $seed ]] && args+=(-seed="$seed")
   local start=$SECONDS rc=0
   "$bin" "${args[@]}" "$dir/corpus" "${seeds[@]}" >"$dir/log" 2>&1 || rc=$?
   echo "$((SECONDS - start))" >"$dir/seconds"
