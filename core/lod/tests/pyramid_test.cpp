@@ -10,6 +10,7 @@
 #include <random>
 
 #include "lod_test_support.hpp"
+#include "temp_store.hpp"
 #include "tinstream/lod/error.hpp"
 #include "tinstream/store/tile_store.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
@@ -19,33 +20,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::grid_tile;
+using testing::TempStore;
 using tile::TinTile;
-
-struct TempStore {
-  fs::path dir;
-  std::optional<store::TileStore> store;
-  explicit TempStore(const std::string& name) {
-    dir = fs::temp_directory_path() /
-          ("tinstream-lod-test-" + name + "-" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    auto s = store::TileStore::open(dir / "tiles.sqlite", store::TileStore::Mode::read_write);
-    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
-    if (s.ok()) store.emplace(std::move(*s));
-  }
-  ~TempStore() {
-    store.reset();
-    std::error_code ec;
-    fs::remove_all(dir, ec);
-  }
-  std::unique_ptr<store::LayerWriter> writer(const std::string& layer) {
-    store::LayerInfo info;
-    info.name = layer;
-    auto w = store->begin_layer(info);
-    EXPECT_TRUE(w.ok()) << (w.ok() ? "" : w.error().message);
-    return w.ok() ? std::move(*w) : nullptr;
-  }
-};
 
 std::vector<TinTile> level_tiles(store::LayerWriter& w, std::uint32_t z) {
   std::vector<TinTile> out;
