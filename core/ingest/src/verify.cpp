@@ -133,12 +133,16 @@ Result<std::uint64_t> count_zero_area_triangles(const std::vector<std::uint8_t>&
   return zero_area;
 }
 
-// Checks that quantised encodings of the tile stay sound: counts its near-duplicate vertex pairs
-// (verify.hpp: not yet a problem), and for a layer in spherical Mercator (the one Cesium reads)
-// requires no zero-area triangle in its quantized-mesh encoding.
+// Checks that quantised encodings of the tile stay sound: no two of its vertices closer than 1e-12
+// (they would share a quantised position), and for a layer in spherical Mercator (the one Cesium
+// reads) no zero-area triangle in its quantized-mesh encoding.
 void check_quantisable(const tile::TinTile& t, geo::Projection projection, const std::string& name,
                        Problems& problems, VerifyReport& report) {
-  report.near_duplicate_pairs += count_near_duplicates(t);
+  if (const std::uint64_t pairs = count_near_duplicates(t); pairs > 0) {
+    report.near_duplicate_pairs += pairs;
+    problems.add(name + ": " + std::to_string(pairs) +
+                 " pairs of vertices closer than 1e-12 (near-duplicate vertices)");
+  }
   if (projection != geo::Projection::spherical) return;
   auto qm = terrain::encode_quantized_mesh(t, projection);
   if (!qm) {

@@ -235,11 +235,10 @@ TEST_F(IngestTest, VerifyChecksStoredErrorsAgainstTheFinestSurface) {
 
 // #20: an edge point 1e-14 beside a tile corner became a duplicate vertex and zero-area triangles
 // in quantized-mesh. A sound layer has neither; one interior vertex moved to 1e-13 from its tile's
-// north-west corner is a near-duplicate pair, which verify counts (not yet a problem: pass 3
-// still makes such pairs beside data points within 1e-12 of a border); its needles are left out
-// of the quantized-mesh encoding (terrain drops flat triangles), so verify finds no zero-area
-// triangle.
-TEST_F(IngestTest, VerifyCountsNearDuplicateVerticesAndFindsNoZeroAreaQuantisedTriangles) {
+// north-west corner is a near-duplicate pair, which verify counts and reports as a problem naming
+// the tile; its needles are left out of the quantized-mesh encoding (terrain drops flat
+// triangles), so verify finds no zero-area triangle.
+TEST_F(IngestTest, VerifyRejectsNearDuplicateVerticesAndFindsNoZeroAreaQuantisedTriangles) {
   ASSERT_TRUE(run_ingest(options({write_xyz("q.xyz", 8000, 9)}, "q")).ok());
   auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
   ASSERT_TRUE(store.ok());
@@ -265,6 +264,8 @@ TEST_F(IngestTest, VerifyCountsNearDuplicateVerticesAndFindsNoZeroAreaQuantisedT
   auto bad = verify_layer(*store, "q");
   ASSERT_TRUE(bad.ok());
   EXPECT_EQ(bad->near_duplicate_pairs, 1u);
+  EXPECT_FALSE(bad->ok());  // (the move breaks other checks too: Delaunay, the errors above)
+  EXPECT_TRUE(mentions(*bad, "1 pairs of vertices closer than 1e-12"));
   EXPECT_FALSE(mentions(*bad, "zero-area triangles in its quantized-mesh encoding"));
   VerifyOptions off;
   off.quantisation = false;

@@ -11,7 +11,7 @@
 // finest level's tiles account for every distinct input point (Σ source points = the layer's
 // point count, and no finest tile holds more interior vertices than source points); no tile has,
 // in a spherical layer, a zero-area triangle in its quantized-mesh encoding (what CesiumJS would
-// draw). Pairs of vertices closer than 1e-12 are counted (near_duplicate_pairs).
+// draw), and no two vertices of a tile are closer than 1e-12 (near_duplicate_pairs).
 // Threads: call from one thread; it owns its TileStore reads.
 #pragma once
 
@@ -42,9 +42,8 @@ struct VerifyReport {
   std::uint64_t shared_borders = 0;  // neighbour pairs compared
   std::uint64_t error_checks = 0;    // coarse tiles whose stored error was checked by sampling
   double worst_error_ratio = 0;      // largest measured / stored geometric error seen (≤ 1 ok)
-  // Pairs of a tile's vertices closer than 1e-12 (normalised units). Counted, not a problem yet:
-  // pass 3 still makes them where a data point lies within 1e-12 of a tile border (two edge
-  // points beside it; #20 open). 0 on the data-edge examples.
+  // Pairs of a tile's vertices closer than 1e-12 (normalised units); each tile with any is a
+  // problem (pass 3 moves a data point within 1e-12 of a tile side onto it, so none are made).
   std::uint64_t near_duplicate_pairs = 0;
   std::uint64_t problems = 0;
   std::vector<std::string> messages;  // the first max_problems problems, each naming the tile
