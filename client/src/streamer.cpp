@@ -1,7 +1,11 @@
 #include "tinstream/client/streamer.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <limits>
+#if defined(__GLIBC__)  // (defined by any libc header, so after <cstdlib>)
+#include <malloc.h>
+#endif
 
 #include "tinstream/client/skirts.hpp"
 
@@ -204,7 +208,22 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   frame_result_.wanted = wanted_.size();
   upload(gpu);
   loader_.submit(wanted_);
+  trim_heap_after_evictions();
   return frame_result_;
+}
+
+void TileStreamer::trim_heap_after_evictions() {
+  const std::uint64_t evictions = gpu_.counters().evictions + ram_.counters().evictions;
+  if (evictions == trimmed_evictions_ || options_.heap_trim_interval.count() < 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (heap_trims_ > 0 && now - last_trim_ < options_.heap_trim_interval) return;
+#if defined(__GLIBC__)
+  // Every arena, not only the render thread's: the evicted meshes came from the workers' arenas.
+  ::malloc_trim(0);
+#endif
+  trimmed_evictions_ = evictions;
+  last_trim_ = now;
+  ++heap_trims_;
 }
 
 void TileStreamer::release_all(GpuUploader& gpu) {

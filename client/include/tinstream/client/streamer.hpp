@@ -106,6 +106,11 @@ struct StreamerOptions {
   std::uint64_t ram_budget = 512ull << 20;  // bytes
   std::uint64_t upload_bytes_per_frame = 8u << 20;
   std::chrono::milliseconds failure_retry{10000};  // a failed tile is asked again after this
+  // After a tier evicted, free heap pages go back to the system (glibc malloc_trim) at most this
+  // often; negative: never. Decoded meshes are allocated by the download threads and freed here
+  // on eviction, so without it the RSS keeps the high-water mark of every worker's arena
+  // (bench/client: the scripted flight's RSS).
+  std::chrono::milliseconds heap_trim_interval{1000};
 };
 
 class TileStreamer {
@@ -126,6 +131,8 @@ class TileStreamer {
   const TierCounters& ram_counters() const { return ram_.counters(); }
   std::uint64_t frames() const { return frame_; }
   std::uint64_t failures() const { return failures_; }
+  // How often update() gave free heap memory back (heap_trim_interval).
+  std::uint64_t heap_trims() const { return heap_trims_; }
   const std::string& last_error() const { return last_error_; }
   // Height of the lowest terrain any layer may have (for the globe and the horizon).
   double lowest_height() const { return lowest_height_; }
@@ -145,6 +152,7 @@ class TileStreamer {
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
   void upload(GpuUploader& gpu);
   bool failed_recently(const TileKey& key);
+  void trim_heap_after_evictions();
 
   TileLoader& loader_;
   StreamerOptions options_;
@@ -162,6 +170,9 @@ class TileStreamer {
   std::array<LevelCounters, kLevels> levels_{};
   std::uint64_t failures_ = 0;
   std::string last_error_;
+  std::uint64_t trimmed_evictions_ = 0;  // both tiers' evictions at the last heap trim
+  std::chrono::steady_clock::time_point last_trim_{};
+  std::uint64_t heap_trims_ = 0;
 
   // Per frame.
   FrameResult frame_result_;
