@@ -82,6 +82,7 @@ void TileStreamer::take_results() {
     switch (r.status) {
       case LoadStatus::loaded: {
         ++level.loaded;
+        ++tiles_taken_;
         const std::uint64_t bytes = r.mesh->byte_size();
         // Entries pinned in the previous frame (drawn, or waiting for upload) stay.
         ram_.insert(r.key, std::move(r.mesh), bytes, frame_, frame_ - 1);
@@ -208,20 +209,21 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   frame_result_.wanted = wanted_.size();
   upload(gpu);
   loader_.submit(wanted_);
-  trim_heap_after_evictions();
+  trim_heap();
   return frame_result_;
 }
 
-void TileStreamer::trim_heap_after_evictions() {
-  const std::uint64_t evictions = gpu_.counters().evictions + ram_.counters().evictions;
-  if (evictions == trimmed_evictions_ || options_.heap_trim_interval.count() < 0) return;
+void TileStreamer::trim_heap() {
+  const std::uint64_t churn = gpu_.counters().evictions + ram_.counters().evictions + tiles_taken_;
+  if (churn == trimmed_churn_ || options_.heap_trim_interval.count() < 0) return;
   const auto now = std::chrono::steady_clock::now();
   if (heap_trims_ > 0 && now - last_trim_ < options_.heap_trim_interval) return;
 #if defined(__GLIBC__)
-  // Every arena, not only the render thread's: the evicted meshes came from the workers' arenas.
+  // Every arena, not only the render thread's: the meshes and the decoding scratch came from the
+  // workers' arenas.
   ::malloc_trim(0);
 #endif
-  trimmed_evictions_ = evictions;
+  trimmed_churn_ = churn;
   last_trim_ = now;
   ++heap_trims_;
 }

@@ -106,10 +106,11 @@ struct StreamerOptions {
   std::uint64_t ram_budget = 512ull << 20;  // bytes
   std::uint64_t upload_bytes_per_frame = 8u << 20;
   std::chrono::milliseconds failure_retry{10000};  // a failed tile is asked again after this
-  // After a tier evicted, free heap pages go back to the system (glibc malloc_trim) at most this
-  // often; negative: never. Decoded meshes are allocated by the download threads and freed here
-  // on eviction, so without it the RSS keeps the high-water mark of every worker's arena
-  // (bench/client: the scripted flight's RSS).
+  // After a tier evicted or new tiles arrived, free heap pages go back to the system (glibc
+  // malloc_trim) at most this often; negative: never. The download threads allocate (and free
+  // their decoding scratch) in their own malloc arenas and the render thread frees the meshes
+  // on eviction, so without it the RSS keeps every arena's high-water mark (bench/client: the
+  // scripted flight's RSS).
   std::chrono::milliseconds heap_trim_interval{1000};
 };
 
@@ -152,7 +153,7 @@ class TileStreamer {
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
   void upload(GpuUploader& gpu);
   bool failed_recently(const TileKey& key);
-  void trim_heap_after_evictions();
+  void trim_heap();
 
   TileLoader& loader_;
   StreamerOptions options_;
@@ -170,7 +171,8 @@ class TileStreamer {
   std::array<LevelCounters, kLevels> levels_{};
   std::uint64_t failures_ = 0;
   std::string last_error_;
-  std::uint64_t trimmed_evictions_ = 0;  // both tiers' evictions at the last heap trim
+  std::uint64_t tiles_taken_ = 0;    // meshes received from the loader
+  std::uint64_t trimmed_churn_ = 0;  // evictions (both tiers) + tiles_taken_ at the last trim
   std::chrono::steady_clock::time_point last_trim_{};
   std::uint64_t heap_trims_ = 0;
 
