@@ -73,10 +73,11 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
     print(f'store `{store}`, layer `{layer}`, {size}, max SSE {sse} px, '
           f'+{delay_ms} ms per request (proxy)\n')
     cold = read_jsonl(f'{out}/cold.jsonl')
-    print('### Cold time to a complete view (fresh process, no disk tier)\n')
-    print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
-          '(proxy) | most in flight |')
-    print('|---|---|---|---|---|---|---|---|')
+    if cold:  # (PARTS= may leave it out)
+        print('### Cold time to a complete view (fresh process, no disk tier)\n')
+        print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
+              '(proxy) | most in flight |')
+        print('|---|---|---|---|---|---|---|---|')
     by_t = {}
     for c in cold:
         v, p = c['viewer'], c['proxy']
