@@ -38,8 +38,8 @@ for step in "${steps[@]}"; do
     *) echo "pipeline: unknown step $step" >&2; exit 2 ;;
   esac
   echo "=== pipeline: $step: ${cmd[*]}"
-  { time "${cmd[@]}" 2>&1; } 2>build-ci/time.$step
-  rc=$?
+  { time "${cmd[@]}" 2>&1 | tee "build-ci/$step.log"; } 2>build-ci/time.$step
+  rc=$?  # pipefail: the step's status, not tee's
   read -r wall user sys < <(tail -n 1 build-ci/time.$step)
   cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.0f", u + s }')
   result=ok
@@ -53,6 +53,11 @@ echo "=== pipeline: timings (wall and CPU seconds)"
 column -t "$timings"
 awk -F'\t' 'NR > 1 { w += $3; c += $4 } END { printf "total: %d s wall (%.1f min), %d s CPU\n", w, w / 60, c }' "$timings"
 if ((${#failed[@]})); then
+  # CI shows only the tail of this output: the failures' gist comes last, compact.
+  for step in "${failed[@]}"; do
+    echo "=== pipeline: $step failed; full log build-ci/$step.log; the gist:"
+    bash .ci/failure_digest.sh "build-ci/$step.log"
+  done
   echo "=== pipeline: FAILED: ${failed[*]}"
   exit 1
 fi

@@ -36,14 +36,21 @@ if [[ ! -x "$bin/tinstream-server" ]]; then
 fi
 
 step "3. Serve it: tinstream-server on 127.0.0.1:$port"
+rm -f "$out/server.out"  # a stale "listening" line of an earlier demo must not be read as this one's
 "$bin/tinstream-server" --config config/server.json --store "$out/demo.sqlite" --address 127.0.0.1 \
   --port "$port" > "$out/server.out" 2> "$out/server.log" &
 server=$!
 trap 'kill $server 2>/dev/null || true; wait $server 2>/dev/null || true' EXIT
 for _ in $(seq 100); do
   grep -q "listening" "$out/server.out" 2>/dev/null && break
+  kill -0 $server 2>/dev/null || break
   sleep 0.1
 done
+if ! grep -q "listening" "$out/server.out" 2>/dev/null; then
+  echo "tinstream-server did not start listening on 127.0.0.1:$port (TINSTREAM_DEMO_PORT picks another port):" >&2
+  tail -n 20 "$out/server.log" >&2
+  exit 1
+fi
 base="http://127.0.0.1:$port"
 echo "GET $base/healthz"; curl -fsS "$base/healthz"; echo
 echo "GET $base/layers/sample"; curl -fsS "$base/layers/sample" | head -c 800; echo

@@ -57,6 +57,9 @@ EOF
 
 # Starts the server (environment: extra VAR=value words); sets server_pid and url.
 start_server() {
+  # The previous server's stdout must be gone before this one starts: otherwise the loop below can
+  # read its stale "listening on" line (and port) before the new process truncates the file.
+  rm -f "$work/server.out"
   env "$@" "$server" --config "$work/server.json" >"$work/server.out" 2>"$work/server.log" &
   server_pid=$!
   local line=
