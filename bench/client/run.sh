@@ -19,8 +19,9 @@
 #    glFinish) while streaming vs on the same view loaded (median, p95, p99, worst), and the
 #    streaming part of each frame alone (update_ms: take results, select, upload);
 # 3. memory: a scripted flight of FLIGHT_S seconds (default 300) back and forth over the layer
-#    at several heights with small budgets (--gpu-mb 64 --cache-mb 64): RSS per frame against
-#    the budgets (the GPU tier lives in process memory with Mesa) plus the RSS of the first frame;
+#    at several heights with small budgets (--gpu-mb GPU_MB --cache-mb CACHE_MB, 64 each by
+#    default): RSS per frame against the budgets (the GPU tier lives in process memory with
+#    Mesa) plus the RSS of the first frame;
 # 4. CesiumJS (npm cesium in Debian's headless chromium, playwright-core; bench/client/cesium.html)
 #    on the same layer's Cesium terrain endpoint, same camera, viewport, fov and maximum
 #    screen-space error, through the same proxy: time to a complete view and bytes (CESIUM=1,
@@ -43,6 +44,8 @@ SIZE=${SIZE:-1280x720}
 SSE=${SSE:-2}
 CESIUM=${CESIUM:-auto}
 PARTS=${PARTS:-cold stream memory cesium}
+GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
+CACHE_MB=${CACHE_MB:-64}
 read -r -a flight_args <<< "${FLIGHT_ARGS:-}"
 mkdir -p "$OUT"
 part() { [[ " $PARTS " == *" $1 "* ]]; }
@@ -136,7 +139,7 @@ if part memory; then
   curl -fsS "$proxy/__reset" > /dev/null
   /usr/bin/time -f '%M' -o "$OUT/flight.maxrss_kb" \
     "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" \
-    --max-sse "$SSE" --threads 8 --gpu-mb 64 --cache-mb 64 --timeout 120 \
+    --max-sse "$SSE" --threads 8 --gpu-mb "$GPU_MB" --cache-mb "$CACHE_MB" --timeout 120 \
     --camera-path "$OUT/flight.txt" --out "$OUT/flight.png" --stats "$OUT/flight.jsonl" \
     "${flight_args[@]}"
 fi
