@@ -148,9 +148,9 @@ class TileGrid {
 // the children, interior points from the sources, their inner grid lines as orphans (and, for
 // sources deeper than the children, their points on the outer border too: part of the surface,
 // but the border's candidates are the children's, which the neighbour shares).
-ThinInput merge(const geo::TileId& parent, const Children& children, const Sources& sources) {
+ThinInput merge(const geo::TileId& parent, const ChildViews& children, const SourceViews& sources) {
   const TileGrid kids(parent, 1, children.tiles,
-                      [](const std::optional<LodTile>& t) { return t ? &t->tile : nullptr; });
+                      [](const LodTile* t) { return t ? &t->tile : nullptr; });
   ThinInput in;
   in.id = parent;
   const geo::MercatorRect r = parent.bounds();
@@ -178,8 +178,8 @@ ThinInput merge(const geo::TileId& parent, const Children& children, const Sourc
     return in;
   }
   const TileGrid grid(parent, sources.depth, sources.tiles,
-                      [](const LodTile& t) { return &t.tile; });
-  for (const auto& t : sources.tiles) append(in.interior, t.tile.interior);
+                      [](const LodTile* t) { return &t->tile; });
+  for (const LodTile* t : sources.tiles) append(in.interior, t->tile.interior);
   grid.inner_lines(in.orphans);
   for (const D d : {D::north, D::east, D::south, D::west}) append(in.orphans, grid.outer_side(d));
   return in;
@@ -189,6 +189,22 @@ ThinInput merge(const geo::TileId& parent, const Children& children, const Sourc
 
 Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& children,
                                    const Sources& sources, const LodOptions& options,
+                                   ThinStats* stats) {
+  ChildViews child_views;
+  child_views.absent_corner_z = children.absent_corner_z;
+  for (std::size_t k = 0; k < 4; ++k) {
+    if (const auto& c = children.tiles[k]) child_views.tiles[k] = &*c;
+  }
+  SourceViews source_views;
+  source_views.depth = sources.depth;
+  source_views.candidates_from_children = sources.candidates_from_children;
+  source_views.tiles.reserve(sources.tiles.size());
+  for (const auto& t : sources.tiles) source_views.tiles.push_back(&t);
+  return build_from_sources(parent, child_views, source_views, options, stats);
+}
+
+Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& children,
+                                   const SourceViews& sources, const LodOptions& options,
                                    ThinStats* stats) {
   if (!parent.valid() || parent.z >= static_cast<std::uint32_t>(geo::kMaxLevel) ||
       sources.depth < 1 || sources.depth > geo::kMaxLevel - parent.z) {
@@ -212,8 +228,9 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
     return invalid_argument("lod: parent " + parent.to_string() + " has no source tiles");
   }
   std::set<geo::TileId> seen;
-  for (const auto& t : sources.tiles) {
-    const geo::TileId& id = t.tile.id;
+  for (const LodTile* t : sources.tiles) {
+    if (!t) return invalid_argument("lod: parent " + parent.to_string() + " has a null source");
+    const geo::TileId& id = t->tile.id;
     if (sources.depth == 1 || id.z != parent.z + sources.depth ||
         (id.x >> sources.depth) != parent.x || (id.y >> sources.depth) != parent.y) {
       return invalid_argument("lod: tile " + id.to_string() + " is not a source of " +
@@ -227,10 +244,10 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
   std::vector<const LodTile*> finer;
   if (sources.depth == 1) {
     for (const auto& c : children.tiles) {
-      if (c) finer.push_back(&*c);
+      if (c) finer.push_back(c);
     }
   } else {
-    for (const auto& t : sources.tiles) finer.push_back(&t);
+    finer = sources.tiles;
   }
   for (const LodTile* t : finer) {
     if (!t->bounds.empty() && t->bounds.size() != t->tile.triangles.size()) {

@@ -1,6 +1,7 @@
 // Pass 4 driver. The calling thread owns the LayerWriter: it reads the children of a parent (still
 // compressed), hands the parent to a worker, and writes finished parents. Workers do all the CPU
-// work: decoding the children, building the parent, encoding it for the store.
+// work: decoding the children and sources (or taking them from the cache of decoded tiles that a
+// coarser level reads again), building the parent, encoding it for the store.
 //
 //   calling thread:  read 4 blobs ─▶ tasks ─▶ [workers: decode, build_parent, prepare_tile]
 //                    ─▶ done ─▶ writer.put   (at most max_in_flight parents between read and put)
@@ -11,6 +12,7 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <list>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -157,6 +159,81 @@ Result<LodTile> decode_lod_tile(const ReadTile& read) {
   return out;
 }
 
+// Bytes a decoded tile holds (its vectors' contents).
+std::size_t tile_bytes(const LodTile& t) {
+  auto bytes = [](const auto& v) { return v.size() * sizeof(v[0]); };
+  const TinTile& tt = t.tile;
+  return sizeof(LodTile) + bytes(tt.north) + bytes(tt.east) + bytes(tt.south) + bytes(tt.west) +
+         bytes(tt.interior) + bytes(tt.triangles) + bytes(t.bounds) + bytes(t.reaches) +
+         bytes(t.witnesses);
+}
+
+// Decoded tiles that a coarser level reads again, shared by the workers, at most `budget` bytes
+// of them. Every level reads the tiles of its source level in the same (Morton) order, so the
+// levels above the one where the data fit 4^source_depth tiles re-read the same tiles level after
+// level, and a tile read as a child is read again as a source: a cache that keeps what it
+// admitted while it is still needed (no eviction, which a cyclic scan would defeat) spares
+// those decodes up to its budget. Decoding gives the same tile every time, so hits and misses
+// give the same parents. The calling thread takes hits (a job holds what it was given) and,
+// between levels, drops the tiles no coarser level reads; workers add what they decoded.
+class DecodedTiles {
+ public:
+  explicit DecodedTiles(std::size_t budget) : budget_(budget) {}
+
+  std::shared_ptr<const LodTile> find(const geo::TileId& id) {
+    std::lock_guard lock(m_);
+    const auto it = tiles_.find(id);
+    return it == tiles_.end() ? nullptr : it->second;
+  }
+  // Keeps `tile` if it fits the budget.
+  void add(const geo::TileId& id, std::shared_ptr<const LodTile> tile) {
+    const std::size_t size = tile_bytes(*tile);
+    std::lock_guard lock(m_);
+    if (bytes_ + size > budget_ || tiles_.count(id)) return;
+    bytes_ += size;
+    tiles_.emplace(id, std::move(tile));
+  }
+  // Drops the tiles for which `dead` is true.
+  template <typename Dead>
+  void drop(Dead dead) {
+    std::lock_guard lock(m_);
+    for (auto it = tiles_.begin(); it != tiles_.end();) {
+      if (dead(it->first)) {
+        bytes_ -= tile_bytes(*it->second);
+        it = tiles_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+
+ private:
+  const std::size_t budget_;
+  std::mutex m_;  // guards tiles_, bytes_
+  std::map<geo::TileId, std::shared_ptr<const LodTile>> tiles_;
+  std::size_t bytes_ = 0;
+};
+
+// A tile a job needs: decoded already (from the cache) or still as read from the store, and
+// whether a coarser level reads it again (then the cache may keep it).
+struct NeededTile {
+  std::shared_ptr<const LodTile> decoded;
+  std::optional<ReadTile> read;
+  bool read_again = false;
+};
+
+// The decoded tile, decoding (and caching) it on the first call.
+Result<std::shared_ptr<const LodTile>> decoded(NeededTile& t, DecodedTiles& cache) {
+  if (!t.decoded) {
+    auto d = decode_lod_tile(*t.read);
+    if (!d) return d.error();
+    t.decoded = std::make_shared<const LodTile>(std::move(*d));
+    if (t.read_again) cache.add(t.decoded->tile.id, t.decoded);
+    t.read.reset();  // the compressed copy is not needed any more
+  }
+  return t.decoded;
+}
+
 // Where a child is absent, the parent's NODATA corner there takes its height from the tiles of
 // the children's level (docs/tile-format.md §2.1). Runs on the calling thread (it reads the
 // writer); answers are kept per corner, which up to four parents share.
@@ -267,6 +344,10 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   };
   detail::SideStore side(options.scratch);
 
+  // Declared before the pool: its jobs use it.
+  const std::uint32_t k = std::clamp<std::uint32_t>(options.source_depth, 1, 8);
+  const std::size_t max_sources = std::size_t{1} << (2 * k);
+  DecodedTiles cache(options.decoded_cache_bytes);
   TilePool pool;
   if (Status s = pool.start(threads); !s) return s.error();
   std::uint64_t done = 0;
@@ -369,8 +450,6 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
   // A parent at level z is thinned from its sources: the tiles under it at the finest level
   // whose tiles there number at most 4^source_depth (at least its children). Every level's tile
   // ids stay listed (Morton order) and its side records kept, since any coarser level may read it.
-  const std::uint32_t k = std::clamp<std::uint32_t>(options.source_depth, 1, 8);
-  const std::size_t max_sources = std::size_t{1} << (2 * k);
   std::vector<std::vector<std::pair<std::uint64_t, geo::TileId>>> levels(finest_level + 1);
   auto index_level = [&](std::uint32_t z, const std::vector<geo::TileId>& ids) {
     auto& l = levels[z];
@@ -378,6 +457,13 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     for (const auto& id : ids) l.emplace_back(id.morton(), id);
     std::sort(l.begin(), l.end());
   };
+  // Every level's tiles: the parents of the level below (each is built or the pyramid fails).
+  index_level(finest_level, *finest_ids);
+  for (std::uint32_t z = finest_level; z-- > min_level;) {
+    std::set<geo::TileId> parent_set;
+    for (const auto& [m, c] : levels[z + 1]) parent_set.insert(c.parent());
+    index_level(z, std::vector<geo::TileId>(parent_set.begin(), parent_set.end()));
+  }
   // The tiles of level s under `p` (a contiguous Morton range).
   auto under = [&](const geo::TileId& p, std::uint32_t s) {
     const auto& l = levels[s];
@@ -387,84 +473,131 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
     const auto e = std::lower_bound(b, l.end(), std::pair{hi, geo::TileId{}});
     return std::pair{b, e};
   };
-  index_level(finest_level, *finest_ids);
-  std::vector<geo::TileId> child_ids = std::move(*finest_ids);
+  // The depth of the sources of a parent at level z: the deepest level whose tiles under the
+  // parent fit max_sources (1: its children).
+  auto depth_of = [&](const geo::TileId& pid, std::uint32_t z) {
+    for (std::uint32_t sl = finest_level; sl > z + 1; --sl) {
+      const auto [b, e] = under(pid, sl);
+      if (static_cast<std::size_t>(e - b) <= max_sources) return sl - z;
+    }
+    return std::uint32_t{1};
+  };
+  // The position of a listed tile in its level.
+  auto position = [&](const geo::TileId& id) -> std::optional<std::size_t> {
+    const auto& l = levels[id.z];
+    const auto it = std::lower_bound(l.begin(), l.end(), std::pair{id.morton(), geo::TileId{}});
+    if (it == l.end() || it->second != id) return std::nullopt;
+    return static_cast<std::size_t>(it - l.begin());
+  };
+  // The coarsest level that reads each tile, as a child or a source (none: UINT32_MAX).
+  std::vector<std::vector<std::uint32_t>> last_reader(finest_level + 1);
+  for (std::uint32_t s = min_level; s <= finest_level; ++s) {
+    last_reader[s].assign(levels[s].size(), UINT32_MAX);
+  }
   for (std::uint32_t z = finest_level; z-- > min_level;) {
-    std::set<geo::TileId> parent_set;
-    for (const auto& c : child_ids) parent_set.insert(c.parent());
-    std::vector<geo::TileId> parents(parent_set.begin(), parent_set.end());
-    std::sort(parents.begin(), parents.end(),
-              [](const auto& a, const auto& b) { return a.morton() < b.morton(); });
+    for (const auto& [m, pid] : levels[z]) {
+      for (const auto& c : pid.children()) {
+        if (const auto at = position(c)) last_reader[z + 1][*at] = z;
+      }
+      if (const std::uint32_t depth = depth_of(pid, z); depth > 1) {
+        const auto [b, e] = under(pid, z + depth);
+        for (auto it = b; it != e; ++it) {
+          last_reader[z + depth][static_cast<std::size_t>(it - levels[z + depth].begin())] = z;
+        }
+      }
+    }
+  }
+  auto last_read = [&](const geo::TileId& id) {
+    const auto at = position(id);
+    return at ? last_reader[id.z][*at] : UINT32_MAX;
+  };
+  for (std::uint32_t z = finest_level; z-- > min_level;) {
+    std::vector<geo::TileId> parents;
+    parents.reserve(levels[z].size());
+    for (const auto& [m, id] : levels[z]) parents.push_back(id);
+    // No level from here on reads these again.
+    cache.drop([&](const geo::TileId& id) { return last_read(id) > z; });
     total += parents.size();
     if (Status s = report(true); !s.ok()) return s.error();
     const LodOptions lod = options.lod;
-    const std::set<geo::TileId> child_set(child_ids.begin(), child_ids.end());
+    std::set<geo::TileId> child_set;
+    for (const auto& [m, id] : levels[z + 1]) child_set.insert(id);
     AbsentCorners absent(writer, child_set);
     std::vector<geo::TileId> written;
     written.reserve(parents.size());
     Status s = run_level(
         parents,
         [&](const geo::TileId& pid) -> Result<TilePool::Job> {
-          auto reads = std::make_shared<std::array<std::optional<ReadTile>, 4>>();
+          // Each tile a job needs: from the cache when it is there, else as read from the store.
+          auto need = [&](const geo::TileId& id) -> Result<std::optional<NeededTile>> {
+            const bool again = last_read(id) < z;
+            if (auto hit = cache.find(id)) {
+              return std::optional<NeededTile>{NeededTile{hit, {}, again}};
+            }
+            auto t = read(id);
+            if (!t.ok()) return t.error();
+            if (!*t) return std::optional<NeededTile>{};
+            return std::optional<NeededTile>{NeededTile{nullptr, std::move(**t), again}};
+          };
+          auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
           std::array<double, 4> absent_z{};
           const auto ids = pid.children();
           for (std::size_t i = 0; i < 4; ++i) {
-            auto t = read(ids[i]);
-            if (!t.ok()) return t.error();
-            if (*t) {
-              if (z + 1 == finest_level) account((*t)->stored);  // each finest tile once
-              (*reads)[i] = std::move(**t);
-              continue;
+            if (z + 1 == finest_level) {  // each finest tile accounted once, from the store
+              auto t = read(ids[i]);
+              if (!t.ok()) return t.error();
+              if (*t) {
+                account((*t)->stored);
+                (*kids)[i] = NeededTile{nullptr, std::move(**t), last_read(ids[i]) < z};
+                continue;
+              }
+            } else {
+              auto t = need(ids[i]);
+              if (!t.ok()) return t.error();
+              if (*t) {
+                (*kids)[i] = std::move(**t);
+                continue;
+              }
             }
             auto z_corner = absent.height(pid, static_cast<int>(i));
             if (!z_corner) return z_corner.error();
             absent_z[i] = *z_corner;
           }
-          // The deepest level whose tiles under the parent fit max_sources.
-          std::uint32_t depth = 1;
-          for (std::uint32_t sl = finest_level; sl > z + 1; --sl) {
-            const auto [b, e] = under(pid, sl);
-            if (static_cast<std::size_t>(e - b) <= max_sources) {
-              depth = sl - z;
-              break;
-            }
-          }
+          const std::uint32_t depth = depth_of(pid, z);
           // All the data under one child, thinned from the same sources (the same counts give
           // the same source level): its vertices are the candidates, the sources only measure.
-          const bool one_child = std::count_if(reads->begin(), reads->end(),
+          const bool one_child = std::count_if(kids->begin(), kids->end(),
                                                [](const auto& r) { return r.has_value(); }) == 1;
-          auto sources = std::make_shared<std::vector<ReadTile>>();
+          auto sources = std::make_shared<std::vector<NeededTile>>();
           if (depth > 1) {
             const auto [b, e] = under(pid, z + depth);
             for (auto it = b; it != e; ++it) {
-              auto t = read(it->second);
+              auto t = need(it->second);
               if (!t.ok()) return t.error();
               if (!*t) return not_found("lod: tile " + it->second.to_string() + " vanished");
               sources->push_back(std::move(**t));
             }
           }
           return TilePool::Job(
-              [reads, sources, depth, one_child, pid, lod, absent_z]() -> Result<Built> {
-                Children kids;
-                kids.absent_corner_z = absent_z;
+              [kids, sources, depth, one_child, pid, lod, absent_z, &cache]() -> Result<Built> {
+                ChildViews children;
+                children.absent_corner_z = absent_z;
                 for (std::size_t i = 0; i < 4; ++i) {
-                  if (!(*reads)[i]) continue;
-                  auto decoded = decode_lod_tile(*(*reads)[i]);
-                  if (!decoded) return decoded.error();
-                  kids.tiles[i] = std::move(*decoded);
-                  (*reads)[i].reset();  // the compressed copy is not needed any more
+                  if (!(*kids)[i]) continue;
+                  auto t = decoded(*(*kids)[i], cache);
+                  if (!t) return t.error();
+                  children.tiles[i] = t->get();
                 }
-                Sources src;
+                SourceViews src;
                 src.depth = depth;
                 src.candidates_from_children = one_child && depth > 1;
                 src.tiles.reserve(sources->size());
                 for (auto& r : *sources) {
-                  auto decoded = decode_lod_tile(r);
-                  if (!decoded) return decoded.error();
-                  src.tiles.push_back(std::move(*decoded));
-                  r = ReadTile{};
+                  auto t = decoded(r, cache);
+                  if (!t) return t.error();
+                  src.tiles.push_back(t->get());
                 }
-                auto parent = build_from_sources(pid, kids, src, lod);
+                auto parent = build_from_sources(pid, children, src, lod);
                 if (!parent) return parent.error();
                 auto stored = store::prepare_tile(parent->tile);
                 if (!stored) return stored.error();
@@ -480,8 +613,6 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
         });
     if (!s.ok()) return s.error();
     summary.tiles_built += written.size();
-    index_level(z, written);
-    child_ids = std::move(written);
   }
   if (Status s = report(true); !s.ok()) return s.error();
   return summary;

@@ -886,7 +886,34 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
   bool corner_found[4] = {false, false, false, false};
   std::vector<tile::Vertex> north, east, south, west;
   out.source_points = own >= 0 ? cells.tiles()[static_cast<std::size_t>(own)].count : 0;
+  // A data point closer than kMinVertexDistance to a side (either way, not near a corner) is
+  // that side's vertex, moved onto it: the edges from it would cross the side a rounding error
+  // away from it (two edge points beside it, and it beside the side: near-duplicate vertices in
+  // any quantised encoding). Both neighbours see it (their rings share its cell) and move it
+  // alike; the crossings beside it are left out below.
+  std::vector<tile::Vertex> moved_north, moved_east, moved_south, moved_west;
+  auto near = [](double a, double b) { return a != b && std::abs(a - b) < kMinVertexDistance; };
+  auto inside_side = [](double v, double lo, double hi) {
+    return v - lo >= kMinVertexDistance && hi - v >= kMinVertexDistance;
+  };
+  auto move_to_side = [&](const SortedPoint& p) {
+    const bool along_x = inside_side(p.x, R.min_x, R.max_x);
+    const bool along_y = inside_side(p.y, R.min_y, R.max_y);
+    if (along_x && near(p.y, R.max_y)) {
+      moved_north.push_back({p.x, R.max_y, p.z, p.weight});
+    } else if (along_x && near(p.y, R.min_y)) {
+      moved_south.push_back({p.x, R.min_y, p.z, p.weight});
+    } else if (along_y && near(p.x, R.min_x)) {
+      moved_west.push_back({R.min_x, p.y, p.z, p.weight});
+    } else if (along_y && near(p.x, R.max_x)) {
+      moved_east.push_back({R.max_x, p.y, p.z, p.weight});
+    } else {
+      return false;
+    }
+    return true;
+  };
   auto classify = [&](const SortedPoint& p) {
+    if (move_to_side(p)) return;
     const bool in_x = p.x > R.min_x && p.x < R.max_x;
     const bool in_y = p.y > R.min_y && p.y < R.max_y;
     if (in_x && in_y) {
@@ -989,6 +1016,30 @@ Result<tile::TinTile> build_tile(const geo::TileId& id, const PointCells& cells,
       }
     }
   }
+  // The crossings beside a moved point go; of moved points closer than kMinVertexDistance to
+  // each other, the first in the side's order stays (both neighbours have the same lists).
+  auto add_moved = [](std::vector<tile::Vertex>& side, std::vector<tile::Vertex>& moved,
+                      bool along_x) {
+    if (moved.empty()) return;
+    auto pos = [along_x](const tile::Vertex& v) { return along_x ? v.x : v.y; };
+    std::sort(moved.begin(), moved.end(), [&](const tile::Vertex& a, const tile::Vertex& b) {
+      return pos(a) < pos(b) || (pos(a) == pos(b) && a.z < b.z);
+    });
+    std::vector<tile::Vertex> kept;
+    for (const auto& m : moved) {
+      if (kept.empty() || pos(m) - pos(kept.back()) >= kMinVertexDistance) kept.push_back(m);
+    }
+    std::erase_if(side, [&](const tile::Vertex& c) {
+      return std::any_of(kept.begin(), kept.end(), [&](const tile::Vertex& m) {
+        return std::abs(pos(c) - pos(m)) < kMinVertexDistance;
+      });
+    });
+    side.insert(side.end(), kept.begin(), kept.end());
+  };
+  add_moved(north, moved_north, true);
+  add_moved(south, moved_south, true);
+  add_moved(west, moved_west, false);
+  add_moved(east, moved_east, false);
   auto by_x = [](const tile::Vertex& a, const tile::Vertex& b) {
     return a.x < b.x || (a.x == b.x && a.z < b.z);
   };

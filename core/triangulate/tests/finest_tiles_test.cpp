@@ -557,6 +557,40 @@ TEST(FinestTiles, MetreLatticeCentredOnTileCornersGivesNoEdgePointBesideACorner)
   EXPECT_EQ(inner_corners, 36u);
 }
 
+TEST(FinestTiles, DataPointARoundingErrorFromABorderIsThatBordersVertexInBothTiles) {
+  // A point 7.7e-13 inside a tile's south border (#20: the demo's sparse sample had one): the
+  // edges from it cross the border beside it, which gave two edge points and the point itself
+  // within 1e-12 of each other (near-duplicate vertices, zero-area triangles once quantised).
+  // It is moved onto the border instead, as a vertex of both tiles' shared side.
+  const geo::TileId base{12, 2000, 1500};
+  const auto r = base.bounds();
+  auto pts = random_points(4800, 11, r.min_x, r.max_y - 4 * r.width(), 4 * r.width());
+  const geo::TileId north{12, 2001, 1501};
+  const auto nr = north.bounds();
+  const InputPoint close{(nr.min_x + nr.max_x) / 2, nr.min_y + 7.7e-13, 500.0};
+  // A point right below it: their edge crosses the border at close.x, 7.7e-13 from it.
+  pts.push_back({close.x, nr.min_y - 1e-6 * nr.width(), 480.0});
+  pts.push_back(close);
+  const Fixture f = build(pts, 400, 2, "border-close");
+  ASSERT_EQ(f.run.finest_level, 12u);
+  expect_watertight(f);
+  for (const auto& t : f.tiles) expect_no_close_vertices(t);
+  const auto* n = find(f, north);
+  const auto* s = find(f, geo::TileId{12, 2001, 1502});
+  ASSERT_TRUE(n && s);
+  auto on_side = [&](const std::vector<tile::Vertex>& side) {
+    return std::count_if(side.begin(), side.end(), [&](const tile::Vertex& v) {
+      return v.x == close.x && v.y == nr.min_y && v.z == close.z;
+    });
+  };
+  EXPECT_EQ(on_side(n->south), 1);
+  EXPECT_EQ(on_side(s->north), 1);
+  for (const auto& v : n->interior) EXPECT_FALSE(v.x == close.x && v.y == close.y);
+  // Every other point stays where it was.
+  pts.pop_back();
+  expect_no_point_lost(f, pts);
+}
+
 TEST(FinestTiles, PointCellsHullIsTheDataHull) {
   // PointCells::build skips the hull of tiles enclosed by their diagonal neighbours; the result
   // must still be the exact convex hull of all points (CGAL's), on a ring (inner tiles enclosed,

@@ -59,6 +59,18 @@ struct Sources {
   bool candidates_from_children = false;
 };
 
+// The same inputs held elsewhere (the pyramid's cache of decoded tiles, pyramid.cpp), not copied:
+// tiles[k] null where child k is absent; the sources in the order given.
+struct ChildViews {
+  std::array<const LodTile*, 4> tiles{};
+  std::array<double, 4> absent_corner_z{};
+};
+struct SourceViews {
+  std::uint32_t depth = 1;
+  std::vector<const LodTile*> tiles;  // not null
+  bool candidates_from_children = false;
+};
+
 // The parent's corners and outer border come from `children` (which its neighbours share, so
 // same-level tiles stay watertight whatever depth each one's sources have), its interior
 // candidates, orphans, witnesses and chained error from the sources; it records at least every
@@ -67,6 +79,11 @@ struct Sources {
 // triangulation.
 Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& children,
                                    const Sources& sources, const LodOptions& options = {},
+                                   ThinStats* stats = nullptr);
+
+// build_from_sources on views; the same result as on copies of the tiles.
+Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& children,
+                                   const SourceViews& sources, const LodOptions& options = {},
                                    ThinStats* stats = nullptr);
 
 // build_from_sources with the four children (depth 1).

@@ -25,7 +25,12 @@
 // writes of parents); build_from_sources runs on `threads` workers. At most `max_in_flight`
 // parents (and their children and sources, at most 4 + 4^source_depth tiles of at most
 // max_points each) are in memory at once, so memory is bounded by options, not by the layer's
-// size; the tile ids of every level are listed in memory (16 bytes + 12 per tile).
+// size; the tile ids of every level are listed in memory (16 bytes + 16 per tile). Beside them,
+// decoded tiles that a coarser level reads again (as a source) are kept, shared by the workers,
+// up to PyramidOptions::decoded_cache_bytes: the levels above the one where the data fit
+// 4^source_depth tiles read the same tiles level after level. Levels whose tiles outnumber the
+// budget decode again what did not fit (a level reads all of its sources before the next one
+// starts). The tiles stored are the same with or without the cache.
 // The progress sink is called on the calling thread (phase "lod", unit "tiles"); returning false
 // cancels (ErrorCode::cancelled).
 #pragma once
@@ -52,6 +57,9 @@ struct PyramidOptions {
   // 4^source_depth (at least its children); 1 … 8. Memory per parent in flight grows as
   // 4^source_depth × max_points.
   std::uint32_t source_depth = 3;
+  // Decoded tiles that coarser levels read again are kept up to this many bytes (estimated from
+  // their vectors) so that they are decoded once; 0: every read decodes. Output is the same.
+  std::size_t decoded_cache_bytes = std::size_t{64} << 20;
   // Directory for the side file (bounds and witnesses between levels); empty: kept in memory.
   std::filesystem::path scratch;
 };
