@@ -12,9 +12,11 @@ CMAKE_FLAGS ?=
 # compile than full debug info) and the asserts on (no NDEBUG).
 SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
             -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1"
-# The suites with threads of their own (worker pools, the store queue, the server's io threads).
+# The suites with threads of their own (worker pools, the store queue, the server's io threads,
+# the client's download threads against the real server; neither client suite makes a GL context).
 TSAN_TARGETS = base_tests store_tests transform_tests subdivide_tests triangulate_tests \
-               lod_tests ingest_tests server_tests imagery_tests
+               lod_tests ingest_tests server_tests imagery_tests client_tests \
+               client_integration_tests
 
 .PHONY: all deps build test check demo release asan tsan fuzz format format-check tidy crash bench clean
 

@@ -73,10 +73,11 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
     print(f'store `{store}`, layer `{layer}`, {size}, max SSE {sse} px, '
           f'+{delay_ms} ms per request (proxy)\n')
     cold = read_jsonl(f'{out}/cold.jsonl')
-    print('### Cold time to a complete view (fresh process, no disk tier)\n')
-    print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
-          '(proxy) | most in flight |')
-    print('|---|---|---|---|---|---|---|---|')
+    if cold:  # (PARTS= may leave it out)
+        print('### Cold time to a complete view (fresh process, no disk tier)\n')
+        print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
+              '(proxy) | most in flight |')
+        print('|---|---|---|---|---|---|---|---|')
     by_t = {}
     for c in cold:
         v, p = c['viewer'], c['proxy']
@@ -117,11 +118,16 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
                   f'**{max(streaming) / statistics.median(loaded):.2f}×** (target ≤ 1.5×); '
                   f'p99 streaming / median loaded = {pct(streaming, 99) / statistics.median(loaded):.2f}×\n')
 
-    flight = [f for f in read_jsonl(f'{out}/flight.jsonl') if 'frame' in f]
+    flight_lines = read_jsonl(f'{out}/flight.jsonl')
+    flight = [f for f in flight_lines if 'frame' in f]
     if flight:
         rss = [f['rss_bytes'] for f in flight]
         ft = [f['frame_ms'] for f in flight]
-        budget = (64 + 64) << 20
+        # The budgets from the summary line (GPU_MB, CACHE_MB of run.sh).
+        tiers = next((f['cache'] for f in flight_lines if 'cache' in f), None)
+        gpu_mb, ram_mb = ((tiers['gpu']['budget'] >> 20, tiers['ram']['budget'] >> 20) if tiers
+                          else (64, 64))
+        budget = (gpu_mb + ram_mb) << 20
         base = rss[0]
         try:
             maxrss = int(open(f'{out}/flight.maxrss_kb').read().split()[-1]) * 1024
@@ -129,7 +135,7 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
             maxrss = 0
         mb = 1 << 20
         print(f'### Memory over a scripted flight ({flight[-1]["t"]:.0f} s, {len(flight)} frames, '
-              f'--gpu-mb 64 --cache-mb 64)\n')
+              f'--gpu-mb {gpu_mb} --cache-mb {ram_mb})\n')
         print('| RSS first frame | RSS median | RSS max (frames) | max RSS (time -f %M) | '
               'budgets | max − first frame | peak GPU tier | peak RAM tier |')
         print('|---|---|---|---|---|---|---|---|')

@@ -6,6 +6,10 @@
 #   BUILD=build REPEAT=3 FLIGHT_S=300 bench/client/run.sh
 #   STORE_IN=terrain.sqlite LAYER=alps bench/client/run.sh
 #   CESIUM=0 bench/client/run.sh             leave out the CesiumJS peer
+#   PARTS=memory FLIGHT_S=60 bench/client/run.sh   only some of the parts below (cold stream
+#                                            memory cesium; default all of them)
+#   FLIGHT_ARGS="--heap-trim-ms -1" MALLOC_ARENA_MAX=64 PARTS=memory bench/client/run.sh
+#                                            the flight with extra viewer options / environment
 #
 # 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
 #    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
@@ -15,8 +19,9 @@
 #    glFinish) while streaming vs on the same view loaded (median, p95, p99, worst), and the
 #    streaming part of each frame alone (update_ms: take results, select, upload);
 # 3. memory: a scripted flight of FLIGHT_S seconds (default 300) back and forth over the layer
-#    at several heights with small budgets (--gpu-mb 64 --cache-mb 64): RSS per frame against
-#    the budgets (the GPU tier lives in process memory with Mesa) plus the RSS of the first frame;
+#    at several heights with small budgets (--gpu-mb GPU_MB --cache-mb CACHE_MB, 64 each by
+#    default): RSS per frame against the budgets (the GPU tier lives in process memory with
+#    Mesa) plus the RSS of the first frame;
 # 4. CesiumJS (npm cesium in Debian's headless chromium, playwright-core; bench/client/cesium.html)
 #    on the same layer's Cesium terrain endpoint, same camera, viewport, fov and maximum
 #    screen-space error, through the same proxy: time to a complete view and bytes (CESIUM=1,
@@ -38,7 +43,17 @@ FLIGHT_S=${FLIGHT_S:-300}
 SIZE=${SIZE:-1280x720}
 SSE=${SSE:-2}
 CESIUM=${CESIUM:-auto}
+PARTS=${PARTS:-cold stream memory cesium}
+GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
+CACHE_MB=${CACHE_MB:-64}
+read -r -a flight_args <<< "${FLIGHT_ARGS:-}"
 mkdir -p "$OUT"
+part() { [[ " $PARTS " == *" $1 "* ]]; }
+# A part left out leaves no results of an earlier run behind for the report.
+part cold || rm -f "$OUT"/cold.jsonl "$OUT"/cold_t*
+part stream || rm -f "$OUT"/stream.jsonl "$OUT"/stream.png
+part memory || rm -f "$OUT"/flight.jsonl "$OUT"/flight.maxrss_kb "$OUT"/flight.png
+part cesium || { CESIUM=0; rm -f "$OUT"/cesium.jsonl "$OUT"/cesium_*.png; }
 for b in tinstream-viewer tinstream-server tinstream; do
   [[ -x $BIN/$b ]] || { echo "run.sh: $BIN/$b is missing (cmake --build $BUILD --target $b)" >&2; exit 2; }
 done
@@ -97,6 +112,7 @@ viewer() { "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --
 proxy_stats() { curl -fsS "$proxy/__stats"; }
 
 # --- 1. cold time to a complete view ---
+if part cold; then
 : > "$OUT/cold.jsonl"
 for r in $(seq "$REPEAT"); do
   for t in 8 1; do
@@ -108,19 +124,25 @@ for r in $(seq "$REPEAT"); do
     echo "cold, $t threads, run $r: $(python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); print(v["time_to_complete_s"], "s,", v["tiles"]["loaded"], "tiles")' "$OUT/cold_t${t}_$r.json")"
   done
 done
+fi
 
 # --- 2. frame times while streaming vs loaded (8 threads) ---
-curl -fsS "$proxy/__reset" > /dev/null
-# --fps 1: the path's 5 loaded seconds are 5 frames, however slow the renderer (Mesa llvmpipe).
-viewer --threads 8 --fps 1 --camera-path "$OUT/stream.txt" --out "$OUT/stream.png" \
-  --stats "$OUT/stream.jsonl"
+if part stream; then
+  curl -fsS "$proxy/__reset" > /dev/null
+  # --fps 1: the path's 5 loaded seconds are 5 frames, however slow the renderer (llvmpipe).
+  viewer --threads 8 --fps 1 --camera-path "$OUT/stream.txt" --out "$OUT/stream.png" \
+    --stats "$OUT/stream.jsonl"
+fi
 
 # --- 3. memory over a scripted flight ---
-curl -fsS "$proxy/__reset" > /dev/null
-/usr/bin/time -f '%M' -o "$OUT/flight.maxrss_kb" \
-  "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" --max-sse "$SSE" \
-  --threads 8 --gpu-mb 64 --cache-mb 64 --timeout 120 --camera-path "$OUT/flight.txt" \
-  --out "$OUT/flight.png" --stats "$OUT/flight.jsonl"
+if part memory; then
+  curl -fsS "$proxy/__reset" > /dev/null
+  /usr/bin/time -f '%M' -o "$OUT/flight.maxrss_kb" \
+    "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" \
+    --max-sse "$SSE" --threads 8 --gpu-mb "$GPU_MB" --cache-mb "$CACHE_MB" --timeout 120 \
+    --camera-path "$OUT/flight.txt" --out "$OUT/flight.png" --stats "$OUT/flight.jsonl" \
+    "${flight_args[@]}"
+fi
 
 # --- 4. CesiumJS ---
 if [[ $CESIUM == auto ]]; then

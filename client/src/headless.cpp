@@ -179,7 +179,8 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
                               {"waiting", player.waiting()},
                               {"gpu_bytes", s.streamer->gpu_counters().bytes},
                               {"ram_bytes", s.streamer->ram_counters().bytes},
-                              {"rss_bytes", resident_bytes()}}
+                              {"rss_bytes", resident_bytes()},
+                              {"heap_trims", s.streamer->heap_trims()}}
                    .dump());
     ++frame;
     run.render = rs;

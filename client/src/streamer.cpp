@@ -1,7 +1,11 @@
 #include "tinstream/client/streamer.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <limits>
+#if defined(__GLIBC__)  // (defined by any libc header, so after <cstdlib>)
+#include <malloc.h>
+#endif
 
 #include "tinstream/client/skirts.hpp"
 
@@ -62,6 +66,31 @@ TileStreamer::TileStreamer(TileLoader& loader, StreamerOptions options)
   // The occluder lies below the lowest terrain (its semi-axes shrunk by that depth sit inside
   // the surface at that height; 100 m more covers the difference to a parallel surface).
   occluder_ = HorizonOccluder(-lowest_height_ + 100.0);
+  if (options_.heap_trim_interval.count() >= 0)
+    trimmer_ = std::thread([this] {
+      std::unique_lock lock(trim_mutex_);
+      for (;;) {
+        trim_wake_.wait(lock, [this] { return trim_requested_ || trim_stop_; });
+        if (trim_stop_) return;
+        trim_requested_ = false;
+        lock.unlock();
+#if defined(__GLIBC__)
+        // Every arena, not only this thread's: the meshes and the decoding scratch came from the
+        // workers' arenas.
+        ::malloc_trim(0);
+#endif
+        lock.lock();
+      }
+    });
+}
+
+TileStreamer::~TileStreamer() {
+  {
+    std::lock_guard lock(trim_mutex_);
+    trim_stop_ = true;
+  }
+  trim_wake_.notify_one();
+  if (trimmer_.joinable()) trimmer_.join();
 }
 
 bool TileStreamer::failed_recently(const TileKey& key) {
@@ -78,6 +107,7 @@ void TileStreamer::take_results() {
     switch (r.status) {
       case LoadStatus::loaded: {
         ++level.loaded;
+        ++tiles_taken_;
         const std::uint64_t bytes = r.mesh->byte_size();
         // Entries pinned in the previous frame (drawn, or waiting for upload) stay.
         ram_.insert(r.key, std::move(r.mesh), bytes, frame_, frame_ - 1);
@@ -204,7 +234,23 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   frame_result_.wanted = wanted_.size();
   upload(gpu);
   loader_.submit(wanted_);
+  trim_heap();
   return frame_result_;
+}
+
+void TileStreamer::trim_heap() {
+  const std::uint64_t churn = gpu_.counters().evictions + ram_.counters().evictions + tiles_taken_;
+  if (churn == trimmed_churn_ || options_.heap_trim_interval.count() < 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (heap_trims_ > 0 && now - last_trim_ < options_.heap_trim_interval) return;
+  {
+    std::lock_guard lock(trim_mutex_);
+    trim_requested_ = true;
+  }
+  trim_wake_.notify_one();
+  trimmed_churn_ = churn;
+  last_trim_ = now;
+  ++heap_trims_;
 }
 
 void TileStreamer::release_all(GpuUploader& gpu) {

@@ -129,6 +129,11 @@ TEST(TileStreamer, RefinesToTheFinestLevelWithoutHolesOrOverlaps) {
   EXPECT_EQ(s.level_counters()[12].loaded, 16u);
   EXPECT_EQ(fx.loader->counters().failed, 0u);
   EXPECT_EQ(gpu.alive, 21);
+  // Nothing was evicted; the first frame that received tiles trimmed the heap, and later ones
+  // no sooner than a second after (heap_trim_interval), so a fast run trims once or a few times.
+  EXPECT_EQ(s.gpu_counters().evictions + s.ram_counters().evictions, 0u);
+  EXPECT_GE(s.heap_trims(), 1u);
+  EXPECT_LE(s.heap_trims(), s.frames());
   s.release_all(gpu);
   EXPECT_EQ(gpu.alive, 0);
 }
@@ -245,25 +250,46 @@ TEST(TileStreamer, AbsentChildrenAreCoveredByTheirParentsQuadrant) {
   s.release_all(gpu);
 }
 
-TEST(TileStreamer, GpuAndRamBudgetsHoldWithinOneTile) {
+TEST(TileStreamer, GpuAndRamBudgetsHoldWithinOneTileAndEvictionsAndNewTilesTrimTheHeap) {
   Fixture fx("streamer_budget");
   StreamerOptions options;
   options.max_sse = 0.01;
   options.gpu_budget = 40000;  // a few tiles of 9×9 vertices (≈ 3 KB each)… too few for the view
   options.ram_budget = 30000;
+  options.heap_trim_interval = std::chrono::milliseconds(0);  // every frame that may trim does
+  // Evictions from both tiers plus meshes received: what makes a frame trim the heap.
+  const auto churn = [](const TileStreamer& t) {
+    std::uint64_t loaded = 0;
+    for (const LevelCounters& l : t.level_counters()) loaded += l.loaded;
+    return t.gpu_counters().evictions + t.ram_counters().evictions + loaded;
+  };
   TileStreamer s(*fx.loader, options);
   CountingUploader gpu;
   const geo::LonLat c = block_centre();
   const Camera camera = above(c.lon, c.lat, 60000);
-  for (int i = 0; i < 200; ++i) {
+  // At least 200 frames, and on until the RAM tier has evicted, however slowly tiles arrive (the
+  // deadline only stops a broken streamer from hanging the suite). The GPU tier refuses rather
+  // than evicts here: everything it holds is drawn or on the path to what is drawn.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  std::uint64_t frames_that_churned = 0;
+  for (int i = 0; i < 200 || s.ram_counters().evictions == 0; ++i) {
+    ASSERT_LT(std::chrono::steady_clock::now(), until) << "the RAM tier never evicted";
+    const std::uint64_t churn_before = churn(s);
+    const std::uint64_t trims_before = s.heap_trims();
     s.update(camera, gpu);
     const TierCounters& g = s.gpu_counters();
     ASSERT_LE(g.bytes, g.budget + g.largest_entry);
     ASSERT_LE(s.ram_counters().bytes, s.ram_counters().budget + s.ram_counters().largest_entry);
     ASSERT_EQ(static_cast<std::uint64_t>(gpu.alive_bytes), g.bytes);
+    // A frame trims the heap exactly when it evicted something or received tiles.
+    const bool churned = churn(s) > churn_before;
+    ASSERT_EQ(s.heap_trims() - trims_before, churned ? 1u : 0u) << "frame " << i;
+    frames_that_churned += churned ? 1 : 0;
     fx.loader->wait_for_results(std::chrono::milliseconds(5));
   }
   EXPECT_GT(s.gpu_counters().inserts, 0u);
+  EXPECT_GT(frames_that_churned, 0u);
+  EXPECT_EQ(s.heap_trims(), frames_that_churned);
   s.release_all(gpu);
 }
 

@@ -1,6 +1,10 @@
 // tinstream-viewer: the native streaming globe client (README "Viewing terrain").
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstdlib>
+#if defined(__GLIBC__)  // (defined by any libc header, so after <cstdlib>)
+#include <malloc.h>
+#endif
 #include <iostream>
 #include <sstream>
 
@@ -29,6 +33,13 @@ bool parse_size(const std::string& text, int& w, int& h) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // glibc gives each download thread a malloc arena of its own (up to 8 per core), and every
+  // arena keeps its high-water mark: with 8 workers decoding meshes that the render thread frees
+  // later, RSS grew far beyond the cache budgets. Two arenas bound that (bench/client, memory);
+  // set before any thread starts. MALLOC_ARENA_MAX in the environment still decides.
+  if (std::getenv("MALLOC_ARENA_MAX") == nullptr) ::mallopt(M_ARENA_MAX, 2);
+#endif
   ViewerOptions o;
   CLI::App app{
       "tinstream-viewer: streams TIN terrain tiles from a tinstream-server (--url) or a tile store "
@@ -56,6 +67,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1 << 24));
   app.add_option("--upload-mb", o.upload_mb, "largest GPU upload per frame in MB (default 8)")
       ->check(CLI::Range(1, 1024));
+  app.add_option("--heap-trim-ms", o.heap_trim_ms,
+                 "after cache evictions, give free heap memory back to the system at most every "
+                 "MS ms (default 1000; -1: never)")
+      ->check(CLI::Range(-1, 3600000));
   app.add_option("--request-timeout", o.http.request_timeout_ms,
                  "per-request timeout in ms (default 10000)")
       ->check(CLI::Range(50, 600000));

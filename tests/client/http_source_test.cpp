@@ -86,6 +86,16 @@ TEST(HttpSource, FetchesRevalidatesAndReportsAbsentTiles) {
   EXPECT_EQ(ok.reconnects + same.reconnects + absent.reconnects, 1u);
 }
 
+// tinstream_http_open_connections from the server's /metrics (the probe's own connection
+// included), or -1 when it cannot be read.
+std::int64_t open_connections(std::uint16_t port) {
+  const std::string body = testing::http_get(port, "/metrics");
+  const std::string name = "\ntinstream_http_open_connections ";
+  const auto at = body.find(name);
+  if (at == std::string::npos) return -1;
+  return std::strtoll(body.c_str() + at + name.size(), nullptr, 10);
+}
+
 TEST(HttpSource, ReopensAKeepAliveConnectionTheServerClosed) {
   ServedStore served("http_idle", R"("read_timeout_ms": 200)");
   auto source = http(served.server->url());
@@ -94,8 +104,14 @@ TEST(HttpSource, ReopensAKeepAliveConnectionTheServerClosed) {
   auto connection = source->connect();
   ASSERT_TRUE(connection.ok());
   ASSERT_EQ(fetch(**connection, layers->front(), kTile).status, FetchResponse::Status::ok);
-  // The server drops idle connections after 200 ms (its sweep runs every 25 ms).
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  // The server drops idle connections after 200 ms (its sweep runs every 25 ms): wait until its
+  // metrics count no connection but the probe's own, however long a loaded machine takes.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  std::int64_t open = -1;
+  while ((open = open_connections(served.server->port())) != 1 &&
+         std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_EQ(open, 1) << "the server kept the idle connection open";
   const FetchResponse again = fetch(**connection, layers->front(), kTile);
   EXPECT_EQ(again.status, FetchResponse::Status::ok) << again.error.message;
   EXPECT_EQ(again.reconnects, 1u);
@@ -315,7 +331,8 @@ TEST(Streaming, MovingTheCameraDropsTheOldViewsQueuedRequestsOverHttp) {
       geo::NormalisedMercator().inverse({(r.min_x + r.max_x) / 2, (r.min_y + r.max_y) / 2});
   Camera camera(1280, 720, 60);
   camera.set_pose({c.lon, c.lat, 400000, 0, -90});
-  for (int i = 0; i < 2000 && !streamer.update(camera, gpu).complete; ++i)
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(300);
+  while (!streamer.update(camera, gpu).complete && std::chrono::steady_clock::now() < until)
     loader.wait_for_results(std::chrono::milliseconds(20));
   ASSERT_TRUE(streamer.last_frame().complete);
   loader.set_paused(true);

@@ -82,6 +82,10 @@ class ScriptedPeer {
 std::string http_response(int status, const std::string& body,
                           const std::vector<std::string>& headers = {});
 
+// GET `path` from 127.0.0.1:port on a connection of its own (Connection: close): the whole
+// response, headers included, or "" when it fails or takes more than 30 s.
+std::string http_get(std::uint16_t port, const std::string& path);
+
 // A port on 127.0.0.1 with no listener (bound, then closed).
 std::uint16_t closed_port();
 

@@ -17,13 +17,17 @@
 // Tiles drawn, and those on the path to them, are pinned in the frame and never evicted.
 //
 // The GPU is reached only through GpuUploader (the renderer implements it), so the selection and
-// the tiers are testable without OpenGL. Single-threaded: the render thread owns everything here.
+// the tiers are testable without OpenGL. The render thread owns everything here; the one other
+// thread, the heap trimmer, only runs malloc_trim when update() asks it to (never blocking it).
 #pragma once
 
 #include <array>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -106,11 +110,20 @@ struct StreamerOptions {
   std::uint64_t ram_budget = 512ull << 20;  // bytes
   std::uint64_t upload_bytes_per_frame = 8u << 20;
   std::chrono::milliseconds failure_retry{10000};  // a failed tile is asked again after this
+  // After a tier evicted or new tiles arrived, free heap pages go back to the system (glibc
+  // malloc_trim) at most this often; negative: never. The download threads allocate (and free
+  // their decoding scratch) in their own malloc arenas and the render thread frees the meshes
+  // on eviction, so without it the RSS keeps every arena's high-water mark (bench/client: the
+  // scripted flight's RSS).
+  std::chrono::milliseconds heap_trim_interval{1000};
 };
 
 class TileStreamer {
  public:
   TileStreamer(TileLoader& loader, StreamerOptions options);
+  ~TileStreamer();
+  TileStreamer(const TileStreamer&) = delete;
+  TileStreamer& operator=(const TileStreamer&) = delete;
 
   const FrameResult& update(const Camera& camera, GpuUploader& gpu);
   // Frees every GPU buffer (before the GL context goes away).
@@ -126,6 +139,9 @@ class TileStreamer {
   const TierCounters& ram_counters() const { return ram_.counters(); }
   std::uint64_t frames() const { return frame_; }
   std::uint64_t failures() const { return failures_; }
+  // How often update() asked for free heap memory to go back (heap_trim_interval); the trimmer
+  // thread does it (malloc_trim takes milliseconds: 5–8, up to 37 in bench/client's flights).
+  std::uint64_t heap_trims() const { return heap_trims_; }
   const std::string& last_error() const { return last_error_; }
   // Height of the lowest terrain any layer may have (for the globe and the horizon).
   double lowest_height() const { return lowest_height_; }
@@ -145,6 +161,7 @@ class TileStreamer {
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
   void upload(GpuUploader& gpu);
   bool failed_recently(const TileKey& key);
+  void trim_heap();
 
   TileLoader& loader_;
   StreamerOptions options_;
@@ -162,6 +179,15 @@ class TileStreamer {
   std::array<LevelCounters, kLevels> levels_{};
   std::uint64_t failures_ = 0;
   std::string last_error_;
+  std::uint64_t tiles_taken_ = 0;    // meshes received from the loader
+  std::uint64_t trimmed_churn_ = 0;  // evictions (both tiers) + tiles_taken_ at the last trim
+  std::chrono::steady_clock::time_point last_trim_{};
+  std::uint64_t heap_trims_ = 0;
+  // The heap trimmer: a thread that runs malloc_trim when asked (trim_requested_).
+  std::mutex trim_mutex_;
+  std::condition_variable trim_wake_;
+  bool trim_requested_ = false, trim_stop_ = false;
+  std::thread trimmer_;
 
   // Per frame.
   FrameResult frame_result_;

@@ -30,6 +30,7 @@ struct ViewerOptions {
   std::uint64_t gpu_mb = 512, cache_mb = 512, disk_mb = 2048;
   std::filesystem::path disk_cache;  // empty: no disk cache
   std::uint64_t upload_mb = 8;       // per frame
+  int heap_trim_ms = 1000;           // StreamerOptions::heap_trim_interval; negative: never
   HttpOptions http;
 
   bool headless = false;
