@@ -57,7 +57,13 @@ nlohmann::json JobStatus::to_json() const {
 }
 
 JobManager::JobManager(IngestRunner runner, std::uint32_t max_pending)
-    : runner_(std::move(runner)), max_pending_(max_pending), worker_([this] { work(); }) {}
+    : runner_(std::move(runner)), max_pending_(max_pending), worker_([this] { work(); }) {
+  // spdlog's registry is a function-local static. Made here, before any job can run (and log),
+  // it is destroyed after a JobManager that is itself static (a fuzz target's world): made by the
+  // worker's first log line instead, it was destroyed first at exit while the worker still
+  // logged a finishing job (ASan: SEGV in spdlog::sinks::sink::should_log).
+  spdlog::default_logger_raw();
+}
 
 JobManager::~JobManager() { shutdown(); }
 
