@@ -373,15 +373,22 @@ void Session::respond() {
 }
 
 // The work runs on the blocking worker; its answer comes back to this shard's thread. The work
-// guard keeps the shard's io_context running until it has (a graceful stop waits for it).
+// guard keeps the shard's io_context running until it has (a graceful stop waits for it). The
+// session's reference moves back with the answer, none stays in the worker's task: the last
+// reference must drop on the shard's thread, since ~Session leaves the shard's session set (a
+// copy left in the task made the worker destroy a closed session while the shard swept the set:
+// TSan, ServerTest.IngestThroughTheAdminApiWhileServing).
 void Session::defer(std::function<Response()> work) {
   deadline_ = Clock::time_point::max();  // no socket operation is pending meanwhile
   server_.blocking->post([self = shared_from_this(), work = std::move(work),
                           guard = net::make_work_guard(shard_.ioc)]() mutable {
     Response res = work();
-    net::post(self->shard_.ioc, [self, res = std::move(res), guard = std::move(guard)]() mutable {
-      self->do_write(std::move(res), !self->keep_alive_);
-    });
+    work = nullptr;  // what the work holds goes here, on the worker, not with the answer
+    net::io_context& ioc = self->shard_.ioc;  // (before self moves into the handler)
+    net::post(ioc,
+              [self = std::move(self), res = std::move(res), guard = std::move(guard)]() mutable {
+                self->do_write(std::move(res), !self->keep_alive_);
+              });
   });
 }
 
