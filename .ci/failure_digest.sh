@@ -16,15 +16,15 @@ if ((${#tests[@]} == 0)); then
   tail -n 25 "$log"
   return 0
 fi
-pattern='\*\*\*|Failure|FAILED|Expected|Which is|Value of|error:|ERROR|WARNING: ThreadSanitizer|runtime error|Assertion|Timeout|timed out|Killed|Segmentation|terminate|what\(\)|not ok|FAIL'
+pattern='\*\*\*|Failure|FAILED|Expected|Which is|Value of|error:|ERROR|WARNING: ThreadSanitizer|runtime error|Assertion|Timeout|timed out|Killed|Segmentation|terminate|what\(\)|not ok|FAIL|^ +#[0-9]+ (0x[0-9a-f]+ in )?tinstream::'
 for t in "${tests[@]}"; do
   echo "--- $t"
   # CTest's --output-on-failure block of the test: from its result line to the next result line.
   awk -v name="$t" '
     /^ *[0-9]+\/[0-9]+ Test +#[0-9]+: / { on = (index($0, " " name " ") > 0); if (on) print; next }
-    on' "$log" | grep -E "$pattern" | grep -v '^\[  FAILED  \] .* tests\?, listed below' | head -n 8
+    on' "$log" | grep -E "$pattern" | grep -v '^\[  FAILED  \] .* tests\?, listed below' | head -n 10
   # run_tests.sh prints an executable's failure lines right after its FAILED line.
-  grep -F -A 8 "FAILED  $t: " "$log" | tail -n +2 | grep -v '^FAILED  \|^ok  ' | head -n 8
+  grep -F -A 12 "FAILED  $t: " "$log" | tail -n +2 | grep -v '^FAILED  \|^ok  ' | head -n 10
 done
 }
-main | cut -c 1-240  # a build's command lines can be kilobytes long
+main | sed "s/\.\{4,\}/ ... /g" | cut -c 1-240  # CTest's dot leaders; a build's command lines can be kilobytes long

@@ -32,7 +32,7 @@ for i in "${!pids[@]}"; do
     echo "ok      ${names[$i]} ($(tail -n 1 "$logs/${names[$i]}.log"))"
   else
     echo "FAILED  ${names[$i]}: $logs/${names[$i]}.log"
-    grep -E '^\[  FAILED  \]|WARNING: ThreadSanitizer|ERROR: AddressSanitizer|runtime error' \
+    grep -E '^\[  FAILED  \]|WARNING: ThreadSanitizer|ERROR: AddressSanitizer|runtime error|^  (Previous )?([Rr]ead|[Ww]rite) of size|^ +#[0-9]+ (0x[0-9a-f]+ in )?tinstream::' \
       "$logs/${names[$i]}.log" | head -n 20
     status=1
   fi
