@@ -8,7 +8,6 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
-#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,6 +18,7 @@
 #include <set>
 #include <vector>
 
+#include "dem_crop.hpp"
 #include "lod_test_support.hpp"
 #include "temp_store.hpp"
 #include "tinstream/lod/pyramid.hpp"
@@ -26,8 +26,6 @@
 
 namespace tinstream::lod {
 namespace {
-
-namespace fs = std::filesystem;
 
 // ---- plain greedy insertion (Garland–Heckbert without a heap: the faces are scanned) ---------
 struct FaceCells {
@@ -174,18 +172,12 @@ class GreedyTin {
 // up to the level-9 tile over it (thinned from its 64 finest tiles). Its vertex count for its
 // recorded error against greedy insertion from the 257² cells at that error.
 TEST(PyramidQuality, StoredCoarseTileIsNotFarBehindGreedyInsertionOnARealDem) {
-  const fs::path dem = fs::path(TINSTREAM_SHARED_DATA) / "bigtujunga_srtm30m_utm11.tif";
-  if (!fs::exists(dem)) GTEST_SKIP() << dem << " not found";
-  GDALAllRegister();
-  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(dem.c_str(), GA_ReadOnly));
-  ASSERT_NE(ds, nullptr);
-  constexpr int kTiles = 8, kCells = 32 * kTiles, kOffX = 420, kOffY = 180;
+  constexpr int kTiles = 8, kCells = 32 * kTiles;
   constexpr int kSide = kCells + 1;
-  std::vector<float> crop(std::size_t{kSide} * std::size_t{kSide});
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kSide, kSide, crop.data(), kSide,
-                                           kSide, GDT_Float32, 0, 0),
-            CE_None);
-  GDALClose(ds);
+  const auto read = testing::big_tujunga_crop(kSide);
+  if (!read) GTEST_SKIP() << "bigtujunga_srtm30m_utm11.tif not in the shared data";
+  ASSERT_FALSE(read->empty());
+  const std::vector<float>& crop = *read;
   for (const float h : crop) ASSERT_LT(h, 32767.0F) << "NODATA in the crop";
   const std::uint32_t L = 12, x0 = 2000, y0 = 1496;
   const geo::MercatorRect block{geo::tile_x_edge(L, x0), geo::tile_y_edge(L, y0 + kTiles),

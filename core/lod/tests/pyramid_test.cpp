@@ -1,6 +1,5 @@
 #include "tinstream/lod/pyramid.hpp"
 
-#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,6 +8,7 @@
 #include <mutex>
 #include <random>
 
+#include "dem_crop.hpp"
 #include "lod_test_support.hpp"
 #include "temp_store.hpp"
 #include "tinstream/lod/error.hpp"
@@ -18,7 +18,6 @@
 namespace tinstream::lod {
 namespace {
 
-namespace fs = std::filesystem;
 using testing::grid_tile;
 using testing::TempStore;
 using tile::TinTile;
@@ -347,17 +346,11 @@ TEST(Pyramid, RecordedErrorBoundsAndTracksTheMeasuredErrorOnEveryLevel) {
 // Real heights: a 257 × 257 crop of the Big Tujunga SRTM DEM laid on a 4 × 4 block of level-12
 // tiles (64 cells each, so shared borders hold the same cells), reduced, then two levels up.
 TEST(Pyramid, RealDemCropReducedAndThinnedThroughTheStore) {
-  const fs::path dem = fs::path(TINSTREAM_SHARED_DATA) / "bigtujunga_srtm30m_utm11.tif";
-  if (!fs::exists(dem)) GTEST_SKIP() << dem << " not found";
-  GDALAllRegister();
-  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(dem.c_str(), GA_ReadOnly));
-  ASSERT_NE(ds, nullptr);
-  constexpr int kCells = 256, kOffX = 420, kOffY = 180;
-  std::vector<float> crop(std::size_t{kCells + 1} * std::size_t{kCells + 1});
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, kOffX, kOffY, kCells + 1, kCells + 1,
-                                           crop.data(), kCells + 1, kCells + 1, GDT_Float32, 0, 0),
-            CE_None);
-  GDALClose(ds);
+  constexpr int kCells = 256;
+  const auto read = testing::big_tujunga_crop(kCells + 1);
+  if (!read) GTEST_SKIP() << "bigtujunga_srtm30m_utm11.tif not in the shared data";
+  ASSERT_FALSE(read->empty());
+  const std::vector<float>& crop = *read;
   const std::uint32_t L = 12, x0 = 2000, y0 = 1500;
   const geo::MercatorRect block{geo::tile_x_edge(L, x0), geo::tile_y_edge(L, y0 + 4),
                                 geo::tile_x_edge(L, x0 + 4), geo::tile_y_edge(L, y0)};
