@@ -56,6 +56,7 @@ Result<Gl> open_gl(const ViewerOptions& o, const Session& s) {
   ro.height = o.height;
   ro.msaa = o.msaa;
   ro.force_log_depth = o.log_depth;
+  ro.flush_triangles = o.flush_triangles;
   ro.globe_height = s.globe_height();
   auto renderer = GlobeRenderer::create(ro);
   if (!renderer) return renderer.error();
@@ -166,6 +167,7 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
                               {"drawn", f.draws.size()},
                               {"triangles", rs.triangles},
                               {"skirt_triangles", rs.skirt_triangles},
+                              {"flushes", rs.flushes},
                               {"wanted", f.wanted},
                               {"upload_pending", f.upload_pending},
                               {"uploaded", f.uploaded},

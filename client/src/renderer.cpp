@@ -66,9 +66,17 @@ void set_matrix(GLint location, const Mat4& m) {
 
 }  // namespace
 
+std::uint64_t flush_interval(std::string_view gl_renderer, std::int64_t requested) {
+  if (requested >= 0) return static_cast<std::uint64_t>(requested);
+  for (const std::string_view software : {"llvmpipe", "softpipe", "swrast"})
+    if (gl_renderer.find(software) != std::string_view::npos) return kSoftwareFlushTriangles;
+  return 0;
+}
+
 struct GlobeRenderer::Impl {
   RendererOptions options;
   bool log_depth = false;
+  std::uint64_t flush_triangles = 0;  // flush_interval's; 0: never
   int samples = 0;
   GLuint scene_fbo = 0, scene_color = 0, scene_depth = 0;
   GLuint resolve_fbo = 0, resolve_color = 0, resolve_depth = 0;
@@ -244,6 +252,9 @@ Result<std::unique_ptr<GlobeRenderer>> GlobeRenderer::create(const RendererOptio
   GLint max_samples = 0;
   glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
   impl->samples = options.msaa > 1 ? std::min(options.msaa, static_cast<int>(max_samples)) : 0;
+  const GLubyte* gl_renderer = glGetString(GL_RENDERER);
+  impl->flush_triangles = flush_interval(
+      gl_renderer ? reinterpret_cast<const char*>(gl_renderer) : "", options.flush_triangles);
   if (Status s = impl->build_programs(); !s) return s.error();
   impl->build_globe();
   std::unique_ptr<GlobeRenderer> r(new GlobeRenderer(std::move(impl)));
@@ -320,6 +331,7 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
   const Mat4 projection = camera.projection();
   const float log_coef = m.log_coefficient();
   int current = -1;
+  std::uint64_t unflushed = 0;  // triangles handed to the driver since the last flush
   for (const DrawItem& d : draws) {
     const ResidentTile& t = *d.tile;
     if (t.gpu.index_count == 0) continue;
@@ -355,6 +367,12 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
                      reinterpret_cast<const void*>(  // NOLINT(performance-no-int-to-ptr)
                          std::uintptr_t{first} * index_size));
       stats.triangles += count / 3;
+      unflushed += count / 3;
+      if (m.flush_triangles > 0 && unflushed >= m.flush_triangles) {
+        glFlush();  // the driver's binned triangles so far are rasterised and let go
+        unflushed = 0;
+        ++stats.flushes;
+      }
     };
     for (std::size_t s = 0; s < 4; ++s) {
       const std::uint32_t n = t.gpu.skirt_index_count[s];

@@ -96,6 +96,7 @@ std::string summary_json(const ViewerOptions& o, const Session& s, const RunSumm
        {{"drawn", f.draws.size()},
         {"triangles", run.render.triangles},
         {"skirt_triangles", run.render.skirt_triangles},
+        {"flushes", run.render.flushes},
         {"requested", requested},
         {"loaded", loaded},
         {"absent", absent},

@@ -101,6 +101,11 @@ int main(int argc, char** argv) {
   app.add_flag("--wireframe", o.wireframe, "draw the triangle edges over the terrain");
   app.add_option("--msaa", o.msaa, "multisampling samples, 0 for none (default 4)")
       ->check(CLI::Range(0, 16));
+  app.add_option("--flush-triangles", o.flush_triangles,
+                 "hand the driver each frame in parts of N triangles (glFlush), which bounds the "
+                 "memory a software rasteriser (Mesa llvmpipe) holds for a frame; default: 32768 "
+                 "on llvmpipe/softpipe, never on a GPU; 0: never")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
   bool no_legend = false;
   app.add_flag("--no-legend", no_legend, "leave the colour legend out");
   app.add_flag("--log-depth", o.log_depth,

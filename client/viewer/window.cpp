@@ -262,6 +262,7 @@ int run_window(const ViewerOptions& o) {
   ro.height = fb_h;
   ro.msaa = o.msaa;
   ro.force_log_depth = o.log_depth;
+  ro.flush_triangles = o.flush_triangles;
   ro.globe_height = s.globe_height();
   auto renderer = GlobeRenderer::create(ro);
   if (!renderer) {

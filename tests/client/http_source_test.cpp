@@ -58,6 +58,11 @@ TEST(HttpSource, FetchesRevalidatesAndReportsAbsentTiles) {
   auto named = source->layers({"synth"});
   ASSERT_TRUE(named.ok());
   EXPECT_EQ(named->front().version, layer.version);
+  // The helper's server configuration is gone once the server serves: none piles up beside the
+  // stores (they did, one per run).
+  EXPECT_EQ(served.server->config().parent_path(), served.dir.path);
+  for (const auto& entry : std::filesystem::directory_iterator(served.dir.path))
+    EXPECT_NE(entry.path().filename().string().rfind("server-", 0), 0u) << entry.path();
   auto missing = source->layers({"nope"});
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().code, ErrorCode::not_found);

@@ -5,7 +5,10 @@
 #   lidar.sqlite  layer "lidar"      <- ../shared/data/autzen_trim.las (ground points, Oregon ft)
 #                 layer "lidar_ell"  <- the same points in ellipsoidal Mercator
 # Without ../shared/data the layers come from `tinstream sample` (synthetic LiDAR) instead, so the
-# tests still run on real stores. A store is rebuilt only when missing or older than `tinstream`.
+# tests still run on real stores. A store is rebuilt only when missing or when its stamp
+# (STORE.stamp: the sha256 of `tinstream` and of this script, and the input's path and size) differs
+# from what it would be now. Not by modification times: the tests' servers write to the stores
+# (SQLite WAL checkpoints), which made a store look newer than a rebuilt `tinstream`.
 # Usage: make_stores.sh BIN_DIR DATA_DIR OUT_DIR
 set -euo pipefail
 bin=$1
@@ -13,7 +16,13 @@ data=$2
 out=$3
 mkdir -p "$out"
 
-fresh() { [[ -f $out/$1 && $out/$1 -nt $bin/tinstream ]]; }
+# stamp INPUT: what a store built now from INPUT would be stamped with.
+stamp() {
+  sha256sum "$bin/tinstream" "${BASH_SOURCE[0]}" | cut -d' ' -f1
+  echo "$1 $(stat -c %s "$1" 2>/dev/null || echo absent)"
+}
+# fresh STORE INPUT: STORE exists and was built by this tinstream and script from INPUT.
+fresh() { [[ -f $out/$1 && -f $out/$1.stamp ]] && [[ $(stamp "$2") == "$(cat "$out/$1.stamp")" ]]; }
 
 # ingest STORE LAYER [OPTIONS...] INPUT: into STORE.tmp (renamed once every layer is in).
 ingest() {
@@ -28,25 +37,35 @@ sample() {  # a synthetic LAS, made once
   echo "$out/sample.las"
 }
 
-if ! fresh dem.sqlite; then
+# replace STORE: the freshly ingested STORE.tmp becomes STORE (its old WAL files go first, and the
+# stamp is written last, so an interrupted run rebuilds).
+replace() {
+  rm -f "$out/$1" "$out/$1-wal" "$out/$1-shm" "$out/$1.stamp"
+  mv "$out/$1.tmp" "$out/$1"
+  stamp "$2" > "$out/$1.stamp"
+}
+
+dem=$data/bigtujunga_srtm30m_utm11.tif
+if ! fresh dem.sqlite "$dem"; then
   rm -f "$out"/dem.sqlite.tmp*
-  if [[ -f $data/bigtujunga_srtm30m_utm11.tif ]]; then
-    ingest dem.sqlite dem "$data/bigtujunga_srtm30m_utm11.tif"
-    echo "dem: $data/bigtujunga_srtm30m_utm11.tif" > "$out/dem.source"
+  if [[ -f $dem ]]; then
+    ingest dem.sqlite dem "$dem"
+    echo "dem: $dem" > "$out/dem.source"
   else
     ingest dem.sqlite dem "$(sample)"
     echo "dem: synthetic (tinstream sample)" > "$out/dem.source"
   fi
-  mv "$out/dem.sqlite.tmp" "$out/dem.sqlite"
+  replace dem.sqlite "$dem"
 fi
 
-if ! fresh lidar.sqlite; then
+lidar=$data/autzen_trim.las
+if ! fresh lidar.sqlite "$lidar"; then
   rm -f "$out"/lidar.sqlite.tmp*
-  input=$data/autzen_trim.las
+  input=$lidar
   [[ -f $input ]] || input=$(sample)
   ingest lidar.sqlite lidar "$input"
   ingest lidar.sqlite lidar_ell --projection ellipsoidal "$input"
   echo "lidar: $input" > "$out/lidar.source"
-  mv "$out/lidar.sqlite.tmp" "$out/lidar.sqlite"
+  replace lidar.sqlite "$lidar"
 fi
 cat "$out/dem.source" "$out/lidar.source"

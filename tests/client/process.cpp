@@ -140,6 +140,10 @@ Server::Server(const std::filesystem::path& store, const std::string& extra_conf
       std::vector<std::string>{"--config", config_.string(), "--store", store.string(), "--address",
                                "127.0.0.1", "--port", "0", "--threads", "2"});
   const std::string line = child_->read_line(std::chrono::seconds(60));
+  // The server has read its configuration once it listens (or it has given up): the file goes,
+  // so no run leaves one beside the store.
+  std::error_code ignored;
+  std::filesystem::remove(config_, ignored);
   const std::string prefix = "listening on 127.0.0.1:";
   if (line.rfind(prefix, 0) != 0)
     throw std::runtime_error("tinstream-server said: \"" + line + "\"");

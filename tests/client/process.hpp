@@ -44,12 +44,14 @@ class Child {
   std::string out_, err_, pending_;
 };
 
-// tinstream-server on 127.0.0.1, any free port, over `store`; stopped by the destructor.
+// tinstream-server on 127.0.0.1, any free port, over `store`; stopped by the destructor. Its
+// configuration file (server-*.json beside the store) is removed once the server listens.
 class Server {
  public:
   explicit Server(const std::filesystem::path& store, const std::string& extra_config = "");
   std::uint16_t port() const { return port_; }
   std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+  const std::filesystem::path& config() const { return config_; }
 
  private:
   std::filesystem::path config_;

@@ -251,19 +251,24 @@ TEST_F(Viewer, ALowerCameraDrawsFinerLevels) {
   EXPECT_LE(coarse.stats["max_sse_drawn"].get<double>(), 64.0);
 }
 
-TEST_F(Viewer, StoreAndUrlDrawTheSameTilesAndPixels) {
+TEST_F(Viewer, StoreAndUrlDrawTheSameTilesAndPixelsFlushedOrNot) {
   TempDir dir("viewer_same");
   testing::Server server(lidar_);
   const store::LayerInfo l = layer_info(lidar_, "lidar");
   const std::string camera = camera_above(l, l.max_z + 300, -50);
-  const ViewerRun a =
-      viewer(base_args(dir.path / "store.png", camera) +
-             std::vector<std::string>{"--store", lidar_.string(), "--layer", "lidar"});
+  // The store's run also hands the driver every draw call on its own (a glFlush after each):
+  // flushing must not change a pixel (the URL's run never flushes).
+  const ViewerRun a = viewer(base_args(dir.path / "store.png", camera) +
+                             std::vector<std::string>{"--store", lidar_.string(), "--layer",
+                                                      "lidar", "--flush-triangles", "1"});
   const ViewerRun b = viewer(base_args(dir.path / "url.png", camera) +
-                             std::vector<std::string>{"--url", server.url(), "--layer", "lidar"});
+                             std::vector<std::string>{"--url", server.url(), "--layer", "lidar",
+                                                      "--flush-triangles", "0"});
   expect_clean(a);
   expect_clean(b);
   EXPECT_EQ(a.stats["drawn_tiles"], b.stats["drawn_tiles"]);
+  EXPECT_GT(a.stats["tiles"]["flushes"].get<std::uint64_t>(), 0u);
+  EXPECT_EQ(b.stats["tiles"]["flushes"].get<std::uint64_t>(), 0u);
   EXPECT_GT(a.stats["drawn_tiles"].size(), 0u);
   EXPECT_GT(b.stats["requests"]["wire_bytes"].get<double>(), 0);
   const Image x = png(dir.path / "store.png"), y = png(dir.path / "url.png");

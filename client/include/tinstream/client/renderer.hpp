@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tinstream/base/result.hpp"
@@ -46,12 +47,24 @@ struct RenderStats {
   std::uint64_t triangles = 0;        // terrain triangles drawn (skirts included)
   std::uint64_t skirt_triangles = 0;  // of which skirts
   std::uint32_t globe_patches = 0;
+  std::uint32_t flushes = 0;  // glFlush calls that handed the driver part of the frame
 };
+
+// Software rasterisers (Mesa llvmpipe, softpipe) bin every triangle of a frame in process memory
+// until the frame is flushed: ~180 bytes a triangle here (bench/client, 4× MSAA), so a frame of
+// 0.9 M triangles held ~150 MB beyond the tile budgets. Handing them the frame in parts bounds
+// that memory. kSoftwareFlushTriangles is the part size used by default on such drivers.
+inline constexpr std::uint64_t kSoftwareFlushTriangles = 32768;
+// The triangles after which render() calls glFlush: `requested` when it is ≥ 0 (0: never), else
+// (auto) kSoftwareFlushTriangles when `gl_renderer` (GL_RENDERER) names a software rasteriser and
+// never on other drivers (a GPU keeps the frame in its own memory).
+std::uint64_t flush_interval(std::string_view gl_renderer, std::int64_t requested);
 
 struct RendererOptions {
   int width = 1280, height = 720;
-  int msaa = 4;                  // samples; 0 or 1: none
-  bool force_log_depth = false;  // as if the driver had no glClipControl
+  int msaa = 4;                       // samples; 0 or 1: none
+  bool force_log_depth = false;       // as if the driver had no glClipControl
+  std::int64_t flush_triangles = -1;  // flush_interval's `requested`: -1 auto, 0 never
   double globe_height = 0;  // metres: where the fallback ellipsoid is drawn (below all terrain)
 };
 

@@ -44,6 +44,7 @@ struct ViewerOptions {
   double fps = 0;  // camera paths: 0 = real time, else a fixed step of 1/fps per frame
   bool wireframe = false;
   int msaa = 4;
+  std::int64_t flush_triangles = -1;  // RendererOptions'
   bool legend = true;
   bool log_depth = false;  // force the logarithmic-depth fallback
   std::optional<std::pair<double, double>> ramp;
