@@ -10,6 +10,11 @@
 #                                            memory cesium; default all of them)
 #   FLIGHT_ARGS="--heap-trim-ms -1" MALLOC_ARENA_MAX=64 PARTS=memory bench/client/run.sh
 #                                            the flight with extra viewer options / environment
+#   DELAY_MS=100 COLD_CAMERA=near SSE=0.25 PARTS=cold bench/client/run.sh
+#                                            the cold part with 100 ms added to each request (the
+#                                            network latency knob: proxy.mjs holds every request
+#                                            DELAY_MS, default 30), from the close oblique camera
+#                                            (COLD_CAMERA far|near, default far)
 #
 # 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
 #    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
@@ -42,6 +47,7 @@ REPEAT=${REPEAT:-3}
 FLIGHT_S=${FLIGHT_S:-300}
 SIZE=${SIZE:-1280x720}
 SSE=${SSE:-2}
+COLD_CAMERA=${COLD_CAMERA:-far}
 CESIUM=${CESIUM:-auto}
 PARTS=${PARTS:-cold stream memory cesium}
 GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
@@ -106,6 +112,11 @@ echo "server :$server_port, proxy $proxy (+$DELAY_MS ms per request)"
 eval "$(python3 "$HERE/analyze.py" cameras "$OUT/layer.json" "$OUT/flight.txt" "$FLIGHT_S" \
   "$OUT/stream.txt")"
 echo "cameras: far $CAM_FAR, near $CAM_NEAR"
+case $COLD_CAMERA in
+  far) CAM_COLD=$CAM_FAR ;;
+  near) CAM_COLD=$CAM_NEAR ;;
+  *) echo "run.sh: COLD_CAMERA is far or near, not '$COLD_CAMERA'" >&2; exit 2 ;;
+esac
 
 viewer() { "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --size "$SIZE" \
   --max-sse "$SSE" --timeout 900 "$@"; }
@@ -117,7 +128,7 @@ if part cold; then
 for r in $(seq "$REPEAT"); do
   for t in 8 1; do
     curl -fsS "$proxy/__reset" > /dev/null
-    viewer --threads "$t" --camera "$CAM_FAR" --out "$OUT/cold_t${t}_$r.png" \
+    viewer --threads "$t" --camera "$CAM_COLD" --out "$OUT/cold_t${t}_$r.png" \
       --stats "$OUT/cold_t${t}_$r.json"
     python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); p=json.loads(sys.argv[2]); print(json.dumps({"threads": int(sys.argv[3]), "run": int(sys.argv[4]), "viewer": v, "proxy": p}))' \
       "$OUT/cold_t${t}_$r.json" "$(proxy_stats)" "$t" "$r" >> "$OUT/cold.jsonl"

@@ -6,9 +6,9 @@
 #                 layer "lidar_ell"  <- the same points in ellipsoidal Mercator
 # Without ../shared/data the layers come from `tinstream sample` (synthetic LiDAR) instead, so the
 # tests still run on real stores. A store is rebuilt only when missing or when its stamp
-# (STORE.stamp: the sha256 of `tinstream` and of this script, and the input's path and size) differs
-# from what it would be now. Not by modification times: the tests' servers write to the stores
-# (SQLite WAL checkpoints), which made a store look newer than a rebuilt `tinstream`.
+# (STORE.stamp: the sha256 of `tinstream` and of this script, the input's real path and size)
+# differs from what it would be now. Not by modification times: the tests' servers write to the
+# stores (SQLite WAL checkpoints), which made a store look newer than a rebuilt `tinstream`.
 # Usage: make_stores.sh BIN_DIR DATA_DIR OUT_DIR
 set -euo pipefail
 bin=$1
@@ -19,7 +19,7 @@ mkdir -p "$out"
 # stamp INPUT: what a store built now from INPUT would be stamped with.
 stamp() {
   sha256sum "$bin/tinstream" "${BASH_SOURCE[0]}" | cut -d' ' -f1
-  echo "$1 $(stat -c %s "$1" 2>/dev/null || echo absent)"
+  echo "$(realpath -m "$1") $(stat -c %s "$1" 2>/dev/null || echo absent)"
 }
 # fresh STORE INPUT: STORE exists and was built by this tinstream and script from INPUT.
 fresh() { [[ -f $out/$1 && -f $out/$1.stamp ]] && [[ $(stamp "$2") == "$(cat "$out/$1.stamp")" ]]; }
