@@ -14,7 +14,8 @@
 #                                            the cold part with 100 ms added to each request (the
 #                                            network latency knob: proxy.mjs holds every request
 #                                            DELAY_MS, default 30), from the close oblique camera
-#                                            (COLD_CAMERA far|near, default far)
+#                                            (COLD_CAMERA far|near, default far); COLD_ARGS= adds
+#                                            viewer options to its runs (e.g. --prefetch-levels 0)
 #
 # 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
 #    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
@@ -53,6 +54,7 @@ PARTS=${PARTS:-cold stream memory cesium}
 GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
 CACHE_MB=${CACHE_MB:-64}
 read -r -a flight_args <<< "${FLIGHT_ARGS:-}"
+read -r -a cold_args <<< "${COLD_ARGS:-}"
 mkdir -p "$OUT"
 part() { [[ " $PARTS " == *" $1 "* ]]; }
 # A part left out leaves no results of an earlier run behind for the report.
@@ -129,7 +131,7 @@ for r in $(seq "$REPEAT"); do
   for t in 8 1; do
     curl -fsS "$proxy/__reset" > /dev/null
     viewer --threads "$t" --camera "$CAM_COLD" --out "$OUT/cold_t${t}_$r.png" \
-      --stats "$OUT/cold_t${t}_$r.json"
+      --stats "$OUT/cold_t${t}_$r.json" "${cold_args[@]}"
     python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); p=json.loads(sys.argv[2]); print(json.dumps({"threads": int(sys.argv[3]), "run": int(sys.argv[4]), "viewer": v, "proxy": p}))' \
       "$OUT/cold_t${t}_$r.json" "$(proxy_stats)" "$t" "$r" >> "$OUT/cold.jsonl"
     echo "cold, $t threads, run $r: $(python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); print(v["time_to_complete_s"], "s,", v["tiles"]["loaded"], "tiles")' "$OUT/cold_t${t}_$r.json")"

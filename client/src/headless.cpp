@@ -169,6 +169,7 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
                               {"skirt_triangles", rs.skirt_triangles},
                               {"flushes", rs.flushes},
                               {"wanted", f.wanted},
+                              {"prefetched", f.prefetched},
                               {"upload_pending", f.upload_pending},
                               {"uploaded", f.uploaded},
                               {"uploaded_bytes", f.uploaded_bytes},

@@ -128,7 +128,7 @@ void TileStreamer::take_results() {
 }
 
 TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
-                                        const geo::TileId& id, double priority) {
+                                        const geo::TileId& id, double priority, bool needed) {
   const TileKey key{TileKind::terrain, layer, id};
   if (!layers_[layer].may_contain(id) || absent_.contains(key) || failed_recently(key)) return {};
   ResidentTile* resident = gpu_.peek(key);
@@ -143,6 +143,13 @@ TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
     return {State::ready, resident, distance};
   }
   gpu_.find(key);  // a miss
+  if (!needed) {   // prefetch: asked for, unless already decoded; never uploaded for it
+    if (ram_.peek(key)) return {State::not_ready, nullptr, distance};
+    wanted_.push_back({key, priority, distance});
+    ++frame_result_.prefetched;
+    if (requested_ever_.insert(key).second) ++levels_[id.z].requested;
+    return {State::not_ready, nullptr, distance};
+  }
   ++frame_result_.pending_per_level[id.z];
   if (ram_.peek(key)) {
     ram_.pin(key, frame_);
@@ -152,6 +159,30 @@ TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
     if (requested_ever_.insert(key).second) ++levels_[id.z].requested;
   }
   return {State::not_ready, nullptr, distance};
+}
+
+void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::TileId& id,
+                            int levels) {
+  const LayerDescription& l = layers_[layer];
+  if (levels <= 0 || id.z >= l.max_level || id.z >= static_cast<std::uint32_t>(geo::kMaxLevel))
+    return;
+  // An upper bound of the tile's screen-space error: its level's largest error, seen from the
+  // nearest point of the box that holds whatever it will contain.
+  const double error = l.level_error(id.z);
+  const double sse =
+      view.camera.screen_space_error(error, unloaded_tile_bounds(l, id).distance_to(view.eye));
+  if (error <= 0 || sse <= options_.max_sse) return;
+  const geo::MercatorRect& data = l.mercator_bounds;
+  for (const geo::TileId& child : id.children()) {
+    // Only tiles that overlap the data (may_contain also admits those that touch its edge: a
+    // guess below a tile not known to exist would ask for their 404s).
+    const geo::MercatorRect r = child.bounds();
+    if (r.min_x >= data.max_x || r.max_x <= data.min_x || r.min_y >= data.max_y ||
+        r.max_y <= data.min_y)
+      continue;
+    if (probe(view, layer, child, sse, false).state == State::not_ready)
+      prefetch(view, layer, child, levels - 1);
+  }
 }
 
 void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask) {
@@ -179,6 +210,9 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
   }
   if (waiting) {  // no holes: the parent stays until every visible child is resident
     draw(key, self, sse, 0xF);
+    for (std::size_t i = 0; i < 4; ++i)
+      if (child[i].state == State::not_ready)
+        prefetch(view, layer, children[i], options_.prefetch_levels);
     return;
   }
   std::uint8_t mask = 0;
@@ -225,12 +259,13 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
     for (const geo::TileId& root : roots_[l]) {
       const Probe p = probe(view, layer, root, kRootPriority);
       if (p.state == State::ready) descend(view, layer, root, p);
+      if (p.state == State::not_ready) prefetch(view, layer, root, options_.prefetch_levels);
     }
   }
   std::sort(frame_result_.draws.begin(), frame_result_.draws.end(),
             [](const DrawItem& a, const DrawItem& b) { return a.distance < b.distance; });
   plan_skirts(frame_result_.draws);
-  frame_result_.complete = wanted_.empty() && uploads_.empty();
+  frame_result_.complete = wanted_.size() == frame_result_.prefetched && uploads_.empty();
   frame_result_.wanted = wanted_.size();
   upload(gpu);
   loader_.submit(wanted_);

@@ -177,6 +177,38 @@ TEST(TileStreamer, NothingBeyondTheHorizonIsRequested) {
   EXPECT_EQ(fx.loader->counters().requests, 0u);
 }
 
+TEST(TileStreamer, PrefetchAsksForTheLevelsBelowAMissingTileAtOnceWithoutWaitingForThem) {
+  const geo::LonLat c = block_centre();
+  const Camera close = above(c.lon, c.lat, 1500);  // needs level 12 under the root
+  for (const int levels : {0, 1, 2}) {
+    Fixture fx("streamer_prefetch");
+    StreamerOptions options;
+    options.prefetch_levels = levels;
+    TileStreamer s(*fx.loader, options);
+    CountingUploader gpu;
+    fx.loader->set_paused(true);  // nothing arrives: the first frame's requests stay queued
+    const FrameResult& f = s.update(close, gpu);
+    EXPECT_TRUE(f.draws.empty());
+    EXPECT_EQ(f.pending_per_level[10], 1u) << levels;  // the root: the one tile the frame needs
+    EXPECT_EQ(f.pending_per_level[11] + f.pending_per_level[12], 0u) << levels;
+    // Below it, the visible descendants of up to `levels` levels (the layer's level-11 and -12
+    // errors exceed max_sse at this height), asked for in the same frame.
+    EXPECT_EQ(s.level_counters()[11].requested, levels >= 1 ? 4u : 0u) << levels;
+    if (levels >= 2)
+      EXPECT_GT(s.level_counters()[12].requested, 0u);
+    else
+      EXPECT_EQ(s.level_counters()[12].requested, 0u) << levels;
+    EXPECT_EQ(f.prefetched, f.wanted - 1) << levels;
+    fx.loader->set_paused(false);
+    // Prefetched tiles arrive, are not uploaded until the view needs them, and the view
+    // completes on the same tiles as without prefetching.
+    ASSERT_TRUE(run_until_complete(s, *fx.loader, close, gpu)) << levels;
+    EXPECT_EQ(s.last_frame().drawn_per_level[12], s.last_frame().draws.size()) << levels;
+    EXPECT_EQ(s.level_counters()[12].failed + fx.loader->counters().failed, 0u);
+    s.release_all(gpu);
+  }
+}
+
 TEST(TileStreamer, MovingTheCameraDropsTheOldViewsQueuedRequests) {
   Fixture fx("streamer_drop");
   TileStreamer s(*fx.loader, StreamerOptions{});

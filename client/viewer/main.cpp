@@ -71,6 +71,10 @@ int main(int argc, char** argv) {
                  "after cache evictions, give free heap memory back to the system at most every "
                  "MS ms (default 1000; -1: never)")
       ->check(CLI::Range(-1, 3600000));
+  app.add_option("--prefetch-levels", o.prefetch_levels,
+                 "ask for up to N levels below a tile that has not arrived yet, by the layer's "
+                 "per-level error, instead of one level per round trip (default 3; 0: none)")
+      ->check(CLI::Range(0, 30));
   app.add_option("--request-timeout", o.http.request_timeout_ms,
                  "per-request timeout in ms (default 10000)")
       ->check(CLI::Range(50, 600000));
