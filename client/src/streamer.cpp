@@ -180,7 +180,9 @@ void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::Ti
     if (r.min_x >= data.max_x || r.max_x <= data.min_x || r.min_y >= data.max_y ||
         r.max_y <= data.min_y)
       continue;
-    if (probe(view, layer, child, sse, false).state == State::not_ready)
+    // Ranked after every tile a frame needs (whose priorities are positive errors), among
+    // themselves by the estimate: workers send them only when nothing needed is waiting.
+    if (probe(view, layer, child, -1.0 / sse, false).state == State::not_ready)
       prefetch(view, layer, child, levels - 1);
   }
 }

@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <chrono>
+#include <limits>
 #include <map>
 
 #include "synthetic_store.hpp"
@@ -194,11 +196,24 @@ TEST(TileStreamer, PrefetchAsksForTheLevelsBelowAMissingTileAtOnceWithoutWaiting
     // Below it, the visible descendants of up to `levels` levels (the layer's level-11 and -12
     // errors exceed max_sse at this height), asked for in the same frame.
     EXPECT_EQ(s.level_counters()[11].requested, levels >= 1 ? 4u : 0u) << levels;
-    if (levels >= 2)
+    if (levels >= 2) {
       EXPECT_GT(s.level_counters()[12].requested, 0u);
-    else
+    } else {
       EXPECT_EQ(s.level_counters()[12].requested, 0u) << levels;
+    }
     EXPECT_EQ(f.prefetched, f.wanted - 1) << levels;
+    // Prefetched requests rank after every needed one (positive errors): negative priorities,
+    // coarser (larger estimated error) before finer.
+    double lowest_11 = 0, highest_12 = -std::numeric_limits<double>::infinity();
+    for (const TileRequest& r : s.requests()) {
+      if (r.key.tile.z == 10) continue;
+      EXPECT_LT(r.priority, 0.0) << r.key.tile.to_string();
+      if (r.key.tile.z == 11) lowest_11 = std::min(lowest_11, r.priority);
+      if (r.key.tile.z == 12) highest_12 = std::max(highest_12, r.priority);
+    }
+    if (levels >= 2) {
+      EXPECT_GT(lowest_11, highest_12);
+    }
     fx.loader->set_paused(false);
     // Prefetched tiles arrive, are not uploaded until the view needs them, and the view
     // completes on the same tiles as without prefetching.

@@ -17,9 +17,9 @@
 // Prefetch (prefetch_levels): below a tile that is not resident yet, the selection goes on with
 // an estimate instead of waiting for it — the layer's largest error of each level and the box of
 // the unloaded tile — and asks for up to prefetch_levels levels of descendants whose estimated
-// screen-space error still exceeds max_sse (ranked below their ancestors). Without it each level
-// costs a round trip before the next one is asked for: a close view 14 levels deep took 14
-// round trips however many download threads there were (bench/client). Prefetched tiles are
+// screen-space error still exceeds max_sse (ranked after every tile the frame needs). Without it
+// each level costs a round trip before the next one is asked for: a close view 14 levels deep took
+// 14 round trips however many download threads there were (bench/client). Prefetched tiles are
 // requested only: not uploaded, and a frame's `complete` does not wait for them.
 // Tiles drawn, and those on the path to them, are pinned in the frame and never evicted.
 //
@@ -144,6 +144,8 @@ class TileStreamer {
   const StreamerOptions& options() const { return options_; }
 
   const FrameResult& last_frame() const { return frame_result_; }
+  // What the last update() handed the loader (needed and prefetched tiles).
+  const std::vector<TileRequest>& requests() const { return wanted_; }
   const std::array<LevelCounters, kLevels>& level_counters() const { return levels_; }
   const TierCounters& gpu_counters() const { return gpu_.counters(); }
   const TierCounters& ram_counters() const { return ram_.counters(); }
