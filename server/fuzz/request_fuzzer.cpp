@@ -43,7 +43,7 @@ struct World {
   std::unique_ptr<store::TileStore> store;
   Metrics metrics;
   TerrainCache cache{4u << 20};
-  LayerCache layers{1000};
+  LayerCache layers{/*ttl_ms=*/1000};
   JobManager jobs{[](const IngestJobSpec&, const ProgressSink&) { return Status{}; }, 4};
   Context ctx;
 };

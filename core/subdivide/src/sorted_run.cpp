@@ -869,6 +869,45 @@ geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level) {
 // arrays (key + index, 16 bytes each per record): 112 bytes per chunk record. The other half
 // buffers the merge: up to kFanIn cursors and the output writer's two buffers.
 
+namespace {
+
+// The merge's progress: points merged so far; false cancels.
+using MergeTick = std::function<bool(std::uint64_t)>;
+
+// The finest level: the smallest level whose fullest tile fits the budget (max_level if none).
+std::uint32_t finest_level(const std::vector<std::uint64_t>& max_tile_points,
+                           const SubdivideOptions& options) {
+  for (std::uint32_t l = options.min_level; l <= options.max_level; ++l) {
+    if (max_tile_points[l] <= options.max_points) return l;
+  }
+  return options.max_level;
+}
+
+// The tile index of the finest level: from the merge's tally when it kept a level at least as
+// fine (tiles nest, so it coarsens exactly), else one sequential pass over the sorted run's keys.
+Status index_tiles(TileTally& tally, SortedRun& result) {
+  if (tally.index(result.finest_level, result.tiles)) return {};
+  result.tiles.clear();
+  auto cursor = RunCursor::open(result.path, 1 << 15, false, 0, ~std::uint64_t{0}, /*keyed=*/true);
+  if (!cursor) return cursor.error();
+  const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
+  std::uint64_t index = 0;
+  std::uint64_t current = ~std::uint64_t{0};
+  while (!cursor->done()) {
+    const std::uint64_t prefix = cursor->current().key >> shift;
+    if (prefix != current) {
+      result.tiles.push_back({tile_of_key(cursor->current().key, result.finest_level), index, 0});
+      current = prefix;
+    }
+    ++result.tiles.back().count;
+    ++index;
+    if (Status s = cursor->advance(); !s) return s;
+  }
+  return {};
+}
+
+}  // namespace
+
 struct SortedRunBuilder::State {
   explicit State(const SubdivideOptions& o) : options(o) {}
   State(const State&) = delete;
@@ -914,6 +953,119 @@ struct SortedRunBuilder::State {
       fault::point("pass2.spill");
       return write_run(spilling, order, scratch, path, spill_duplicates);
     });
+  }
+
+  // Spills what the buffer holds (an empty input still makes one empty run), waits for the spill
+  // thread and gives the sort buffers back.
+  Status flush() {
+    if (!buffer.empty() || runs.empty()) {
+      if (Status s = spill(); !s) return s;
+    }
+    if (Status s = join_spill(); !s) return s;
+    std::vector<SortedPoint>().swap(buffer);
+    std::vector<SortedPoint>().swap(spilling);
+    std::vector<KeyIndex>().swap(order);
+    std::vector<KeyIndex>().swap(scratch);
+    return {};
+  }
+
+  // Merges groups of kFanIn runs into one until at most kFanIn are left (a multi-pass merge when
+  // there are more runs than the fan-in).
+  Status merge_to_fan_in(std::uint64_t& duplicates_merged, const MergeTick& tick) {
+    std::error_code ec;
+    while (runs.size() > kFanIn) {
+      std::vector<std::filesystem::path> next;
+      for (std::size_t i = 0; i < runs.size(); i += kFanIn) {
+        const std::vector<std::filesystem::path> group(
+            runs.begin() + static_cast<std::ptrdiff_t>(i),
+            runs.begin() + static_cast<std::ptrdiff_t>(std::min(runs.size(), i + kFanIn)));
+        auto path = temp_path();
+        auto w = RunWriter::create(path, merge_buffer, /*background=*/true);
+        if (!w) return w.error();
+        if (Status s = merge_runs(whole_runs(group), merge_buffer, *w, nullptr, nullptr,
+                                  duplicates_merged, tick);
+            !s)
+          return s;
+        if (Status s = w->close(); !s) return s;
+        for (const auto& g : group) std::filesystem::remove(g, ec);
+        next.push_back(path);
+      }
+      runs = std::move(next);
+    }
+    return {};
+  }
+
+  // The last merge on this thread: all runs into result.path (keyed), counting the points per
+  // tile of every level and tallying the tiles on the way.
+  Status merge_whole(SortedRun& result, TileTally& tally, const MergeTick& tick) {
+    LevelCounter levels;
+    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*keyed=*/true);
+    if (!w) return w.error();
+    if (Status s = merge_runs(whole_runs(runs), merge_buffer, *w, &levels, &tally,
+                              result.duplicates_merged, tick);
+        !s)
+      return s;
+    if (Status s = w->close(); !s) return s;
+    result.points = w->written();
+    result.max_tile_points = levels.finish();
+    return {};
+  }
+
+  // The last merge split at a key (split_runs): the lower half on this thread, the upper on a
+  // worker, each into its region of result.path (the cursors, buffers and writers of both halves
+  // share the merge's budget: half the buffer each); then the lower half's duplicate gap is closed
+  // and the halves' counts and tallies joined.
+  Status merge_halves(const MergeSplit& split, std::size_t tally_entries, SortedRun& result,
+                      TileTally& tally, const MergeTick& tick) {
+    {
+      FilePtr f(std::fopen(result.path.c_str(), "wb"));  // the halves write into it (regions)
+      if (!f) return io_failure("cannot create", result.path);
+    }
+    const std::size_t half_buffer = std::max<std::size_t>(merge_buffer / 2, 256);
+    auto low_writer = RunWriter::create_region(result.path, 0, half_buffer);
+    if (!low_writer) return low_writer.error();
+    auto high_writer = RunWriter::create_region(result.path, split.low_records, half_buffer);
+    if (!high_writer) return high_writer.error();
+    LevelCounter levels, high_levels;
+    TileTally high_tally(options.max_level, options.min_level, tally_entries / 2);
+    std::uint64_t high_duplicates = 0;
+    std::atomic<std::uint64_t> high_done{0};
+    std::atomic<bool> stop{false};
+    WorkerThreads high("pass 2 merge", "pass2.merge");
+    if (Status s = high.start([&]() -> Status {
+          fault::point("pass2.merge");
+          Status merged = merge_runs(split.high, half_buffer, *high_writer, &high_levels,
+                                     &high_tally, high_duplicates, [&](std::uint64_t done) {
+                                       high_done = done;
+                                       return !stop;
+                                     });
+          if (!merged) return merged;
+          return high_writer->close();
+        });
+        !s) {
+      return s;
+    }
+    Status low_status = merge_runs(split.low, half_buffer, *low_writer, &levels, &tally,
+                                   result.duplicates_merged, [&](std::uint64_t done) {
+                                     if (tick(done + high_done)) return true;
+                                     stop = true;
+                                     return false;
+                                   });
+    if (low_status) low_status = low_writer->close();
+    if (!low_status) stop = true;
+    Status high_status = high.join();
+    if (!low_status) return low_status;
+    if (!high_status) return high_status;
+    result.duplicates_merged += high_duplicates;
+    const std::uint64_t low_points = low_writer->written();
+    const std::uint64_t high_points = high_writer->written();
+    if (Status s = close_gap(result.path, split.low_records, low_points, high_points); !s) {
+      return s;
+    }
+    result.points = low_points + high_points;
+    result.max_tile_points = levels.finish_followed_by(high_levels);
+    tally.append(high_tally);
+    return {};
   }
 };
 
@@ -966,157 +1118,38 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   State& st = *state_;
   assert(!st.finished);
   st.finished = true;
-  const SubdivideOptions& options = st.options;
-  std::error_code ec;
-  if (!st.buffer.empty() || st.runs.empty()) {
-    if (Status s = st.spill(); !s) return s.error();
-  }
-  if (Status s = st.join_spill(); !s) return s.error();
-  std::vector<SortedPoint>().swap(st.buffer);
-  std::vector<SortedPoint>().swap(st.spilling);
-  std::vector<KeyIndex>().swap(st.order);
-  std::vector<KeyIndex>().swap(st.scratch);
-
+  if (Status s = st.flush(); !s) return s.error();
   SortedRun result;
   result.input_points = st.input_points;
   result.duplicates_merged = st.duplicates;
-  const std::size_t fan_in = State::kFanIn;
-  const std::size_t merge_buffer = st.merge_buffer;
-  auto& runs = st.runs;
-
-  // Merge down to one run (multi-pass when there are more runs than the fan-in).
-  auto tick = [&](std::uint64_t done) {
+  const MergeTick tick = [&](std::uint64_t done) {
     return !progress || progress({"merge", done, result.input_points, "points"});
   };
-  while (runs.size() > fan_in) {
-    std::vector<std::filesystem::path> next;
-    for (std::size_t i = 0; i < runs.size(); i += fan_in) {
-      const std::vector<std::filesystem::path> group(
-          runs.begin() + static_cast<std::ptrdiff_t>(i),
-          runs.begin() + static_cast<std::ptrdiff_t>(std::min(runs.size(), i + fan_in)));
-      auto path = st.temp_path();
-      auto w = RunWriter::create(path, merge_buffer, /*background=*/true);
-      if (!w) return w.error();
-      if (Status s = merge_runs(whole_runs(group), merge_buffer, *w, nullptr, nullptr,
-                                result.duplicates_merged, tick);
-          !s)
-        return s.error();
-      if (Status s = w->close(); !s) return s.error();
-      for (const auto& g : group) std::filesystem::remove(g, ec);
-      next.push_back(path);
-    }
-    runs = std::move(next);
-  }
-  result.path = options.output.empty() ? st.temp_path() : options.output;
+  if (Status s = st.merge_to_fan_in(result.duplicates_merged, tick); !s) return s.error();
+  result.path = st.options.output.empty() ? st.temp_path() : st.options.output;
   st.temporaries.add(result.path);  // removed unless everything succeeds
+  const SubdivideOptions& options = st.options;
   const std::size_t tally_entries =
       options.index_entries != 0
           ? options.index_entries
           : std::max<std::size_t>(options.memory_bytes / 64 / sizeof(TileRange), 4096);
   MergeSplit split;
   if (options.merge_threads >= 2) {
-    auto chosen = split_runs(runs);
+    auto chosen = split_runs(st.runs);
     if (!chosen) return chosen.error();
     split = std::move(*chosen);
   }
-  LevelCounter levels;
   // Two tallies of half the entries each when the merge is split.
   TileTally tally(options.max_level, options.min_level,
                   split.low.empty() ? tally_entries : tally_entries / 2);
-  if (split.low.empty()) {
-    auto w = RunWriter::create(result.path, merge_buffer, /*background=*/true, /*keyed=*/true);
-    if (!w) return w.error();
-    if (Status s = merge_runs(whole_runs(runs), merge_buffer, *w, &levels, &tally,
-                              result.duplicates_merged, tick);
-        !s)
-      return s.error();
-    if (Status s = w->close(); !s) return s.error();
-    result.points = w->written();
-    result.max_tile_points = levels.finish();
-  } else {
-    // The upper half on its own thread (the cursors, buffers and writers of both halves share the
-    // merge's budget: half the buffer each).
-    {
-      FilePtr f(std::fopen(result.path.c_str(), "wb"));  // the halves write into it (regions)
-      if (!f) return io_failure("cannot create", result.path);
-    }
-    const std::size_t half_buffer = std::max<std::size_t>(merge_buffer / 2, 256);
-    auto low_writer = RunWriter::create_region(result.path, 0, half_buffer);
-    if (!low_writer) return low_writer.error();
-    auto high_writer = RunWriter::create_region(result.path, split.low_records, half_buffer);
-    if (!high_writer) return high_writer.error();
-    LevelCounter high_levels;
-    TileTally high_tally(options.max_level, options.min_level, tally_entries / 2);
-    std::uint64_t high_duplicates = 0;
-    std::atomic<std::uint64_t> high_done{0};
-    std::atomic<bool> stop{false};
-    WorkerThreads high("pass 2 merge", "pass2.merge");
-    if (Status s = high.start([&]() -> Status {
-          fault::point("pass2.merge");
-          Status merged = merge_runs(split.high, half_buffer, *high_writer, &high_levels,
-                                     &high_tally, high_duplicates, [&](std::uint64_t done) {
-                                       high_done = done;
-                                       return !stop;
-                                     });
-          if (!merged) return merged;
-          return high_writer->close();
-        });
-        !s) {
-      return s.error();
-    }
-    Status low_status = merge_runs(split.low, half_buffer, *low_writer, &levels, &tally,
-                                   result.duplicates_merged, [&](std::uint64_t done) {
-                                     if (tick(done + high_done)) return true;
-                                     stop = true;
-                                     return false;
-                                   });
-    if (low_status) low_status = low_writer->close();
-    if (!low_status) stop = true;
-    const Status high_status = high.join();
-    if (!low_status) return low_status.error();
-    if (!high_status) return high_status.error();
-    result.duplicates_merged += high_duplicates;
-    const std::uint64_t low_points = low_writer->written();
-    const std::uint64_t high_points = high_writer->written();
-    if (Status s = close_gap(result.path, split.low_records, low_points, high_points); !s) {
-      return s.error();
-    }
-    result.points = low_points + high_points;
-    result.max_tile_points = levels.finish_followed_by(high_levels);
-    tally.append(high_tally);
-  }
-  for (const auto& r : runs) std::filesystem::remove(r, ec);
-
-  // Finest level: the smallest level whose fullest tile fits the budget.
-  result.finest_level = options.max_level;
-  for (std::uint32_t l = options.min_level; l <= options.max_level; ++l) {
-    if (result.max_tile_points[l] <= options.max_points) {
-      result.finest_level = l;
-      break;
-    }
-  }
-
-  // The tile index of level L: from the merge's tally when it kept a level at least as fine as L
-  // (tiles nest, so it coarsens exactly), else one sequential pass over the keys.
-  if (!tally.index(result.finest_level, result.tiles)) {
-    result.tiles.clear();
-    auto cursor =
-        RunCursor::open(result.path, 1 << 15, false, 0, ~std::uint64_t{0}, /*keyed=*/true);
-    if (!cursor) return cursor.error();
-    const std::uint32_t shift = 2 * (kKeyLevel - result.finest_level);
-    std::uint64_t index = 0;
-    std::uint64_t current = ~std::uint64_t{0};
-    while (!cursor->done()) {
-      const std::uint64_t prefix = cursor->current().key >> shift;
-      if (prefix != current) {
-        result.tiles.push_back({tile_of_key(cursor->current().key, result.finest_level), index, 0});
-        current = prefix;
-      }
-      ++result.tiles.back().count;
-      ++index;
-      if (Status s = cursor->advance(); !s) return s.error();
-    }
-  }
+  const Status merged = split.low.empty()
+                            ? st.merge_whole(result, tally, tick)
+                            : st.merge_halves(split, tally_entries, result, tally, tick);
+  if (!merged) return merged.error();
+  std::error_code ec;
+  for (const auto& r : st.runs) std::filesystem::remove(r, ec);
+  result.finest_level = finest_level(result.max_tile_points, options);
+  if (Status s = index_tiles(tally, result); !s) return s.error();
   st.temporaries.release(result.path);
   return result;
 }

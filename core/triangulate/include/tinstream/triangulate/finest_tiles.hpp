@@ -91,7 +91,7 @@ struct FinestTileOptions {
 
 struct FinestTileStats {
   // Points in the tile's halo triangulation: the halo plus the own points (in band mode only the
-  // own cells along the border and those a circle reached; see build_tile).
+  // own cells along the border and those a circle reached; see src/halo.hpp).
   std::uint64_t gathered_points = 0;
   int rounds = 0;                  // halo growth rounds
   std::uint64_t circle_tests = 0;  // point-in-circumcircle tests deciding the halo
