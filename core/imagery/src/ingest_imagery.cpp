@@ -13,6 +13,8 @@
 #include <thread>
 
 #include "mosaic.hpp"
+#include "tinstream/base/fault.hpp"
+#include "tinstream/base/worker_threads.hpp"
 #include "tinstream/store/tile_store.hpp"
 
 namespace tinstream::imagery {
@@ -70,26 +72,35 @@ struct RenderedTile {
   std::vector<std::uint8_t> encoded;
 };
 
-// Worker threads that render and encode finest tiles. submit() and take() are called by one
-// thread (the ingest's); results come back in any order, each with the sequence number it was
-// submitted with.
+// Worker threads that render and encode finest tiles. start(), submit() and take() are called by
+// one thread (the ingest's); results come back in any order, each with the sequence number it was
+// submitted with. The workers are a WorkerThreads group (the exception barrier): whatever escapes
+// a worker's loop ends that worker and fails the ingest through take(), which never waits for a
+// tile no worker will render. Fault points: "imagery.render" (one tile, inside the loop),
+// "imagery.worker.spawn" (starting a worker).
 class RenderPool {
  public:
-  RenderPool(const MosaicPlan& plan, const ImageryIngestOptions& options, unsigned threads) {
-    for (unsigned i = 0; i < threads; ++i) {
-      workers_.emplace_back([this, &plan, &options] { work(plan, options); });
-    }
-  }
+  RenderPool(const MosaicPlan& plan, const ImageryIngestOptions& options)
+      : plan_(plan), options_(options) {}
   ~RenderPool() {
     {
       std::lock_guard lock(mutex_);
       stopping_ = true;
     }
     jobs_ready_.notify_all();
-    for (auto& w : workers_) w.join();
+    (void)workers_.join();  // their failures were handed to take()
   }
   RenderPool(const RenderPool&) = delete;
   RenderPool& operator=(const RenderPool&) = delete;
+
+  // Starts `threads` workers; an Error when one cannot be started (the destructor stops those
+  // that were).
+  Status start(unsigned threads) {
+    for (unsigned i = 0; i < threads; ++i) {
+      if (Status s = workers_.start([this] { return run_worker(); }); !s) return s;
+    }
+    return {};
+  }
 
   void submit(std::uint64_t seq, const geo::TileId& id) {
     {
@@ -99,20 +110,34 @@ class RenderPool {
     jobs_ready_.notify_one();
   }
 
-  RenderedTile take() {
+  // The next finished tile, or the failure of a worker that died.
+  Result<RenderedTile> take() {
     std::unique_lock lock(mutex_);
-    results_ready_.wait(lock, [&] { return !results_.empty(); });
+    results_ready_.wait(lock, [&] { return !results_.empty() || !worker_failure_.ok(); });
+    if (!worker_failure_.ok()) return worker_failure_.error();
     RenderedTile r = std::move(results_.front());
     results_.pop_front();
     return r;
   }
 
  private:
-  void work(const MosaicPlan& plan, const ImageryIngestOptions& options) {
+  Status run_worker() {
+    Status s = guarded("imagery worker", [this] { work(); });
+    if (!s.ok()) {
+      {
+        std::lock_guard lock(mutex_);
+        if (worker_failure_.ok()) worker_failure_ = s;
+      }
+      results_ready_.notify_all();
+    }
+    return s;
+  }
+
+  void work() {
     std::unique_ptr<TileRenderer> renderer;
     std::string failure;
     try {
-      renderer = std::make_unique<TileRenderer>(plan, options.resampling, 256);
+      renderer = std::make_unique<TileRenderer>(plan_, options_.resampling, 256);
     } catch (const std::exception& e) {
       failure = e.what();  // every job this worker takes then fails with it
     }
@@ -125,9 +150,10 @@ class RenderPool {
         job = jobs_.front();
         jobs_.pop_front();
       }
+      fault::point("imagery.render");
       RenderedTile r;
       if (renderer) {
-        r = render(*renderer, options, job.first, job.second);
+        r = render(*renderer, options_, job.first, job.second);
       } else {
         r.seq = job.first;
         r.id = job.second;
@@ -141,7 +167,7 @@ class RenderPool {
     }
   }
 
-  // The exception barrier of a worker: whatever happens becomes the tile's status.
+  // A tile's own failures (GDAL, the encoder) become the tile's status.
   static RenderedTile render(TileRenderer& renderer, const ImageryIngestOptions& options,
                              std::uint64_t seq, const geo::TileId& id) {
     RenderedTile r;
@@ -167,12 +193,15 @@ class RenderPool {
     return r;
   }
 
+  const MosaicPlan& plan_;
+  const ImageryIngestOptions& options_;
   std::mutex mutex_;
   std::condition_variable jobs_ready_, results_ready_;
-  std::deque<std::pair<std::uint64_t, geo::TileId>> jobs_;  // guarded by mutex_
-  std::deque<RenderedTile> results_;                        // guarded by mutex_
-  bool stopping_ = false;                                   // guarded by mutex_
-  std::vector<std::thread> workers_;
+  std::deque<std::pair<std::uint64_t, geo::TileId>> jobs_;     // guarded by mutex_
+  std::deque<RenderedTile> results_;                           // guarded by mutex_
+  bool stopping_ = false;                                      // guarded by mutex_
+  Status worker_failure_;                                      // guarded by mutex_
+  WorkerThreads workers_{"imagery worker", "imagery.worker"};  // last: joined first
 };
 
 // Builds the levels above the finest from tiles handed in Morton order. A parent is finished
@@ -323,7 +352,8 @@ Status render_levels(const MosaicPlan& plan, const ImageryIngestOptions& options
   unsigned threads = options.threads != 0 ? options.threads : std::thread::hardware_concurrency();
   threads = std::max(1u, threads);
   const std::uint64_t window = 4ull * threads;
-  RenderPool pool(plan, options, threads);
+  RenderPool pool(plan, options);
+  if (Status s = pool.start(threads); !s) return s;
   FinestTiles tiles(footprints, levels.max_level);
   Throttle throttle(progress);
   std::map<std::uint64_t, RenderedTile> ready;
@@ -339,8 +369,9 @@ Status render_levels(const MosaicPlan& plan, const ImageryIngestOptions& options
       pool.submit(submitted++, *next);
     }
     if (consumed == submitted) break;
-    RenderedTile r = pool.take();
-    ready.emplace(r.seq, std::move(r));
+    auto r = pool.take();
+    if (!r) return r.error();
+    ready.emplace(r->seq, std::move(*r));
     for (auto it = ready.find(consumed); it != ready.end(); it = ready.find(consumed)) {
       RenderedTile tile = std::move(it->second);
       ready.erase(it);

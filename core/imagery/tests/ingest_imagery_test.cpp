@@ -16,6 +16,7 @@
 #include <random>
 
 #include "test_rasters.hpp"
+#include "tinstream/base/fault.hpp"
 #include "tinstream/store/tile_store.hpp"
 
 namespace tinstream::imagery {
@@ -524,6 +525,46 @@ TEST(IngestImagery, FailedOrCancelledIngestLeavesTheStoreAsItWas) {
   ASSERT_FALSE(cancelled.ok());
   EXPECT_EQ(cancelled.error().code, ErrorCode::cancelled);
   EXPECT_EQ(state(), before);
+  EXPECT_EQ(sql_value(db, "PRAGMA integrity_check"), "ok");
+  EXPECT_EQ(sql_value(db, "SELECT count(*) FROM imagery_versions WHERE status = 'building'"), "0");
+}
+
+// A worker that dies (an exception outside a tile's own error handling) or cannot be started
+// fails the ingest with an error naming the workers — it neither hangs waiting for the tiles that
+// worker took nor terminates the process — and the store keeps its published imagery.
+TEST(IngestImagery, AWorkerThatDiesOrCannotStartFailsTheIngestAndKeepsTheStore) {
+  if (!fault::enabled()) GTEST_SKIP() << "built without fault injection";
+  TempDir dir;
+  const Orthophoto good =
+      testing::write_marker_orthophoto(dir / "good.tif", 32611, 390000, 3800000, 4.0, 400, 300);
+  const fs::path db = dir / "s.db";
+  ingest_ok(options_for(db, "ortho", {good.path}));
+  const auto published = [&] {
+    return sql_value(db,
+                     "SELECT group_concat(z || '/' || x || '/' || y || '=' || etag, ' ') FROM "
+                     "(SELECT * FROM published_imagery ORDER BY z, x, y)");
+  };
+  const std::string before = published();
+  struct Case {
+    const char* point;
+    fault::Kind kind;
+    const char* message;
+  };
+  for (const Case& c :
+       {Case{"imagery.render", fault::Kind::throw_error, "imagery worker: injected fault"},
+        Case{"imagery.render", fault::Kind::out_of_memory, "imagery worker: out of memory"},
+        Case{"imagery.worker.spawn", fault::Kind::no_thread,
+             "imagery worker: cannot start a thread"}}) {
+    SCOPED_TRACE(c.point);
+    auto options = options_for(db, "ortho", {good.path});
+    options.threads = 2;
+    const fault::Arm arm(c.point, /*skip=*/1, c.kind);
+    auto r = ingest_imagery(options);
+    EXPECT_TRUE(arm.fired());
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find(c.message), std::string::npos) << r.error().message;
+    EXPECT_EQ(published(), before);
+  }
   EXPECT_EQ(sql_value(db, "PRAGMA integrity_check"), "ok");
   EXPECT_EQ(sql_value(db, "SELECT count(*) FROM imagery_versions WHERE status = 'building'"), "0");
 }

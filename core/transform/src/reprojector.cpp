@@ -123,6 +123,37 @@ std::string grids_of(PJ_CONTEXT* ctx, const PJ* op, bool missing_only) {
   return names;
 }
 
+// The source CRS split into its parts. A BoundCRS (WKT1 with TOWGS84) transforms as itself; its
+// units are those of its base (unit_crs).
+struct SourceCrs {
+  PjPtr whole;       // the CRS as given when it is compound, else null (moved into horizontal)
+  PjPtr horizontal;  // its horizontal part (or the whole CRS)
+  PjPtr vertical;    // its vertical part, or null
+  PjPtr base;        // a BoundCRS's base, or null
+  const PJ* unit_crs = nullptr;
+  PJ_TYPE htype = PJ_TYPE_UNKNOWN;
+  bool geographic = false;
+  std::optional<AxisUnit> hunit;
+};
+
+// Untrusted options and files (options.confined): only CRS texts that cannot name files (a PROJ
+// string's +init=, +nadgrids= or +geoidgrids=, WKT1's PROJ4 and PROJ4_GRIDS extensions).
+Status check_confined_crs(const sources::SourceInfo& info, const ReprojectOptions& options) {
+  const std::string& file = info.path;
+  if (!options.crs.empty() && !is_authority_code(options.crs)) {
+    return invalid_argument(file + ": CRS '" + shorten(options.crs, 60) +
+                            "' refused: here a CRS is an authority code such as EPSG:32632 "
+                            "or EPSG:2903+6360");
+  }
+  if (options.crs.empty() && may_name_files(info.crs)) {
+    return unsupported(file +
+                       ": the file's CRS is a PROJ string or carries a PROJ extension "
+                       "(which can name grid and init files); give the CRS as an authority "
+                       "code instead");
+  }
+  return {};
+}
+
 }  // namespace
 
 struct Reprojector::Impl {
@@ -131,9 +162,14 @@ struct Reprojector::Impl {
   PjPtr geoid;       // lon/lat degrees + H → h, or null
   PjPtr full3d;      // vertical_datum=crs: source (x, y, z native) → lon, lat, h; else null
 
+  Result<SourceCrs> open_crs(const sources::SourceInfo& info, const ReprojectOptions& options);
+  Status plan_z_unit(const SourceCrs& crs, const sources::SourceInfo& info,
+                     const ReprojectOptions& options);
+  Status plan_horizontal(const SourceCrs& crs);
   Status plan_vertical_crs(const PjPtr& compound, const PjPtr& horizontal_crs, PjPtr& vertical,
                            PJ_TYPE htype, const sources::SourceInfo& info,
                            const ReprojectOptions& options);
+  Status plan_geoid(const ReprojectOptions& options);
   ReprojectionPlan plan;
   std::string path;
 };
@@ -305,30 +341,32 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
                                         const ReprojectOptions& options) {
   auto impl = std::make_unique<Impl>();
   impl->path = info.path;
-  const std::string& file = info.path;
   impl->ctx.reset(proj_context_create());
   PJ_CONTEXT* ctx = impl->ctx.get();
   if (ctx == nullptr) return Error(ErrorCode::internal, "cannot create a PROJ context");
   proj_log_level(ctx, PJ_LOG_NONE);
   if (options.confined) {
-    // Untrusted options and files: no download of grids (PROJ_NETWORK), and only CRS texts that
-    // cannot name files (a PROJ string's +init=, +nadgrids= or +geoidgrids=, WKT1's PROJ4 and
-    // PROJ4_GRIDS extensions).
-    proj_context_set_enable_network(ctx, 0);
-    if (!options.crs.empty() && !is_authority_code(options.crs)) {
-      return invalid_argument(file + ": CRS '" + shorten(options.crs, 60) +
-                              "' refused: here a CRS is an authority code such as EPSG:32632 "
-                              "or EPSG:2903+6360");
-    }
-    if (options.crs.empty() && may_name_files(info.crs)) {
-      return unsupported(file +
-                         ": the file's CRS is a PROJ string or carries a PROJ extension "
-                         "(which can name grid and init files); give the CRS as an authority "
-                         "code instead");
-    }
+    proj_context_set_enable_network(ctx, 0);  // no download of grids (PROJ_NETWORK)
+    if (Status s = check_confined_crs(info, options); !s) return s.error();
   }
-  ReprojectionPlan& plan = impl->plan;
+  auto crs = impl->open_crs(info, options);
+  if (!crs) return crs.error();
+  if (Status s = impl->plan_z_unit(*crs, info, options); !s) return s.error();
+  if (Status s = impl->plan_horizontal(*crs); !s) return s.error();
+  const Status vertical = options.vertical_datum == "crs"
+                              ? impl->plan_vertical_crs(crs->whole, crs->horizontal, crs->vertical,
+                                                        crs->htype, info, options)
+                              : impl->plan_geoid(options);
+  if (!vertical) return vertical.error();
+  return Reprojector(std::move(impl));
+}
 
+// The source CRS (the option's, else the file's), checked to be geographic or projected, split
+// into its parts; sets plan.crs, crs_name and horizontal_unit.
+Result<SourceCrs> Reprojector::Impl::open_crs(const sources::SourceInfo& info,
+                                              const ReprojectOptions& options) {
+  PJ_CONTEXT* pctx = ctx.get();
+  const std::string& file = info.path;
   plan.crs = !options.crs.empty() ? options.crs : info.crs;
   if (plan.crs.empty()) {
     return invalid_argument(file + ": the file has no CRS" +
@@ -337,128 +375,129 @@ Result<Reprojector> Reprojector::create(const sources::SourceInfo& info,
                                  : std::string()) +
                             ": give one with --crs (e.g. --crs EPSG:4326)");
   }
-  PjPtr crs(proj_create(ctx, plan.crs.c_str()));
+  SourceCrs out;
+  PjPtr crs(proj_create(pctx, plan.crs.c_str()));
   if (!crs) {
     return unsupported(file + ": unknown or invalid CRS '" + shorten(plan.crs) +
-                       "': " + proj_message(ctx));
+                       "': " + proj_message(pctx));
   }
   if (proj_is_crs(crs.get()) == 0) {
     return unsupported(file + ": '" + shorten(plan.crs) + "' is not a CRS");
   }
   if (const char* name = proj_get_name(crs.get())) plan.crs_name = name;
-
-  // Split into horizontal and vertical parts.
-  PjPtr horizontal, vertical;
-  PJ_TYPE type = proj_get_type(crs.get());
-  if (type == PJ_TYPE_COMPOUND_CRS) {
-    horizontal.reset(proj_crs_get_sub_crs(ctx, crs.get(), 0));
-    vertical.reset(proj_crs_get_sub_crs(ctx, crs.get(), 1));
+  if (proj_get_type(crs.get()) == PJ_TYPE_COMPOUND_CRS) {
+    out.horizontal.reset(proj_crs_get_sub_crs(pctx, crs.get(), 0));
+    out.vertical.reset(proj_crs_get_sub_crs(pctx, crs.get(), 1));
+    out.whole = std::move(crs);
   } else {
-    horizontal = std::move(crs);
+    out.horizontal = std::move(crs);
   }
-  if (!horizontal) return unsupported(file + ": cannot take the horizontal part of the CRS");
-  // A BoundCRS (WKT1 with TOWGS84) transforms as itself; its units are those of its base.
-  PjPtr base;
-  const PJ* unit_crs = horizontal.get();
-  if (proj_get_type(horizontal.get()) == PJ_TYPE_BOUND_CRS) {
-    base.reset(proj_get_source_crs(ctx, horizontal.get()));
-    if (base) unit_crs = base.get();
+  if (!out.horizontal) return unsupported(file + ": cannot take the horizontal part of the CRS");
+  out.unit_crs = out.horizontal.get();
+  if (proj_get_type(out.horizontal.get()) == PJ_TYPE_BOUND_CRS) {
+    out.base.reset(proj_get_source_crs(pctx, out.horizontal.get()));
+    if (out.base) out.unit_crs = out.base.get();
   }
-  const PJ_TYPE htype = proj_get_type(unit_crs);
-  const bool geographic = htype == PJ_TYPE_GEOGRAPHIC_2D_CRS || htype == PJ_TYPE_GEOGRAPHIC_3D_CRS;
-  if (!geographic && htype != PJ_TYPE_PROJECTED_CRS) {
+  out.htype = proj_get_type(out.unit_crs);
+  out.geographic = out.htype == PJ_TYPE_GEOGRAPHIC_2D_CRS || out.htype == PJ_TYPE_GEOGRAPHIC_3D_CRS;
+  if (!out.geographic && out.htype != PJ_TYPE_PROJECTED_CRS) {
     return unsupported(file + ": CRS '" + plan.crs_name +
                        "' is neither geographic nor projected (geocentric, engineering and "
                        "vertical-only CRSs cannot be placed on the globe)");
   }
-  const auto hunit = axis_unit(ctx, unit_crs, 0);
-  plan.horizontal_unit = hunit ? hunit->name : "";
+  out.hunit = axis_unit(pctx, out.unit_crs, 0);
+  plan.horizontal_unit = out.hunit ? out.hunit->name : "";
+  return out;
+}
 
-  // z unit rule (see the header).
+// The z unit rule (see the header): the user's, the file's, the CRS's vertical axis, the
+// horizontal CRS's linear unit, else metre.
+Status Reprojector::Impl::plan_z_unit(const SourceCrs& crs, const sources::SourceInfo& info,
+                                      const ReprojectOptions& options) {
+  PJ_CONTEXT* pctx = ctx.get();
   if (options.z_unit) {
     plan.z_unit = *options.z_unit;
     plan.z_unit_rule = "given by the user";
   } else if (info.z_unit) {
     plan.z_unit = *info.z_unit;
     plan.z_unit_rule = "stated by the file";
-  } else if (auto vu = vertical ? axis_unit(ctx, vertical.get(), 0)
-                                : (htype == PJ_TYPE_GEOGRAPHIC_3D_CRS ? axis_unit(ctx, unit_crs, 2)
-                                                                      : std::nullopt)) {
+  } else if (auto vu = crs.vertical ? axis_unit(pctx, crs.vertical.get(), 0)
+                                    : (crs.htype == PJ_TYPE_GEOGRAPHIC_3D_CRS
+                                           ? axis_unit(pctx, crs.unit_crs, 2)
+                                           : std::nullopt)) {
     plan.z_unit = sources::LinearUnit{vu->name, vu->factor};
     plan.z_unit_rule = "the CRS's vertical axis";
-  } else if (!geographic && hunit && hunit->linear) {
-    plan.z_unit = sources::LinearUnit{hunit->name, hunit->factor};
+  } else if (!crs.geographic && crs.hunit && crs.hunit->linear) {
+    plan.z_unit = sources::LinearUnit{crs.hunit->name, crs.hunit->factor};
     plan.z_unit_rule = "no vertical CRS: z taken in the horizontal CRS's linear unit";
   } else {
     plan.z_unit = sources::LinearUnit{"metre", 1.0};
     plan.z_unit_rule = "no vertical unit known: metre";
   }
   if (!(plan.z_unit.to_metre > 0) || !std::isfinite(plan.z_unit.to_metre)) {
-    return unsupported(file + ": z unit '" + plan.z_unit.name + "' has no usable metre factor");
+    return unsupported(info.path + ": z unit '" + plan.z_unit.name +
+                       "' has no usable metre factor");
   }
-  if (vertical || !info.vertical_crs.empty()) {
+  if (crs.vertical || !info.vertical_crs.empty()) {
     plan.notes.push_back(
         "the source declares a vertical CRS (" +
-        (vertical ? std::string(proj_get_name(vertical.get())) : info.vertical_crs) +
+        (crs.vertical ? std::string(proj_get_name(crs.vertical.get())) : info.vertical_crs) +
         "); heights are converted as vertical_datum=" + options.vertical_datum);
   }
+  return {};
+}
 
-  // Horizontal operation.
-  PjPtr wgs84(proj_create(ctx, "EPSG:4326"));
+// The horizontal operation: source horizontal CRS → EPSG:4326 in lon/lat order.
+Status Reprojector::Impl::plan_horizontal(const SourceCrs& crs) {
+  PJ_CONTEXT* pctx = ctx.get();
+  PjPtr wgs84(proj_create(pctx, "EPSG:4326"));
   if (!wgs84)
-    return Error(ErrorCode::internal, "PROJ cannot build EPSG:4326: " + proj_message(ctx));
-  PjPtr op(proj_create_crs_to_crs_from_pj(ctx, horizontal.get(), wgs84.get(), nullptr, nullptr));
+    return Error(ErrorCode::internal, "PROJ cannot build EPSG:4326: " + proj_message(pctx));
+  PjPtr op(
+      proj_create_crs_to_crs_from_pj(pctx, crs.horizontal.get(), wgs84.get(), nullptr, nullptr));
   if (!op) {
-    return unsupported(file + ": no transformation from '" + plan.crs_name +
-                       "' to WGS84: " + proj_message(ctx));
+    return unsupported(path + ": no transformation from '" + plan.crs_name +
+                       "' to WGS84: " + proj_message(pctx));
   }
-  impl->horizontal.reset(proj_normalize_for_visualization(ctx, op.get()));
-  if (!impl->horizontal) {
-    return unsupported(file +
-                       ": cannot normalise the transformation axis order: " + proj_message(ctx));
+  horizontal.reset(proj_normalize_for_visualization(pctx, op.get()));
+  if (!horizontal) {
+    return unsupported(path +
+                       ": cannot normalise the transformation axis order: " + proj_message(pctx));
   }
+  return {};
+}
 
-  if (options.vertical_datum == "crs") {
-    if (auto st = impl->plan_vertical_crs(crs, horizontal, vertical, htype, info, options);
-        !st.ok()) {
-      return st.error();
-    }
-    return Reprojector(std::move(impl));
-  }
-
-  // Geoid.
+// vertical_datum ellipsoidal, egm96, egm2008 or a grid file: the geoid grid's vgridshift (none for
+// ellipsoidal heights).
+Status Reprojector::Impl::plan_geoid(const ReprojectOptions& options) {
   auto grids = geoid_grid_candidates(options.vertical_datum);
-  if (!grids.ok()) return Error(grids.error().code, file + ": " + grids.error().message);
-  if (!grids->empty()) {
-    for (const std::string& g : *grids) {
-      const std::string pipeline =
-          "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
-          "+step +proj=vgridshift +grids=" +
-          g +
-          " +multiplier=1 "
-          "+step +proj=unitconvert +xy_in=rad +xy_out=deg";
-      PjPtr shift(proj_create(ctx, pipeline.c_str()));
-      if (shift) {
-        impl->geoid = std::move(shift);
-        plan.geoid_grid = g;
-        break;
-      }
-    }
-    if (!impl->geoid) {
-      std::string names;
-      for (const auto& g : *grids) names += (names.empty() ? "" : " or ") + g;
-      const PJ_INFO pinfo = proj_info();
-      return not_found(
-          file + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " + names +
-          ", which PROJ cannot find (searched: " +
-          (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
-          "). Install it with `projsync --file " + grids->front() +
-          "`, or download https://cdn.proj.org/" + grids->front() +
-          " into a directory listed in PROJ_DATA (Debian's proj-data package holds only a few "
-          "grids); or use --vertical-datum ellipsoidal if the heights are already ellipsoidal");
+  if (!grids.ok()) return Error(grids.error().code, path + ": " + grids.error().message);
+  if (grids->empty()) return {};
+  for (const std::string& g : *grids) {
+    const std::string pipeline =
+        "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
+        "+step +proj=vgridshift +grids=" +
+        g +
+        " +multiplier=1 "
+        "+step +proj=unitconvert +xy_in=rad +xy_out=deg";
+    PjPtr shift(proj_create(ctx.get(), pipeline.c_str()));
+    if (shift) {
+      geoid = std::move(shift);
+      plan.geoid_grid = g;
+      return {};
     }
   }
-  return Reprojector(std::move(impl));
+  std::string names;
+  for (const auto& g : *grids) names += (names.empty() ? "" : " or ") + g;
+  const PJ_INFO pinfo = proj_info();
+  return not_found(
+      path + ": vertical datum '" + options.vertical_datum + "' needs the geoid grid " + names +
+      ", which PROJ cannot find (searched: " +
+      (pinfo.searchpath != nullptr ? pinfo.searchpath : "?") +
+      "). Install it with `projsync --file " + grids->front() +
+      "`, or download https://cdn.proj.org/" + grids->front() +
+      " into a directory listed in PROJ_DATA (Debian's proj-data package holds only a few "
+      "grids); or use --vertical-datum ellipsoidal if the heights are already ellipsoidal");
 }
 
 Status Reprojector::transform_3d(std::span<const sources::SourcePoint> in,
