@@ -3,7 +3,7 @@
 # each timed (wall and CPU seconds; `.ci/timings.tsv` style table at the end and in
 # build-ci/timings.tsv). Every step runs even when one before failed; the exit status is 1 when
 # any failed.
-#   .ci/pipeline.sh [step...]    steps: release asan tsan format tidy fuzz (default: all, in order)
+#   .ci/pipeline.sh [step...]    steps: release asan tsan format tidy fuzz nocgal (default: all, in order)
 #   release  Release (-O3) build, what docker/ ships, and the whole suite on it (ctest: unit and
 #            integration tests, crash-safety harnesses, fuzz replays, the build checks)
 #   asan     ASan + UBSan (-O1 -g, asserts on) build and the whole suite on it
@@ -13,6 +13,8 @@
 #   tidy     clang-tidy (.clang-tidy; findings fail)
 #   fuzz     every libFuzzer target 30 s (scripts/fuzz.sh; FUZZ_SECONDS overrides; the long runs
 #            are recorded in docs/SECURITY.md)
+#   nocgal   the product (CLI, server, viewer) configures and plans without CGAL, a test-only
+#            dependency (.ci/nocgal_check.sh; seconds)
 # Budget: 45 minutes on a 2-core machine (docs/SECURITY.md, "CI", has the measured breakdown).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -21,7 +23,7 @@ cd "$(dirname "$0")/.."
 # fresh-clone run (CI, 2026-11-27) and the tidy findings of that run are fixed.
 advisory=" ${CI_ADVISORY-} "
 steps=("$@")
-((${#steps[@]})) || steps=(release asan tsan format tidy fuzz)
+((${#steps[@]})) || steps=(release asan tsan format tidy fuzz nocgal)
 mkdir -p build-ci
 timings=build-ci/timings.tsv
 printf 'step\tresult\twall_s\tcpu_s\n' >"$timings"
@@ -34,6 +36,7 @@ for step in "${steps[@]}"; do
     tsan) cmd=(make tsan) ;;
     format) cmd=(make format-check BUILD=build-release) ;;
     tidy) cmd=(make tidy BUILD=build-release) ;;
+    nocgal) cmd=(bash .ci/nocgal_check.sh) ;;
     fuzz) cmd=(env FUZZ_SECONDS="${FUZZ_SECONDS:-30}" FUZZ_SEED="${FUZZ_SEED:-1}" make fuzz) ;;
     *) echo "pipeline: unknown step $step" >&2; exit 2 ;;
   esac

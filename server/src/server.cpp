@@ -51,9 +51,10 @@ constexpr std::uint32_t kLayerRowTtlMs = 1000;
 constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);
 
 // Raises the open-files soft limit to the hard one, and returns max_connections as the server
-// can keep it: below that limit by an eighth of it (at least 128 descriptors), for the stores,
-// the body files, the listeners, the logs and the ingest's files.
-std::uint32_t connection_limit(std::uint32_t configured) {
+// can keep it: `per_connection` descriptors each (a TLS connection holds three: the TCP socket and
+// the socket pair to its session, tls.hpp), below that limit by an eighth of it (at least 128
+// descriptors), for the stores, the body files, the listeners, the logs and the ingest's files.
+std::uint32_t connection_limit(std::uint32_t configured, unsigned per_connection) {
   rlimit files{};
   if (::getrlimit(RLIMIT_NOFILE, &files) != 0) return configured;
   const rlim_t most = std::min<rlim_t>(files.rlim_max, rlim_t{1} << 20);
@@ -63,10 +64,12 @@ std::uint32_t connection_limit(std::uint32_t configured) {
     if (::setrlimit(RLIMIT_NOFILE, &raised) == 0) files = raised;
   }
   const rlim_t reserve = std::max<rlim_t>(128, files.rlim_cur / 8);
-  const rlim_t room = files.rlim_cur > reserve + 1 ? files.rlim_cur - reserve : 1;
+  const rlim_t room = std::max<rlim_t>(
+      files.rlim_cur > reserve + 1 ? (files.rlim_cur - reserve) / per_connection : 1, 1);
   if (configured <= room) return configured;
-  spdlog::warn("max_connections {} lowered to {}: the open-files limit is {}", configured, room,
-               static_cast<std::uint64_t>(files.rlim_cur));
+  spdlog::warn("max_connections {} lowered to {}: the open-files limit is {}{}", configured, room,
+               static_cast<std::uint64_t>(files.rlim_cur),
+               per_connection > 1 ? " and a TLS connection holds 3 descriptors" : "");
   return static_cast<std::uint32_t>(room);
 }
 
@@ -365,7 +368,8 @@ Result<std::unique_ptr<Server>> Server::create(const ServerConfig& config, Inges
   const unsigned threads =
       config.threads > 0 ? config.threads : std::max(1u, std::thread::hardware_concurrency());
   ServerConfig applied = config;
-  applied.max_connections = connection_limit(config.max_connections);
+  applied.max_connections =
+      connection_limit(config.max_connections, config.tls_cert.empty() ? 1u : 3u);
   auto impl = std::make_unique<Impl>(applied, threads);
   Impl* raw = impl.get();
   // A finished job may have published or replaced a layer: forget cached layer rows.

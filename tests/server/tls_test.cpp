@@ -8,6 +8,7 @@
 #include <openssl/ssl.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
+#include <sys/resource.h>
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
@@ -211,6 +212,25 @@ TEST_F(TlsTest, RefusesOldProtocolsPlainHttpAndStalledHandshakes) {
   const auto fine = https_get(port_, dir_.path / "cert.pem", {"/healthz"});
   ASSERT_EQ(fine.responses.size(), 1u);
   EXPECT_EQ(fine.responses[0].result_int(), 200);
+}
+
+// A TLS connection holds three descriptors (the TCP socket and the socket pair to its session):
+// max_connections stays below the open-files limit counting three per connection, so the server
+// never runs out of descriptors for its stores and body files before it refuses connections.
+TEST_F(TlsTest, MaxConnectionsCountsThreeDescriptorsPerConnection) {
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+  struct Restore {
+    rlimit limit;
+    ~Restore() { ::setrlimit(RLIMIT_NOFILE, &limit); }
+  } restore{before};
+  rlimit low{256, 512};  // raised to 512 by the server; (512 - 128) / 3 = 128 connections
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  ServerConfig c = config();
+  c.max_connections = 100000;
+  start(c);
+  EXPECT_LE(server_->max_connections(), (512u - 128u) / 3);
+  EXPECT_GE(server_->max_connections(), 100u);
 }
 
 TEST_F(TlsTest, CertificateAndKeyAreCheckedAtStart) {

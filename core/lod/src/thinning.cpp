@@ -551,16 +551,17 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   // ---- 2. triangulate corners + border (+ every interior point unless greedy), constrained ----
   Triangulation tri(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
   std::vector<kernel::Point3> pts;
-  pts.reserve(4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size() +
-              in.interior.size());
+  const std::size_t n_fixed =
+      4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size();
+  const std::size_t target = greedy_target(options);
+  const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
+  // (The interior goes in here only without the greedy stage, which chooses its points.)
+  pts.reserve(n_fixed + (greedy ? 0 : in.interior.size()));
   auto add = [&](const Vertex& v) { pts.push_back({v.x, v.y, v.z, v.weight}); };
   for (const auto& c : in.corners) add(c);
   for (const auto& s : sides) {
     for (const auto& v : s) add(v);
   }
-  const std::size_t n_fixed = pts.size();
-  const std::size_t target = greedy_target(options);
-  const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
   if (!greedy) {
     for (const auto& v : in.interior) add(v);
   }

@@ -107,6 +107,43 @@ TEST(Greedy, ReportedErrorIsTheBruteForceMaximum) {
   }
 }
 
+// Enough points that the greedy stage's pool of filed points is compacted (in place) many times
+// on the way: every point left out is still filed under the triangle that holds it, so the
+// reported error is the brute-force maximum over them.
+TEST(Greedy, ErrorAfterManyCompactionsIsTheBruteForceMaximum) {
+  const geo::MercatorRect r = kTile.bounds();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(r.min_x + r.width() * 1e-3, r.max_x - r.width() * 1e-3);
+  std::uniform_real_distribution<double> uy(r.min_y + r.height() * 1e-3,
+                                            r.max_y - r.height() * 1e-3);
+  ThinInput in = thin_input(grid_tile(kTile, 8, rough));
+  in.interior.clear();
+  for (int i = 0; i < 20000; ++i) {
+    const double x = ux(rng), y = uy(rng);
+    in.interior.push_back({x, y, rough(x, y), 0});
+  }
+  LodOptions o;
+  o.max_points = 400;
+  o.greedy_factor = 1.0;
+  ThinStats st;
+  auto t = thin_tile(in, o, &st);
+  ASSERT_TRUE(t.ok()) << t.error().message;
+  ASSERT_GT(st.greedy_inserted, 300u);
+  EXPECT_TRUE(tile::check_structure(*t).ok());
+  std::vector<std::pair<double, double>> kept;
+  for (const auto& v : t->interior) kept.emplace_back(v.x, v.y);
+  std::sort(kept.begin(), kept.end());
+  double brute = 0;
+  for (const auto& p : in.interior) {
+    if (std::binary_search(kept.begin(), kept.end(), std::pair{p.x, p.y})) continue;
+    const auto z = brute_height(*t, p.x, p.y, false);
+    ASSERT_TRUE(z.has_value());
+    brute = std::max(brute, std::abs(*z - p.z));
+  }
+  EXPECT_GT(brute, 0.0);
+  EXPECT_NEAR(st.greedy_error, brute, 1e-9 * (1 + brute));
+}
+
 TEST(Greedy, NeighboursThinnedSeparatelyStayWatertight) {
   const geo::TileId east{kTile.z, kTile.x + 1, kTile.y};
   std::vector<tile::TinTile> level = {grid_tile(kTile, 64, rough), grid_tile(east, 64, rough)};

@@ -41,15 +41,15 @@ SymbolModel::SymbolModel(std::uint32_t symbols) : last_symbol_(symbols - 1), sym
   while ((1u << bits) < 2 * symbols && bits < 10) ++bits;
   table_size_ = 1u << bits;
   table_shift_ = kSymbolLengthShift - bits;
-  const std::size_t words = (symbols + 3) + symbols + (table_size_ + 2);
-  storage_ = std::make_unique<std::uint16_t[]>(words);
+  storage_ = std::make_unique<std::uint16_t[]>((symbols + 3) + symbols);
+  slots_ = std::make_unique<std::uint64_t[]>(table_size_ + 2);
   std::uint16_t* cumulative = storage_.get();
   // Bounds past the last symbol, read by the 4-value loads: above any scaled value, so that
   // decoding never steps past the last symbol (whose decode uses the length instead).
   std::fill(cumulative + symbols, cumulative + symbols + 3, std::uint16_t{0xFFFF});
   cumulative_ = cumulative;
   counts_ = cumulative + symbols + 3;
-  table_ = counts_ + symbols;
+  table_ = slots_.get();
   reset();
 }
 
@@ -79,17 +79,24 @@ void SymbolModel::rebuild() {
     sum += counts_[s];
   }
   // Slot j covers scaled values [j << shift, (j + 1) << shift): it gets the symbol its first
-  // value falls in, marked for a search when the symbol after next starts inside it too.
-  auto* table = const_cast<std::uint16_t*>(table_);
+  // value falls in (and its bounds), marked for a search when the symbol after next starts
+  // inside it too. cumulative[symbols_ ..] holds 0xFFFF, so the bounds past the last symbol are
+  // those too.
+  auto slot_of = [cumulative](std::uint32_t s) {
+    return s | (std::uint64_t{cumulative[s]} << 16) | (std::uint64_t{cumulative[s + 1]} << 32) |
+           (std::uint64_t{cumulative[s + 2]} << 48);
+  };
+  auto* table = const_cast<std::uint64_t*>(table_);
   std::uint32_t slot = 0;
   for (std::uint32_t s = 0; s < symbols_; ++s) {
     const std::uint32_t end = s < last_symbol_ ? cumulative[s + 1] : kSymbolMaxCount;
     const std::uint32_t first = slot;
-    for (; (slot << table_shift_) < end; ++slot) table[slot] = static_cast<std::uint16_t>(s);
+    const std::uint64_t entry = slot_of(s);
+    for (; (slot << table_shift_) < end; ++slot) table[slot] = entry;
     if (slot != first && cumulative[s + 2] < (slot << table_shift_)) table[slot - 1] |= kSearchSlot;
   }
   // Scaled values just past 2^15 (see decode_symbol) fall in the last symbol.
-  table[table_size_] = table[table_size_ + 1] = static_cast<std::uint16_t>(last_symbol_);
+  table[table_size_] = table[table_size_ + 1] = slot_of(last_symbol_);
   cycle_ = std::min((5 * cycle_) >> 2, (symbols_ + 6) << 3);
   until_update_ = cycle_;
 }
@@ -97,8 +104,8 @@ void SymbolModel::rebuild() {
 std::uint32_t SymbolModel::search(std::uint32_t scaled) const {
   // The symbol lies between the slot's first symbol and the next slot's.
   const std::uint32_t slot = scaled >> table_shift_;
-  std::uint32_t low = table_[slot] & ~std::uint32_t{kSearchSlot};
-  std::uint32_t high = table_[slot + 1] & ~std::uint32_t{kSearchSlot};
+  auto low = static_cast<std::uint32_t>(table_[slot] & (kSearchSlot - 1u));
+  auto high = static_cast<std::uint32_t>(table_[slot + 1] & (kSearchSlot - 1u));
   while (low < high) {  // the last symbol in [low, high] whose cumulative value <= scaled
     const std::uint32_t mid = (low + high + 1) >> 1;
     if (cumulative_[mid] <= scaled) {

@@ -103,10 +103,12 @@ struct BitModel {
 // Decoding looks the symbol up in a table indexed by the top bits of the scaled value (LASzip
 // keeps one for models of more than 16 symbols, about one slot per 4 symbols; ours has about 2
 // slots per symbol, at least 16 and at most 1024, for every model). A slot holds the symbol its
-// first value falls in; the decoder then steps to the next symbol when the value lies beyond
-// this one, without a branch. Only a slot in which a third symbol starts is marked
-// (kSearchSlot), and decoding searches there: that takes a symbol narrower than a slot, which is
-// rarely decoded. The table only speeds the search up: any table finds the symbols the
+// first value falls in and that symbol's cumulative bounds c[s], c[s + 1], c[s + 2] (16 bits
+// each, one 64-bit word: the decode needs one load after its division, not a table load and
+// then a dependent load of the bounds); the decoder then steps to the next symbol when the
+// value lies beyond this one, without a branch. Only a slot in which a third symbol starts is
+// marked (kSearchSlot), and decoding searches there: that takes a symbol narrower than a slot,
+// which is rarely decoded. The table only speeds the search up: any table finds the symbols the
 // cumulative distribution defines.
 //
 // Counts fit 16 bits: the total is halved as soon as it passes 2^15 at a rebuild, and at most
@@ -126,8 +128,9 @@ class SymbolModel {
   void rebuild();
   std::uint32_t search(std::uint32_t scaled) const;  // in a kSearchSlot slot
 
-  // Used by every decode, first.
-  const std::uint16_t* table_ = nullptr;       // table_size + 2 entries (the last two: last symbol)
+  // Used by every decode, first. A slot: symbol (and kSearchSlot) | c[s] << 16 | c[s + 1] << 32
+  // | c[s + 2] << 48, bounds past the last symbol 0xFFFF.
+  const std::uint64_t* table_ = nullptr;       // table_size + 2 slots (the last two: last symbol)
   const std::uint16_t* cumulative_ = nullptr;  // symbols_ entries scaled to 2^15, then 3 bounds
   std::uint16_t* counts_ = nullptr;            // symbols_ entries
   std::uint32_t table_shift_ = 0;              // scaled value >> this = slot
@@ -138,7 +141,8 @@ class SymbolModel {
   std::uint32_t total_count_ = 0;
   std::uint32_t cycle_ = 0;
   std::uint32_t table_size_ = 0;
-  std::unique_ptr<std::uint16_t[]> storage_;  // cumulative | counts | table
+  std::unique_ptr<std::uint16_t[]> storage_;  // cumulative | counts
+  std::unique_ptr<std::uint64_t[]> slots_;    // table
 };
 
 // Models created the first time their context is used, and reset on their first use in each
@@ -195,14 +199,16 @@ class ArithmeticDecoder {
     // value < length (see start()), so scaled < 2^15 + 2^15 / unit <= 2^15 + 64: past the
     // last symbol's start by a few at most, which the table's two extra slots cover.
     const std::uint32_t scaled = value_ / unit;
-    const std::uint32_t entry = m.table_[scaled >> m.table_shift_];
-    std::uint32_t symbol = entry & ~std::uint32_t{SymbolModel::kSearchSlot};
-    if (entry & SymbolModel::kSearchSlot) [[unlikely]]
+    // The slot: its symbol and cumulative[symbol .. symbol + 2]; the value lies in `symbol` or
+    // the next.
+    const std::uint64_t entry = m.table_[scaled >> m.table_shift_];
+    auto symbol = static_cast<std::uint32_t>(entry & 0xFFFF);
+    std::uint64_t bounds = entry >> 16;
+    if (symbol & SymbolModel::kSearchSlot) [[unlikely]] {
       symbol = m.search(scaled);
-    // cumulative[symbol .. symbol + 2] with one load; the value lies in `symbol` or the next.
-    std::uint64_t bounds;
-    std::memcpy(&bounds, m.cumulative_ + symbol, sizeof bounds);
-    if constexpr (std::endian::native == std::endian::big) bounds = swap_halves16(bounds);
+      std::memcpy(&bounds, m.cumulative_ + symbol, sizeof bounds);
+      if constexpr (std::endian::native == std::endian::big) bounds = swap_halves16(bounds);
+    }
     const auto c1 = static_cast<std::uint32_t>((bounds >> 16) & 0xFFFF);
     const std::uint32_t x0 = static_cast<std::uint32_t>(bounds & 0xFFFF) * unit;
     const std::uint32_t x1 = c1 * unit;

@@ -25,7 +25,9 @@
 // writes of parents); build_from_sources runs on `threads` workers. At most `max_in_flight`
 // parents (and their children and sources, at most 4 + 4^source_depth tiles of at most
 // max_points each) are in memory at once, so memory is bounded by options, not by the layer's
-// size; the tile ids of every level are listed in memory (16 bytes + 16 per tile). Beside them,
+// size; the tile ids of every level are listed in memory (16 bytes + 16 per tile). The largest
+// term is a worker thinning a parent from all of its sources: about 200 bytes per source point
+// (≈ 200 MB at 64 sources of 16384 points; bench/lod/RESULTS.md, 2026-11-27 14:35). Beside them,
 // decoded tiles that a coarser level reads again (as a source) are kept, shared by the workers,
 // up to PyramidOptions::decoded_cache_bytes: the levels above the one where the data fit
 // 4^source_depth tiles read the same tiles level after level. Levels whose tiles outnumber the
