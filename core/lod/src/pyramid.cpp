@@ -321,64 +321,86 @@ class AbsentCorners {
   std::deque<std::pair<geo::TileId, TinTile>> cache_;
 };
 
-}  // namespace
-
-Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
-                                     std::uint32_t min_level, const PyramidOptions& options,
-                                     unsigned threads, const ProgressSink& progress) {
-  if (finest_level > static_cast<std::uint32_t>(geo::kMaxLevel) || min_level > finest_level) {
-    return invalid_argument("lod: levels must satisfy min_level ≤ finest_level ≤ 30, got " +
-                            std::to_string(min_level) + " and " + std::to_string(finest_level));
+// Pass 4 for one layer: the state the levels share, and one method per step. Runs on the calling
+// thread (it alone touches the writer); the jobs it makes run on the pool.
+class PyramidBuilder {
+ public:
+  PyramidBuilder(store::LayerWriter& writer, std::uint32_t finest_level, std::uint32_t min_level,
+                 const PyramidOptions& options, unsigned threads, const ProgressSink& progress)
+      : writer_(writer),
+        finest_(finest_level),
+        min_(min_level),
+        options_(options),
+        threads_(std::max(threads, 1u)),
+        max_in_flight_(options.max_in_flight ? options.max_in_flight : 2 * threads_ + 2),
+        max_sources_(std::size_t{1} << (2 * std::clamp<std::uint32_t>(options.source_depth, 1, 8))),
+        progress_(progress),
+        side_(options.scratch),
+        cache_(options.decoded_cache_bytes) {
+    summary_.level_max_error.assign(finest_ + 1, 0.0);
+    summary_.level_tiles.assign(finest_ + 1, 0);
+    summary_.level_vertices.assign(finest_ + 1, 0);
   }
-  if (options.lod.max_points < 4) return invalid_argument("lod: max_points must be at least 4");
-  threads = std::max(threads, 1u);
-  const std::size_t max_in_flight = options.max_in_flight ? options.max_in_flight : 2 * threads + 2;
-  PyramidSummary summary;
-  summary.level_max_error.assign(finest_level + 1, 0.0);
-  summary.level_tiles.assign(finest_level + 1, 0);
-  summary.level_vertices.assign(finest_level + 1, 0);
-  auto account = [&](const store::StoredTile& t) {
-    summary.level_max_error[t.id.z] = std::max(summary.level_max_error[t.id.z], t.geometric_error);
-    ++summary.level_tiles[t.id.z];
-    summary.level_vertices[t.id.z] += t.vertex_count;
-  };
-  detail::SideStore side(options.scratch);
 
-  // Declared before the pool: its jobs use it.
-  const std::uint32_t k = std::clamp<std::uint32_t>(options.source_depth, 1, 8);
-  const std::size_t max_sources = std::size_t{1} << (2 * k);
-  DecodedTiles cache(options.decoded_cache_bytes);
-  TilePool pool;
-  if (Status s = pool.start(threads); !s) return s.error();
-  std::uint64_t done = 0;
-  std::uint64_t total = 0;
-  Throttle throttle;
-  auto report = [&](bool force) -> Status {
-    if (!progress || (!force && !throttle.due())) return {};
-    if (!progress(Progress{"lod", done, total, "tiles"}))
+  Result<PyramidSummary> run() {
+    if (Status s = pool_.start(threads_); !s) return s.error();
+    auto finest_ids = writer_.tile_ids(finest_);
+    if (!finest_ids.ok()) return finest_ids.error();
+    if (options_.reduce_finest) {
+      if (Status s = reduce_finest_level(*finest_ids); !s) return s.error();
+    }
+    if (finest_ == min_) {  // no parent: the finest level is the whole pyramid
+      for (const auto& id : *finest_ids) {
+        auto t = writer_.get_stored(id);
+        if (!t.ok()) return t.error();
+        if (*t) account(**t);
+      }
+      return summary_;
+    }
+    index_levels(*finest_ids);
+    for (std::uint32_t z = finest_; z-- > min_;) {
+      if (Status s = build_level(z); !s) return s.error();
+    }
+    if (Status s = report(true); !s.ok()) return s.error();
+    return summary_;
+  }
+
+ private:
+  using Level = std::vector<std::pair<std::uint64_t, geo::TileId>>;  // (Morton code, id), sorted
+
+  void account(const store::StoredTile& t) {
+    summary_.level_max_error[t.id.z] =
+        std::max(summary_.level_max_error[t.id.z], t.geometric_error);
+    ++summary_.level_tiles[t.id.z];
+    summary_.level_vertices[t.id.z] += t.vertex_count;
+  }
+
+  Status report(bool force) {
+    if (!progress_ || (!force && !throttle_.due())) return {};
+    if (!progress_(Progress{"lod", done_, total_, "tiles"}))
       return Error(ErrorCode::cancelled, "lod: cancelled");
     return {};
-  };
+  }
 
   // Runs `load` for every item on the calling thread, the job it returns on the pool, and `store`
   // on the calling thread, with at most max_in_flight items between load and store.
-  auto run_level = [&](const std::vector<geo::TileId>& items,
-                       const std::function<Result<TilePool::Job>(const geo::TileId&)>& load,
-                       const std::function<Status(Built &&)>& store) -> Status {
+  Status run_level(const std::vector<geo::TileId>& items,
+                   const std::function<Result<TilePool::Job>(const geo::TileId&)>& load,
+                   const std::function<Status(Built&&)>& store) {
     std::size_t next = 0, in_flight = 0;
     std::optional<Error> failure;
     while ((next < items.size() && !failure) || in_flight > 0) {
-      while (!failure && in_flight < max_in_flight && next < items.size()) {
+      while (!failure && in_flight < max_in_flight_ && next < items.size()) {
         auto job = load(items[next++]);
         if (!job.ok()) {
           failure = job.error();
           break;
         }
-        pool.submit(std::move(*job));
+        pool_.submit(std::move(*job));
         ++in_flight;
       }
       if (in_flight == 0) break;
-      for (auto& r : pool.wait_results()) {
+      for (auto& r : pool_.wait_results()) {
         --in_flight;
         if (failure) continue;
         if (!r.ok()) {
@@ -389,38 +411,38 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
           failure = s.error();
           continue;
         }
-        ++done;
+        ++done_;
         if (Status s = report(false); !s.ok()) failure = s.error();
       }
     }
     if (failure) return *failure;
-    return writer.flush();
-  };
+    return writer_.flush();
+  }
+
   // Stores a built tile and its side record.
-  auto put = [&](Built&& b) -> Status {
+  Status put(Built&& b) {
     const geo::TileId id = b.stored.id;
-    if (Status s = side.put(id, std::move(b.side)); !s.ok()) return s;
-    return writer.put(std::move(b.stored));
-  };
-  auto read = [&](const geo::TileId& id) -> Result<std::optional<ReadTile>> {
-    auto t = writer.get_stored(id);
+    if (Status s = side_.put(id, std::move(b.side)); !s.ok()) return s;
+    return writer_.put(std::move(b.stored));
+  }
+
+  Result<std::optional<ReadTile>> read(const geo::TileId& id) {
+    auto t = writer_.get_stored(id);
     if (!t.ok()) return t.error();
     if (!*t) return std::optional<ReadTile>{};
-    auto record = side.get(id);
+    auto record = side_.get(id);
     if (!record.ok()) return record.error();
     return std::optional<ReadTile>{ReadTile{std::move(**t), std::move(*record)}};
-  };
+  }
 
-  // ---- optional reduced TIN at the finest level ----------------------------------------------
-  auto finest_ids = writer.tile_ids(finest_level);
-  if (!finest_ids.ok()) return finest_ids.error();
-  if (options.reduce_finest) {
-    total += finest_ids->size();
-    const LodOptions lod = options.lod;
-    Status s = run_level(
-        *finest_ids,
+  // The optional reduced TIN at the finest level (PyramidOptions::reduce_finest).
+  Status reduce_finest_level(const std::vector<geo::TileId>& finest_ids) {
+    total_ += finest_ids.size();
+    const LodOptions lod = options_.lod;
+    return run_level(
+        finest_ids,
         [&](const geo::TileId& id) -> Result<TilePool::Job> {
-          auto t = writer.get_stored(id);
+          auto t = writer_.get_stored(id);
           if (!t.ok()) return t.error();
           if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
           auto blob = std::make_shared<store::StoredTile>(std::move(**t));
@@ -434,188 +456,226 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
             return Built{std::move(*stored), detail::encode_side(*reduced)};
           });
         },
-        put);
-    if (!s.ok()) return s.error();
-  }
-  if (finest_level == min_level) {
-    for (const auto& id : *finest_ids) {
-      auto t = writer.get_stored(id);
-      if (!t.ok()) return t.error();
-      if (*t) account(**t);
-    }
-    return summary;
+        [this](Built&& b) { return put(std::move(b)); });
   }
 
-  // ---- levels finest-1 … min_level -----------------------------------------------------------
-  // A parent at level z is thinned from its sources: the tiles under it at the finest level
-  // whose tiles there number at most 4^source_depth (at least its children). Every level's tile
-  // ids stay listed (Morton order) and its side records kept, since any coarser level may read it.
-  std::vector<std::vector<std::pair<std::uint64_t, geo::TileId>>> levels(finest_level + 1);
-  auto index_level = [&](std::uint32_t z, const std::vector<geo::TileId>& ids) {
-    auto& l = levels[z];
-    l.reserve(ids.size());
-    for (const auto& id : ids) l.emplace_back(id.morton(), id);
-    std::sort(l.begin(), l.end());
-  };
-  // Every level's tiles: the parents of the level below (each is built or the pyramid fails).
-  index_level(finest_level, *finest_ids);
-  for (std::uint32_t z = finest_level; z-- > min_level;) {
-    std::set<geo::TileId> parent_set;
-    for (const auto& [m, c] : levels[z + 1]) parent_set.insert(c.parent());
-    index_level(z, std::vector<geo::TileId>(parent_set.begin(), parent_set.end()));
-  }
-  // The tiles of level s under `p` (a contiguous Morton range).
-  auto under = [&](const geo::TileId& p, std::uint32_t s) {
-    const auto& l = levels[s];
-    const std::uint32_t shift = 2 * (s - p.z);
-    const std::uint64_t lo = p.morton() << shift, hi = (p.morton() + 1) << shift;
-    const auto b = std::lower_bound(l.begin(), l.end(), std::pair{lo, geo::TileId{}});
-    const auto e = std::lower_bound(b, l.end(), std::pair{hi, geo::TileId{}});
-    return std::pair{b, e};
-  };
-  // The depth of the sources of a parent at level z: the deepest level whose tiles under the
-  // parent fit max_sources (1: its children).
-  auto depth_of = [&](const geo::TileId& pid, std::uint32_t z) {
-    for (std::uint32_t sl = finest_level; sl > z + 1; --sl) {
-      const auto [b, e] = under(pid, sl);
-      if (static_cast<std::size_t>(e - b) <= max_sources) return sl - z;
+  // Lists every level's tiles (the parents of the level below: each is built or the pyramid
+  // fails), in Morton order, and the coarsest level that reads each tile as a child or a source.
+  // Every level's ids stay listed and its side records kept, since any coarser level may read it.
+  void index_levels(const std::vector<geo::TileId>& finest_ids) {
+    levels_.assign(finest_ + 1, {});
+    auto index_level = [&](std::uint32_t z, const std::vector<geo::TileId>& ids) {
+      auto& l = levels_[z];
+      l.reserve(ids.size());
+      for (const auto& id : ids) l.emplace_back(id.morton(), id);
+      std::sort(l.begin(), l.end());
+    };
+    index_level(finest_, finest_ids);
+    for (std::uint32_t z = finest_; z-- > min_;) {
+      std::set<geo::TileId> parent_set;
+      for (const auto& [m, c] : levels_[z + 1]) parent_set.insert(c.parent());
+      index_level(z, std::vector<geo::TileId>(parent_set.begin(), parent_set.end()));
     }
-    return std::uint32_t{1};
-  };
-  // The position of a listed tile in its level.
-  auto position = [&](const geo::TileId& id) -> std::optional<std::size_t> {
-    const auto& l = levels[id.z];
-    const auto it = std::lower_bound(l.begin(), l.end(), std::pair{id.morton(), geo::TileId{}});
-    if (it == l.end() || it->second != id) return std::nullopt;
-    return static_cast<std::size_t>(it - l.begin());
-  };
-  // The coarsest level that reads each tile, as a child or a source (none: UINT32_MAX).
-  std::vector<std::vector<std::uint32_t>> last_reader(finest_level + 1);
-  for (std::uint32_t s = min_level; s <= finest_level; ++s) {
-    last_reader[s].assign(levels[s].size(), UINT32_MAX);
-  }
-  for (std::uint32_t z = finest_level; z-- > min_level;) {
-    for (const auto& [m, pid] : levels[z]) {
-      for (const auto& c : pid.children()) {
-        if (const auto at = position(c)) last_reader[z + 1][*at] = z;
-      }
-      if (const std::uint32_t depth = depth_of(pid, z); depth > 1) {
-        const auto [b, e] = under(pid, z + depth);
-        for (auto it = b; it != e; ++it) {
-          last_reader[z + depth][static_cast<std::size_t>(it - levels[z + depth].begin())] = z;
+    last_reader_.assign(finest_ + 1, {});
+    for (std::uint32_t s = min_; s <= finest_; ++s) {
+      last_reader_[s].assign(levels_[s].size(), UINT32_MAX);
+    }
+    for (std::uint32_t z = finest_; z-- > min_;) {
+      for (const auto& [m, pid] : levels_[z]) {
+        for (const auto& c : pid.children()) {
+          if (const auto at = position(c)) last_reader_[z + 1][*at] = z;
+        }
+        if (const std::uint32_t depth = depth_of(pid, z); depth > 1) {
+          const auto [b, e] = under(pid, z + depth);
+          for (auto it = b; it != e; ++it) {
+            last_reader_[z + depth][static_cast<std::size_t>(it - levels_[z + depth].begin())] = z;
+          }
         }
       }
     }
   }
-  auto last_read = [&](const geo::TileId& id) {
+
+  // The tiles of level s under `p` (a contiguous Morton range).
+  std::pair<Level::const_iterator, Level::const_iterator> under(const geo::TileId& p,
+                                                                std::uint32_t s) const {
+    const auto& l = levels_[s];
+    const std::uint32_t shift = 2 * (s - p.z);
+    const std::uint64_t lo = p.morton() << shift, hi = (p.morton() + 1) << shift;
+    const auto b = std::lower_bound(l.begin(), l.end(), std::pair{lo, geo::TileId{}});
+    const auto e = std::lower_bound(b, l.end(), std::pair{hi, geo::TileId{}});
+    return {b, e};
+  }
+
+  // The depth of the sources of a parent at level z: the deepest level whose tiles under the
+  // parent fit max_sources (1: its children). A parent is thinned from its sources: the tiles
+  // under it at the finest level whose tiles there number at most 4^source_depth.
+  std::uint32_t depth_of(const geo::TileId& pid, std::uint32_t z) const {
+    for (std::uint32_t sl = finest_; sl > z + 1; --sl) {
+      const auto [b, e] = under(pid, sl);
+      if (static_cast<std::size_t>(e - b) <= max_sources_) return sl - z;
+    }
+    return 1;
+  }
+
+  // The position of a listed tile in its level.
+  std::optional<std::size_t> position(const geo::TileId& id) const {
+    const auto& l = levels_[id.z];
+    const auto it = std::lower_bound(l.begin(), l.end(), std::pair{id.morton(), geo::TileId{}});
+    if (it == l.end() || it->second != id) return std::nullopt;
+    return static_cast<std::size_t>(it - l.begin());
+  }
+
+  // The coarsest level that reads `id` (UINT32_MAX: none).
+  std::uint32_t last_read(const geo::TileId& id) const {
     const auto at = position(id);
-    return at ? last_reader[id.z][*at] : UINT32_MAX;
-  };
-  for (std::uint32_t z = finest_level; z-- > min_level;) {
+    return at ? last_reader_[id.z][*at] : UINT32_MAX;
+  }
+
+  // Builds and stores every parent of level z.
+  Status build_level(std::uint32_t z) {
     std::vector<geo::TileId> parents;
-    parents.reserve(levels[z].size());
-    for (const auto& [m, id] : levels[z]) parents.push_back(id);
+    parents.reserve(levels_[z].size());
+    for (const auto& [m, id] : levels_[z]) parents.push_back(id);
     // No level from here on reads these again.
-    cache.drop([&](const geo::TileId& id) { return last_read(id) > z; });
-    total += parents.size();
-    if (Status s = report(true); !s.ok()) return s.error();
-    const LodOptions lod = options.lod;
+    cache_.drop([&](const geo::TileId& id) { return last_read(id) > z; });
+    total_ += parents.size();
+    if (Status s = report(true); !s.ok()) return s;
     std::set<geo::TileId> child_set;
-    for (const auto& [m, id] : levels[z + 1]) child_set.insert(id);
-    AbsentCorners absent(writer, child_set);
-    std::vector<geo::TileId> written;
-    written.reserve(parents.size());
+    for (const auto& [m, id] : levels_[z + 1]) child_set.insert(id);
+    AbsentCorners absent(writer_, child_set);
+    std::uint64_t written = 0;
     Status s = run_level(
-        parents,
-        [&](const geo::TileId& pid) -> Result<TilePool::Job> {
-          // Each tile a job needs: from the cache when it is there, else as read from the store.
-          auto need = [&](const geo::TileId& id) -> Result<std::optional<NeededTile>> {
-            const bool again = last_read(id) < z;
-            if (auto hit = cache.find(id)) {
-              return std::optional<NeededTile>{NeededTile{hit, {}, again}};
-            }
-            auto t = read(id);
-            if (!t.ok()) return t.error();
-            if (!*t) return std::optional<NeededTile>{};
-            return std::optional<NeededTile>{NeededTile{nullptr, std::move(**t), again}};
-          };
-          auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
-          std::array<double, 4> absent_z{};
-          const auto ids = pid.children();
-          for (std::size_t i = 0; i < 4; ++i) {
-            if (z + 1 == finest_level) {  // each finest tile accounted once, from the store
-              auto t = read(ids[i]);
-              if (!t.ok()) return t.error();
-              if (*t) {
-                account((*t)->stored);
-                (*kids)[i] = NeededTile{nullptr, std::move(**t), last_read(ids[i]) < z};
-                continue;
-              }
-            } else {
-              auto t = need(ids[i]);
-              if (!t.ok()) return t.error();
-              if (*t) {
-                (*kids)[i] = std::move(**t);
-                continue;
-              }
-            }
-            auto z_corner = absent.height(pid, static_cast<int>(i));
-            if (!z_corner) return z_corner.error();
-            absent_z[i] = *z_corner;
-          }
-          const std::uint32_t depth = depth_of(pid, z);
-          // All the data under one child, thinned from the same sources (the same counts give
-          // the same source level): its vertices are the candidates, the sources only measure.
-          const bool one_child = std::count_if(kids->begin(), kids->end(),
-                                               [](const auto& r) { return r.has_value(); }) == 1;
-          auto sources = std::make_shared<std::vector<NeededTile>>();
-          if (depth > 1) {
-            const auto [b, e] = under(pid, z + depth);
-            for (auto it = b; it != e; ++it) {
-              auto t = need(it->second);
-              if (!t.ok()) return t.error();
-              if (!*t) return not_found("lod: tile " + it->second.to_string() + " vanished");
-              sources->push_back(std::move(**t));
-            }
-          }
-          return TilePool::Job(
-              [kids, sources, depth, one_child, pid, lod, absent_z, &cache]() -> Result<Built> {
-                ChildViews children;
-                children.absent_corner_z = absent_z;
-                for (std::size_t i = 0; i < 4; ++i) {
-                  if (!(*kids)[i]) continue;
-                  auto t = decoded(*(*kids)[i], cache);
-                  if (!t) return t.error();
-                  children.tiles[i] = t->get();
-                }
-                SourceViews src;
-                src.depth = depth;
-                src.candidates_from_children = one_child && depth > 1;
-                src.tiles.reserve(sources->size());
-                for (auto& r : *sources) {
-                  auto t = decoded(r, cache);
-                  if (!t) return t.error();
-                  src.tiles.push_back(t->get());
-                }
-                auto parent = build_from_sources(pid, children, src, lod);
-                if (!parent) return parent.error();
-                auto stored = store::prepare_tile(parent->tile);
-                if (!stored) return stored.error();
-                return Built{std::move(*stored), detail::encode_side(*parent)};
-              });
-        },
+        parents, [&](const geo::TileId& pid) { return parent_job(pid, z, absent); },
         [&](Built&& b) -> Status {
           account(b.stored);
-          const geo::TileId id = b.stored.id;
           if (Status st = put(std::move(b)); !st.ok()) return st;
-          written.push_back(id);
+          ++written;
           return {};
         });
-    if (!s.ok()) return s.error();
-    summary.tiles_built += written.size();
+    if (!s.ok()) return s;
+    summary_.tiles_built += written;
+    return {};
   }
-  if (Status s = report(true); !s.ok()) return s.error();
-  return summary;
+
+  // A tile a parent's job needs: from the cache when it is there, else as read from the store
+  // (nothing when the store has no such tile).
+  Result<std::optional<NeededTile>> need(const geo::TileId& id, std::uint32_t z) {
+    const bool again = last_read(id) < z;
+    if (auto hit = cache_.find(id)) return std::optional<NeededTile>{NeededTile{hit, {}, again}};
+    auto t = read(id);
+    if (!t.ok()) return t.error();
+    if (!*t) return std::optional<NeededTile>{};
+    return std::optional<NeededTile>{NeededTile{nullptr, std::move(**t), again}};
+  }
+
+  // Gathers what the parent `pid` (level z) needs — its children (or, where one is absent, the
+  // height of that NODATA corner) and its sources — and returns the job that builds it.
+  Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent) {
+    auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
+    std::array<double, 4> absent_z{};
+    const auto ids = pid.children();
+    for (std::size_t i = 0; i < 4; ++i) {
+      if (z + 1 == finest_) {  // each finest tile accounted once, from the store
+        auto t = read(ids[i]);
+        if (!t.ok()) return t.error();
+        if (*t) {
+          account((*t)->stored);
+          (*kids)[i] = NeededTile{nullptr, std::move(**t), last_read(ids[i]) < z};
+          continue;
+        }
+      } else {
+        auto t = need(ids[i], z);
+        if (!t.ok()) return t.error();
+        if (*t) {
+          (*kids)[i] = std::move(**t);
+          continue;
+        }
+      }
+      auto z_corner = absent.height(pid, static_cast<int>(i));
+      if (!z_corner) return z_corner.error();
+      absent_z[i] = *z_corner;
+    }
+    const std::uint32_t depth = depth_of(pid, z);
+    // All the data under one child, thinned from the same sources (the same counts give the same
+    // source level): its vertices are the candidates, the sources only measure.
+    const bool one_child =
+        std::count_if(kids->begin(), kids->end(), [](const auto& r) { return r.has_value(); }) == 1;
+    auto sources = std::make_shared<std::vector<NeededTile>>();
+    if (depth > 1) {
+      const auto [b, e] = under(pid, z + depth);
+      for (auto it = b; it != e; ++it) {
+        auto t = need(it->second, z);
+        if (!t.ok()) return t.error();
+        if (!*t) return not_found("lod: tile " + it->second.to_string() + " vanished");
+        sources->push_back(std::move(**t));
+      }
+    }
+    return TilePool::Job(
+        [kids, sources, depth, one_child, pid, lod = options_.lod, absent_z, cache = &cache_]() {
+          return build_parent(pid, *kids, absent_z, *sources, depth, one_child, lod, *cache);
+        });
+  }
+
+  // A parent's job, on a worker: decodes what it needs (or takes it from the cache), thins the
+  // parent from its sources, encodes it for the store.
+  static Result<Built> build_parent(const geo::TileId& pid,
+                                    std::array<std::optional<NeededTile>, 4>& kids,
+                                    const std::array<double, 4>& absent_z,
+                                    std::vector<NeededTile>& sources, std::uint32_t depth,
+                                    bool one_child, const LodOptions& lod, DecodedTiles& cache) {
+    ChildViews children;
+    children.absent_corner_z = absent_z;
+    for (std::size_t i = 0; i < 4; ++i) {
+      if (!kids[i]) continue;
+      auto t = decoded(*kids[i], cache);
+      if (!t) return t.error();
+      children.tiles[i] = t->get();
+    }
+    SourceViews src;
+    src.depth = depth;
+    src.candidates_from_children = one_child && depth > 1;
+    src.tiles.reserve(sources.size());
+    for (auto& r : sources) {
+      auto t = decoded(r, cache);
+      if (!t) return t.error();
+      src.tiles.push_back(t->get());
+    }
+    auto parent = build_from_sources(pid, children, src, lod);
+    if (!parent) return parent.error();
+    auto stored = store::prepare_tile(parent->tile);
+    if (!stored) return stored.error();
+    return Built{std::move(*stored), detail::encode_side(*parent)};
+  }
+
+  store::LayerWriter& writer_;
+  const std::uint32_t finest_, min_;
+  const PyramidOptions& options_;
+  const unsigned threads_;
+  const std::size_t max_in_flight_;
+  const std::size_t max_sources_;
+  const ProgressSink& progress_;
+  PyramidSummary summary_;
+  detail::SideStore side_;
+  DecodedTiles cache_;  // before the pool: its jobs use it
+  std::uint64_t done_ = 0, total_ = 0;
+  Throttle throttle_;
+  std::vector<Level> levels_;
+  std::vector<std::vector<std::uint32_t>> last_reader_;
+  TilePool pool_;  // last: its workers are joined before the rest goes
+};
+
+}  // namespace
+
+Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
+                                     std::uint32_t min_level, const PyramidOptions& options,
+                                     unsigned threads, const ProgressSink& progress) {
+  if (finest_level > static_cast<std::uint32_t>(geo::kMaxLevel) || min_level > finest_level) {
+    return invalid_argument("lod: levels must satisfy min_level ≤ finest_level ≤ 30, got " +
+                            std::to_string(min_level) + " and " + std::to_string(finest_level));
+  }
+  if (options.lod.max_points < 4) return invalid_argument("lod: max_points must be at least 4");
+  PyramidBuilder builder(writer, finest_level, min_level, options, threads, progress);
+  return builder.run();
 }
 
 }  // namespace tinstream::lod
