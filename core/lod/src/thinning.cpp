@@ -504,6 +504,263 @@ std::vector<Vertex> thin_border_side(std::span<const Vertex> side, bool along_x,
   return kept;
 }
 
+namespace {
+
+// One tile's thinning (thin_tile), step by step: the border from the border points alone; the
+// constrained triangulation of corners + border (+ the interior without the greedy stage); the
+// interior (greedy insertion up to its target for large inputs, then removal by error); back to a
+// tile. Each step reads what the previous ones left in the members.
+class TileThinner {
+ public:
+  TileThinner(const ThinInput& in, const LodOptions& options, ThinStats& st)
+      : in_(in),
+        options_(options),
+        st_(st),
+        r_(in.rect ? *in.rect : in.id.bounds()),
+        tri_(kernel::Rect{r_.min_x, r_.min_y, r_.max_x, r_.max_y}) {}
+
+  Result<tile::TinTile> run() {
+    thin_border();
+    if (Status s = triangulate_fixed(); !s) return s.error();
+    if (Status s = constrain_border(); !s) return s.error();
+    if (Status s = thin_interior(); !s) return s.error();
+    return to_tile();
+  }
+
+ private:
+  // Per-side budgets: the automatic one is spread over the perimeter by length (equal for the
+  // square quadtree tiles; a wider-than-high rectangle gives its long sides more).
+  std::size_t budget_for(bool along_x) const {
+    const std::size_t base_budget = side_budget(options_);
+    if (options_.border_points_per_side != 0) return base_budget;
+    const double len = along_x ? r_.width() : r_.height();
+    const double mean = 0.5 * (r_.width() + r_.height());
+    if (!(mean > 0)) return base_budget;
+    return static_cast<std::size_t>(
+        std::floor(static_cast<double>(base_budget) * len / mean + 0.5));
+  }
+
+  // The side from corner c0 to c1, thinned (thin_border_side); its dropped points go to dropped_.
+  std::vector<Vertex> thin_side(const std::vector<Vertex>& list, int c0, int c1, bool along_x) {
+    std::vector<Vertex> side;
+    side.reserve(list.size() + 2);
+    side.push_back(in_.corners[static_cast<std::size_t>(c0)]);
+    side.insert(side.end(), list.begin(), list.end());
+    side.push_back(in_.corners[static_cast<std::size_t>(c1)]);
+    std::vector<Vertex> kept =
+        thin_border_side(side, along_x, budget_for(along_x), options_.epsilon, &dropped_,
+                         {in_.corner_nodata[static_cast<std::size_t>(c0)],
+                          in_.corner_nodata[static_cast<std::size_t>(c1)]});
+    return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
+  }
+
+  // 1. The border, side by side, from the border points alone.
+  void thin_border() {
+    st_.input_points = 4 + in_.north.size() + in_.east.size() + in_.south.size() + in_.west.size() +
+                       in_.interior.size();
+    sides_ = {thin_side(in_.north, 0, 1, true), thin_side(in_.east, 1, 3, false),
+              thin_side(in_.south, 2, 3, true), thin_side(in_.west, 0, 2, false)};
+    st_.border_removed = dropped_.size();
+  }
+
+  // 2. Triangulates corners + border (+ every interior point unless greedy).
+  Status triangulate_fixed() {
+    n_fixed_ = 4 + sides_[0].size() + sides_[1].size() + sides_[2].size() + sides_[3].size();
+    target_ = greedy_target(options_);
+    greedy_ = target_ != 0 && n_fixed_ + in_.interior.size() > target_;
+    // (The interior goes in here only without the greedy stage, which chooses its points.)
+    pts_.reserve(n_fixed_ + (greedy_ ? 0 : in_.interior.size()));
+    auto add = [&](const Vertex& v) { pts_.push_back({v.x, v.y, v.z, v.weight}); };
+    for (const auto& c : in_.corners) add(c);
+    for (const auto& side : sides_) {
+      for (const auto& v : side) add(v);
+    }
+    if (!greedy_) {
+      for (const auto& v : in_.interior) add(v);
+    }
+    ins_ = tri_.insert_bulk(pts_);
+    for (std::size_t i = 0; i < n_fixed_; ++i) {
+      if (ins_[i].outcome != kernel::InsertOutcome::inserted) {
+        return invalid_argument("lod: " + tile_name(in_.id) + ": corner or edge point #" +
+                                std::to_string(i) + " is a duplicate or lies outside the tile");
+      }
+    }
+    // By interior point: its vertex, or kNone (a duplicate, or not selected by the greedy stage).
+    interior_vertex_.assign(in_.interior.size(), kNone);
+    for (std::size_t i = n_fixed_; i < pts_.size(); ++i) {
+      switch (ins_[i].outcome) {
+        case kernel::InsertOutcome::inserted:
+          interior_vertex_[i - n_fixed_] = ins_[i].vertex;
+          break;
+        case kernel::InsertOutcome::duplicate:
+          ++st_.duplicates;
+          break;
+        default:
+          return invalid_argument("lod: " + tile_name(in_.id) + ": interior point #" +
+                                  std::to_string(i - n_fixed_) +
+                                  " lies outside the tile or is not finite");
+      }
+    }
+    if (tri_.dimension() != 2)
+      return Error(ErrorCode::internal, "lod: " + tile_name(in_.id) + ": degenerate triangulation");
+    // The NODATA corners' vertices (coverage first, greedy.hpp).
+    for (std::size_t c = 0; c < 4; ++c) {
+      if (in_.corner_nodata[c]) nodata_corners_.push_back(ins_[c].vertex);
+    }
+    return {};
+  }
+
+  // 2. (continued) Constrains the border chains, in edge order (corner ids 0..3 are ins_[0..3]).
+  Status constrain_border() {
+    std::size_t k = 4;
+    const std::array<std::array<int, 2>, 4> ends = {{{0, 1}, {1, 3}, {2, 3}, {0, 2}}};
+    for (std::size_t side = 0; side < 4; ++side) {
+      std::vector<VertexId> chain;
+      chain.push_back(ins_[static_cast<std::size_t>(ends[side][0])].vertex);
+      for (std::size_t j = 0; j < sides_[side].size(); ++j) chain.push_back(ins_[k++].vertex);
+      chain.push_back(ins_[static_cast<std::size_t>(ends[side][1])].vertex);
+      for (std::size_t j = 0; j + 1 < chain.size(); ++j) {
+        Status c = tri_.insert_constraint(chain[j], chain[j + 1]);
+        if (!c.ok())
+          return Error(ErrorCode::internal,
+                       "lod: " + tile_name(in_.id) + ": border constraint: " + c.error().message);
+      }
+    }
+    if (tri_.num_vertices() != pts_.size() - st_.duplicates) {
+      return Error(ErrorCode::internal,
+                   "lod: " + tile_name(in_.id) + ": a border constraint added vertices");
+    }
+    return {};
+  }
+
+  // Gridded input (the interior a complete lattice inside the rectangle, more than 4 ×
+  // max_points): both stages scan lattice cells instead of filing every point under its
+  // triangle. Smaller inputs (every pass-4 parent) stay on the general path: there the greedy
+  // stage inserts most points anyway and the scan saves nothing (N00E010's ingest: same LOD CPU),
+  // while its drop-stage cost also counts the cells on a star's outline, which made different
+  // choices than the general path and a larger chained error bound at the coarse levels.
+  std::optional<detail::Lattice> find_lattice() const {
+    if (!greedy_ || !options_.lattice_scan || in_.interior.size() <= 4 * options_.max_points) {
+      return std::nullopt;
+    }
+    auto lattice = detail::find_lattice(in_.interior);
+    if (lattice && !(lattice->xs.front() >= r_.min_x && lattice->xs.back() <= r_.max_x &&
+                     lattice->ys.front() >= r_.min_y && lattice->ys.back() <= r_.max_y)) {
+      lattice.reset();  // points outside: the general path reports them
+    }
+    return lattice;
+  }
+
+  // 3. Thins the interior: greedy insertion up to the target (large inputs), then removal.
+  Status thin_interior() {
+    FiledPoints filed;
+    const std::optional<detail::Lattice> lattice = find_lattice();
+    st_.lattice = lattice.has_value();
+    if (greedy_) {
+      std::vector<Vertex> extra = in_.orphans;
+      extra.insert(extra.end(), dropped_.begin(), dropped_.end());
+      auto g = detail::greedy_insert(tri_, in_.interior, extra, target_, options_.epsilon,
+                                     lattice ? &*lattice : nullptr, nodata_corners_);
+      if (!g.ok()) {
+        return Error(g.error().code, "lod: " + tile_name(in_.id) + ": " + g.error().message);
+      }
+      interior_vertex_ = std::move(g->vertex);
+      st_.duplicates = g->duplicates;
+      st_.greedy_inserted = g->inserted;
+      st_.greedy_error = g->max_error;
+      filed = std::move(g->orphans);
+    }
+    std::vector<std::uint8_t> candidate(tri_.vertex_id_bound(), 0);
+    for (VertexId v : interior_vertex_) {
+      if (v != kNone) candidate[v] = 1;
+    }
+    {
+      InteriorThinner thinner(tri_, std::move(candidate), std::move(filed),
+                              lattice ? &*lattice : nullptr, nodata_corners_);
+      if (!greedy_) {
+        for (const auto& o : in_.orphans) thinner.add_orphan(o);
+        for (const auto& o : dropped_) thinner.add_orphan(o);
+      }
+      thinner.seed_queue();
+      auto removed = thinner.run(options_.max_points, options_.epsilon, &st_.last_error);
+      if (!removed.ok())
+        return Error(ErrorCode::internal,
+                     "lod: " + tile_name(in_.id) + ": " + removed.error().message);
+      removed_last_ = thinner.removed_last();
+    }
+    if (removed_last_ != kNone) {  // the last interior vertex went (evaluate_last)
+      border_only_.emplace(kernel::Rect{r_.min_x, r_.min_y, r_.max_x, r_.max_y});
+      border_ins_ =
+          border_only_->insert_bulk(std::span<const kernel::Point3>(pts_.data(), n_fixed_));
+      for (std::size_t i = 0; i < n_fixed_; ++i) {
+        if (border_ins_[i].outcome != kernel::InsertOutcome::inserted) {
+          return Error(ErrorCode::internal,
+                       "lod: " + tile_name(in_.id) + ": border re-triangulation failed");
+        }
+      }
+    }
+    return {};
+  }
+
+  // 4. Back to a tile: corners, thinned sides, surviving interior (input order), triangles.
+  Result<tile::TinTile> to_tile() {
+    tile::TinTile out;
+    out.id = in_.id;
+    out.corners = in_.corners;
+    out.corner_nodata = in_.corner_nodata;
+    out.north = sides_[0], out.east = sides_[1], out.south = sides_[2], out.west = sides_[3];
+    std::vector<std::uint32_t> index(tri_.vertex_id_bound(), kNone);
+    for (std::size_t c = 0; c < 4; ++c) index[ins_[c].vertex] = static_cast<std::uint32_t>(c);
+    std::uint32_t next_index = 4;
+    for (std::size_t i = 4; i < n_fixed_; ++i) index[ins_[i].vertex] = next_index++;
+    for (std::size_t j = 0; j < in_.interior.size(); ++j) {
+      const VertexId v = interior_vertex_[j];
+      if (v == kNone || !tri_.is_vertex(v) || v == removed_last_) continue;
+      index[v] = next_index++;
+      out.interior.push_back(in_.interior[j]);
+    }
+    st_.interior_removed = in_.interior.size() - st_.duplicates - out.interior.size();
+    if (border_only_) {
+      // Only the fixed points are left; their tile numbering is their insertion order.
+      index.assign(border_only_->vertex_id_bound(), kNone);
+      for (std::size_t i = 0; i < n_fixed_; ++i)
+        index[border_ins_[i].vertex] = static_cast<std::uint32_t>(i);
+    }
+    const Triangulation& final_tri = border_only_ ? *border_only_ : tri_;
+    out.triangles.reserve(final_tri.num_finite_triangles());
+    for (const auto& t : final_tri.finite_triangles()) {
+      tile::Triangle m{index[t[0]], index[t[1]], index[t[2]]};
+      if (m[0] == kNone || m[1] == kNone || m[2] == kNone) {
+        return Error(ErrorCode::internal,
+                     "lod: " + tile_name(in_.id) + ": triangle over an unknown vertex");
+      }
+      out.triangles.push_back(m);
+    }
+    out.update_z_range();
+    return out;
+  }
+
+  const ThinInput& in_;
+  const LodOptions& options_;
+  ThinStats& st_;
+  const geo::MercatorRect r_;
+  std::vector<Vertex> dropped_;               // border points the border thinning dropped
+  std::array<std::vector<Vertex>, 4> sides_;  // thinned north, east, south, west
+  Triangulation tri_;
+  std::vector<kernel::Point3> pts_;  // corners, sides, (interior without greedy) as inserted
+  std::vector<kernel::InsertResult> ins_;
+  std::size_t n_fixed_ = 0;  // corners + sides
+  std::size_t target_ = 0;   // the greedy stage's target (0: none)
+  bool greedy_ = false;
+  std::vector<VertexId> interior_vertex_;  // by interior point: its vertex or kNone
+  std::vector<VertexId> nodata_corners_;
+  VertexId removed_last_ = kNone;
+  std::optional<Triangulation> border_only_;  // when the last interior vertex went
+  std::vector<kernel::InsertResult> border_ins_;
+};
+
+}  // namespace
+
 Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, ThinStats* stats) {
   if (options.max_points < 4) {
     return invalid_argument("lod: max_points must be at least 4 (the corners), got " +
@@ -514,207 +771,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   ThinStats local;
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
-  const geo::MercatorRect r = in.rect ? *in.rect : in.id.bounds();
-  // Per-side budgets: the automatic one is spread over the perimeter by length (equal for the
-  // square quadtree tiles; a wider-than-high rectangle gives its long sides more).
-  const std::size_t base_budget = side_budget(options);
-  auto budget_for = [&](bool along_x) -> std::size_t {
-    if (options.border_points_per_side != 0) return base_budget;
-    const double len = along_x ? r.width() : r.height();
-    const double mean = 0.5 * (r.width() + r.height());
-    if (!(mean > 0)) return base_budget;
-    return static_cast<std::size_t>(
-        std::floor(static_cast<double>(base_budget) * len / mean + 0.5));
-  };
-
-  // ---- 1. the border, side by side, from the border points alone ------------------------------
-  std::vector<Vertex> dropped;
-  auto thin_side = [&](const std::vector<Vertex>& list, int c0, int c1, bool along_x) {
-    std::vector<Vertex> side;
-    side.reserve(list.size() + 2);
-    side.push_back(in.corners[static_cast<std::size_t>(c0)]);
-    side.insert(side.end(), list.begin(), list.end());
-    side.push_back(in.corners[static_cast<std::size_t>(c1)]);
-    std::vector<Vertex> kept =
-        thin_border_side(side, along_x, budget_for(along_x), options.epsilon, &dropped,
-                         {in.corner_nodata[static_cast<std::size_t>(c0)],
-                          in.corner_nodata[static_cast<std::size_t>(c1)]});
-    return std::vector<Vertex>(kept.begin() + 1, kept.end() - 1);
-  };
-  st.input_points =
-      4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() + in.interior.size();
-  const std::array<std::vector<Vertex>, 4> sides = {
-      thin_side(in.north, 0, 1, true), thin_side(in.east, 1, 3, false),
-      thin_side(in.south, 2, 3, true), thin_side(in.west, 0, 2, false)};
-  st.border_removed = dropped.size();
-
-  // ---- 2. triangulate corners + border (+ every interior point unless greedy), constrained ----
-  Triangulation tri(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
-  std::vector<kernel::Point3> pts;
-  const std::size_t n_fixed =
-      4 + sides[0].size() + sides[1].size() + sides[2].size() + sides[3].size();
-  const std::size_t target = greedy_target(options);
-  const bool greedy = target != 0 && n_fixed + in.interior.size() > target;
-  // (The interior goes in here only without the greedy stage, which chooses its points.)
-  pts.reserve(n_fixed + (greedy ? 0 : in.interior.size()));
-  auto add = [&](const Vertex& v) { pts.push_back({v.x, v.y, v.z, v.weight}); };
-  for (const auto& c : in.corners) add(c);
-  for (const auto& s : sides) {
-    for (const auto& v : s) add(v);
-  }
-  if (!greedy) {
-    for (const auto& v : in.interior) add(v);
-  }
-  const std::vector<kernel::InsertResult> ins = tri.insert_bulk(pts);
-  for (std::size_t i = 0; i < n_fixed; ++i) {
-    if (ins[i].outcome != kernel::InsertOutcome::inserted) {
-      return invalid_argument("lod: " + tile_name(in.id) + ": corner or edge point #" +
-                              std::to_string(i) + " is a duplicate or lies outside the tile");
-    }
-  }
-  // By interior point: its vertex, or kNone (a duplicate, or not selected by the greedy stage).
-  std::vector<VertexId> interior_vertex(in.interior.size(), kNone);
-  for (std::size_t i = n_fixed; i < pts.size(); ++i) {
-    switch (ins[i].outcome) {
-      case kernel::InsertOutcome::inserted:
-        interior_vertex[i - n_fixed] = ins[i].vertex;
-        break;
-      case kernel::InsertOutcome::duplicate:
-        ++st.duplicates;
-        break;
-      default:
-        return invalid_argument("lod: " + tile_name(in.id) + ": interior point #" +
-                                std::to_string(i - n_fixed) +
-                                " lies outside the tile or is not finite");
-    }
-  }
-  if (tri.dimension() != 2)
-    return Error(ErrorCode::internal, "lod: " + tile_name(in.id) + ": degenerate triangulation");
-  // The NODATA corners' vertices (coverage first, greedy.hpp).
-  std::vector<VertexId> nodata_corners;
-  for (std::size_t c = 0; c < 4; ++c) {
-    if (in.corner_nodata[c]) nodata_corners.push_back(ins[c].vertex);
-  }
-  // Border chains in edge order: corner ids 0..3 are ins[0..3].
-  std::array<std::vector<VertexId>, 4> chain;
-  {
-    std::size_t k = 4;
-    const std::array<std::array<int, 2>, 4> ends = {{{0, 1}, {1, 3}, {2, 3}, {0, 2}}};
-    for (std::size_t s = 0; s < 4; ++s) {
-      chain[s].push_back(ins[static_cast<std::size_t>(ends[s][0])].vertex);
-      for (std::size_t j = 0; j < sides[s].size(); ++j) chain[s].push_back(ins[k++].vertex);
-      chain[s].push_back(ins[static_cast<std::size_t>(ends[s][1])].vertex);
-      for (std::size_t j = 0; j + 1 < chain[s].size(); ++j) {
-        Status c = tri.insert_constraint(chain[s][j], chain[s][j + 1]);
-        if (!c.ok())
-          return Error(ErrorCode::internal,
-                       "lod: " + tile_name(in.id) + ": border constraint: " + c.error().message);
-      }
-    }
-  }
-  if (tri.num_vertices() != pts.size() - st.duplicates) {
-    return Error(ErrorCode::internal,
-                 "lod: " + tile_name(in.id) + ": a border constraint added vertices");
-  }
-
-  // ---- 3. thin the interior: greedy insertion up to the target (large inputs), then drop -----
-  FiledPoints filed;
-  // Gridded input (the interior a complete lattice inside the rectangle, more than 4 ×
-  // max_points): both stages scan lattice cells instead of filing every point under its
-  // triangle. Smaller inputs (every pass-4 parent) stay on the general path: there the greedy
-  // stage inserts most points anyway and the scan saves nothing (N00E010's ingest: same LOD CPU),
-  // while its drop-stage cost also counts the cells on a star's outline, which made different
-  // choices than the general path and a larger chained error bound at the coarse levels.
-  std::optional<detail::Lattice> lattice;
-  if (greedy && options.lattice_scan && in.interior.size() > 4 * options.max_points) {
-    lattice = detail::find_lattice(in.interior);
-    if (lattice && !(lattice->xs.front() >= r.min_x && lattice->xs.back() <= r.max_x &&
-                     lattice->ys.front() >= r.min_y && lattice->ys.back() <= r.max_y)) {
-      lattice.reset();  // points outside: the general path reports them
-    }
-  }
-  st.lattice = lattice.has_value();
-  if (greedy) {
-    std::vector<Vertex> extra = in.orphans;
-    extra.insert(extra.end(), dropped.begin(), dropped.end());
-    auto g = detail::greedy_insert(tri, in.interior, extra, target, options.epsilon,
-                                   lattice ? &*lattice : nullptr, nodata_corners);
-    if (!g.ok()) {
-      return Error(g.error().code, "lod: " + tile_name(in.id) + ": " + g.error().message);
-    }
-    interior_vertex = std::move(g->vertex);
-    st.duplicates = g->duplicates;
-    st.greedy_inserted = g->inserted;
-    st.greedy_error = g->max_error;
-    filed = std::move(g->orphans);
-  }
-  std::vector<std::uint8_t> candidate(tri.vertex_id_bound(), 0);
-  for (VertexId v : interior_vertex) {
-    if (v != kNone) candidate[v] = 1;
-  }
-  VertexId removed_last = kNone;
-  {
-    InteriorThinner thinner(tri, std::move(candidate), std::move(filed),
-                            lattice ? &*lattice : nullptr, nodata_corners);
-    if (!greedy) {
-      for (const auto& o : in.orphans) thinner.add_orphan(o);
-      for (const auto& o : dropped) thinner.add_orphan(o);
-    }
-    thinner.seed_queue();
-    auto removed = thinner.run(options.max_points, options.epsilon, &st.last_error);
-    if (!removed.ok())
-      return Error(ErrorCode::internal,
-                   "lod: " + tile_name(in.id) + ": " + removed.error().message);
-    removed_last = thinner.removed_last();
-  }
-  std::optional<Triangulation> border_only;  // when the last interior vertex went (evaluate_last)
-  std::vector<kernel::InsertResult> border_ins;
-  if (removed_last != kNone) {
-    border_only.emplace(kernel::Rect{r.min_x, r.min_y, r.max_x, r.max_y});
-    border_ins = border_only->insert_bulk(std::span<const kernel::Point3>(pts.data(), n_fixed));
-    for (std::size_t i = 0; i < n_fixed; ++i) {
-      if (border_ins[i].outcome != kernel::InsertOutcome::inserted) {
-        return Error(ErrorCode::internal,
-                     "lod: " + tile_name(in.id) + ": border re-triangulation failed");
-      }
-    }
-  }
-
-  // ---- 4. back to a tile ---------------------------------------------------------------------
-  tile::TinTile out;
-  out.id = in.id;
-  out.corners = in.corners;
-  out.corner_nodata = in.corner_nodata;
-  out.north = sides[0], out.east = sides[1], out.south = sides[2], out.west = sides[3];
-  std::vector<std::uint32_t> index(tri.vertex_id_bound(), kNone);
-  for (std::size_t c = 0; c < 4; ++c) index[ins[c].vertex] = static_cast<std::uint32_t>(c);
-  std::uint32_t next_index = 4;
-  for (std::size_t i = 4; i < n_fixed; ++i) index[ins[i].vertex] = next_index++;
-  for (std::size_t j = 0; j < in.interior.size(); ++j) {
-    const VertexId v = interior_vertex[j];
-    if (v == kNone || !tri.is_vertex(v) || v == removed_last) continue;
-    index[v] = next_index++;
-    out.interior.push_back(in.interior[j]);
-  }
-  st.interior_removed = in.interior.size() - st.duplicates - out.interior.size();
-  if (border_only) {
-    // Only the fixed points are left; their tile numbering is their insertion order.
-    index.assign(border_only->vertex_id_bound(), kNone);
-    for (std::size_t i = 0; i < n_fixed; ++i)
-      index[border_ins[i].vertex] = static_cast<std::uint32_t>(i);
-  }
-  const Triangulation& final_tri = border_only ? *border_only : tri;
-  out.triangles.reserve(final_tri.num_finite_triangles());
-  for (const auto& t : final_tri.finite_triangles()) {
-    tile::Triangle m{index[t[0]], index[t[1]], index[t[2]]};
-    if (m[0] == kNone || m[1] == kNone || m[2] == kNone) {
-      return Error(ErrorCode::internal,
-                   "lod: " + tile_name(in.id) + ": triangle over an unknown vertex");
-    }
-    out.triangles.push_back(m);
-  }
-  out.update_z_range();
-  return out;
+  return TileThinner(in, options, st).run();
 }
 
 ThinInput thin_input(const tile::TinTile& tile) {
