@@ -482,6 +482,13 @@ TEST(IngestImagery, BadSourcesGetClearErrors) {
   EXPECT_NE(ingest_imagery(bad).error().message.find("--min-level 30"), std::string::npos);
 }
 
+// Every published imagery tile with its ETag, in z/x/y order: what a failed ingest must not change.
+std::string published_imagery(const fs::path& db) {
+  return sql_value(db,
+                   "SELECT group_concat(z || '/' || x || '/' || y || '=' || etag, ' ') FROM "
+                   "(SELECT * FROM published_imagery ORDER BY z, x, y)");
+}
+
 // What a failed or cancelled ingest leaves: the previous imagery exactly as it was, no version
 // being built, an intact file.
 TEST(IngestImagery, FailedOrCancelledIngestLeavesTheStoreAsItWas) {
@@ -491,10 +498,7 @@ TEST(IngestImagery, FailedOrCancelledIngestLeavesTheStoreAsItWas) {
   const fs::path db = dir / "s.db";
   ingest_ok(options_for(db, "ortho", {good.path}));
   const auto state = [&] {
-    return sql_value(db,
-                     "SELECT group_concat(z || '/' || x || '/' || y || '=' || etag, ' ') FROM "
-                     "(SELECT * FROM published_imagery ORDER BY z, x, y)") +
-           " | versions " +
+    return published_imagery(db) + " | versions " +
            sql_value(db, "SELECT group_concat(id || status) FROM imagery_versions");
   };
   const std::string before = state();
@@ -539,12 +543,7 @@ TEST(IngestImagery, AWorkerThatDiesOrCannotStartFailsTheIngestAndKeepsTheStore) 
       testing::write_marker_orthophoto(dir / "good.tif", 32611, 390000, 3800000, 4.0, 400, 300);
   const fs::path db = dir / "s.db";
   ingest_ok(options_for(db, "ortho", {good.path}));
-  const auto published = [&] {
-    return sql_value(db,
-                     "SELECT group_concat(z || '/' || x || '/' || y || '=' || etag, ' ') FROM "
-                     "(SELECT * FROM published_imagery ORDER BY z, x, y)");
-  };
-  const std::string before = published();
+  const std::string before = published_imagery(db);
   struct Case {
     const char* point;
     fault::Kind kind;
@@ -563,7 +562,7 @@ TEST(IngestImagery, AWorkerThatDiesOrCannotStartFailsTheIngestAndKeepsTheStore) 
     EXPECT_TRUE(arm.fired());
     ASSERT_FALSE(r.ok());
     EXPECT_NE(r.error().message.find(c.message), std::string::npos) << r.error().message;
-    EXPECT_EQ(published(), before);
+    EXPECT_EQ(published_imagery(db), before);
   }
   EXPECT_EQ(sql_value(db, "PRAGMA integrity_check"), "ok");
   EXPECT_EQ(sql_value(db, "SELECT count(*) FROM imagery_versions WHERE status = 'building'"), "0");
