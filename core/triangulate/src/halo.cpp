@@ -156,11 +156,9 @@ HaloGatherer::HaloGatherer(const geo::TileId& id, const PointCells& cells,
   buf_.delaunay.clear();
   buf_.own.clear();
   // The first round: the tile's cells (but the band's hole) and the ring around them.
-  for (std::int64_t cy = y0_ - 1; cy <= y0_ + n_; ++cy) {
-    for (std::int64_t cx = x0_ - 1; cx <= x0_ + n_; ++cx) {
-      if (!in_hole(cx, cy)) want(cx, cy);
-    }
-  }
+  for_each_cell_around([&](std::uint32_t cx, std::uint32_t cy) {
+    if (!in_hole(cx, cy)) want(cx, cy);
+  });
 }
 
 // Band mode only pays where ∂R is densely populated, and the argument needs an own point (its hull
