@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <GeographicLib/Math.hpp>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -114,6 +115,26 @@ std::size_t TileMesh::byte_size() const {
   return vertices.size() * sizeof(MeshVertex) + indices16.size() * 2 + indices32.size() * 4;
 }
 
+GeodeticTerms GeodeticTerms::from_mercator(const geo::NormalisedMercator& projection, double x,
+                                           double y) {
+  constexpr double kE2 = geo::kWgs84F * (2 - geo::kWgs84F);
+  const double taup = std::sinh(y * std::numbers::pi);
+  const double e = projection.eccentricity();
+  const double tau = e == 0 ? taup : GeographicLib::Math::tauf(taup, e);
+  const double cos_lat = 1 / std::hypot(1.0, tau), sin_lat = tau * cos_lat;
+  const double lon = x * std::numbers::pi;
+  const double cos_lon = std::cos(lon), sin_lon = std::sin(lon);
+  return {cos_lat * cos_lon, cos_lat * sin_lon, sin_lat,
+          geo::kWgs84A / std::sqrt(1 - kE2 * sin_lat * sin_lat)};
+}
+
+Vec3 GeodeticTerms::ecef(double height) const {
+  constexpr double kE2 = geo::kWgs84F * (2 - geo::kWgs84F);
+  const double r = prime_vertical + height;
+  return {r * cos_lat_cos_lon, r * cos_lat_sin_lon,
+          (prime_vertical * (1 - kE2) + height) * sin_lat};
+}
+
 double skirt_margin(const tile::TinTile& tile, const LayerDescription& layer) {
   const geo::MercatorRect r = tile.id.bounds();
   const double lat = geo::NormalisedMercator(layer.projection).lat_from_y((r.min_y + r.max_y) / 2);
@@ -163,11 +184,11 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
 
   // Double-precision ECEF of every vertex; the drawn height range.
   std::vector<Vec3> ecef(vertices.size());
-  std::vector<geo::LonLat> lonlat(vertices.size());
+  std::vector<GeodeticTerms> terms(vertices.size());
   double min_z = std::numeric_limits<double>::infinity(), max_z = -min_z;
   for (std::size_t i = 0; i < vertices.size(); ++i) {
-    lonlat[i] = projection.inverse({vertices[i].x, vertices[i].y});
-    ecef[i] = to_vec(geo::to_ecef({lonlat[i].lon, lonlat[i].lat, vertices[i].z}));
+    terms[i] = GeodeticTerms::from_mercator(projection, vertices[i].x, vertices[i].y);
+    ecef[i] = terms[i].ecef(vertices[i].z);
     if (used[i]) {
       min_z = std::min(min_z, vertices[i].z);
       max_z = std::max(max_z, vertices[i].z);
@@ -226,8 +247,7 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
     const auto [it, fresh] =
         skirt_of.try_emplace(v, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (fresh) {
-      skirt_points.push_back(
-          to_vec(geo::to_ecef({lonlat[v].lon, lonlat[v].lat, std::min(vertices[v].z, deepest)})));
+      skirt_points.push_back(terms[v].ecef(std::min(vertices[v].z, deepest)));
       emit(ecef[v], vertices[v].z, normal[v], true, vertices[v]);
     }
     return it->second;
