@@ -2,8 +2,8 @@
 //
 // Runs on the loader's worker threads (never on the render thread): inflate the payload, decode
 // it with core's tile::decode (docs/tile-format.md), then for the layer's projection convert every
-// vertex normalised Mercator → lon/lat → double ECEF (GeographicLib) and store it as float
-// relative to the tile's centre (millimetres survive even at level 30). Each vertex gets an
+// vertex normalised Mercator → geodetic terms → double ECEF (GeodeticTerms, below) and store it as
+// float relative to the tile's centre (millimetres survive even at level 30). Each vertex gets an
 // area-weighted normal, its height (for the colour ramp) and its position in the tile (for the
 // quadrant masks that stand in for absent children). Only the tile's data footprint is drawn:
 // NODATA triangles are left out (TinTile::footprint_mask, docs/tile-format.md §2.1).
