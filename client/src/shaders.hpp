@@ -123,7 +123,11 @@ void main() {
 #ifdef WIREFRAME
   float d = min(min(fs.bary.x, fs.bary.y), fs.bary.z);
   float line = 1.0 - smoothstep(0.0, 1.5 * fwidth(d), d);
+#ifdef IMAGERY
+  c = mix(c, vec3(0.95, 0.95, 0.90), 0.6 * line);  // light lines show on dark orthophotos
+#else
   c = mix(c, vec3(0.04, 0.04, 0.05), 0.85 * line);
+#endif
 #endif
   o_color = vec4(c, 1.0);
 #ifdef LOG_DEPTH
