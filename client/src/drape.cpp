@@ -59,7 +59,6 @@ void TileStreamer::drape() {
           gpu_.pin(key, frame_);
           d.texture = t->gpu.texture;
           d.image_uv = ancestor_uv(d.key.tile, id);
-          d.imagery = key;
           break;
         }
         if (!wanted) {

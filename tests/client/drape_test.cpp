@@ -98,16 +98,17 @@ struct ViewRun {
 // Straight down (north up) over kTile's centre, 4 km above its highest point: the tile fills the
 // 160 × 160 view, each image quadrant shows one of its quadrants.
 ViewRun view(const std::filesystem::path& out, const std::vector<std::string>& source,
-             const std::vector<std::string>& extra = {}) {
+             const std::vector<std::string>& extra = {}, bool imagery = true) {
   const geo::LonLatRect r =
       kTile.lonlat_bounds(geo::NormalisedMercator(geo::Projection::spherical));
   std::ostringstream camera;
   camera.precision(12);
   camera << (r.west + r.east) / 2 << ',' << (r.south + r.north) / 2 << ",4500,0,-90";
-  std::vector<std::string> args{"--headless",  "--size",     "160x160", "--msaa",     "0",
-                                "--no-legend", "--max-sse",  "0.1",     "--timeout",  "120",
-                                "--camera",    camera.str(), "--out",   out.string(), "--layer",
-                                "synth",       "--imagery",  "synth"};
+  std::vector<std::string> args{"--headless", "--size",      "160x160",   "--msaa",
+                                "0",          "--no-legend", "--max-sse", "0.1",
+                                "--timeout",  "120",         "--camera",  camera.str(),
+                                "--out",      out.string(),  "--layer",   "synth"};
+  if (imagery) args.insert(args.end(), {"--imagery", "synth"});
   args.insert(args.end(), source.begin(), source.end());
   args.insert(args.end(), extra.begin(), extra.end());
   testing::Child child(testing::binary("tinstream-viewer"), args, /*capture_stderr=*/true);
@@ -151,7 +152,7 @@ class Drape : public ::testing::Test {
   std::vector<geo::TileId> tiles_;
 };
 
-TEST_F(Drape, StoreAndServerDrapeTheImageryTileOfTheSameQuadkey) {
+TEST_F(Drape, TheImageryTileOfTheSameQuadkeyIsDrapedAndCountedInTheGpuTier) {
   write_imagery(store_(), tiles_, imagery::ImageFormat::png);
   const ViewRun a = view(dir_.path / "store.png", {"--store", store_().string()});
   ASSERT_EQ(a.status, 0) << a.err;
@@ -162,13 +163,31 @@ TEST_F(Drape, StoreAndServerDrapeTheImageryTileOfTheSameQuadkey) {
   EXPECT_EQ(a.stats["imagery"]["draped"], a.stats["tiles"]["drawn"]);
   expect_quadrants(a, 12);
 
+  // Textures count in the GPU tier: at least one 256² RGBA texture more than the terrain alone.
+  const ViewRun bare = view(dir_.path / "bare.png", {"--store", store_().string()}, {}, false);
+  ASSERT_EQ(bare.status, 0) << bare.err;
+  EXPECT_TRUE(bare.stats["imagery"].is_null());
+  EXPECT_GE(a.stats["cache"]["gpu"]["bytes"].get<double>() -
+                bare.stats["cache"]["gpu"]["bytes"].get<double>(),
+            kSize * kSize * 4.0);
+}
+
+TEST_F(Drape, TheServerAndTheDiskTierDeliverTheSameImagery) {
+  write_imagery(store_(), tiles_, imagery::ImageFormat::png);
+  // From the real server, through the disk tier; a second run revalidates every tile (304s).
   testing::Server server(store_());
-  const ViewRun b = view(dir_.path / "url.png", {"--url", server.url()});
+  const std::vector<std::string> url{"--url", server.url(), "--disk-cache",
+                                     (dir_.path / "disk").string()};
+  const ViewRun b = view(dir_.path / "url.png", url);
   ASSERT_EQ(b.status, 0) << b.err;
   EXPECT_GT(b.stats["requests"]["wire_bytes"].get<double>(), 0);
   EXPECT_GT(b.stats["imagery"]["loaded"].get<int>(), 0);
   expect_quadrants(b, 12);
-  EXPECT_EQ(a.image.rgba, b.image.rgba);
+  const ViewRun c = view(dir_.path / "warm.png", url);
+  ASSERT_EQ(c.status, 0) << c.err;
+  EXPECT_EQ(c.stats["requests"]["downloaded_bytes"].get<double>(), 0);
+  EXPECT_EQ(c.stats["requests"]["not_modified"], b.stats["requests"]["ok"]);
+  EXPECT_EQ(b.image.rgba, c.image.rgba);
 }
 
 TEST_F(Drape, JpegAndWebpTilesDrapeToo) {
@@ -176,6 +195,10 @@ TEST_F(Drape, JpegAndWebpTilesDrapeToo) {
   const ViewRun a = view(dir_.path / "webp.png", {"--store", store_().string()});
   ASSERT_EQ(a.status, 0) << a.err;
   expect_quadrants(a, 12);
+  write_imagery(store_(), tiles_, imagery::ImageFormat::jpeg);  // replaces the layer
+  const ViewRun b = view(dir_.path / "jpeg.png", {"--store", store_().string()});
+  ASSERT_EQ(b.status, 0) << b.err;
+  expect_quadrants(b, 12);  // quality 95, cells of whole 8×8 blocks: within 3 of the colour
 }
 
 TEST_F(Drape, AMissingImageryTileFallsBackToItsParentsSubRectangle) {

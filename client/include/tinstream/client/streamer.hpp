@@ -100,7 +100,6 @@ struct DrawItem {
   // ancestor's.
   std::uint32_t texture = 0;
   std::array<float, 4> image_uv{1, 1, 0, 0};
-  TileKey imagery{};  // the imagery tile drawn (when texture ≠ 0)
 };
 
 inline constexpr std::size_t kLevels = 31;
