@@ -112,6 +112,9 @@ int run_snapshot(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, Sta
   }
   run.render = draw(gl, o, s, camera);
   run.centre_level = centre_level(s, camera);
+  if (s.streamer->failures() > 0)
+    std::cerr << "tinstream-viewer: " << s.streamer->failures()
+              << " tile(s) failed to load; the last: " << s.streamer->last_error() << '\n';
   const Status written = write_snapshot(gl, o);
   run.elapsed_s = seconds_since(start);
   stats.line(summary_json(o, s, run));

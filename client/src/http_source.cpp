@@ -17,6 +17,7 @@
 #include <thread>
 #include <utility>
 
+#include "tinstream/client/imagery.hpp"
 #include "tinstream/client/tile_source.hpp"
 
 namespace tinstream::client {
@@ -235,8 +236,9 @@ ContentEncoding parse_encoding(const std::string& value, bool& known) {
   return ContentEncoding::identity;
 }
 
-std::string quadkey_path(const std::string& layer, const geo::TileId& id) {
-  return "/tiles/" + layer + "/" + id.quadkey();
+std::string quadkey_path(const TileKey& key, const std::string& layer) {
+  return (key.kind == TileKind::imagery ? "/imagery/" : "/tiles/") + layer + "/" +
+         key.tile.quadkey();
 }
 
 class HttpConnectionImpl final : public TileConnection {
@@ -246,7 +248,7 @@ class HttpConnectionImpl final : public TileConnection {
   FetchResponse fetch(const FetchRequest& request, const std::atomic<bool>& cancel) override {
     FetchResponse r;
     const std::string target =
-        client_.url().prefix + quadkey_path(request.layer->name, request.key.tile);
+        client_.url().prefix + quadkey_path(request.key, request.layer->name);
     const std::string what = "GET " + target;
     std::string error;
     const int max_attempts = std::max(client_.options().max_attempts, 1);
@@ -334,6 +336,15 @@ class HttpSource final : public TileSource {
 
  private:
   // A metadata document (JSON), with the same retries as tiles.
+  Result<LayerDescription> imagery_layer(const std::string& name) override {
+    Client client(url_, options_);
+    auto text = get(client, url_.prefix + "/layers");
+    if (!text) return text.error();
+    auto layer = parse_imagery_json(*text, name);
+    if (!layer) return Error(layer.error().code, url_.text() + ": " + layer.error().message);
+    return layer;
+  }
+
   Result<std::string> get(Client& client, const std::string& target) {
     const std::atomic<bool> never{false};
     std::string error;

@@ -101,6 +101,8 @@ std::string_view to_string(TileKind kind) {
   switch (kind) {
     case TileKind::terrain:
       return "terrain";
+    case TileKind::imagery:
+      return "imagery";
   }
   return "terrain";
 }

@@ -3,11 +3,21 @@
 #include <algorithm>
 #include <exception>
 
+#include "tinstream/client/imagery.hpp"
+
 namespace tinstream::client {
 
 namespace {
 constexpr int kMaxThreads = 8;
+
+void add_micros_since(std::atomic<std::uint64_t>& micros,
+                      std::chrono::steady_clock::time_point start) {
+  micros.fetch_add(static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                                  std::chrono::steady_clock::now() - start)
+                                                  .count()),
+                   std::memory_order_relaxed);
 }
+}  // namespace
 
 int TileLoader::default_threads() {
   const unsigned hw = std::thread::hardware_concurrency();
@@ -175,12 +185,10 @@ LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription
                                       std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                                       LoadOrigin origin) {
   const auto start = std::chrono::steady_clock::now();
+  if (key.kind == TileKind::imagery)
+    return finish_image(key, layer, bytes, encoding, origin, start);
   auto mesh = decode_render_mesh(bytes, encoding, layer, key);
-  counters_.decode_micros.fetch_add(
-      static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
-                                     std::chrono::steady_clock::now() - start)
-                                     .count()),
-      std::memory_order_relaxed);
+  add_micros_since(counters_.decode_micros, start);
   if (!mesh) {
     counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
     // A damaged copy must not come back from the disk cache.
@@ -191,6 +199,25 @@ LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription
   return LoadResult{key,    LoadStatus::loaded,
                     origin, std::make_shared<const TileMesh>(std::move(*mesh)),
                     {},     bytes.size()};
+}
+
+LoadResult TileLoader::finish_image(const TileKey& key, const LayerDescription& layer,
+                                    const std::vector<std::uint8_t>& bytes,
+                                    ContentEncoding encoding, LoadOrigin origin,
+                                    std::chrono::steady_clock::time_point start) {
+  auto image = decode_imagery_tile(bytes, encoding, layer, key);
+  add_micros_since(counters_.decode_micros, start);
+  LoadResult r{key, LoadStatus::failed, origin, nullptr, {}, bytes.size()};
+  if (!image) {
+    counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
+    if (disk_) disk_->erase(key, layer);
+    r.error = image.error().message;
+    return r;
+  }
+  counters_.decoded.fetch_add(1, std::memory_order_relaxed);
+  r.status = LoadStatus::loaded;
+  r.image = std::make_shared<const imagery::RgbaImage>(std::move(*image));
+  return r;
 }
 
 }  // namespace tinstream::client

@@ -9,6 +9,7 @@
 #include "gl_program.hpp"
 #include "shaders.hpp"
 #include "tinstream/geo/ecef.hpp"
+#include "tinstream/imagery/image.hpp"
 
 namespace tinstream::client {
 
@@ -23,7 +24,7 @@ constexpr int kPatchCells = 16;
 struct TerrainProgram {
   GLuint id = 0;
   GLint mvp = -1, light = -1, ramp = -1, mask = -1, log_coef = -1, stops = -1, centre = -1,
-        skirt = -1;
+        skirt = -1, image = -1, image_uv = -1;
 };
 
 struct GlobeProgram {
@@ -80,7 +81,7 @@ struct GlobeRenderer::Impl {
   int samples = 0;
   GLuint scene_fbo = 0, scene_color = 0, scene_depth = 0;
   GLuint resolve_fbo = 0, resolve_color = 0, resolve_depth = 0;
-  std::array<TerrainProgram, 4> terrain{};  // index: wireframe·1 + masked·2
+  std::array<TerrainProgram, 8> terrain{};  // index: wireframe·1 + masked·2 + imagery·4
   GlobeProgram globe;
   GLuint globe_vao = 0, globe_vbo = 0, globe_ibo = 0;
   GLsizei patch_index_count = 0;
@@ -143,7 +144,7 @@ struct GlobeRenderer::Impl {
   Status build_programs() {
     std::vector<std::string> common;
     if (log_depth) common.emplace_back("#define LOG_DEPTH");
-    for (int variant = 0; variant < 4; ++variant) {
+    for (int variant = 0; variant < 8; ++variant) {
       std::vector<std::string> defines = common;
       std::vector<gl::Stage> stages{{GL_VERTEX_SHADER, shaders::kTerrainVertex}};
       if (variant & 1) {
@@ -151,6 +152,7 @@ struct GlobeRenderer::Impl {
         stages.push_back({GL_GEOMETRY_SHADER, shaders::kTerrainGeometry});
       }
       if (variant & 2) defines.emplace_back("#define MASKED");
+      if (variant & 4) defines.emplace_back("#define IMAGERY");
       stages.push_back({GL_FRAGMENT_SHADER, shaders::kTerrainFragment});
       auto program = gl::build_program("terrain", stages, defines);
       if (!program) return program.error();
@@ -164,6 +166,8 @@ struct GlobeRenderer::Impl {
       p.stops = glGetUniformLocation(p.id, "u_stops");
       p.centre = glGetUniformLocation(p.id, "u_centre");
       p.skirt = glGetUniformLocation(p.id, "u_skirt");
+      p.image = glGetUniformLocation(p.id, "u_image");
+      p.image_uv = glGetUniformLocation(p.id, "u_image_uv");
     }
     auto program = gl::build_program(
         "globe",
@@ -304,7 +308,27 @@ GpuMesh GlobeRenderer::upload(const TileMesh& mesh) {
   return g;
 }
 
+GpuMesh GlobeRenderer::upload_image(const imagery::RgbaImage& image) {
+  GpuMesh g;
+  glGenTextures(1, &g.texture);
+  glBindTexture(GL_TEXTURE_2D, g.texture);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  // Row 0 (north) at t = 0, where MeshVertex::v = 0 (the tile's north edge).
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, static_cast<GLsizei>(image.width),
+               static_cast<GLsizei>(image.height), 0, GL_RGBA, GL_UNSIGNED_BYTE,
+               image.pixels.data());
+  glGenerateMipmap(GL_TEXTURE_2D);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  g.bytes = image.pixels.size() * 4 / 3;  // with its mipmaps
+  return g;
+}
+
 void GlobeRenderer::release(GpuMesh& mesh) {
+  if (mesh.texture) glDeleteTextures(1, &mesh.texture);
   if (mesh.vao) glDeleteVertexArrays(1, &mesh.vao);
   if (mesh.vbo) glDeleteBuffers(1, &mesh.vbo);
   if (mesh.ibo) glDeleteBuffers(1, &mesh.ibo);
@@ -335,7 +359,8 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
   for (const DrawItem& d : draws) {
     const ResidentTile& t = *d.tile;
     if (t.gpu.index_count == 0) continue;
-    const int variant = (settings.wireframe ? 1 : 0) | (d.quadrant_mask != 0xF ? 2 : 0);
+    const int variant =
+        (settings.wireframe ? 1 : 0) | (d.quadrant_mask != 0xF ? 2 : 0) | (d.texture ? 4 : 0);
     const TerrainProgram& p = m.terrain[static_cast<std::size_t>(variant)];
     if (variant != current) {
       current = variant;
@@ -344,6 +369,12 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
                   static_cast<float>(settings.ramp_max));
       glUniform3fv(p.stops, 5, kRampStops[0].data());
       glUniform1f(p.log_coef, log_coef);
+      glUniform1i(p.image, 0);
+    }
+    if (d.texture) {
+      glActiveTexture(GL_TEXTURE0);
+      glBindTexture(GL_TEXTURE_2D, d.texture);
+      glUniform4fv(p.image_uv, 1, d.image_uv.data());
     }
     set_matrix(p.mvp, projection * camera.model_view(t.centre));
     // The sun in the tile's own frame: from the north-west, 45° above the horizon.
@@ -411,6 +442,7 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
   }
   glDisable(GL_CULL_FACE);
   glBindVertexArray(0);
+  glBindTexture(GL_TEXTURE_2D, 0);
   glUseProgram(0);
 
   if (m.scene_fbo != m.resolve_fbo) {

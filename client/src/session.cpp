@@ -45,7 +45,7 @@ Result<Session> open_session(const ViewerOptions& o) {
   if (!layers)
     return Error(layers.error().code, s.source->describe() + ": " + layers.error().message);
   if (layers->empty()) return not_found(s.source->describe() + " has no published layer");
-  if (layers->size() > 65535) return unsupported("more than 65535 layers");
+  if (layers->size() > 65534) return unsupported("more than 65534 layers");
   s.layers = std::move(*layers);
   if (!o.disk_cache.empty() && s.source->remote()) {
     auto disk = DiskCache::open(o.disk_cache, o.disk_mb << 20);
@@ -72,7 +72,18 @@ Result<Session> open_session(const ViewerOptions& o) {
   s.legend.ramp_min = s.ramp_min;
   s.legend.ramp_max = s.ramp_max;
   s.legend.footer = names;
-  s.loader = std::make_unique<TileLoader>(s.source, s.layers, s.disk, LoaderOptions{o.threads});
+  // The imagery layer joins the loader's table after the terrain layers (same pool and tiers).
+  std::vector<LayerDescription> table = s.layers;
+  if (!o.imagery.empty()) {
+    auto imagery = s.source->imagery_layer(o.imagery);
+    if (!imagery) return imagery.error();
+    s.imagery = *imagery;
+    table.push_back(std::move(*imagery));
+    s.legend.footer += "; imagery " + s.imagery->name +
+                       (s.imagery->attribution.empty() ? "" : " (" + s.imagery->attribution + ")");
+  }
+  s.loader =
+      std::make_unique<TileLoader>(s.source, std::move(table), s.disk, LoaderOptions{o.threads});
   StreamerOptions so;
   so.max_sse = o.max_sse;
   so.gpu_budget = o.gpu_mb << 20;
@@ -80,6 +91,7 @@ Result<Session> open_session(const ViewerOptions& o) {
   so.upload_bytes_per_frame = o.upload_mb << 20;
   so.heap_trim_interval = std::chrono::milliseconds(o.heap_trim_ms);
   so.prefetch_levels = o.prefetch_levels;
+  so.imagery_layer = s.imagery ? static_cast<int>(s.layers.size()) : -1;
   s.streamer = std::make_unique<TileStreamer>(*s.loader, so);
   return s;
 }

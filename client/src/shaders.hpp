@@ -1,6 +1,8 @@
 // GLSL 3.30 core sources of the renderer. Variants are made by prepending #defines:
 //   WIREFRAME  terrain through a geometry shader that adds barycentrics, edges darkened
 //   MASKED     terrain fragments outside the quadrant mask are discarded (absent children)
+//   IMAGERY    terrain coloured by its imagery tile (unlit: orthophotos carry their own light),
+//              the ramp showing through transparent pixels
 //   LOG_DEPTH  the fragment depth is logarithmic (drivers without glClipControl)
 #pragma once
 
@@ -95,6 +97,10 @@ uniform vec2 u_ramp;
 uniform int u_mask;
 uniform float u_log_coef;
 uniform vec3 u_stops[5];
+#ifdef IMAGERY
+uniform sampler2D u_image;
+uniform vec4 u_image_uv;  // scale, offset of the tile's uv in the image (imagery.hpp)
+#endif
 out vec4 o_color;
 vec3 ramp(float t) {
   float s = t * 4.0;
@@ -110,10 +116,18 @@ void main() {
   float t = clamp((fs.height - u_ramp.x) / max(u_ramp.y - u_ramp.x, 1e-6), 0.0, 1.0);
   float shade = 0.3 + 0.7 * max(dot(n, u_light), 0.0);
   vec3 c = ramp(t) * shade;
+#ifdef IMAGERY
+  vec4 image = texture(u_image, fs.uv * u_image_uv.xy + u_image_uv.zw);
+  c = mix(c, image.rgb, image.a);
+#endif
 #ifdef WIREFRAME
   float d = min(min(fs.bary.x, fs.bary.y), fs.bary.z);
   float line = 1.0 - smoothstep(0.0, 1.5 * fwidth(d), d);
+#ifdef IMAGERY
+  c = mix(c, vec3(0.95, 0.95, 0.90), 0.6 * line);  // light lines show on dark orthophotos
+#else
   c = mix(c, vec3(0.04, 0.04, 0.05), 0.85 * line);
+#endif
 #endif
   o_color = vec4(c, 1.0);
 #ifdef LOG_DEPTH

@@ -1,4 +1,5 @@
 // The statistics line of tinstream-viewer (--headless): one JSON object.
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "tinstream/client/viewer.hpp"
@@ -121,6 +122,16 @@ std::string summary_json(const ViewerOptions& o, const Session& s, const RunSumm
        {{"gpu", tier_json(st.gpu_counters())},
         {"ram", tier_json(st.ram_counters())},
         {"disk", s.disk ? tier_json(s.disk->counters()) : json(nullptr)}}},
+      {"imagery",
+       s.imagery ? json{{"layer", s.imagery->name},
+                        {"requested", st.imagery_counters().requested},
+                        {"loaded", st.imagery_counters().loaded},
+                        {"absent", st.imagery_counters().absent},
+                        {"failed", st.imagery_counters().failed},
+                        {"draped", std::count_if(f.draws.begin(), f.draws.end(),
+                                                 [](const DrawItem& d) { return d.texture != 0; })},
+                        {"ram", tier_json(st.image_ram_counters())}}
+                 : json(nullptr)},
       {"rss_bytes", resident_bytes()},
       {"last_error", st.last_error()},
   };

@@ -2,6 +2,7 @@
 // connection per worker thread, as the store requires).
 #include <utility>
 
+#include "tinstream/client/imagery.hpp"
 #include "tinstream/client/tile_source.hpp"
 #include "tinstream/store/tile_store.hpp"
 
@@ -20,6 +21,7 @@ class StoreConnection final : public TileConnection {
       r.error = Error(ErrorCode::cancelled, "cancelled");
       return r;
     }
+    if (request.key.kind == TileKind::imagery) return fetch_image(request);
     auto tile = store_.tile(request.layer->name, request.key.tile);
     if (!tile) {
       r.error = Error(tile.error().code, "tile " + request.key.tile.quadkey() + " of layer \"" +
@@ -39,6 +41,27 @@ class StoreConnection final : public TileConnection {
   }
 
  private:
+  FetchResponse fetch_image(const FetchRequest& request) {
+    FetchResponse r;
+    r.attempts = 1;
+    auto image = store_.imagery_tile(request.layer->name, request.key.tile);
+    if (!image) {
+      r.error =
+          Error(image.error().code, "imagery tile " + request.key.tile.quadkey() + " of layer \"" +
+                                        request.layer->name + "\": " + image.error().message);
+      return r;
+    }
+    if (!image->has_value()) {
+      r.status = FetchResponse::Status::not_found;
+      return r;
+    }
+    r.status = FetchResponse::Status::ok;
+    r.etag = (**image).etag;
+    r.encoding = ContentEncoding::identity;  // PNG / JPEG / WebP as encoded
+    r.body = std::move((**image).data);
+    return r;
+  }
+
   store::TileStore store_;
 };
 
@@ -65,6 +88,14 @@ class StoreSource final : public TileSource {
       out.push_back(from_store_info(*info));
     }
     return out;
+  }
+
+  Result<LayerDescription> imagery_layer(const std::string& name) override {
+    auto st = store::TileStore::open(path_, store::TileStore::Mode::read_only);
+    if (!st) return st.error();
+    auto info = st->imagery_layer(name);
+    if (!info) return Error(info.error().code, path_.string() + ": " + info.error().message);
+    return from_imagery_info(*info);
   }
 
   Result<std::unique_ptr<TileConnection>> connect() override {

@@ -58,9 +58,11 @@ TileStreamer::TileStreamer(TileLoader& loader, StreamerOptions options)
       options_(options),
       layers_(loader.layers()),
       gpu_(options.gpu_budget),
-      ram_(options.ram_budget) {
+      ram_(options.ram_budget),
+      image_ram_(options.ram_budget) {
   for (const LayerDescription& l : layers_) {
-    roots_.push_back(root_tiles(l));
+    roots_.push_back(l.kind == TileKind::terrain ? root_tiles(l) : std::vector<geo::TileId>{});
+    if (l.kind != TileKind::terrain) continue;
     lowest_height_ = std::min(lowest_height_, l.min_z);
   }
   // The occluder lies below the lowest terrain (its semi-axes shrunk by that depth sit inside
@@ -103,6 +105,10 @@ bool TileStreamer::failed_recently(const TileKey& key) {
 
 void TileStreamer::take_results() {
   for (LoadResult& r : loader_.take_results()) {
+    if (r.key.kind == TileKind::imagery) {
+      take_image(r);
+      continue;
+    }
     LevelCounters& level = levels_[r.key.tile.z];
     switch (r.status) {
       case LoadStatus::loaded: {
@@ -232,6 +238,10 @@ void TileStreamer::upload(GpuUploader& gpu) {
   const auto release = [&gpu](const TileKey&, ResidentTile& t) { gpu.release(t.gpu); };
   std::uint64_t used = 0;
   for (const TileRequest& r : uploads_) {
+    if (r.key.kind == TileKind::imagery) {
+      if (upload_image(r, gpu, used) < 0) break;
+      continue;
+    }
     std::shared_ptr<const TileMesh>* mesh = ram_.find(r.key);
     if (!mesh) continue;
     const std::uint64_t bytes = (*mesh)->byte_size();
@@ -267,6 +277,7 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   std::sort(frame_result_.draws.begin(), frame_result_.draws.end(),
             [](const DrawItem& a, const DrawItem& b) { return a.distance < b.distance; });
   plan_skirts(frame_result_.draws);
+  drape();
   frame_result_.complete = wanted_.size() == frame_result_.prefetched && uploads_.empty();
   frame_result_.wanted = wanted_.size();
   upload(gpu);

@@ -52,6 +52,9 @@ int main(int argc, char** argv) {
       app.add_option("--store", o.store, "read tiles straight from this tile store (SQLite)");
   url->excludes(store);
   app.add_option("--layer", o.layers, "layer to draw (repeatable; default: every layer)");
+  app.add_option("--imagery", o.imagery,
+                 "imagery layer to drape over the terrain (same quadtree; with --wireframe: the "
+                 "triangles over the imagery)");
   app.add_option("--threads", o.threads, "download threads 1..8 (default: one per core, at most 8)")
       ->check(CLI::Range(1, 8));
   app.add_option("--max-sse", o.max_sse,

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "tinstream/base/result.hpp"
+#include "tinstream/client/tile_key.hpp"
 #include "tinstream/geo/mercator.hpp"
 #include "tinstream/geo/tile_id.hpp"
 
@@ -21,6 +22,10 @@ namespace tinstream::client {
 
 struct LayerDescription {
   std::string name;
+  // An imagery layer (imagery.hpp) has no heights and no errors; it shares the loader's layer
+  // table so that its tiles travel through the same pool and tiers.
+  TileKind kind = TileKind::terrain;
+  std::string image_format;  // imagery: "png", "jpeg" or "webp"
   geo::Projection projection = geo::Projection::spherical;
   geo::MercatorRect mercator_bounds{};  // of the data
   geo::LonLatRect bounds{};             // of the data, degrees

@@ -28,6 +28,10 @@
 #include "tinstream/client/request_queue.hpp"
 #include "tinstream/client/tile_source.hpp"
 
+namespace tinstream::imagery {
+struct RgbaImage;
+}
+
 namespace tinstream::client {
 
 enum class LoadStatus { loaded, absent, failed };
@@ -38,9 +42,11 @@ struct LoadResult {
   TileKey key;
   LoadStatus status = LoadStatus::failed;
   LoadOrigin origin = LoadOrigin::network;
-  std::shared_ptr<const TileMesh> mesh;  // when loaded
+  std::shared_ptr<const TileMesh> mesh;  // when loaded (terrain)
   std::string error;                     // when failed
   std::uint64_t payload_bytes = 0;       // compressed bytes of the tile
+  // When loaded (imagery): the decoded image.
+  std::shared_ptr<const imagery::RgbaImage> image = nullptr;
 };
 
 // Cumulative counters (read with relaxed atomics: a consistent snapshot is not needed).
@@ -95,6 +101,10 @@ class TileLoader {
   LoadResult finish_payload(const TileKey& key, const LayerDescription& layer,
                             std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                             LoadOrigin origin);
+  // An imagery payload (imagery.hpp): decoded into an image instead of a mesh.
+  LoadResult finish_image(const TileKey& key, const LayerDescription& layer,
+                          const std::vector<std::uint8_t>& bytes, ContentEncoding encoding,
+                          LoadOrigin origin, std::chrono::steady_clock::time_point start);
 
   std::shared_ptr<TileSource> source_;
   std::vector<LayerDescription> layers_;

@@ -9,8 +9,9 @@
 // the camera at the origin and each tile relative to its own centre (camera.hpp), so nothing
 // jitters. Tiles are hillshaded (sun from the north-west, 45° up, in each tile's local frame)
 // over a hypsometric colour ramp; an optional wireframe overlay (geometry-shader barycentrics)
-// marks every triangle but the skirts; a coarse ellipsoid with a 10° graticule is drawn wherever
-// no tile covers it. It implements GpuUploader for the streamer.
+// marks every triangle but the skirts (over imagery, it is the paper's Fig. 11 view); tiles with
+// imagery (DrawItem::texture) show it unlit instead of the ramp; a coarse ellipsoid with a 10°
+// graticule is drawn wherever no tile covers it. It implements GpuUploader for the streamer.
 //
 // Thread: the render thread, with the GL context current, only.
 #pragma once
@@ -85,6 +86,8 @@ class GlobeRenderer final : public GpuUploader {
 
   GpuMesh upload(const TileMesh& mesh) override;
   void release(GpuMesh& mesh) override;
+  // An imagery tile as a mipmapped RGBA8 texture (its bytes: the pixels and their mipmaps).
+  GpuMesh upload_image(const imagery::RgbaImage& image) override;
 
   // Draws the frame into the render target and resolves it; afterwards the resolved target is
   // bound for drawing (an overlay may go on top) and reading.

@@ -13,7 +13,9 @@
 //      upload_bytes_per_frame (at least one per frame);
 //   4. decide which tile sides hang a skirt this frame (skirts.hpp: only towards a drawn tile of
 //      another level, never at the data's edge);
-//   5. hand the loader what is still missing (stale requests are dropped there).
+//   5. with an imagery layer (imagery.hpp, drape.cpp): give each drawn tile the imagery tile that
+//      covers it (the same quadkey, else the nearest resident ancestor) and ask for missing ones;
+//   6. hand the loader what is still missing (stale requests are dropped there).
 // Prefetch (prefetch_levels): below a tile that is not resident yet, the selection goes on with
 // an estimate instead of waiting for it — the layer's largest error of each level and the box of
 // the unloaded tile — and asks for up to prefetch_levels levels of descendants whose estimated
@@ -56,6 +58,7 @@ struct GpuMesh {
   std::uint32_t index_count = 0, surface_index_count = 0;
   std::array<std::uint32_t, 4> skirt_index_count{};  // per side, after the surface (TileMesh)
   bool wide_indices = false;
+  std::uint32_t texture = 0;  // an imagery tile: its texture (no buffers)
   std::uint64_t bytes = 0;
 };
 
@@ -64,6 +67,9 @@ class GpuUploader {
   virtual ~GpuUploader() = default;
   virtual GpuMesh upload(const TileMesh& mesh) = 0;
   virtual void release(GpuMesh& mesh) = 0;
+  // An imagery tile as a texture; its bytes count in the GPU tier like a mesh's. The default
+  // (uploaders without textures) makes none and counts the pixels.
+  virtual GpuMesh upload_image(const imagery::RgbaImage& image);
 };
 
 // A tile in the GPU tier: the buffers and what selection and drawing need to know about it.
@@ -88,6 +94,12 @@ struct DrawItem {
   // lowered skirt_depth metres but never below the height skirt_floor.
   std::uint8_t skirt_sides = 0;
   double skirt_depth = 0, skirt_floor = 0;
+  // Imagery draped this frame (drape.cpp): the texture (0: none, the colour ramp) and where the
+  // tile lies in it: texture coordinate = uv · (image_uv[0], image_uv[1]) + (image_uv[2],
+  // image_uv[3]) — the identity for the imagery tile of the same quadkey, a sub-rectangle for an
+  // ancestor's.
+  std::uint32_t texture = 0;
+  std::array<float, 4> image_uv{1, 1, 0, 0};
 };
 
 inline constexpr std::size_t kLevels = 31;
@@ -126,6 +138,8 @@ struct StreamerOptions {
   std::chrono::milliseconds heap_trim_interval{1000};
   // Levels below a missing tile asked for ahead of it (the header's "Prefetch"); 0: none.
   int prefetch_levels = 3;
+  // The loader's layer table index of the imagery layer draped over the terrain; −1: none.
+  int imagery_layer = -1;
 };
 
 class TileStreamer {
@@ -147,8 +161,10 @@ class TileStreamer {
   // What the last update() handed the loader (needed and prefetched tiles).
   const std::vector<TileRequest>& requests() const { return wanted_; }
   const std::array<LevelCounters, kLevels>& level_counters() const { return levels_; }
+  const LevelCounters& imagery_counters() const { return imagery_counters_; }
   const TierCounters& gpu_counters() const { return gpu_.counters(); }
   const TierCounters& ram_counters() const { return ram_.counters(); }
+  const TierCounters& image_ram_counters() const { return image_ram_.counters(); }
   std::uint64_t frames() const { return frame_; }
   std::uint64_t failures() const { return failures_; }
   // How often update() asked for free heap memory to go back (heap_trim_interval); the trimmer
@@ -173,6 +189,11 @@ class TileStreamer {
   void prefetch(const View& view, std::uint16_t layer, const geo::TileId& id, int levels);
   void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
+  // Imagery (drape.cpp): picks each drawn tile's imagery tile, asks for what is missing.
+  void drape();
+  void take_image(LoadResult& r);
+  // 1 uploaded, 0 nothing to upload, −1 stop (the frame's upload budget or the GPU tier is full).
+  int upload_image(const TileRequest& r, GpuUploader& gpu, std::uint64_t& used);
   void upload(GpuUploader& gpu);
   bool failed_recently(const TileKey& key);
   void trim_heap();
@@ -187,10 +208,13 @@ class TileStreamer {
   std::uint64_t frame_ = 0;
   LruTier<ResidentTile> gpu_;
   LruTier<std::shared_ptr<const TileMesh>> ram_;
+  // Decoded imagery tiles: a RAM tier of their own, with the same budget as ram_.
+  LruTier<std::shared_ptr<const imagery::RgbaImage>> image_ram_;
   std::unordered_set<TileKey, TileKeyHash> absent_;
   std::unordered_map<TileKey, std::chrono::steady_clock::time_point, TileKeyHash> failed_;
   std::unordered_set<TileKey, TileKeyHash> requested_ever_;
   std::array<LevelCounters, kLevels> levels_{};
+  LevelCounters imagery_counters_;  // imagery tiles (levels_ counts terrain tiles only)
   std::uint64_t failures_ = 0;
   std::string last_error_;
   std::uint64_t tiles_taken_ = 0;    // meshes received from the loader

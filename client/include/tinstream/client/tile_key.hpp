@@ -16,7 +16,8 @@
 
 namespace tinstream::client {
 
-enum class TileKind : std::uint8_t { terrain = 0 };
+// imagery: a colour tile of the same quadtree draped over the terrain (imagery.hpp).
+enum class TileKind : std::uint8_t { terrain = 0, imagery = 1 };
 
 std::string_view to_string(TileKind kind);
 

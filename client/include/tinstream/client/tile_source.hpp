@@ -11,7 +11,9 @@
 // tile, `If-None-Match`. Every request has a timeout; connection errors, timeouts and 5xx answers
 // are retried with exponential backoff (100 ms, 200 ms, … with jitter) up to
 // HttpOptions::max_attempts; a reused keep-alive connection that the server closed meanwhile is
-// reopened at once. 404 means "no tile here"; other 4xx answers fail without a retry.
+// reopened at once. 404 means "no tile here"; other 4xx answers fail without a retry. Imagery
+// tiles (TileKind::imagery): GET /imagery/{layer}/{quadkey}, the same rules; from a store, its
+// imagery tables.
 #pragma once
 
 #include <atomic>
@@ -63,6 +65,8 @@ class TileSource {
   virtual std::string describe() const = 0;
   // The named layers (in that order), or every published layer when `names` is empty.
   virtual Result<std::vector<LayerDescription>> layers(const std::vector<std::string>& names) = 0;
+  // The imagery layer `name` (kind imagery); not_found naming it when the source has none.
+  virtual Result<LayerDescription> imagery_layer(const std::string& name) = 0;
   virtual Result<std::unique_ptr<TileConnection>> connect() = 0;
   // Whether tiles travel over a network (then the disk cache is worth using).
   virtual bool remote() const = 0;

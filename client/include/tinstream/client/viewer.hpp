@@ -25,6 +25,7 @@ struct ViewerOptions {
   std::string url;
   std::filesystem::path store;
   std::vector<std::string> layers;  // empty: every layer
+  std::string imagery;              // an imagery layer draped over the terrain; empty: none
   int threads = 0;                  // download threads, 0: one per core (at most 8)
   double max_sse = 2.0;             // pixels
   std::uint64_t gpu_mb = 512, cache_mb = 512, disk_mb = 2048;
@@ -61,6 +62,7 @@ struct Session {
   double ramp_min = 0, ramp_max = 1;
   geo::LonLatRect extent{};  // of all layers
   LegendInfo legend;
+  std::optional<LayerDescription> imagery;  // --imagery (last in the loader's layer table)
 
   // Where the fallback globe is drawn: below every layer's lowest height.
   double globe_height() const;
