@@ -17,6 +17,7 @@ packages=(
   clang clang-format clang-tidy curl   # clang: the libFuzzer build (scripts/fuzz.sh)
   libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
   wrk python3                      # the server's abuse/load test (ctest Server.Abuse)
+  xvfb                             # xvfb-run: the viewer's window-mode test (Viewer.WindowMode…)
 )
 # The browser viewers and their tests: Node.js + npm build web/ (web/build.mjs: CesiumJS and
 # MapLibre GL JS from npm) and drive Debian's Chromium through playwright-core (tests/web).

@@ -615,5 +615,55 @@ TEST_F(Viewer, BoundingVolumesHoldEveryVertexOfRealTiles) {
   EXPECT_GT(vertices, 100000u);
 }
 
+TEST_F(Viewer, WindowModeOutWritesTheWindowPanelIncludedUnderXvfb) {
+  // Window mode (GLFW, GLX on Mesa) under a virtual X server (xvfb-run, Debian's xvfb): --out
+  // writes the window once the view is complete, panel included, and exits 0. Right of the panel
+  // it shows what the headless renderer draws for the same camera; at the top left, the panel,
+  // which the headless image does not have.
+  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
+  if (!std::filesystem::exists(xvfb))
+    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  TempDir dir("viewer_window");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const std::vector<std::string> view{"--size",  "960x540",     "--msaa",
+                                      "0",       "--no-legend", "--timeout",
+                                      "300",     "--camera",    camera_above(l, 30000),
+                                      "--store", dem_.string()};
+  testing::Child window(xvfb.string(),
+                        std::vector<std::string>{"-a", "-s", "-screen 0 1280x720x24",
+                                                 testing::binary("tinstream-viewer")} +
+                            view + std::vector<std::string>{"--out", (dir.path / "w.png").string()},
+                        /*capture_stderr=*/true);
+  ASSERT_EQ(window.wait(std::chrono::minutes(10)), 0) << window.err();
+  const ViewerRun headless =
+      viewer(std::vector<std::string>{"--headless", "--out", (dir.path / "h.png").string()} + view);
+  expect_clean(headless);
+  const Image w = png(dir.path / "w.png"), h = png(dir.path / "h.png");
+  ASSERT_EQ(w.width, 960);
+  ASSERT_EQ(w.height, 540);
+  ASSERT_EQ(h.width, w.width);
+  ASSERT_EQ(h.height, w.height);
+  const auto differs = [&](int x, int y) {
+    const std::uint8_t *a = pixel(w, x, y), *b = pixel(h, x, y);
+    return std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]) > 12;
+  };
+  int right = 0, right_same = 0, terrain = 0;
+  for (int y = 0; y < w.height; ++y)
+    for (int x = 3 * w.width / 5; x < w.width; ++x) {
+      ++right;
+      right_same += !differs(x, y);
+      terrain += classify(w, x, y) == Pixel::terrain;
+    }
+  EXPECT_GT(right_same, right * 98 / 100);
+  EXPECT_GT(terrain, right / 10);
+  int panel = 0, panel_differs = 0;
+  for (int y = 10; y < 90; ++y)
+    for (int x = 10; x < 300; ++x) {
+      ++panel;
+      panel_differs += differs(x, y);
+    }
+  EXPECT_GT(panel_differs, panel / 2);
+}
+
 }  // namespace
 }  // namespace tinstream::client
