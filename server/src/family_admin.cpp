@@ -50,6 +50,105 @@ bool is_upload(const Request& r) {
   return !iequals(trim(ct), "application/json");
 }
 
+namespace {
+
+// The job of an upload (POST /admin/ingest with the file as the body): the layer, file name and
+// options come from the query. The body file is renamed to carry the name (the readers look at
+// the extension) and removed after the job, or here at once on any error.
+std::optional<Response> upload_spec(const Request& req, const IngestRoute& r, IngestJobSpec& spec,
+                                    std::vector<std::filesystem::path>& delete_after) {
+  if (req.body_file.empty()) return json_error(400, "upload body missing");
+  auto layer = r.query.find("layer");
+  if (layer == r.query.end() || !is_valid_layer_name(layer->second)) {
+    remove_quietly(req.body_file);
+    return json_error(
+        400, "upload: query parameter layer= must name a valid layer ([A-Za-z0-9_.-]{1,64})");
+  }
+  spec.layer = layer->second;
+  std::string name = "upload";
+  if (auto f = r.query.find("filename"); f != r.query.end()) {
+    auto safe = sanitize_filename(f->second);
+    if (!safe) {
+      remove_quietly(req.body_file);
+      return json_error(400, "upload: filename= " + safe.error().message);
+    }
+    name = *safe;
+  }
+  std::filesystem::path final_path = req.body_file;
+  final_path += "-" + name;
+  std::error_code ec;
+  std::filesystem::rename(req.body_file, final_path, ec);
+  if (ec) {
+    remove_quietly(req.body_file);
+    return json_error(500, "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
+  }
+  spec.sources.push_back(final_path);
+  spec.source_names.push_back(name);
+  spec.root = final_path.parent_path();
+  spec.allow_vrt = false;
+  delete_after.push_back(final_path);
+  if (auto o = r.query.find("options"); o != r.query.end()) {
+    json opts = json::parse(o->second, nullptr, false);
+    if (opts.is_discarded() || !opts.is_object()) {
+      remove_quietly(final_path);
+      return json_error(400, "upload: options= must be a JSON object");
+    }
+    if (Status valid = validate_ingest_options(opts); !valid) {
+      remove_quietly(final_path);
+      return json_error(400, "upload: " + valid.error().message);
+    }
+    spec.options = std::move(opts);
+  }
+  return std::nullopt;
+}
+
+// The job of a JSON request ({"layer", "sources", "options"}): each source is a path under the
+// data root, opened and held here (resolved once; the job reads what was checked).
+std::optional<Response> json_spec(const Request& req, const Context& ctx, IngestJobSpec& spec) {
+  json body = json::parse(req.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object()) {
+    return json_error(400,
+                      "ingest: body must be a JSON object {\"layer\": ..., \"sources\": [...]}");
+  }
+  if (!body.contains("layer") || !body["layer"].is_string() ||
+      !is_valid_layer_name(body["layer"].get<std::string>())) {
+    return json_error(400, "ingest: \"layer\" must be a valid layer name ([A-Za-z0-9_.-]{1,64})");
+  }
+  spec.layer = body["layer"].get<std::string>();
+  if (!body.contains("sources") || !body["sources"].is_array() || body["sources"].empty()) {
+    return json_error(400,
+                      "ingest: \"sources\" must be a non-empty array of paths under the data root");
+  }
+  if (ctx.config.data_root.empty()) {
+    return json_error(403,
+                      "ingest: server-side paths are disabled (no data_root configured); upload "
+                      "the file instead");
+  }
+  spec.root = ctx.config.data_root;
+  for (const auto& s : body["sources"]) {
+    if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
+    auto held = HeldSource::open(ctx.config.data_root, s.get<std::string>());
+    if (!held)
+      return json_error(held.error().code == ErrorCode::not_found
+                            ? 404
+                            : (held.error().code == ErrorCode::invalid_argument ? 400 : 403),
+                        held.error().message);
+    spec.sources.push_back((*held)->path());
+    spec.source_names.push_back(s.get<std::string>());
+    spec.held.push_back(std::move(*held));
+  }
+  if (body.contains("options")) {
+    if (!body["options"].is_object())
+      return json_error(400, "ingest: \"options\" must be an object");
+    if (Status valid = validate_ingest_options(body["options"]); !valid)
+      return json_error(400, "ingest: " + valid.error().message);
+    spec.options = body["options"];
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
   if (auto denied = check_admin(req, ctx)) {
     remove_quietly(req.body_file);
@@ -63,90 +162,9 @@ Response serve(const Request& req, Context& ctx, const IngestRoute& r) {
   spec.store_path = ctx.config.store;
   spec.scratch_dir = ctx.scratch_dir;
   std::vector<std::filesystem::path> delete_after;
-  if (is_upload(req)) {
-    if (req.body_file.empty()) return json_error(400, "upload body missing");
-    auto layer = r.query.find("layer");
-    if (layer == r.query.end() || !is_valid_layer_name(layer->second)) {
-      remove_quietly(req.body_file);
-      return json_error(
-          400, "upload: query parameter layer= must name a valid layer ([A-Za-z0-9_.-]{1,64})");
-    }
-    spec.layer = layer->second;
-    std::string name = "upload";
-    if (auto f = r.query.find("filename"); f != r.query.end()) {
-      auto safe = sanitize_filename(f->second);
-      if (!safe) {
-        remove_quietly(req.body_file);
-        return json_error(400, "upload: filename= " + safe.error().message);
-      }
-      name = *safe;
-    }
-    std::filesystem::path final_path = req.body_file;
-    final_path += "-" + name;
-    std::error_code ec;
-    std::filesystem::rename(req.body_file, final_path, ec);
-    if (ec) {
-      remove_quietly(req.body_file);
-      return json_error(500,
-                        "upload: cannot rename " + req.body_file.string() + ": " + ec.message());
-    }
-    spec.sources.push_back(final_path);
-    spec.source_names.push_back(name);
-    spec.root = final_path.parent_path();
-    spec.allow_vrt = false;
-    delete_after.push_back(final_path);
-    if (auto o = r.query.find("options"); o != r.query.end()) {
-      json opts = json::parse(o->second, nullptr, false);
-      if (opts.is_discarded() || !opts.is_object()) {
-        remove_quietly(final_path);
-        return json_error(400, "upload: options= must be a JSON object");
-      }
-      if (Status valid = validate_ingest_options(opts); !valid) {
-        remove_quietly(final_path);
-        return json_error(400, "upload: " + valid.error().message);
-      }
-      spec.options = std::move(opts);
-    }
-  } else {
-    json body = json::parse(req.body, nullptr, false);
-    if (body.is_discarded() || !body.is_object()) {
-      return json_error(400,
-                        "ingest: body must be a JSON object {\"layer\": ..., \"sources\": [...]}");
-    }
-    if (!body.contains("layer") || !body["layer"].is_string() ||
-        !is_valid_layer_name(body["layer"].get<std::string>())) {
-      return json_error(400, "ingest: \"layer\" must be a valid layer name ([A-Za-z0-9_.-]{1,64})");
-    }
-    spec.layer = body["layer"].get<std::string>();
-    if (!body.contains("sources") || !body["sources"].is_array() || body["sources"].empty()) {
-      return json_error(
-          400, "ingest: \"sources\" must be a non-empty array of paths under the data root");
-    }
-    if (ctx.config.data_root.empty()) {
-      return json_error(403,
-                        "ingest: server-side paths are disabled (no data_root configured); upload "
-                        "the file instead");
-    }
-    spec.root = ctx.config.data_root;
-    for (const auto& s : body["sources"]) {
-      if (!s.is_string()) return json_error(400, "ingest: every source must be a string");
-      auto held = HeldSource::open(ctx.config.data_root, s.get<std::string>());
-      if (!held)
-        return json_error(held.error().code == ErrorCode::not_found
-                              ? 404
-                              : (held.error().code == ErrorCode::invalid_argument ? 400 : 403),
-                          held.error().message);
-      spec.sources.push_back((*held)->path());
-      spec.source_names.push_back(s.get<std::string>());
-      spec.held.push_back(std::move(*held));
-    }
-    if (body.contains("options")) {
-      if (!body["options"].is_object())
-        return json_error(400, "ingest: \"options\" must be an object");
-      if (Status valid = validate_ingest_options(body["options"]); !valid)
-        return json_error(400, "ingest: " + valid.error().message);
-      spec.options = body["options"];
-    }
+  if (auto refused =
+          is_upload(req) ? upload_spec(req, r, spec, delete_after) : json_spec(req, ctx, spec)) {
+    return *refused;
   }
   // A copy: when the job is refused (503) the upload is removed here, not by the job.
   auto id = ctx.jobs->submit(std::move(spec), delete_after);

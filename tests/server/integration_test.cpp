@@ -6,7 +6,6 @@
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
 #include <sys/prctl.h>
-#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -18,6 +17,7 @@
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "grid_tile.hpp"
@@ -33,6 +33,7 @@ using nlohmann::json;
 using testing::http_get;
 using testing::http_request;
 using testing::HttpConnection;
+using testing::OpenFilesLimit;
 using testing::TempDir;
 
 const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
@@ -1382,12 +1383,9 @@ TEST_F(ServerTest, ConnectionsPerAddressAreCapped) {
 // below it (the store, the body files, the listeners and the ingest need descriptors too).
 TEST_F(ServerTest, OpenFilesLimitIsRaisedAndConnectionsStayBelowIt) {
   stop();
-  rlimit low{256, 512};  // this test's own process: ctest runs every test in one
-  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  const OpenFilesLimit low(256, 512);
   start([](ServerConfig& c) { c.max_connections = 100000; });
-  rlimit now{};
-  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &now), 0);
-  EXPECT_EQ(now.rlim_cur, 512u);
+  EXPECT_EQ(OpenFilesLimit::soft_now(), 512u);
   EXPECT_LE(server_->max_connections(), 512u - 128u);
   EXPECT_GE(server_->max_connections(), 256u);
 }
@@ -1415,17 +1413,10 @@ TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
   // TSan trees run this test.
   GTEST_SKIP() << "the sanitizer runtime itself needs free descriptors in this tree";
 #endif
-  rlimit before{};
-  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
-  struct Restore {
-    rlimit limit;
-    ~Restore() { ::setrlimit(RLIMIT_NOFILE, &limit); }
-  } restore{before};
   ASSERT_EQ(http_get(port_, "/healthz").status, 200);
   const std::uint64_t errors_before = metric(port_, "tinstream_accept_errors_total");
-  rlimit tight = before;
-  tight.rlim_cur = open_descriptors() + 16;
-  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  std::optional<OpenFilesLimit> tight;
+  tight.emplace(open_descriptors() + 16, OpenFilesLimit::hard_now());
   // The clients live in a child process (its own descriptor table), which connects once this
   // process has used up its descriptors: their connections wait in the listener's backlog.
   int go[2];
@@ -1452,7 +1443,7 @@ TEST_F(ServerTest, AcceptBacksOffWhenOutOfDescriptors) {
   ASSERT_EQ(::write(go[1], "g", 1), 1);
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // the window being measured
   for (int fd : filler) ::close(fd);
-  ::setrlimit(RLIMIT_NOFILE, &before);
+  tight.reset();
   ::kill(child, SIGKILL);
   ::waitpid(child, nullptr, 0);
   ::close(go[0]);

@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/time.h>
 #include <unistd.h>
@@ -28,6 +29,32 @@ TempDir::~TempDir() {
   std::error_code ec;
   std::filesystem::remove_all(path, ec);
 }
+
+namespace {
+rlimit open_files_now() {
+  rlimit now{};
+  if (::getrlimit(RLIMIT_NOFILE, &now) != 0) throw std::runtime_error("getrlimit failed");
+  return now;
+}
+}  // namespace
+
+OpenFilesLimit::OpenFilesLimit(std::uint64_t soft, std::uint64_t hard) {
+  const rlimit before = open_files_now();
+  saved_soft_ = before.rlim_cur;
+  saved_hard_ = before.rlim_max;
+  const rlimit wanted{soft, hard};
+  if (::setrlimit(RLIMIT_NOFILE, &wanted) != 0)
+    throw std::runtime_error("setrlimit(RLIMIT_NOFILE, " + std::to_string(soft) + ", " +
+                             std::to_string(hard) + ") failed");
+}
+
+OpenFilesLimit::~OpenFilesLimit() {
+  const rlimit saved{saved_soft_, saved_hard_};
+  ::setrlimit(RLIMIT_NOFILE, &saved);
+}
+
+std::uint64_t OpenFilesLimit::soft_now() { return open_files_now().rlim_cur; }
+std::uint64_t OpenFilesLimit::hard_now() { return open_files_now().rlim_max; }
 
 std::vector<geo::TileId> test_tile_ids() {
   std::vector<geo::TileId> ids;

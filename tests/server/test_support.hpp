@@ -21,6 +21,24 @@ struct TempDir {
   std::filesystem::path path;
 };
 
+// Sets the process's open-files limit (RLIMIT_NOFILE) to soft/hard for one test and puts back the
+// limit it found when it goes out of scope, so a failed assertion cannot leave a lowered limit
+// behind for the next test of the same process (ctest runs each binary's tests in one process).
+class OpenFilesLimit {
+ public:
+  OpenFilesLimit(std::uint64_t soft, std::uint64_t hard);
+  ~OpenFilesLimit();
+  OpenFilesLimit(const OpenFilesLimit&) = delete;
+  OpenFilesLimit& operator=(const OpenFilesLimit&) = delete;
+  // The soft and hard limits now (the server under test may have raised the soft one).
+  static std::uint64_t soft_now();
+  static std::uint64_t hard_now();
+
+ private:
+  std::uint64_t saved_soft_ = 0;
+  std::uint64_t saved_hard_ = 0;
+};
+
 // The tiles of the test layer: a 4×4 block at level 12 (near Luxembourg) and their ancestors up to
 // level 10, built from the synthetic surface (grid_tile.hpp).
 std::vector<geo::TileId> test_tile_ids();

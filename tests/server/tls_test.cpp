@@ -8,7 +8,6 @@
 #include <openssl/ssl.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
-#include <sys/resource.h>
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
@@ -33,6 +32,7 @@ namespace net = boost::asio;
 namespace ssl = boost::asio::ssl;
 namespace beast = boost::beast;
 namespace http = boost::beast::http;
+using testing::OpenFilesLimit;
 using testing::TempDir;
 
 // Writes key.pem and cert.pem into `dir`: a fresh P-256 key and a self-signed certificate for
@@ -218,14 +218,7 @@ TEST_F(TlsTest, RefusesOldProtocolsPlainHttpAndStalledHandshakes) {
 // max_connections stays below the open-files limit counting three per connection, so the server
 // never runs out of descriptors for its stores and body files before it refuses connections.
 TEST_F(TlsTest, MaxConnectionsCountsThreeDescriptorsPerConnection) {
-  rlimit before{};
-  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
-  struct Restore {
-    rlimit limit;
-    ~Restore() { ::setrlimit(RLIMIT_NOFILE, &limit); }
-  } restore{before};
-  rlimit low{256, 512};  // raised to 512 by the server; (512 - 128) / 3 = 128 connections
-  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  const OpenFilesLimit low(256, 512);  // raised to 512 by the server; (512 - 128) / 3 = 128
   ServerConfig c = config();
   c.max_connections = 100000;
   start(c);

@@ -1,8 +1,10 @@
 // Constraint segments: walk the triangles crossed by a segment, split it at vertices lying on it
 // and at crossing constraints, remove the crossed edges by flips (Sloan 1993), then restore the
 // constrained Delaunay property around the new edges by Lawson flips.
+#include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -72,19 +74,80 @@ Result<std::array<VertexId, 2>> Triangulation::insert_constraint(const Point3& a
   return std::array<VertexId, 2>{ra.vertex, rb.vertex};
 }
 
+namespace {
+double distance_to_segment(const XY& p, const XY& u, const XY& v) {
+  const double ex = v.x - u.x, ey = v.y - u.y;
+  const double len2 = ex * ex + ey * ey;
+  double k = len2 > 0.0 ? ((p.x - u.x) * ex + (p.y - u.y) * ey) / len2 : 0.0;
+  k = std::clamp(k, 0.0, 1.0);
+  return std::hypot(p.x - (u.x + k * ex), p.y - (u.y + k * ey));
+}
+
+struct IntersectionChoice {
+  XY xy;       // the point to insert (when at_end is 0)
+  double s;    // its parameter along a-b, for the height
+  int at_end;  // 1 or 2: c1 or c2 itself is the crossing
+};
+
+// Where segment a-b crosses segment c1-c2. The point is computed along a-b (parameter s): exact
+// up to rounding when the two cross at a clear angle. When they are nearly collinear, s is
+// ill-conditioned: clamped into [0, 1] it can land anywhere on a-b, far outside c1-c2
+// (kernel_fuzzer found a-b's far end chosen, which re-routed c1-c2 through a vertex units away and
+// bent its constraint). Then the point along c1-c2 or an end of c1-c2 is taken instead: whichever
+// lies nearest both segments (each candidate's worse distance, no closer than rounding allows, so
+// that the point along a-b is kept whenever it is as good as rounding can tell).
+IntersectionChoice choose_intersection(const XY& pa, const XY& pb, const XY& p1, const XY& p2) {
+  const double dx = pb.x - pa.x, dy = pb.y - pa.y;
+  const double fx = p2.x - p1.x, fy = p2.y - p1.y;
+  const double denom = dx * fy - dy * fx;
+  auto along = [](double num, double den) {
+    const double k = num / den;
+    return !(k >= 0.0) ? 0.0 : k > 1.0 ? 1.0 : k;
+  };
+  const double s = along((p1.x - pa.x) * fy - (p1.y - pa.y) * fx, denom);
+  const double u = along((p1.x - pa.x) * dy - (p1.y - pa.y) * dx, denom);
+  const XY on_ab{pa.x + s * dx, pa.y + s * dy};
+  const XY on_c{p1.x + u * fx, p1.y + u * fy};
+  double scale = 0.0;
+  for (const XY* p : {&pa, &pb, &p1, &p2})
+    scale = std::max({scale, std::abs(p->x), std::abs(p->y)});
+  const double floor = 8.0 * std::numeric_limits<double>::epsilon() * scale;
+  auto score = [&](const XY& p) {
+    return std::max({distance_to_segment(p, pa, pb), distance_to_segment(p, p1, p2), floor});
+  };
+  IntersectionChoice best{on_ab, s, 0};
+  double best_score = score(on_ab);
+  if (best_score == floor) return best;
+  auto consider = [&](const XY& p, int at_end) {
+    const double sc = score(p);
+    if (sc < best_score) {
+      const double len2 = dx * dx + dy * dy;
+      const double k = len2 > 0.0 ? ((p.x - pa.x) * dx + (p.y - pa.y) * dy) / len2 : 0.0;
+      best = {p, std::clamp(k, 0.0, 1.0), at_end};
+      best_score = sc;
+    }
+  };
+  consider(p1, 1);
+  consider(p2, 2);
+  consider(on_c, 0);
+  return best;
+}
+}  // namespace
+
 // Inserts the intersection of segment a-b with the constrained edge opposite v[edge] of t; the
 // constrained edge becomes the chain c1-X-c2. Returns X (an existing vertex when X rounds onto
 // one), or kNone when it cannot be inserted or the cascade budget (intersections_left_) is spent.
 VertexId Triangulation::insert_intersection(VertexId a, VertexId b, TriangleId t, int edge) {
   const VertexId c1 = mesh_.tri(t).v[next3(edge)], c2 = mesh_.tri(t).v[prev3(edge)];
   const XY &pa = mesh_.xy(a), &pb = mesh_.xy(b), &p1 = mesh_.xy(c1), &p2 = mesh_.xy(c2);
-  const double dx = pb.x - pa.x, dy = pb.y - pa.y;
-  const double fx = p2.x - p1.x, fy = p2.y - p1.y;
-  const double denom = dx * fy - dy * fx;
-  double s = ((p1.x - pa.x) * fy - (p1.y - pa.y) * fx) / denom;
-  if (!(s >= 0.0)) s = 0.0;
-  if (s > 1.0) s = 1.0;
-  Point3 x{pa.x + s * dx, pa.y + s * dy, mesh_.z(a) + s * (mesh_.z(b) - mesh_.z(a)),
+  const IntersectionChoice choice = choose_intersection(pa, pb, p1, p2);
+  if (choice.at_end != 0) {
+    // The two segments are nearly collinear and meet at an end of the constrained edge (within
+    // rounding): a-b goes through that vertex, and c1-c2 stays as it is.
+    return choice.at_end == 1 ? c1 : c2;
+  }
+  const double s = choice.s;
+  Point3 x{choice.xy.x, choice.xy.y, mesh_.z(a) + s * (mesh_.z(b) - mesh_.z(a)),
            std::max(mesh_.weight(a), mesh_.weight(b))};
   if (intersections_left_ == 0) return kNone;
   --intersections_left_;
