@@ -376,21 +376,66 @@ class GreedyInserter {
     count_[t] = kept - begin_[t];
     if (lattice_) {
       rank_cells(t);
+    } else if (is_fan(t)) {
+      rank_fan(t);
     } else {
-      set_best(t, best, best_e + coverage_cost(t));
+      set_best(t, best, best_e);
     }
   }
 
-  // kCoverageCost for a triangle at a NODATA corner (greedy.hpp), else 0.
-  double coverage_cost(std::uint32_t t) const {
+  // Whether t is at a NODATA corner (greedy.hpp: coverage first).
+  bool is_fan(std::uint32_t t) const {
     for (const std::uint32_t v : tris_[t].v) {
-      if (v < nodata_.size() && nodata_[v]) return kCoverageCost;
+      if (v < nodata_.size() && nodata_[v]) return true;
     }
-    return 0.0;
+    return false;
+  }
+
+  // A point of fan t outside the footprint (greedy.hpp): anywhere in t but exactly on its data
+  // edge (exact orient2d = 0 with its two data vertices, when it has one NODATA vertex), where
+  // the data triangle beside it covers it.
+  struct FanEdge {
+    bool has_edge = false;
+    XY a, b;
+    bool outside(double x, double y) const {
+      return !has_edge || kernel::orient2d(a, b, XY{x, y}) != 0;
+    }
+  };
+  FanEdge fan_edge(std::uint32_t t) const {
+    FanEdge fe;
+    int nodata = 0, k_nodata = 0;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = tris_[t].v[static_cast<std::size_t>(k)];
+      if (v < nodata_.size() && nodata_[v]) ++nodata, k_nodata = k;
+    }
+    if (nodata == 1) {
+      fe.has_edge = true;
+      fe.a = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 1) % 3)]];
+      fe.b = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 2) % 3)]];
+    }
+    return fe;
+  }
+
+  // Fan t's best candidate from its bucket (filed path): effective error + kCoverageCost for a
+  // point outside the footprint.
+  void rank_fan(std::uint32_t t) {
+    const FanEdge fe = fan_edge(t);
+    const Plane pl = plane(t);
+    double best_e = -1, w;
+    std::uint32_t best = kNone;
+    for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
+      const Filed& f = pool_[k];
+      if (f.kind != kCandidate) continue;
+      const double e =
+          effective_error(f, pl.at(f.x, f.y, &w)) + (fe.outside(f.x, f.y) ? kCoverageCost : 0.0);
+      if (e > best_e) best_e = e, best = k;
+    }
+    set_best(t, best, best_e);
   }
 
   // On a lattice: t's best candidate is the candidate cell of largest effective error inside it.
   void rank_cells(std::uint32_t t) {
+    if (is_fan(t)) return rank_fan_cells(t);
     const auto& v = tris_[t].v;
     const Lattice& l = *lattice_;
     const Gradient g(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
@@ -423,7 +468,30 @@ class GreedyInserter {
       if (row_i != kNone) best_e = row_e, best = static_cast<std::uint32_t>(row + row_i);
     };
     l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row, candidate_z_.data());
-    set_best(t, best, best_e + coverage_cost(t));
+    set_best(t, best, best_e);
+  }
+
+  // The same for a fan (coverage first: rank_fan), cell by cell.
+  void rank_fan_cells(std::uint32_t t) {
+    const auto& v = tris_[t].v;
+    const Lattice& l = *lattice_;
+    const FanEdge fe = fan_edge(t);
+    const Gradient g(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
+    double best_e = -1;
+    std::uint32_t best = kNone;
+    const std::size_t w = l.width();
+    auto scan_row = [&](std::size_t j, std::size_t i0, std::size_t i1) {
+      const double base = g.az + g.gy * (l.ys[j] - g.ay);
+      for (std::size_t i = i0; i <= i1; ++i) {
+        const std::size_t cell = j * w + i;
+        double e = std::abs(candidate_z_[cell] - (base + g.gx * (l.xs[i] - g.ax)));
+        if (!l.weight.empty()) e += l.weight[cell];
+        if (fe.outside(l.xs[i], l.ys[j])) e += kCoverageCost;
+        if (e > best_e) best_e = e, best = static_cast<std::uint32_t>(cell);
+      }
+    };
+    l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row);
+    set_best(t, best, best_e);
   }
 
   // The candidate named by best_[t]: a pool entry, or on a lattice a cell.
@@ -685,7 +753,11 @@ class GreedyInserter {
       if (lattice_) {
         rank_cells(star_[k]);
       } else {
-        set_best(star_[k], star_best_[k], star_error_[k] + coverage_cost(star_[k]));
+        if (is_fan(star_[k])) {
+          rank_fan(star_[k]);
+        } else {
+          set_best(star_[k], star_best_[k], star_error_[k]);
+        }
       }
     }
   }

@@ -58,7 +58,10 @@ struct GreedyResult {
 
 // Coverage first (docs/tile-format.md §2.1): a point of the surface lying in a triangle at a
 // NODATA corner (outside the current footprint) costs this many metres more than its vertical
-// error, in the greedy stage (a candidate there goes in before any other) and in the drop stage
+// error — not a point exactly on such a triangle's data edge (exact orient2d = 0 with its two
+// data vertices), which the data triangle beside it covers: a straight data outline (a raster's
+// row of cell centres) then needs a few vertices, not every cell — in the greedy stage (a
+// candidate there goes in before any other) and in the drop stage
 // (a vertex next to a NODATA corner, whose removal would widen the corner's fan over the data,
 // goes after every other). So a coarse tile keeps its data's outline while its budget allows, and
 // no data hides under a fan whose continued heights only roughly follow it.

@@ -357,7 +357,7 @@ class PyramidBuilder {
       }
       return summary_;
     }
-    index_levels(*finest_ids);
+    if (Status s = index_levels(*finest_ids); !s) return s.error();
     for (std::uint32_t z = finest_; z-- > min_;) {
       if (Status s = build_level(z); !s) return s.error();
     }
@@ -460,9 +460,10 @@ class PyramidBuilder {
   }
 
   // Lists every level's tiles (the parents of the level below: each is built or the pyramid
-  // fails), in Morton order, and the coarsest level that reads each tile as a child or a source.
-  // Every level's ids stay listed and its side records kept, since any coarser level may read it.
-  void index_levels(const std::vector<geo::TileId>& finest_ids) {
+  // fails), in Morton order, the finest tiles' vertex counts (depth_of), and the coarsest level
+  // that reads each tile as a child or a source. Every level's ids stay listed and its side
+  // records kept, since any coarser level may read it.
+  Status index_levels(const std::vector<geo::TileId>& finest_ids) {
     levels_.assign(finest_ + 1, {});
     auto index_level = [&](std::uint32_t z, const std::vector<geo::TileId>& ids) {
       auto& l = levels_[z];
@@ -471,6 +472,15 @@ class PyramidBuilder {
       std::sort(l.begin(), l.end());
     };
     index_level(finest_, finest_ids);
+    // (reads each finest tile's row once; its vertex count is in the stored header)
+    finest_points_.assign(1, 0);
+    finest_points_.reserve(levels_[finest_].size() + 1);
+    for (const auto& [m, id] : levels_[finest_]) {
+      auto t = writer_.get_stored(id);
+      if (!t.ok()) return t.error();
+      if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
+      finest_points_.push_back(finest_points_.back() + (*t)->vertex_count);
+    }
     for (std::uint32_t z = finest_; z-- > min_;) {
       std::set<geo::TileId> parent_set;
       for (const auto& [m, c] : levels_[z + 1]) parent_set.insert(c.parent());
@@ -493,6 +503,7 @@ class PyramidBuilder {
         }
       }
     }
+    return {};
   }
 
   // The tiles of level s under `p` (a contiguous Morton range).
@@ -506,13 +517,22 @@ class PyramidBuilder {
     return {b, e};
   }
 
-  // The depth of the sources of a parent at level z: the deepest level whose tiles under the
-  // parent fit max_sources (1: its children). A parent is thinned from its sources: the tiles
-  // under it at the finest level whose tiles there number at most 4^source_depth.
+  // The depth of the sources of a parent at level z (1: its children). A parent is thinned from
+  // its sources: its finest tiles where they hold at most as many vertices as 4^source_depth full
+  // tiles (max_sources × max_points, and number at most 4 × max_sources), else its tiles at the
+  // deepest level where they number at most 4^source_depth. The first rule keeps the memory
+  // bound (points, not tiles, take the memory) and takes the finest tiles where the data's edge
+  // leaves them partly empty: a chain against them is exact (bench/lod/RESULTS.md, 18:30).
   std::uint32_t depth_of(const geo::TileId& pid, std::uint32_t z) const {
     for (std::uint32_t sl = finest_; sl > z + 1; --sl) {
       const auto [b, e] = under(pid, sl);
-      if (static_cast<std::size_t>(e - b) <= max_sources_) return sl - z;
+      const auto count = static_cast<std::size_t>(e - b);
+      if (count <= max_sources_) return sl - z;
+      if (sl == finest_ && count <= 4 * max_sources_) {
+        const auto first = static_cast<std::size_t>(b - levels_[sl].begin());
+        const std::uint64_t points = finest_points_[first + count] - finest_points_[first];
+        if (points <= std::uint64_t{max_sources_} * options_.lod.max_points) return sl - z;
+      }
     }
     return 1;
   }
@@ -660,6 +680,8 @@ class PyramidBuilder {
   std::uint64_t done_ = 0, total_ = 0;
   Throttle throttle_;
   std::vector<Level> levels_;
+  // Prefix sums of the finest tiles' vertex counts, in levels_[finest_]'s order (0 first).
+  std::vector<std::uint64_t> finest_points_;
   std::vector<std::vector<std::uint32_t>> last_reader_;
   TilePool pool_;  // last: its workers are joined before the rest goes
 };

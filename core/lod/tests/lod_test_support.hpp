@@ -26,11 +26,16 @@ inline LodOptions keep_everything() {
 }
 
 // A finest-like tile sampling `f` on an (n+1)×(n+1) lattice over the tile (n a power of two, so
-// lattice points on a border are exactly on it and neighbours share them bit for bit).
+// lattice points on a border are exactly on it and neighbours share them bit for bit); with
+// interior_n, its interior samples the (interior_n − 1)² inner points of an interior_n lattice
+// instead (neighbours still share their borders whatever the density of their interiors).
 inline tile::TinTile grid_tile(const geo::TileId& id, int n, const Surface& f,
-                               const std::function<double(double, double)>& weight = {}) {
+                               const std::function<double(double, double)>& weight = {},
+                               int interior_n = 0) {
   const geo::MercatorRect r = id.bounds();
   const double h = r.width() / n;
+  const int m = interior_n > 0 ? interior_n : n;
+  const double g = r.width() / m;
   ThinInput in;
   in.id = id;
   auto v = [&](double x, double y) {
@@ -43,8 +48,8 @@ inline tile::TinTile grid_tile(const geo::TileId& id, int n, const Surface& f,
     in.east.push_back(v(r.max_x, r.max_y - i * h));
     in.west.push_back(v(r.min_x, r.max_y - i * h));
   }
-  for (int j = 1; j < n; ++j) {
-    for (int i = 1; i < n; ++i) in.interior.push_back(v(r.min_x + i * h, r.max_y - j * h));
+  for (int j = 1; j < m; ++j) {
+    for (int i = 1; i < m; ++i) in.interior.push_back(v(r.min_x + i * g, r.max_y - j * g));
   }
   auto t = thin_tile(in, keep_everything());
   EXPECT_TRUE(t.ok()) << (t.ok() ? "" : t.error().message);

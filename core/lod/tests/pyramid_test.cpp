@@ -114,6 +114,11 @@ double world_hills(double x, double y) {
   return 100.0 + 50.0 * std::sin(3.0 * x) * std::cos(2.0 * y) + 20.0 * std::sin(17.0 * x * y);
 }
 
+// Relief at a finer scale than a level-5 tile: thinned tiles keep residual points.
+double rough_hills(double x, double y) {
+  return 100.0 + 50.0 * std::sin(40.0 * x) * std::cos(30.0 * y) + 8.0 * std::sin(300.0 * x * y);
+}
+
 TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
   TempStore ts("grid");
   auto w = ts.writer("grid");
@@ -309,9 +314,7 @@ TEST(Pyramid, RecordedErrorBoundsAndTracksTheMeasuredErrorOnEveryLevel) {
   auto w = ts.writer("honest");
   ASSERT_TRUE(w);
   const std::uint32_t L = 5, x0 = 8, y0 = 12;
-  auto f = [](double x, double y) {
-    return 100.0 + 50.0 * std::sin(40.0 * x) * std::cos(30.0 * y) + 8.0 * std::sin(300.0 * x * y);
-  };
+  const auto f = rough_hills;
   std::vector<TinTile> fin;
   for (std::uint32_t y = y0; y < y0 + 4; ++y) {
     for (std::uint32_t x = x0; x < x0 + 4; ++x) {
@@ -340,6 +343,55 @@ TEST(Pyramid, RecordedErrorBoundsAndTracksTheMeasuredErrorOnEveryLevel) {
     ASSERT_GT(measured, 0.0) << "level " << z;
     EXPECT_LE(recorded, kFactor * measured)
         << "level " << z << ": recorded " << recorded << " m, measured " << measured << " m";
+  }
+}
+
+// Finest tiles that are mostly empty (as at the data's edge) but too many for 4^source_depth:
+// where they hold no more points than 4^source_depth full tiles, a parent takes them as its
+// sources, so its chained error is exact (its children's residual bounds are not in it). A 4 × 4
+// block of finest tiles, the north-west 2 × 2 dense (a child thinned with residual points), the
+// others nearly empty; source_depth 1 (4 sources), max_points 180: the 16 tiles hold 720
+// vertices. Levels 2 … 0 record max(their exact error, their children's) up to the rounding
+// allowance; thinned from the children (the tile-count rule alone), level 2 recorded 112.3 m
+// where its exact error is 52.1 m and its children's 86.8 m.
+TEST(Pyramid, ParentOverSparseFinestTilesChainsExactlyAgainstThem) {
+  TempStore ts("sparse");
+  auto w = ts.writer("sparse");
+  ASSERT_TRUE(w);
+  const std::uint32_t L = 4, x0 = 4, y0 = 8;
+  const auto f = rough_hills;
+  std::vector<TinTile> fin;
+  std::size_t vertices = 0;
+  for (std::uint32_t y = y0; y < y0 + 4; ++y) {
+    for (std::uint32_t x = x0; x < x0 + 4; ++x) {
+      const bool dense = x < x0 + 2 && y < y0 + 2;
+      fin.push_back(grid_tile({L, x, y}, 8, f, {}, dense ? 8 : 2));
+      vertices += fin.back().vertex_count();
+      ASSERT_TRUE(w->put(fin.back()).ok());
+    }
+  }
+  PyramidOptions o;
+  o.source_depth = 1;
+  o.lod.max_points = 180;
+  ASSERT_EQ(vertices, 4 * o.lod.max_points);  // the 16 tiles just fit the point rule
+  auto summary = build_pyramid(*w, L, 0, o, 2);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  check_pyramid(*w, L, 0, o.lod.max_points, *summary, 1, 7);
+  for (std::uint32_t z = 0; z <= 2; ++z) {
+    const auto level = level_tiles(*w, z);
+    ASSERT_EQ(level.size(), 1u) << "level " << z;
+    const TinTile& t = level[0];
+    double children = 0;
+    for (const auto& c : t.id.children()) {
+      auto ct = w->get(c);
+      ASSERT_TRUE(ct.ok());
+      if (*ct) children = std::max(children, (*ct)->geometric_error);
+    }
+    const double exact = testing::data_point_max_difference(t, fin);
+    EXPECT_GE(t.geometric_error, exact) << "level " << z;
+    EXPECT_LE(t.geometric_error, std::max(exact, children) + error_rounding_allowance(t))
+        << "level " << z << ": recorded " << t.geometric_error << " m, exact " << exact
+        << " m, children " << children << " m";
   }
 }
 

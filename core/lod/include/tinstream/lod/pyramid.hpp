@@ -3,7 +3,9 @@
 // For z = L-1 down to min_level, every parent of an existing level z+1 tile is built from its
 // children and its sources (build_from_sources) and written to the same unpublished layer
 // version. Its sources are its tiles at the finest level s > z where it has at most
-// 4^source_depth tiles (its children when no deeper level qualifies): the finest tiles
+// 4^source_depth tiles (its children when no deeper level qualifies) — or its finest tiles
+// where they hold at most as many vertices as 4^source_depth full tiles (max_points each) and
+// number at most 4 × 4^source_depth (mostly empty tiles along the data's edge): the finest tiles
 // themselves for the three levels above the finest, and wherever the data under a parent fit
 // that many finest tiles (above the level where the data fit one tile, every level measures
 // against the same finest tiles, and a parent with one child takes that child's vertices as its

@@ -27,7 +27,8 @@
 //    budget, and continue while the next effective error is < epsilon (flat areas and lakes go).
 //    Corners are never removed.
 //  * Coverage first (docs/tile-format.md §2.1): a point that the current surface leaves under a
-//    triangle at a NODATA corner (outside its footprint) costs 10⁶ m more in the greedy stage, a
+//    triangle at a NODATA corner (outside its footprint; not one exactly on the triangle's data
+//    edge, which the data triangle beside it covers) costs 10⁶ m more in the greedy stage, a
 //    vertex next to a NODATA corner (or the side point next to a NODATA end of a side) as much
 //    more in the drop stage: a coarse tile keeps its data's outline while its budget allows, so
 //    no data hides under a fan.
