@@ -14,6 +14,7 @@
 #include "tinstream/lod/thinning.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <queue>
@@ -24,6 +25,7 @@
 #include "lattice.hpp"
 #include "plane.hpp"
 #include "removal_bound.hpp"
+#include "tie_break.hpp"
 #include "tinstream/kernel/triangulation.hpp"
 #include "tinstream/lod/error.hpp"
 
@@ -524,7 +526,12 @@ class TileThinner {
     if (Status s = triangulate_fixed(); !s) return s.error();
     if (Status s = constrain_border(); !s) return s.error();
     if (Status s = thin_interior(); !s) return s.error();
-    return to_tile();
+    auto out = to_tile();
+    if (!out) return out;
+    // Cocircular quadrilaterals (a grid's cells) take the diagonal the known points favour.
+    const std::array<std::span<const Vertex>, 3> known{in_.interior, in_.orphans, dropped_};
+    detail::break_delaunay_ties(*out, known, {});
+    return out;
   }
 
  private:
