@@ -186,9 +186,8 @@ std::size_t break_delaunay_ties(tile::TinTile& tile,
       }
       if (j == 3) continue;  // on the tile's border
       if (touched[t] || touched[u]) continue;
-      const std::uint32_t p = tile.triangles[t][i], q = tile.triangles[t][(i + 1) % 3];
       // t has the edge as a → b with c opposite; u has it as b → a with d opposite.
-      const std::uint32_t a = p, b = q, c = tile.triangles[t][(i + 2) % 3];
+      const std::uint32_t a = p0, b = q0, c = tile.triangles[t][(i + 2) % 3];
       const std::uint32_t d = tile.triangles[u][(j + 2) % 3];
       if (tile.triangles[u][j] != b || tile.triangles[u][(j + 1) % 3] != a) continue;
       if (nodata[a] || nodata[b] || nodata[c] || nodata[d]) continue;
