@@ -150,13 +150,14 @@ class FinerEdges {
 
 std::size_t break_delaunay_ties(tile::TinTile& tile,
                                 std::span<const std::span<const Vertex>> points,
-                                std::span<const tile::TinTile* const> finer) {
+                                std::span<const tile::TinTile* const> finer,
+                                std::span<const std::span<const Vertex>> own) {
   if (tile.triangles.size() < 2) return 0;
   const std::vector<Vertex> v = tile.vertices();
   std::vector<std::uint8_t> nodata(v.size(), 0);
   for (std::size_t c = 0; c < 4 && c < v.size(); ++c) nodata[c] = tile.corner_nodata[c] ? 1 : 0;
   // Built on first use: most tiles (LiDAR, reprojected grids) have no exact tie at all.
-  std::optional<PointGrid> grid;
+  std::optional<PointGrid> grid, own_grid;
   std::optional<FinerEdges> finer_edges;
   std::size_t flips = 0;
   std::vector<std::size_t> start, fill, out;  // half-edges t * 3 + i grouped by start vertex
@@ -200,9 +201,17 @@ std::size_t break_delaunay_ties(tile::TinTile& tile,
       if (!grid) grid.emplace(points);
       const auto e = quad_errors(*grid, v[a], v[b], v[c], v[d]);
       bool flip = e[1] < e[0];
-      if (!flip && e[1] == e[0] && !finer.empty()) {
+      bool settled = flip || e[1] > e[0];
+      if (!settled && !finer.empty()) {
         if (!finer_edges) finer_edges.emplace(v, finer);
-        flip = finer_edges->contains(c, d) && !finer_edges->contains(a, b);
+        const bool other = finer_edges->contains(c, d);
+        settled = other != finer_edges->contains(a, b);
+        flip = settled && other;
+      }
+      if (!settled && !own.empty()) {
+        if (!own_grid) own_grid.emplace(own);
+        const auto o = quad_errors(*own_grid, v[a], v[b], v[c], v[d]);
+        flip = o[1] < o[0];
       }
       if (!flip) continue;
       tile.triangles[t] = {a, d, c};
