@@ -80,8 +80,20 @@ class PointGrid {
 };
 
 // |z − the plane through a, b, c at p| when p lies in triangle a, b, c (counter-clockwise; its
-// edges included), else a negative number.
-double error_in(const Vertex& a, const Vertex& b, const Vertex& c, const Vertex& p) {
+// edges included), else a negative number. The same triangle gives the same bits whichever
+// vertex it is named from: it is evaluated from its lowest vertex (by x, then y). Otherwise the
+// rounding of the two drawings of a quadrilateral differs (by ~1e-12 m), and a quadrilateral
+// whose diagonals are equally good flipped on every sweep (each drawing made the other look
+// better).
+double error_in(const Vertex& a0, const Vertex& b0, const Vertex& c0, const Vertex& p) {
+  const auto lower = [](const Vertex& u, const Vertex& w) {
+    return u.x < w.x || (u.x == w.x && u.y < w.y);
+  };
+  const bool b_first = lower(b0, a0) && !lower(c0, b0);
+  const bool c_first = lower(c0, a0) && lower(c0, b0);
+  const Vertex& a = c_first ? c0 : b_first ? b0 : a0;
+  const Vertex& b = c_first ? a0 : b_first ? c0 : b0;
+  const Vertex& c = c_first ? b0 : b_first ? a0 : c0;
   const double w0 = (b.x - p.x) * (c.y - p.y) - (b.y - p.y) * (c.x - p.x);
   const double w1 = (c.x - p.x) * (a.y - p.y) - (c.y - p.y) * (a.x - p.x);
   const double w2 = (a.x - p.x) * (b.y - p.y) - (a.y - p.y) * (b.x - p.x);
