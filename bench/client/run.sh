@@ -29,7 +29,7 @@
 #    default): RSS per frame against the budgets (the GPU tier lives in process memory with
 #    Mesa) plus the RSS of the first frame;
 # 4. CesiumJS (npm cesium in Debian's headless chromium, playwright-core; bench/client/cesium.html)
-#    on the same layer's Cesium terrain endpoint, same camera, viewport, fov and maximum
+#    on the same layer's Cesium terrain endpoint, the cold part's camera, viewport, fov and maximum
 #    screen-space error, through the same proxy: time to a complete view and bytes (CESIUM=1,
 #    default when chromium and node are there; `npm install` in bench/client once;
 #    CESIUM_TIMEOUT_S, default 600).
@@ -168,7 +168,7 @@ if [[ $CESIUM == auto ]]; then
 fi
 : > "$OUT/cesium.jsonl"
 if [[ $CESIUM == 1 ]]; then
-  IFS=, read -r lon lat h hd p <<< "$CAM_FAR"
+  IFS=, read -r lon lat h hd p <<< "$CAM_COLD"  # the cold part's camera
   for r in $(seq "$REPEAT"); do
     node "$HERE/cesium_run.mjs" --proxy "$proxy" --layer "$layer" --camera "$lon,$lat,$h,$hd,$p" \
       --sse "$SSE" --size "$SIZE" --timeout-s "${CESIUM_TIMEOUT_S:-600}" --shot "$OUT/cesium_$r.png" \
