@@ -247,8 +247,9 @@ void TileStreamer::upload(GpuUploader& gpu) {
     const std::uint64_t bytes = (*mesh)->byte_size();
     if (frame_result_.uploaded > 0 && used + bytes > options_.upload_bytes_per_frame) break;
     const TileMesh& m = **mesh;
-    ResidentTile t{gpu.upload(m), m.centre, m.frame,         m.bounds,       m.geometric_error,
-                   m.min_z,       m.max_z,  m.quadrant_data, m.skirt_margin, m.skirt_lowest};
+    ResidentTile t{gpu.upload(m),     m.centre,       m.frame,      m.bounds,
+                   m.geometric_error, m.min_z,        m.max_z,      m.quadrant_data,
+                   m.skirt_margin,    m.skirt_lowest, m.skirt_spans};
     const std::uint64_t gpu_bytes = t.gpu.bytes;
     if (!gpu_.insert(r.key, t, gpu_bytes, frame_, frame_, release)) break;
     used += bytes;

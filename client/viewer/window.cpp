@@ -358,7 +358,7 @@ int run_window(const ViewerOptions& o) {
     (*renderer)->render(camera, f.draws, s.render_settings(ps.wireframe));
     (*renderer)->present(fb_w, fb_h);
     draw_panel(s, camera, ps, flight, frame_ms);
-    draw_legend(s.legend);
+    if (o.legend) draw_legend(s.legend);
     (*overlay)->render(fb_w, fb_h);
     complete = f.complete;
     complete_frames = f.complete ? complete_frames + 1 : 0;
