@@ -90,8 +90,11 @@ struct DrawItem {
   TileKey key;
   const ResidentTile* tile = nullptr;  // valid until the next update()
   std::uint8_t quadrant_mask = 0xF;    // bit q: draw quadrant q (quadkey digit) of the tile
-  double sse = 0;                      // screen-space error, pixels
-  double distance = 0;                 // metres from the camera to the tile's box
+  // Drawn only until its children arrive (its screen-space error is above the target): it gets
+  // resident imagery, but no imagery is asked for it (it would arrive for a tile soon gone).
+  bool stand_in = false;
+  double sse = 0;       // screen-space error, pixels
+  double distance = 0;  // metres from the camera to the tile's box
   // Skirts of this frame (skirts.hpp): the skirt quads hung, as runs {first quad, count} in
   // index order (quad q: the 6 indices from surface_index_count + 6q; a run never mixes side
   // and cut quads), lowered skirt_depth metres but never below the height skirt_floor.
@@ -194,7 +197,8 @@ class TileStreamer {
               bool needed = true);
   void prefetch(const View& view, std::uint16_t layer, const geo::TileId& id, int levels);
   void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
-  void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
+  void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask,
+            bool stand_in = false);
   // Imagery (drape.cpp): picks each drawn tile's imagery tile, asks for what is missing.
   void drape();
   void take_image(LoadResult& r);
