@@ -211,127 +211,154 @@ void Triangulation::restore_delaunay(std::vector<std::array<VertexId, 2>>& edges
   }
 }
 
+namespace detail {
+// One sub-segment s-e of a constraint on its way into the mesh.
+struct SegmentWalk {
+  VertexId s = kNone;
+  VertexId e = kNone;
+  // Filled by walk_segment. Either `split` is a vertex that s-e must pass through (one lying on
+  // it next to s, or the intersection point inserted on a crossed constraint): s-e becomes s-split
+  // and split-e. Or `crossed` holds the edges that s-end crosses, as vertex pairs (right, left) in
+  // walk order, where `end` is e or the first vertex found lying on s-e further along.
+  VertexId split = kNone;
+  VertexId end = kNone;
+  std::deque<std::array<VertexId, 2>> crossed;
+};
+}  // namespace detail
+
 Status Triangulation::insert_segment(VertexId a0, VertexId b0) {
   std::vector<std::array<VertexId, 2>> work{{a0, b0}};
   std::size_t budget = 16 * mesh_.vertex_slots() + 64;
+  detail::SegmentWalk walk;
+  std::vector<std::array<VertexId, 2>> fresh;
   while (!work.empty()) {
     if (--budget == 0) return Error(ErrorCode::internal, seg_name(a0, b0) + ": did not converge");
     const auto [s, e] = work.back();
     work.pop_back();
     if (s == e) continue;
     int idx;
-    TriangleId t = find_edge(s, e, &idx);
-    if (t != kNone) {
+    if (const TriangleId t = find_edge(s, e, &idx); t != kNone) {
       mesh_.set_edge_constrained(t, idx, true);
       continue;
     }
-    const XY ps = mesh_.xy(s), pe = mesh_.xy(e);
-    // The sector around s that the segment leaves through, or a vertex on the segment.
-    TriangleId cur = kNone;
-    int ci = 0;
-    VertexId on_segment = kNone;
-    for (TriangleId r : incident_triangles(s, false)) {
-      const int k = mesh_.index_of(r, s);
-      const VertexId x = mesh_.tri(r).v[next3(k)], y = mesh_.tri(r).v[prev3(k)];
-      if (x != kInfiniteVertex) {
-        const XY& px = mesh_.xy(x);
-        if (orient2d(ps, pe, px) == 0.0 &&
-            (px.x - ps.x) * (pe.x - ps.x) + (px.y - ps.y) * (pe.y - ps.y) > 0.0) {
-          on_segment = x;
-          break;
-        }
-      }
-      if (x == kInfiniteVertex || y == kInfiniteVertex) continue;
-      if (orient2d(ps, mesh_.xy(x), pe) > 0.0 && orient2d(ps, mesh_.xy(y), pe) < 0.0) {
-        cur = r;
-        ci = k;
-      }
-    }
-    if (on_segment != kNone) {
-      work.push_back({on_segment, e});
-      work.push_back({s, on_segment});
+    walk.s = s;
+    walk.e = e;
+    if (Status walked = walk_segment(walk); !walked.ok()) return walked;
+    if (walk.split != kNone) {
+      work.push_back({walk.split, e});
+      work.push_back({s, walk.split});
       continue;
     }
-    if (cur == kNone)
-      return Error(ErrorCode::internal,
-                   seg_name(s, e) + ": no triangle around the start vertex faces the end vertex");
-    // Walk along the segment, collecting crossed edges as vertex pairs (right, left).
-    std::deque<std::array<VertexId, 2>> crossed;
-    VertexId end = e;
-    bool split = false;
-    for (;;) {
-      if (mesh_.constrained(cur, ci)) {
-        const VertexId x = insert_intersection(s, e, cur, ci);
-        if (x == kNone) {
-          return Error(ErrorCode::internal,
-                       seg_name(s, e) + (intersections_left_ == 0
-                                             ? ": its crossings with rounded intersection points "
-                                               "cascade (too many intersection vertices)"
-                                             : ": could not insert the intersection point"));
-        }
-        work.push_back({x, e});
-        work.push_back({s, x});
-        split = true;
-        break;
-      }
-      const Triangle& T = mesh_.tri(cur);
-      crossed.push_back({T.v[next3(ci)], T.v[prev3(ci)]});
-      const TriangleId nb = T.n[ci];
-      const int j = mesh_.mirror(cur, ci);
-      const VertexId o = mesh_.tri(nb).v[j];
-      if (o == e) break;
-      if (o == kInfiniteVertex)
-        return Error(ErrorCode::internal, seg_name(s, e) + ": walked out of the hull");
-      const double side = orient2d(ps, pe, mesh_.xy(o));
-      if (side == 0.0) {  // o lies on the segment: finish s-o now, o-e later
-        end = o;
-        work.push_back({o, e});
-        break;
-      }
-      cur = nb;
-      ci = side < 0.0 ? prev3(j) : next3(j);
-    }
-    if (split) continue;
-    // Sloan: flip crossed edges whose quadrilateral is convex until none crosses s-end.
-    const XY pend = mesh_.xy(end);
-    std::vector<std::array<VertexId, 2>> fresh;
-    std::size_t stall = 0;
-    while (!crossed.empty()) {
-      const auto [x, y] = crossed.front();
-      crossed.pop_front();
-      int i;
-      const TriangleId f = find_edge(x, y, &i);
-      if (f == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": lost a crossed edge");
-      const VertexId p = mesh_.tri(f).v[i];
-      const VertexId q = mesh_.tri(mesh_.tri(f).n[i]).v[mesh_.mirror(f, i)];
-      const XY &pp = mesh_.xy(p), &pq = mesh_.xy(q);
-      const double ox = orient2d(pp, pq, mesh_.xy(x)), oy = orient2d(pp, pq, mesh_.xy(y));
-      if (!((ox > 0.0 && oy < 0.0) || (ox < 0.0 && oy > 0.0))) {
-        crossed.push_back({x, y});
-        if (++stall > 4 * crossed.size() + 16) {
-          return Error(ErrorCode::internal,
-                       seg_name(s, end) + ": crossed edges cannot be flipped away");
-        }
-        continue;
-      }
-      stall = 0;
-      mesh_.flip(f, i);
-      const bool crossing = p != s && p != end && q != s && q != end &&
-                            ((orient2d(ps, pend, pp) > 0.0 && orient2d(ps, pend, pq) < 0.0) ||
-                             (orient2d(ps, pend, pp) < 0.0 && orient2d(ps, pend, pq) > 0.0));
-      if (crossing) {
-        crossed.push_back({p, q});
-      } else {
-        fresh.push_back({p, q});
-      }
-    }
-    t = find_edge(s, end, &idx);
-    if (t == kNone)
-      return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
-    mesh_.set_edge_constrained(t, idx, true);
+    if (walk.end != e) work.push_back({walk.end, e});
+    if (Status flipped = flip_crossed_away(walk, fresh); !flipped.ok()) return flipped;
     restore_delaunay(fresh);
   }
   hint_ = mesh_.vertex_triangle(a0);
+  return {};
+}
+
+// Walks from s along s-e through the triangles it crosses (see detail::SegmentWalk for what it
+// leaves in `walk`).
+Status Triangulation::walk_segment(detail::SegmentWalk& walk) {
+  const VertexId s = walk.s, e = walk.e;
+  walk.split = kNone;
+  walk.end = e;
+  walk.crossed.clear();
+  const XY ps = mesh_.xy(s), pe = mesh_.xy(e);
+  // The sector around s that the segment leaves through, or a vertex on the segment.
+  TriangleId cur = kNone;
+  int ci = 0;
+  for (TriangleId r : incident_triangles(s, false)) {
+    const int k = mesh_.index_of(r, s);
+    const VertexId x = mesh_.tri(r).v[next3(k)], y = mesh_.tri(r).v[prev3(k)];
+    if (x != kInfiniteVertex) {
+      const XY& px = mesh_.xy(x);
+      if (orient2d(ps, pe, px) == 0.0 &&
+          (px.x - ps.x) * (pe.x - ps.x) + (px.y - ps.y) * (pe.y - ps.y) > 0.0) {
+        walk.split = x;
+        return {};
+      }
+    }
+    if (x == kInfiniteVertex || y == kInfiniteVertex) continue;
+    if (orient2d(ps, mesh_.xy(x), pe) > 0.0 && orient2d(ps, mesh_.xy(y), pe) < 0.0) {
+      cur = r;
+      ci = k;
+    }
+  }
+  if (cur == kNone)
+    return Error(ErrorCode::internal,
+                 seg_name(s, e) + ": no triangle around the start vertex faces the end vertex");
+  for (;;) {
+    if (mesh_.constrained(cur, ci)) {
+      walk.split = insert_intersection(s, e, cur, ci);
+      if (walk.split != kNone) return {};
+      return Error(ErrorCode::internal,
+                   seg_name(s, e) + (intersections_left_ == 0
+                                         ? ": its crossings with rounded intersection points "
+                                           "cascade (too many intersection vertices)"
+                                         : ": could not insert the intersection point"));
+    }
+    const Triangle& T = mesh_.tri(cur);
+    walk.crossed.push_back({T.v[next3(ci)], T.v[prev3(ci)]});
+    const TriangleId nb = T.n[ci];
+    const int j = mesh_.mirror(cur, ci);
+    const VertexId o = mesh_.tri(nb).v[j];
+    if (o == e) return {};
+    if (o == kInfiniteVertex)
+      return Error(ErrorCode::internal, seg_name(s, e) + ": walked out of the hull");
+    const double side = orient2d(ps, pe, mesh_.xy(o));
+    if (side == 0.0) {  // o lies on the segment: finish s-o now, o-e later
+      walk.end = o;
+      return {};
+    }
+    cur = nb;
+    ci = side < 0.0 ? prev3(j) : next3(j);
+  }
+}
+
+// Sloan: flips the crossed edges whose quadrilateral is convex until none crosses s-end, then
+// constrains s-end. The edges the flips made that do not cross s-end go to `fresh`, to be made
+// Delaunay again.
+Status Triangulation::flip_crossed_away(detail::SegmentWalk& walk,
+                                        std::vector<std::array<VertexId, 2>>& fresh) {
+  const VertexId s = walk.s, end = walk.end;
+  const XY ps = mesh_.xy(s), pend = mesh_.xy(end);
+  auto& crossed = walk.crossed;
+  std::size_t stall = 0;
+  while (!crossed.empty()) {
+    const auto [x, y] = crossed.front();
+    crossed.pop_front();
+    int i;
+    const TriangleId f = find_edge(x, y, &i);
+    if (f == kNone) return Error(ErrorCode::internal, seg_name(s, end) + ": lost a crossed edge");
+    const VertexId p = mesh_.tri(f).v[i];
+    const VertexId q = mesh_.tri(mesh_.tri(f).n[i]).v[mesh_.mirror(f, i)];
+    const XY &pp = mesh_.xy(p), &pq = mesh_.xy(q);
+    const double ox = orient2d(pp, pq, mesh_.xy(x)), oy = orient2d(pp, pq, mesh_.xy(y));
+    if (!((ox > 0.0 && oy < 0.0) || (ox < 0.0 && oy > 0.0))) {
+      crossed.push_back({x, y});
+      if (++stall > 4 * crossed.size() + 16) {
+        return Error(ErrorCode::internal,
+                     seg_name(s, end) + ": crossed edges cannot be flipped away");
+      }
+      continue;
+    }
+    stall = 0;
+    mesh_.flip(f, i);
+    const bool crossing = p != s && p != end && q != s && q != end &&
+                          ((orient2d(ps, pend, pp) > 0.0 && orient2d(ps, pend, pq) < 0.0) ||
+                           (orient2d(ps, pend, pp) < 0.0 && orient2d(ps, pend, pq) > 0.0));
+    if (crossing) {
+      crossed.push_back({p, q});
+    } else {
+      fresh.push_back({p, q});
+    }
+  }
+  int idx;
+  const TriangleId t = find_edge(s, end, &idx);
+  if (t == kNone)
+    return Error(ErrorCode::internal, seg_name(s, end) + ": edge missing after flips");
+  mesh_.set_edge_constrained(t, idx, true);
   return {};
 }
 

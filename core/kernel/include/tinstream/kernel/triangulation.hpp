@@ -39,6 +39,7 @@ namespace tinstream::kernel {
 
 namespace detail {
 struct RemovalHole;  // vertex removal's scratch (src/removal_hole.hpp)
+struct SegmentWalk;  // one step of constraint insertion (src/constrain.cpp)
 // Owns a RemovalHole, made on first use, so that removals reuse its buffers. A copy starts with
 // none (scratch and a removal plan are not part of a triangulation's value).
 class RemovalScratch {
@@ -202,7 +203,12 @@ class Triangulation {
   bool pending_contains(const XY& p, VertexId* found) const;
   TriangleId start_triangle(TriangleId hint) const;
 
+  // Constraint insertion (constrain.cpp): insert_segment splits a-b at vertices on it and at
+  // crossed constraints into sub-segments; each is walked (walk_segment), its crossed edges are
+  // flipped away (flip_crossed_away), and the flipped edges are made Delaunay again.
   Status insert_segment(VertexId a, VertexId b);
+  Status walk_segment(detail::SegmentWalk& walk);
+  Status flip_crossed_away(detail::SegmentWalk& walk, std::vector<std::array<VertexId, 2>>& fresh);
   void restore_delaunay(std::vector<std::array<VertexId, 2>>& edges);
   void restore_delaunay_everywhere();
   VertexId insert_intersection(VertexId a, VertexId b, TriangleId t, int edge);
