@@ -179,6 +179,9 @@ void plan_skirts(std::vector<DrawItem>& draws) {
     const unsigned mask = t.quadrant_mask;
     for (std::size_t c = 0; c < 4; ++c) {
       const unsigned qa = kCutA[c], qb = kCutB[c];
+      // Unsigned, not bool: GCC 12.2 -O2 miscompiled the bool form of this loop when it stored
+      // std::optional<std::pair<TileId, size_t>> per cut (mask 0b0011 gave cut 0 only; -O0,
+      // clang and -fsanitize=undefined right). Skirts.AParentDrawnInSomeQuadrants… catches it.
       const unsigned da = (mask >> qa) & 1u, db = (mask >> qb) & 1u;
       if (da == db) continue;
       const unsigned q = da != 0 ? qa : qb;
