@@ -109,12 +109,12 @@ std::size_t facing_group(const geo::TileId& t, std::size_t side, const geo::Tile
 
 // What N draws along group g: the spans of its skirt quads there (its data's border segments, or
 // its surface's cross-section along a cut), a side's clipped to the quadrants N draws, merged and
-// sorted.
-std::vector<SkirtSpan> data_along(const DrawItem& n, std::size_t g) {
+// sorted, into `out` (a scratch vector the caller reuses: no allocation per pair and frame).
+void data_along(const DrawItem& n, std::size_t g, std::vector<SkirtSpan>& out) {
+  out.clear();
   const ResidentTile& r = *n.tile;
   const auto [first, end] = group_range(r, g);
-  std::vector<SkirtSpan> out;
-  if (end > r.skirt_spans.size()) return out;
+  if (end > r.skirt_spans.size()) return;
   const std::array<SkirtSpan, 2> halves =
       g < 4 ? drawn_halves(n.key.tile, g, n.quadrant_mask)
             : std::array<SkirtSpan, 2>{SkirtSpan{-4, 4}, SkirtSpan{4, 4}};
@@ -126,14 +126,14 @@ std::vector<SkirtSpan> data_along(const DrawItem& n, std::size_t g) {
     }
   std::sort(out.begin(), out.end(),
             [](const SkirtSpan& a, const SkirtSpan& b) { return a.lo < b.lo; });
-  std::vector<SkirtSpan> merged;
+  std::size_t kept = 0;  // merged in place
   for (const SkirtSpan& s : out)
-    if (!merged.empty() && s.lo <= merged.back().hi) {
-      merged.back().hi = std::max(merged.back().hi, s.hi);
+    if (kept > 0 && s.lo <= out[kept - 1].hi) {
+      out[kept - 1].hi = std::max(out[kept - 1].hi, s.hi);
     } else {
-      merged.push_back(s);
+      out[kept++] = s;
     }
-  return merged;
+  out.resize(kept);
 }
 
 // Marks the quads [first, end) of `spans` that overlap `data` (sorted, disjoint) over
@@ -164,6 +164,7 @@ constexpr std::array<std::size_t, 4> kCutSideOfA{1, 1, 2, 2};
 
 void plan_skirts(std::vector<DrawItem>& draws) {
   std::vector<std::uint8_t> hung;
+  std::vector<SkirtSpan> data;  // data_along's
   for (DrawItem& t : draws) {
     t.skirt_sides = 0;
     t.skirt_runs.clear();
@@ -198,7 +199,7 @@ void plan_skirts(std::vector<DrawItem>& draws) {
       bool met = false;
       const auto hang = [&](const geo::TileId& id, std::size_t side, std::size_t group) {
         if (!touches(id, side, n.key.tile, n.quadrant_mask)) return;
-        const std::vector<SkirtSpan> data = data_along(n, facing_group(id, side, n.key.tile));
+        data_along(n, facing_group(id, side, n.key.tile), data);
         if (mark_overlaps(r.skirt_spans, group_first[group], group_first[group + 1], data, hung)) {
           t.skirt_sides = static_cast<std::uint8_t>(t.skirt_sides | (1u << group));
           met = true;
