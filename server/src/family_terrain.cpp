@@ -77,7 +77,17 @@ void terrain_key(std::string& key, const TerrainRoute& r, std::int64_t version, 
   key.append(r.id.quadkey()).append(normals ? "|n" : "|");
 }
 
-// Encodes one terrain tile (stored, or a flat ancestor of the coarsest stored level) as gzip
+// A stored tile's blob, inflated and decoded.
+Result<tile::TinTile> decode_stored(const store::StoredTile& blob, const geo::TileId& id) {
+  auto raw = inflate_blob(blob, id);
+  if (!raw) return raw.error();
+  auto decoded = tile::decode(*raw);
+  if (!decoded)
+    return Error(ErrorCode::internal, "tile " + id.to_string() + ": " + decoded.error().message);
+  return std::move(*decoded);
+}
+
+// Encodes one terrain tile (stored, or a filler tile: terrain::synthetic_tiles) as gzip
 // quantized-mesh; or the answer that replaces it (404, 304 on a matching If-None-Match, errors).
 std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
     const Request& req, Context& ctx, const TerrainRoute& r, const store::LayerInfo& info,
@@ -86,10 +96,12 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   if (!st) return error_response(st.error());
   auto stored = (*st)->tile(r.layer, r.id);
   if (!stored) return error_response(stored.error());
-  // Flat filler tiles: only the ancestors of the coarsest stored level, i.e. tiles above the
-  // layer's data (what layer.json lists), so their number is bounded by the layer's extent.
+  // Flat filler tiles (what layer.json lists, terrain::synthetic_tiles): every tile of levels 0
+  // and 1, and the ancestors of the coarsest stored level, i.e. tiles above the layer's data, so
+  // their number is bounded by the layer's extent.
   const bool synthetic = !stored->has_value();
-  if (synthetic && (r.id.z >= info.min_level || !overlaps(r.id.bounds(), info.mercator_bounds))) {
+  if (synthetic && r.id.z >= terrain::kWholeLevels &&
+      (r.id.z >= info.min_level || !overlaps(r.id.bounds(), info.mercator_bounds))) {
     return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
                                std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
   }
@@ -102,18 +114,22 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   if (auto not_modified = terrain_not_modified(req, ctx.config, sent_etag, normals)) {
     return std::move(*not_modified);
   }
-  tile::TinTile tin;
-  if (synthetic) {
-    tin = terrain::flat_tile(r.id);
-  } else {
-    auto raw = inflate_blob(**stored, r.id);
-    if (!raw) return error_response(raw.error());
-    auto decoded = tile::decode(*raw);
-    if (!decoded)
-      return json_error(500, "tile " + r.id.to_string() + ": " + decoded.error().message);
-    tin = std::move(*decoded);
-  }
-  auto qm = terrain::encode_quantized_mesh(tin, info.projection, {normals});
+  // A filler tile is joined to the stored neighbours of its level (levels 0 and 1 can hold
+  // stored tiles too).
+  const Result<tile::TinTile> tin =
+      synthetic ? terrain::filler_tile(
+                      r.id,
+                      [&](const geo::TileId& id) -> Result<std::optional<tile::TinTile>> {
+                        auto blob = (*st)->tile(r.layer, id);
+                        if (!blob) return blob.error();
+                        if (!blob->has_value()) return std::optional<tile::TinTile>();
+                        auto t = decode_stored(**blob, id);
+                        if (!t) return t.error();
+                        return std::optional<tile::TinTile>(std::move(*t));
+                      })
+                : decode_stored(**stored, r.id);
+  if (!tin) return error_response(tin.error());
+  auto qm = terrain::encode_quantized_mesh(*tin, info.projection, {normals});
   if (!qm) return error_response(qm.error());
   auto bytes = terrain::gzip_compress(*qm);
   Response head;

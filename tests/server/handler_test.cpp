@@ -265,6 +265,16 @@ TEST_F(HandlerTest, TerrainAboveTheCoarsestLevelIsFlatAndBelowAbsentIs404) {
   ASSERT_EQ(root.status, 200) << root.body;
   const auto mesh = testing::decode_quantized_mesh(testing::gunzip(std::string(root.payload())));
   EXPECT_EQ(mesh.u.size(), 4u);
+  // Every level-1 tile, the three away from Luxembourg's data included: CesiumJS cannot upsample
+  // a 180° tile (terrain::kWholeLevels).
+  for (const char* t : {"0/0", "0/1", "1/0", "1/1"}) {
+    const Response r = get(std::string("/tiles/lux/1/") + t + ".terrain", "gzip");
+    ASSERT_EQ(r.status, 200) << t << ": " << r.body;
+    EXPECT_EQ(testing::decode_quantized_mesh(testing::gunzip(std::string(r.payload()))).u.size(),
+              4u)
+        << t;
+  }
+  EXPECT_EQ(get("/tiles/lux/2/0/0.terrain", "gzip").status, 404);  // level 2, away from the data
   EXPECT_EQ(get("/tiles/lux/12/0/0.terrain", "gzip").status, 404);
 }
 

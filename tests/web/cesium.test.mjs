@@ -86,6 +86,41 @@ await run('web_cesium', async ({ server, browser }) => {
   check(responsesMatching(log, /\.terrain/).every((r) => r.status === 200), 'a terrain tile failed after switching');
   mark('layer switched');
 
+  // From space, with a whole hemisphere in view, the globe must settle too. CesiumJS cannot stand
+  // in for a missing level-1 tile (180° wide) by upsampling its parent — it gets no horizon-
+  // occlusion point, the tile stays failed and queued and tilesLoaded never holds — so the server
+  // lists and serves every tile of levels 0 and 1 (terrain::kWholeLevels).
+  await page.evaluate(() => new Promise((resolve) => {
+    const C = window.Cesium;
+    const scene = window.tinstream.viewer.scene;
+    scene.camera.setView({ destination: C.Cartesian3.fromDegrees(-118.2, 34.3, 2.0e7) });
+    let frames = 0;
+    const stop = scene.postRender.addEventListener(() => { if (++frames >= 3) { stop(); resolve(); } });
+    setTimeout(resolve, 5000);
+    scene.requestRender();
+  }));
+  await waitFor('globe.tilesLoaded from space', () => page.evaluate(() => window.tinstream.viewer.scene.globe.tilesLoaded), 60000);
+  const spaceBad = responsesMatching(log, /\.terrain/).filter((r) => r.status !== 200);
+  check(spaceBad.length === 0, `terrain tiles that failed from space: ${JSON.stringify(spaceBad.slice(0, 5))}`);
+  // No globe tile left failed (Cesium's TerrainState.FAILED is 0; tilesLoaded alone can hold
+  // while a failed tile is no longer queued).
+  const failedTiles = await page.evaluate(() => {
+    const failed = [];
+    const stack = [...window.tinstream.viewer.scene.globe._surface._levelZeroTiles];
+    while (stack.length) {
+      const t = stack.pop();
+      if (t.data && t.data.terrainState === 0) failed.push(`${t.level}/${t.x}/${t.y}`);
+      for (const c of [t._northwestChild, t._northeastChild, t._southwestChild, t._southeastChild]) {
+        if (c) stack.push(c);
+      }
+    }
+    return failed;
+  });
+  check(failedTiles.length === 0, `globe tiles whose terrain failed: ${failedTiles.join(', ')}`);
+  check(new Set(responsesMatching(log, /\/tiles\/coarse\/1\/\d+\/\d+\.terrain/).map((r) => r.url)).size >= 2,
+        'no level-1 terrain tile was requested from space');
+  mark('tiles loaded from space');
+
   checkNoForeignRequests(log, server.base);
   check(log.pageErrors.length === 0, `page errors: ${log.pageErrors.join('\n')}`);
   check(log.failed.length === 0, `failed requests: ${JSON.stringify(log.failed.slice(0, 5))}`);

@@ -85,8 +85,12 @@ int run_export_cesium_dir(const CesiumDirExport& request) {
     bytes += gz.size();
     return {};
   };
-  for (const geo::TileId& id : terrain::synthetic_ancestors(*ids, info->min_level)) {
-    if (Status s = emit(terrain::flat_tile(id)); !s) return fail(s.error().message);
+  for (const geo::TileId& id : terrain::synthetic_tiles(*ids, info->min_level)) {
+    auto filler = terrain::filler_tile(id, [&](const geo::TileId& n) {
+      return st->read_tile(request.layer, n);
+    });
+    if (!filler) return fail(filler.error().message);
+    if (Status s = emit(*filler); !s) return fail(s.error().message);
   }
   for (const geo::TileId& id : *ids) {
     auto tin = st->read_tile(request.layer, id);

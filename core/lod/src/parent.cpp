@@ -18,7 +18,6 @@
 #include <string>
 #include <tuple>
 
-#include "tie_break.hpp"
 #include "tinstream/lod/error.hpp"
 
 namespace tinstream::lod {
@@ -287,29 +286,25 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
       for (const LodTile* t : finer) append(in.interior, t->witnesses);
     }
   }
-  auto thinned = thin_tile(in, options, stats);
+  // Cocircular quadrilaterals (a grid's cells) take the diagonal the finer tiles' vertices
+  // favour, else the one a finer tile or child drew (they saw more of the data).
+  TieContext ties;
+  for (const LodTile* t : finer) {
+    ties.drawn.push_back(&t->tile);
+    for (const auto* list :
+         {&t->tile.interior, &t->tile.north, &t->tile.east, &t->tile.south, &t->tile.west}) {
+      ties.known.emplace_back(*list);
+    }
+  }
+  if (sources.depth > 1) {
+    for (const auto& c : children.tiles) {
+      if (c) ties.drawn.push_back(&c->tile);
+    }
+  }
+  auto thinned = thin_tile(in, options, stats, &ties);
   if (!thinned.ok()) return thinned.error();
   LodTile out;
   out.tile = std::move(*thinned);
-  // Cocircular quadrilaterals (a grid's cells) take the diagonal the finer tiles' vertices
-  // favour, else the one a finer tile or child drew (they saw more of the data).
-  {
-    std::vector<const TinTile*> drawn;
-    std::vector<std::span<const Vertex>> known{in.interior, in.orphans};
-    for (const LodTile* t : finer) {
-      drawn.push_back(&t->tile);
-      for (const auto* list :
-           {&t->tile.interior, &t->tile.north, &t->tile.east, &t->tile.south, &t->tile.west}) {
-        known.emplace_back(*list);
-      }
-    }
-    if (sources.depth > 1) {
-      for (const auto& c : children.tiles) {
-        if (c) drawn.push_back(&c->tile);
-      }
-    }
-    detail::break_delaunay_ties(out.tile, known, drawn);
-  }
 
   // Error against the finest data (error.hpp), chained through the finer tiles' witnesses and
   // bounds; the parent's own witnesses come out of it.

@@ -514,10 +514,11 @@ namespace {
 // tile. Each step reads what the previous ones left in the members.
 class TileThinner {
  public:
-  TileThinner(const ThinInput& in, const LodOptions& options, ThinStats& st)
+  TileThinner(const ThinInput& in, const LodOptions& options, ThinStats& st, const TieContext* ties)
       : in_(in),
         options_(options),
         st_(st),
+        ties_(ties),
         r_(in.rect ? *in.rect : in.id.bounds()),
         tri_(kernel::Rect{r_.min_x, r_.min_y, r_.max_x, r_.max_y}) {}
 
@@ -528,9 +529,16 @@ class TileThinner {
     if (Status s = thin_interior(); !s) return s.error();
     auto out = to_tile();
     if (!out) return out;
-    // Cocircular quadrilaterals (a grid's cells) take the diagonal the known points favour.
-    const std::array<std::span<const Vertex>, 3> known{in_.interior, in_.orphans, dropped_};
-    detail::break_delaunay_ties(*out, known, {});
+    // Cocircular quadrilaterals (a grid's cells) take the diagonal the known points favour, else
+    // the one the finer tiles drew.
+    const std::array<std::span<const Vertex>, 3> own{in_.interior, in_.orphans, dropped_};
+    if (!ties_) {
+      detail::break_delaunay_ties(*out, own, {});
+      return out;
+    }
+    std::vector<std::span<const Vertex>> known(own.begin(), own.end());
+    known.insert(known.end(), ties_->known.begin(), ties_->known.end());
+    detail::break_delaunay_ties(*out, known, ties_->drawn, own);
     return out;
   }
 
@@ -750,6 +758,7 @@ class TileThinner {
   const ThinInput& in_;
   const LodOptions& options_;
   ThinStats& st_;
+  const TieContext* ties_;  // null: the candidates alone
   const geo::MercatorRect r_;
   std::vector<Vertex> dropped_;               // border points the border thinning dropped
   std::array<std::vector<Vertex>, 4> sides_;  // thinned north, east, south, west
@@ -768,7 +777,8 @@ class TileThinner {
 
 }  // namespace
 
-Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, ThinStats* stats) {
+Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, ThinStats* stats,
+                                const TieContext* ties) {
   if (options.max_points < 4) {
     return invalid_argument("lod: max_points must be at least 4 (the corners), got " +
                             std::to_string(options.max_points));
@@ -778,7 +788,7 @@ Result<tile::TinTile> thin_tile(const ThinInput& in, const LodOptions& options, 
   ThinStats local;
   ThinStats& st = stats ? *stats : local;
   st = ThinStats{};
-  return TileThinner(in, options, st).run();
+  return TileThinner(in, options, st, ties).run();
 }
 
 ThinInput thin_input(const tile::TinTile& tile) {

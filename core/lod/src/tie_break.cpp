@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <functional>
 #include <optional>
 #include <unordered_map>
-#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -79,17 +79,43 @@ class PointGrid {
   std::vector<const Vertex*> points_;  // by bucket
 };
 
-// |z − the plane through a, b, c at p| when p lies in triangle a, b, c (counter-clockwise; its
-// edges included), else a negative number.
-double error_in(const Vertex& a, const Vertex& b, const Vertex& c, const Vertex& p) {
-  const double w0 = (b.x - p.x) * (c.y - p.y) - (b.y - p.y) * (c.x - p.x);
-  const double w1 = (c.x - p.x) * (a.y - p.y) - (c.y - p.y) * (a.x - p.x);
-  const double w2 = (a.x - p.x) * (b.y - p.y) - (a.y - p.y) * (b.x - p.x);
-  if (w0 < 0 || w1 < 0 || w2 < 0) return -1;
-  const double sum = w0 + w1 + w2;
-  if (!(sum > 0)) return -1;
-  return std::abs((w0 * a.z + w1 * b.z + w2 * c.z) / sum - p.z);
-}
+// A triangle (counter-clockwise) named from its lowest vertex (by x, then y), so that the same
+// triangle gives the same bits whichever vertex it was named from. Otherwise the rounding of the
+// two drawings of a quadrilateral differs (by ~1e-12 m), and a quadrilateral whose diagonals are
+// equally good flipped on every sweep (each drawing made the other look better).
+class Drawn {
+ public:
+  Drawn(const Vertex& a, const Vertex& b, const Vertex& c) {
+    const auto lower = [](const Vertex& u, const Vertex& w) {
+      return u.x < w.x || (u.x == w.x && u.y < w.y);
+    };
+    if (lower(b, a) && !lower(c, b)) {
+      a_ = &b, b_ = &c, c_ = &a;
+    } else if (lower(c, a) && lower(c, b)) {
+      a_ = &c, b_ = &a, c_ = &b;
+    } else {
+      a_ = &a, b_ = &b, c_ = &c;
+    }
+  }
+
+  // |z − the plane at p| when p lies in the triangle (its edges included), else a negative
+  // number.
+  double error(const Vertex& p) const {
+    const Vertex &a = *a_, &b = *b_, &c = *c_;
+    const double w0 = (b.x - p.x) * (c.y - p.y) - (b.y - p.y) * (c.x - p.x);
+    const double w1 = (c.x - p.x) * (a.y - p.y) - (c.y - p.y) * (a.x - p.x);
+    const double w2 = (a.x - p.x) * (b.y - p.y) - (a.y - p.y) * (b.x - p.x);
+    if (w0 < 0 || w1 < 0 || w2 < 0) return -1;
+    const double sum = w0 + w1 + w2;
+    if (!(sum > 0)) return -1;
+    return std::abs((w0 * a.z + w1 * b.z + w2 * c.z) / sum - p.z);
+  }
+
+ private:
+  const Vertex* a_;
+  const Vertex* b_;
+  const Vertex* c_;
+};
 
 // The maximum error over the points inside the quadrilateral, drawn as triangles (a, b, c) and
 // (b, a, d) (diagonal a-b) and as (a, d, c) and (d, b, c) (diagonal c-d); -1 where no point is.
@@ -98,11 +124,13 @@ std::array<double, 2> quad_errors(const PointGrid& grid, const Vertex& a, const 
   std::array<double, 2> worst{-1, -1};
   const double x0 = std::min({a.x, b.x, c.x, d.x}), x1 = std::max({a.x, b.x, c.x, d.x});
   const double y0 = std::min({a.y, b.y, c.y, d.y}), y1 = std::max({a.y, b.y, c.y, d.y});
+  const Drawn abc(a, b, c), bad(b, a, d), adc(a, d, c), dbc(d, b, c);
   grid.for_each_in(x0, y0, x1, y1, [&](const Vertex& p) {
-    const double now = std::max(error_in(a, b, c, p), error_in(b, a, d, p));
+    if (p.x < x0 || p.x > x1 || p.y < y0 || p.y > y1) return;  // a bucket's point outside
+    const double now = std::max(abc.error(p), bad.error(p));
     if (now < 0) return;  // outside the quadrilateral
     worst[0] = std::max(worst[0], now);
-    worst[1] = std::max(worst[1], std::max(error_in(a, d, c, p), error_in(d, b, c, p)));
+    worst[1] = std::max(worst[1], std::max(adc.error(p), dbc.error(p)));
   });
   return worst;
 }
@@ -126,37 +154,46 @@ class FinerEdges {
       for (const auto& tri : t->triangles) {
         for (std::size_t i = 0; i < 3; ++i) {
           const std::uint32_t p = mapped[tri[i]], q = mapped[tri[(i + 1) % 3]];
-          if (p != kAbsent && q != kAbsent) keys_.insert(key(p, q));
+          if (p != kAbsent && q != kAbsent) keys_.push_back(key(p, q));
         }
       }
     }
+    std::sort(keys_.begin(), keys_.end());
+    keys_.erase(std::unique(keys_.begin(), keys_.end()), keys_.end());
   }
-  bool contains(std::uint32_t p, std::uint32_t q) const { return keys_.count(key(p, q)) != 0; }
+  bool contains(std::uint32_t p, std::uint32_t q) const {
+    return std::binary_search(keys_.begin(), keys_.end(), key(p, q));
+  }
 
  private:
   static constexpr std::uint32_t kAbsent = ~std::uint32_t{0};
   struct XYHash {
     std::size_t operator()(const std::pair<double, double>& p) const {
-      return std::hash<double>{}(p.first) * 0x9E3779B97F4A7C15ULL ^ std::hash<double>{}(p.second);
+      // The bits, mixed (std::hash<double> hashes the bytes one by one); + 0.0 makes -0 into +0,
+      // which compares equal.
+      const std::uint64_t h = std::bit_cast<std::uint64_t>(p.first + 0.0) * 0x9E3779B97F4A7C15ULL ^
+                              std::bit_cast<std::uint64_t>(p.second + 0.0);
+      return static_cast<std::size_t>(h ^ h >> 29);
     }
   };
   static std::uint64_t key(std::uint32_t p, std::uint32_t q) {
     return std::uint64_t{std::min(p, q)} << 32 | std::max(p, q);
   }
-  std::unordered_set<std::uint64_t> keys_;
+  std::vector<std::uint64_t> keys_;  // sorted, unique (a hash set's node per edge cost more)
 };
 
 }  // namespace
 
 std::size_t break_delaunay_ties(tile::TinTile& tile,
                                 std::span<const std::span<const Vertex>> points,
-                                std::span<const tile::TinTile* const> finer) {
+                                std::span<const tile::TinTile* const> finer,
+                                std::span<const std::span<const Vertex>> own) {
   if (tile.triangles.size() < 2) return 0;
   const std::vector<Vertex> v = tile.vertices();
   std::vector<std::uint8_t> nodata(v.size(), 0);
   for (std::size_t c = 0; c < 4 && c < v.size(); ++c) nodata[c] = tile.corner_nodata[c] ? 1 : 0;
   // Built on first use: most tiles (LiDAR, reprojected grids) have no exact tie at all.
-  std::optional<PointGrid> grid;
+  std::optional<PointGrid> grid, own_grid;
   std::optional<FinerEdges> finer_edges;
   std::size_t flips = 0;
   std::vector<std::size_t> start, fill, out;  // half-edges t * 3 + i grouped by start vertex
@@ -200,9 +237,17 @@ std::size_t break_delaunay_ties(tile::TinTile& tile,
       if (!grid) grid.emplace(points);
       const auto e = quad_errors(*grid, v[a], v[b], v[c], v[d]);
       bool flip = e[1] < e[0];
-      if (!flip && e[1] == e[0] && !finer.empty()) {
+      bool settled = flip || e[1] > e[0];
+      if (!settled && !finer.empty()) {
         if (!finer_edges) finer_edges.emplace(v, finer);
-        flip = finer_edges->contains(c, d) && !finer_edges->contains(a, b);
+        const bool other = finer_edges->contains(c, d);
+        settled = other != finer_edges->contains(a, b);
+        flip = settled && other;
+      }
+      if (!settled && !own.empty()) {
+        if (!own_grid) own_grid.emplace(own);
+        const auto o = quad_errors(*own_grid, v[a], v[b], v[c], v[d]);
+        flip = o[1] < o[0];
       }
       if (!flip) continue;
       tile.triangles[t] = {a, d, c};

@@ -23,9 +23,12 @@ namespace tinstream::lod::detail {
 // smaller maximum |z − surface| over the points (of every list in `points`) inside it, or, where
 // the points cannot tell (none inside, or equal), whose other diagonal is an edge of a `finer`
 // tile and its own is not (a finer tile saw more of the data: a parent keeps its children's
-// choices). Repeats until no flip applies (at most 8 sweeps). Returns the number of flips.
+// choices), and where neither settles it, whose other diagonal has a strictly smaller maximum
+// error over the points of `own` (the tile's own candidates, a subset of `points`). Repeats until
+// no flip applies (at most 8 sweeps). Returns the number of flips.
 std::size_t break_delaunay_ties(tile::TinTile& tile,
                                 std::span<const std::span<const tile::Vertex>> points,
-                                std::span<const tile::TinTile* const> finer);
+                                std::span<const tile::TinTile* const> finer,
+                                std::span<const std::span<const tile::Vertex>> own = {});
 
 }  // namespace tinstream::lod::detail

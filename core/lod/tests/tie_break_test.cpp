@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <random>
 #include <set>
 #include <span>
 #include <utility>
@@ -170,6 +171,28 @@ TEST(TieBreak, AParentKeepingAllOfItsOnlyChildKeepsTheChildsTriangles) {
   }
   EXPECT_GT(compared, in_child.size() / 2);
   EXPECT_EQ(missing, 0u) << "of " << compared << " child triangles";
+}
+
+TEST(TieBreak, EquallyGoodDiagonalsDoNotFlipBackAndForth) {
+  // An isosceles trapezoid (exactly cocircular: its x are multiples of h around one axis) with
+  // mirror-symmetric heights and a point on the axis: both diagonals interpolate the point
+  // equally in exact arithmetic; in floating point each drawing's rounding differed. A flip may
+  // happen, but once: a flipped quadrilateral must not look worse the next sweep.
+  const geo::MercatorRect r = kTile.bounds();
+  const double h = r.width() / 64, x0 = r.min_x + 8 * h, y0 = r.min_y + 8 * h;
+  std::mt19937 rng(20);
+  std::uniform_real_distribution<double> unit(0.05, 0.95), height(100, 3000);
+  for (int trial = 0; trial < 300; ++trial) {
+    const double za = height(rng), zb = height(rng), y1 = y0 + h * (1 + 4 * unit(rng));
+    TinTile t = saddle_cell(0, 0, 0, 0);
+    // Bottom left, bottom right, top right, top left (x around x0 + 1.5 h), diagonal 4–6.
+    t.interior = {Vertex{x0, y0, za, 0}, Vertex{x0 + 3 * h, y0, za, 0},
+                  Vertex{x0 + 2 * h, y1, zb, 0}, Vertex{x0 + h, y1, zb, 0}};
+    t.triangles = {{4, 5, 6}, {4, 6, 7}};
+    const Vertex p{x0 + 1.5 * h, y0 + (y1 - y0) * unit(rng), height(rng), 0};
+    ASSERT_LE(tie_break(t, {p}), 1u) << "trial " << trial;  // was 8 (every sweep) in trial 4
+    EXPECT_EQ(tie_break(t, {p}), 0u) << "trial " << trial;
+  }
 }
 
 }  // namespace

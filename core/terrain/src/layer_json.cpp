@@ -48,8 +48,8 @@ std::vector<TileRange> merge_ranges(std::vector<geo::TileId> tiles) {
   return done;
 }
 
-std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& stored,
-                                             std::uint32_t min_level) {
+std::vector<geo::TileId> synthetic_tiles(const std::vector<geo::TileId>& stored,
+                                         std::uint32_t min_level) {
   std::vector<geo::TileId> out;
   for (geo::TileId id : stored) {
     if (id.z < min_level) continue;
@@ -59,8 +59,19 @@ std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& sto
       out.push_back(id);
     }
   }
+  for (std::uint32_t z = 0; z < kWholeLevels; ++z) {
+    const std::uint32_t n = 1u << z;
+    for (std::uint32_t y = 0; y < n; ++y) {
+      for (std::uint32_t x = 0; x < n; ++x) out.push_back(*geo::TileId::from_zxy(z, x, y));
+    }
+  }
+  std::vector<geo::TileId> sorted_stored = stored;
+  std::sort(sorted_stored.begin(), sorted_stored.end());
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
+  std::erase_if(out, [&](const geo::TileId& id) {
+    return std::binary_search(sorted_stored.begin(), sorted_stored.end(), id);
+  });
   return out;
 }
 
@@ -69,13 +80,17 @@ std::string layer_json(const LayerJsonInput& in) {
   // A corrupt layer row may say min_level > max_level: by_level is sized by max_level, so the
   // ancestors must stay above it.
   const std::uint32_t min_level = std::min(in.min_level, in.max_level);
-  std::vector<std::vector<geo::TileId>> by_level(in.max_level + 1);
+  // The whole levels are listed even above a layer whose finest level is 0.
+  const std::uint32_t top = std::max(in.max_level, kWholeLevels - 1);
+  std::vector<std::vector<geo::TileId>> by_level(top + 1);
   for (const auto& id : in.tile_ids) {
     if (id.z <= in.max_level && id.z >= min_level) by_level[id.z].push_back(id);
   }
-  for (const auto& id : synthetic_ancestors(in.tile_ids, min_level)) by_level[id.z].push_back(id);
+  for (const auto& id : synthetic_tiles(in.tile_ids, min_level)) {
+    if (id.z <= top) by_level[id.z].push_back(id);
+  }
   json available = json::array();
-  for (std::uint32_t z = 0; z <= in.max_level; ++z) {
+  for (std::uint32_t z = 0; z <= top; ++z) {
     json level = json::array();
     for (const TileRange& r : merge_ranges(std::move(by_level[z]))) {
       level.push_back(
@@ -95,7 +110,7 @@ std::string layer_json(const LayerJsonInput& in) {
       {"projection", "EPSG:3857"},
       {"bounds", {in.bounds.west, in.bounds.south, in.bounds.east, in.bounds.north}},
       {"minzoom", 0},
-      {"maxzoom", in.max_level},
+      {"maxzoom", top},
       {"extensions", in.oct_vertex_normals ? json::array({"octvertexnormals"}) : json::array()},
       {"available", std::move(available)},
   };

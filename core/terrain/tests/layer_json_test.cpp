@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <set>
@@ -64,10 +65,9 @@ TEST(LayerJson, DocumentHasTheCesiumKeys) {
   EXPECT_EQ(j["maxzoom"], 3);
   ASSERT_EQ(j["available"].size(), 4u);
   EXPECT_EQ(j["available"][0][0]["endX"], 0);
-  ASSERT_EQ(j["available"][1].size(), 1u);  // synthesised levels: the ancestors only
-  EXPECT_EQ(j["available"][1][0]["startX"], 1);
-  EXPECT_EQ(j["available"][1][0]["endX"], 1);
-  EXPECT_EQ(j["available"][1][0]["startY"], 1);  // (1, 1, 0) in TMS rows
+  ASSERT_EQ(j["available"][1].size(), 1u);  // every level-1 tile (kWholeLevels): one rectangle
+  EXPECT_EQ(j["available"][1][0],
+            nlohmann::json({{"startX", 0}, {"startY", 0}, {"endX", 1}, {"endY", 1}}));
   EXPECT_EQ(j["available"][2].size(), 1u);
   EXPECT_EQ(j["available"][2][0]["startY"], 2);  // TMS row of y = 1 at z = 2
   EXPECT_EQ(j["available"][3].size(), 1u);
@@ -76,15 +76,37 @@ TEST(LayerJson, DocumentHasTheCesiumKeys) {
   EXPECT_EQ(j["bounds"][2], 6.5);
 }
 
-TEST(LayerJson, SyntheticAncestorsLeadToTheStoredTiles) {
+TEST(LayerJson, SyntheticTilesAreTheAncestorsAndEveryTileOfLevelsZeroAndOne) {
   const auto ids =
       std::vector<geo::TileId>{*geo::TileId::from_zxy(3, 4, 2), *geo::TileId::from_zxy(3, 5, 2),
                                *geo::TileId::from_zxy(4, 8, 4)};
-  const auto a = synthetic_ancestors(ids, 3);
-  ASSERT_EQ(a.size(), 3u);
-  EXPECT_EQ(a[0], *geo::TileId::from_zxy(0, 0, 0));
-  EXPECT_EQ(a[1], *geo::TileId::from_zxy(1, 1, 0));
-  EXPECT_EQ(a[2], *geo::TileId::from_zxy(2, 2, 1));
+  const auto a = synthetic_tiles(ids, 3);
+  const std::vector<geo::TileId> expected{
+      *geo::TileId::from_zxy(0, 0, 0), *geo::TileId::from_zxy(1, 0, 0),
+      *geo::TileId::from_zxy(1, 0, 1), *geo::TileId::from_zxy(1, 1, 0),
+      *geo::TileId::from_zxy(1, 1, 1), *geo::TileId::from_zxy(2, 2, 1)};
+  std::vector<geo::TileId> sorted = a;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted, expected);
+  EXPECT_EQ(a, sorted);  // sorted as returned
+  // A stored tile is never synthesised, even on the whole levels.
+  const auto b =
+      synthetic_tiles({*geo::TileId::from_zxy(1, 1, 0), *geo::TileId::from_zxy(2, 2, 1)}, 1);
+  EXPECT_EQ(b, (std::vector<geo::TileId>{
+                   *geo::TileId::from_zxy(0, 0, 0), *geo::TileId::from_zxy(1, 0, 0),
+                   *geo::TileId::from_zxy(1, 0, 1), *geo::TileId::from_zxy(1, 1, 1)}));
+}
+
+TEST(LayerJson, ALayerOfLevelZeroOnlyStillListsLevelOne) {
+  LayerJsonInput in;
+  in.name = "tiny";
+  in.max_level = 0;
+  in.tile_ids = {*geo::TileId::from_zxy(0, 0, 0)};
+  const auto j = nlohmann::json::parse(layer_json(in));
+  EXPECT_EQ(j["maxzoom"], 1);
+  ASSERT_EQ(j["available"].size(), 2u);
+  EXPECT_EQ(j["available"][1][0],
+            nlohmann::json({{"startX", 0}, {"startY", 0}, {"endX", 1}, {"endY", 1}}));
 }
 
 }  // namespace

@@ -397,6 +397,76 @@ TEST(QuantizedMesh, FlatTileCoversTheTile) {
   EXPECT_EQ(m.north.size(), 2u);
 }
 
+// A stored tile's rectangle: its corners at the given heights (NW, NE, SW, SE), no triangles
+// needed (filler_tile reads borders only).
+tile::TinTile stored_corners(const geo::TileId& id, std::array<double, 4> z) {
+  tile::TinTile t = flat_tile(id);
+  for (int k = 0; k < 4; ++k) t.corners[k].z = z[k];
+  return t;
+}
+
+TEST(FillerTile, TakesItsStoredNeighboursBorderAndIsAValidTile) {
+  const geo::TileId id = *geo::TileId::from_zxy(2, 1, 1);
+  const geo::TileId east = *geo::TileId::from_zxy(2, 2, 1),
+                    south_west = *geo::TileId::from_zxy(2, 0, 2);
+  tile::TinTile e = stored_corners(east, {100, 7, 200, 7});
+  const geo::MercatorRect er = east.bounds();
+  e.west.push_back({er.min_x, (er.min_y + er.max_y) / 2, 150, 0});
+  const tile::TinTile d = stored_corners(south_west, {7, 300, 7, 7});
+  int asked = 0;
+  auto filler = filler_tile(id, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
+    ++asked;
+    if (n == east) return std::optional<tile::TinTile>(e);
+    if (n == south_west) return std::optional<tile::TinTile>(d);
+    return std::optional<tile::TinTile>();
+  });
+  ASSERT_TRUE(filler.ok()) << filler.error().message;
+  EXPECT_EQ(asked, 8);
+  const tile::TinTile& f = *filler;
+  EXPECT_TRUE(tile::check_structure(f).ok()) << tile::check_structure(f).error().message;
+  EXPECT_EQ(f.corners[0].z, 0.0);    // NW: no stored tile touches it
+  EXPECT_EQ(f.corners[1].z, 100.0);  // NE = east's NW
+  EXPECT_EQ(f.corners[2].z, 300.0);  // SW = south-west's NE
+  EXPECT_EQ(f.corners[3].z, 200.0);  // SE = east's SW
+  ASSERT_EQ(f.east.size(), 1u);
+  EXPECT_EQ(f.east[0].x, er.min_x);
+  EXPECT_EQ(f.east[0].y, e.west[0].y);
+  EXPECT_EQ(f.east[0].z, 150.0);
+  EXPECT_TRUE(f.north.empty() && f.south.empty() && f.west.empty());
+  EXPECT_EQ(f.triangles.size(), 5u);  // the border's five points fanned to the centre
+  EXPECT_TRUE(encode_quantized_mesh(f, geo::Projection::spherical).ok());
+}
+
+TEST(FillerTile, WrapsAroundTheAntimeridianAndIsFlatWithoutStoredNeighbours) {
+  const geo::TileId id = *geo::TileId::from_zxy(1, 1, 0), other = *geo::TileId::from_zxy(1, 0, 0);
+  tile::TinTile o = stored_corners(other, {500, 8, 600, 8});
+  o.west.push_back({other.bounds().min_x, (other.bounds().min_y + other.bounds().max_y) / 2, 550, 0});
+  auto filler = filler_tile(id, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
+    if (n == other) return std::optional<tile::TinTile>(o);
+    return std::optional<tile::TinTile>();
+  });
+  ASSERT_TRUE(filler.ok());
+  EXPECT_TRUE(tile::check_structure(*filler).ok());
+  // The east side (x = 1) is the other tile's west side (x = −1); the west side its east side.
+  EXPECT_EQ(filler->corners[1].z, 500.0);
+  EXPECT_EQ(filler->corners[3].z, 600.0);
+  EXPECT_EQ(filler->corners[0].z, 8.0);
+  ASSERT_EQ(filler->east.size(), 1u);
+  EXPECT_EQ(filler->east[0].x, 1.0);
+  EXPECT_EQ(filler->east[0].z, 550.0);
+
+  auto flat = filler_tile(id, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
+    return std::optional<tile::TinTile>();
+  });
+  ASSERT_TRUE(flat.ok());
+  EXPECT_EQ(flat->triangles, flat_tile(id).triangles);
+  auto failing = filler_tile(id, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
+    return Error(ErrorCode::corrupt_data, "tile 1/0/0: broken blob");
+  });
+  ASSERT_FALSE(failing.ok());
+  EXPECT_NE(failing.error().message.find("broken blob"), std::string::npos);
+}
+
 std::vector<std::uint8_t> independent_gunzip(const std::vector<std::uint8_t>& gz) {
   z_stream zs{};
   EXPECT_EQ(inflateInit2(&zs, 31), Z_OK);

@@ -1,6 +1,7 @@
 #include "entropy.hpp"
 
 #include <algorithm>
+#include <array>
 
 namespace tinstream::laz::detail {
 
@@ -38,7 +39,7 @@ void BitModel::update() {
 SymbolModel::SymbolModel(std::uint32_t symbols) : last_symbol_(symbols - 1), symbols_(symbols) {
   assert(symbols >= 2 && symbols <= 2048);
   std::uint32_t bits = 4;
-  while ((1u << bits) < 2 * symbols && bits < 10) ++bits;
+  while ((1u << bits) < 2 * symbols && (1u << bits) < kMaxTableSize) ++bits;
   table_size_ = 1u << bits;
   table_shift_ = kSymbolLengthShift - bits;
   storage_ = std::make_unique<std::uint16_t[]>((symbols + 3) + symbols);
@@ -49,16 +50,25 @@ SymbolModel::SymbolModel(std::uint32_t symbols) : last_symbol_(symbols - 1), sym
   std::fill(cumulative + symbols, cumulative + symbols + 3, std::uint16_t{0xFFFF});
   cumulative_ = cumulative;
   counts_ = cumulative + symbols + 3;
-  table_ = slots_.get();
   reset();
+}
+
+const std::uint64_t* SymbolModel::pending_table() {
+  // Indexed like any table: by scaled >> table_shift_, at most table_size + 1.
+  static constexpr auto kPending = [] {
+    std::array<std::uint64_t, kMaxTableSize + 2> t{};
+    t.fill(kSearchSlot);
+    return t;
+  }();
+  return kPending.data();
 }
 
 void SymbolModel::reset() {
   std::fill(counts_, counts_ + symbols_, std::uint16_t{1});
-  total_count_ = 0;
-  cycle_ = symbols_;
-  rebuild();
+  // The state a rebuild of these counts leaves (symbols_ <= 2048: no halving), tables pending.
+  total_count_ = symbols_;
   cycle_ = until_update_ = (symbols_ + 6) >> 1;
+  table_ = pending_table();
 }
 
 void SymbolModel::rebuild() {
@@ -71,6 +81,12 @@ void SymbolModel::rebuild() {
       total_count_ += counts_[s];
     }
   }
+  build_tables();
+  cycle_ = std::min((5 * cycle_) >> 2, (symbols_ + 6) << 3);
+  until_update_ = cycle_;
+}
+
+void SymbolModel::build_tables() {
   const std::uint32_t scale = 0x80000000u / total_count_;
   auto* cumulative = const_cast<std::uint16_t*>(cumulative_);
   std::uint32_t sum = 0;
@@ -86,7 +102,7 @@ void SymbolModel::rebuild() {
     return s | (std::uint64_t{cumulative[s]} << 16) | (std::uint64_t{cumulative[s + 1]} << 32) |
            (std::uint64_t{cumulative[s + 2]} << 48);
   };
-  auto* table = const_cast<std::uint64_t*>(table_);
+  std::uint64_t* table = slots_.get();
   std::uint32_t slot = 0;
   for (std::uint32_t s = 0; s < symbols_; ++s) {
     const std::uint32_t end = s < last_symbol_ ? cumulative[s + 1] : kSymbolMaxCount;
@@ -97,12 +113,15 @@ void SymbolModel::rebuild() {
   }
   // Scaled values just past 2^15 (see decode_symbol) fall in the last symbol.
   table[table_size_] = table[table_size_ + 1] = slot_of(last_symbol_);
-  cycle_ = std::min((5 * cycle_) >> 2, (symbols_ + 6) << 3);
-  until_update_ = cycle_;
 }
 
-std::uint32_t SymbolModel::search(std::uint32_t scaled) const {
-  // The symbol lies between the slot's first symbol and the next slot's.
+std::uint32_t SymbolModel::search(std::uint32_t scaled) {
+  if (table_ == pending_table()) {  // the first decode since reset()
+    table_ = slots_.get();
+    build_tables();
+  }
+  // The symbol lies between the slot's first symbol and the next slot's (a search works in any
+  // slot, marked or not).
   const std::uint32_t slot = scaled >> table_shift_;
   auto low = static_cast<std::uint32_t>(table_[slot] & (kSearchSlot - 1u));
   auto high = static_cast<std::uint32_t>(table_[slot + 1] & (kSearchSlot - 1u));

@@ -119,14 +119,23 @@ class SymbolModel {
   SymbolModel(SymbolModel&&) noexcept = default;
   SymbolModel& operator=(SymbolModel&&) noexcept = default;
 
-  void reset();  // every count back to 1: the state at the start of a chunk
+  // Every count back to 1: the state at the start of a chunk. The tables of that state are
+  // built on the model's first decode (see pending_table()), so that a chunk pays nothing for
+  // the many models it never uses (an integer decoder's wide classes, unused contexts).
+  void reset();
   std::uint32_t symbols() const { return symbols_; }
 
  private:
   friend class ArithmeticDecoder;
   static constexpr std::uint16_t kSearchSlot = 0x8000;
+  static constexpr std::uint32_t kMaxTableSize = 1024;
+  // What table_ points at while the tables are not built: every slot a search slot, so that
+  // the first decode takes the search path, which builds them; the decode's fast path needs
+  // no test of its own.
+  static const std::uint64_t* pending_table();
   void rebuild();
-  std::uint32_t search(std::uint32_t scaled) const;  // in a kSearchSlot slot
+  void build_tables();  // cumulative_ and the slot table from counts_ and total_count_
+  std::uint32_t search(std::uint32_t scaled);  // in a kSearchSlot slot (builds pending tables)
 
   // Used by every decode, first. A slot: symbol (and kSearchSlot) | c[s] << 16 | c[s + 1] << 32
   // | c[s + 2] << 48, bounds past the last symbol 0xFFFF.

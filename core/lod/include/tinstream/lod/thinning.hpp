@@ -136,8 +136,16 @@ struct ThinStats {
 // interior). The result has corners, border lists, surviving interior, CCW triangles, z range;
 // its geometric_error / rms_error are left 0 (the caller measures them, error.hpp).
 // Errors: a broken triangulation (reported, never a crash), invalid options.
+// What a parent's thinning knows beyond its own candidates (parent.hpp): more points of the
+// surface (its finer tiles' vertices) and the finer tiles' triangles. thin_tile breaks Delaunay
+// ties (a grid's exactly cocircular cells) once, against its candidates and these together.
+struct TieContext {
+  std::vector<std::span<const tile::Vertex>> known;
+  std::vector<const tile::TinTile*> drawn;  // a tie the points cannot settle takes their diagonal
+};
+
 Result<tile::TinTile> thin_tile(const ThinInput& input, const LodOptions& options,
-                                ThinStats* stats = nullptr);
+                                ThinStats* stats = nullptr, const TieContext* ties = nullptr);
 
 // "Reduced TIN" at the finest level (gridded input): thins an unreduced finest tile the same
 // way and measures it against the original exactly (error.hpp: bounds per triangle,

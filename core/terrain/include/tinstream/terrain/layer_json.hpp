@@ -3,8 +3,9 @@
 // `available` lists, per level 0 … maxzoom, the tiles that exist as merged TMS rectangles
 // {startX, startY, endX, endY} (inclusive). Cesium's WebMercatorTilingScheme starts from the
 // single level-0 tile and refines downwards, so the ancestors of the coarsest stored tiles are
-// listed too: the server synthesises them as flat tiles (flat_tile()) and the static export
-// writes them. Other tiles are absent; Cesium upsamples their parents there.
+// listed too, and every tile of levels 0 and 1 (kWholeLevels below): the server synthesises
+// them as flat tiles (flat_tile()) and the static export writes them. Other tiles are absent;
+// Cesium upsamples their parents there.
 // Pure functions, thread-safe.
 #pragma once
 
@@ -39,10 +40,19 @@ struct LayerJsonInput {
   bool oct_vertex_normals = true;     // advertise the extension
 };
 
-// The tiles above `min_level` that lead to the stored tiles: every ancestor (levels 0 …
-// min_level − 1) of a stored tile at level ≥ min_level, sorted, without duplicates.
-std::vector<geo::TileId> synthetic_ancestors(const std::vector<geo::TileId>& stored,
-                                             std::uint32_t min_level);
+// Levels whose every tile layer.json lists and the server (or the static export) provides,
+// flat where nothing is stored: 0 and 1. CesiumJS cannot stand in for a missing level-1 tile by
+// upsampling its parent: a tile 180° wide has no horizon-occlusion point, CesiumJS's upsampler
+// then builds no terrain data, and the tile stays failed and queued — `globe.tilesLoaded` never
+// holds again (found by bench/client's CesiumJS run). From level 2 (90° tiles) on it can.
+inline constexpr std::uint32_t kWholeLevels = 2;
+
+// The tiles to synthesise as flat tiles (flat_tile()): the ancestors of the stored tiles above
+// `min_level` (levels 0 … min_level − 1, so that Cesium's refinement from the single level-0
+// tile reaches them), and every tile of the levels below kWholeLevels; stored tiles excluded.
+// Sorted, without duplicates.
+std::vector<geo::TileId> synthetic_tiles(const std::vector<geo::TileId>& stored,
+                                         std::uint32_t min_level);
 
 // The layer.json document (UTF-8 JSON text).
 std::string layer_json(const LayerJsonInput& input);

@@ -32,6 +32,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -53,9 +54,19 @@ Result<std::vector<std::uint8_t>> encode_quantized_mesh(const tile::TinTile& til
                                                         geo::Projection projection,
                                                         const QuantizedMeshOptions& options = {});
 
-// A flat tile at height 0 (four corners, two triangles) for levels above a layer's coarsest
-// stored level: Cesium needs every level-0 … min-level tile to exist before it refines.
+// A flat tile at height 0 (four corners, two triangles).
 tile::TinTile flat_tile(const geo::TileId& id);
+
+// The tile served in place of one that is not stored but that Cesium needs (synthetic_tiles() in
+// layer_json.hpp: levels 0 and 1, the ancestors of the coarsest stored level). It meets its
+// stored same-level neighbours without a crack: it takes every vertex of theirs that lies on its
+// border (the shared side's vertices, a diagonal neighbour's shared corner) with its height; a
+// corner no stored tile touches is at height 0; a centre vertex at the corners' mean height is
+// fanned to the border. With no stored neighbour it is flat_tile(id). `stored(id)` returns the
+// stored tile of that id, nullopt when there is none, or an error (passed on). East and west
+// neighbours wrap around the antimeridian (geo::TileId::neighbour).
+using StoredTileLookup = std::function<Result<std::optional<tile::TinTile>>(const geo::TileId&)>;
+Result<tile::TinTile> filler_tile(const geo::TileId& id, const StoredTileLookup& stored);
 
 // The horizon occlusion point (ellipsoid-scaled ECEF) for a set of ECEF points, seen along the
 // direction of `direction_point` — Cesium's EllipsoidalOccluder method ("Horizon culling 2",
