@@ -63,14 +63,16 @@ void TileStreamer::drape() {
         }
         if (!wanted) {
           wanted = true;
-          if (asked.insert(key).second) {
-            if (image_ram_.peek(key)) {
+          if (image_ram_.peek(key)) {  // decoded already: only an upload
+            if (asked.insert(key).second) {
               image_ram_.pin(key, frame_);
               uploads_.push_back({key, d.sse, d.distance});
-            } else {
-              wanted_.push_back({key, d.sse, d.distance});
-              if (requested_ever_.insert(key).second) ++imagery_counters_.requested;
             }
+          } else if (!d.stand_in && asked.insert(key).second) {
+            // A stand-in (drawn until its children arrive) asks for nothing: its imagery would
+            // arrive for a tile soon gone (#19: 13–15 images loaded for 2 draped).
+            wanted_.push_back({key, d.sse, d.distance});
+            if (requested_ever_.insert(key).second) ++imagery_counters_.requested;
           }
         }
       }

@@ -161,13 +161,16 @@ void Overlay::render(int framebuffer_width, int framebuffer_height) {
 
 void draw_legend(const LegendInfo& legend) {
   const float bar_w = 200, bar_h = 14;
-  ImGui::SetNextWindowPos(ImVec2(10, ImGui::GetIO().DisplaySize.y - 10), ImGuiCond_Always,
-                          ImVec2(0, 1));
+  // Bottom right, as wide as its bar (the title and footer wrap): the panel (window mode) sits
+  // top left and at 640×360 reaches the bottom left corner.
+  const ImVec2 display = ImGui::GetIO().DisplaySize;
+  ImGui::SetNextWindowPos(ImVec2(display.x - 10, display.y - 10), ImGuiCond_Always, ImVec2(1, 1));
   ImGui::SetNextWindowBgAlpha(0.55f);
   ImGui::Begin("legend", nullptr,
                ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
                    ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoSavedSettings |
                    ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav);
+  ImGui::PushTextWrapPos(ImGui::GetCursorPosX() + bar_w);
   ImGui::TextUnformatted(legend.title.c_str());
   const ImVec2 p = ImGui::GetCursorScreenPos();
   ImDrawList* dl = ImGui::GetWindowDrawList();
@@ -192,6 +195,7 @@ void draw_legend(const LegendInfo& legend) {
   ImGui::SameLine(bar_w - ImGui::CalcTextSize(text).x);
   ImGui::TextUnformatted(text);
   if (!legend.footer.empty()) ImGui::TextUnformatted(legend.footer.c_str());
+  ImGui::PopTextWrapPos();
   ImGui::End();
 }
 

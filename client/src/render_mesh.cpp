@@ -255,13 +255,92 @@ TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& la
   const auto sides = border_loops(tile);
   for (std::size_t s = 0; s < sides.size(); ++s) {
     const std::size_t before = skirt_triangles.size();
+    const bool along_x = s == 0 || s == 2;
     for (std::size_t i = 0; i + 1 < sides[s].size(); ++i) {
       const std::uint32_t a = sides[s][i], b = sides[s][i + 1];
       if (!border_edges.contains(edge_key(a, b))) continue;
       const std::uint32_t sa = skirt_vertex(a), sb = skirt_vertex(b);
       skirt_triangles.insert(skirt_triangles.end(), {a, sa, sb, a, sb, b});
+      const double ca = along_x ? vertices[a].x : vertices[a].y,
+                   cb = along_x ? vertices[b].x : vertices[b].y;
+      mesh.skirt_spans.push_back({std::min(ca, cb), std::max(ca, cb)});
     }
     mesh.skirt_index_count[s] = static_cast<std::uint32_t>(skirt_triangles.size() - before);
+  }
+
+  // Cut skirts: the drawn surface's cross-sections along x = mid and y = mid, split at the
+  // centre into the four half-lines between two quadrants. A point of a cross-section lies on a
+  // triangle's edge (or is its vertex); position, height and uv are affine in the triangle, so
+  // interpolating them along the edge gives the very line the fragment shader's mask cuts along.
+  struct CutPoint {
+    Vec3 ecef;
+    double x, y, z;
+  };
+  const auto along_edge = [&](std::uint32_t a, std::uint32_t b, double t) {
+    if (a > b) std::swap(a, b), t = 1 - t;  // both triangles of an edge get the same point
+    const tile::Vertex &va = vertices[a], &vb = vertices[b];
+    return CutPoint{ecef[a] + (ecef[b] - ecef[a]) * t, va.x + (vb.x - va.x) * t,
+                    va.y + (vb.y - va.y) * t, va.z + (vb.z - va.z) * t};
+  };
+  const auto between = [](const CutPoint& p, const CutPoint& q, double t) {
+    return CutPoint{p.ecef + (q.ecef - p.ecef) * t, p.x + (q.x - p.x) * t, p.y + (q.y - p.y) * t,
+                    p.z + (q.z - p.z) * t};
+  };
+  std::array<std::vector<std::uint32_t>, 4> cut_triangles;
+  std::array<std::vector<SkirtSpan>, 4> cut_spans;
+  const auto emit_cut = [&](const CutPoint& p, const CutPoint& q, Vec3 n, bool vertical) {
+    const double cp = vertical ? p.y : p.x, cq = vertical ? q.y : q.x;
+    if (cp == cq) return;
+    const std::size_t group =
+        vertical ? (std::min(cp, cq) >= mid_y ? 0 : 1) : (std::max(cp, cq) <= mid_x ? 2 : 3);
+    const auto first = static_cast<std::uint32_t>(mesh.vertices.size());
+    for (const CutPoint* c : {&p, &q}) {
+      const tile::Vertex v{c->x, c->y, c->z, 0};
+      emit(c->ecef, c->z, n, false, v);
+      emit(c->ecef, c->z, n, true, v);
+      skirt_points.push_back(
+          GeodeticTerms::from_mercator(projection, c->x, c->y).ecef(std::min(c->z, deepest)));
+    }
+    cut_triangles[group].insert(cut_triangles[group].end(),
+                                {first, first + 1, first + 3, first, first + 3, first + 2});
+    cut_spans[group].push_back({std::min(cp, cq), std::max(cp, cq)});
+  };
+  std::unordered_set<std::uint64_t> cut_edges;  // an edge on a mid line is cut once
+  for (const bool vertical : {true, false}) {
+    const double m = vertical ? mid_x : mid_y, other = vertical ? mid_y : mid_x;
+    const auto c = [&](std::uint32_t v) { return vertical ? vertices[v].x : vertices[v].y; };
+    const auto a_of = [&](const CutPoint& p) { return vertical ? p.y : p.x; };
+    for (const tile::Triangle& t : drawn) {
+      std::vector<CutPoint> points;
+      std::uint32_t on_line[2]{}, on = 0;
+      for (std::size_t e = 0; e < 3; ++e) {
+        const std::uint32_t a = t[e], b = t[(e + 1) % 3];
+        if (c(a) == m) {
+          if (on < 2) on_line[on] = a;
+          ++on;
+          points.push_back(along_edge(a, a, 0));
+        } else if ((c(a) < m) != (c(b) < m) && c(b) != m) {
+          points.push_back(along_edge(a, b, (m - c(a)) / (c(b) - c(a))));
+        }
+      }
+      if (points.size() != 2) continue;  // touches the line at a vertex, or degenerate
+      if (on == 2 && !cut_edges.insert(edge_key(on_line[0], on_line[1])).second) continue;
+      const Vec3 n = normalize(cross(ecef[t[1]] - ecef[t[0]], ecef[t[2]] - ecef[t[0]]));
+      const CutPoint &p = points[0], &q = points[1];
+      const double ap = a_of(p), aq = a_of(q);
+      if ((ap < other) != (aq < other) && ap != other && aq != other) {
+        const CutPoint mid = between(p, q, (other - ap) / (aq - ap));
+        emit_cut(p, mid, n, vertical);
+        emit_cut(mid, q, n, vertical);
+      } else {
+        emit_cut(p, q, n, vertical);
+      }
+    }
+  }
+  for (std::size_t g = 0; g < 4; ++g) {
+    mesh.cut_index_count[g] = static_cast<std::uint32_t>(cut_triangles[g].size());
+    skirt_triangles.insert(skirt_triangles.end(), cut_triangles[g].begin(), cut_triangles[g].end());
+    mesh.skirt_spans.insert(mesh.skirt_spans.end(), cut_spans[g].begin(), cut_spans[g].end());
   }
 
   // Indices: surface first, then skirts; 16-bit when every index fits.

@@ -304,6 +304,7 @@ GpuMesh GlobeRenderer::upload(const TileMesh& mesh) {
   g.index_count = static_cast<std::uint32_t>(mesh.index_count());
   g.surface_index_count = mesh.surface_index_count;
   g.skirt_index_count = mesh.skirt_index_count;
+  g.cut_index_count = mesh.cut_index_count;
   g.bytes = mesh.vertices.size() * sizeof(MeshVertex) + index_bytes;
   return g;
 }
@@ -387,10 +388,13 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
                 static_cast<float>(t.centre.z));
     glUniform2f(p.skirt, static_cast<float>(d.skirt_depth), static_cast<float>(d.skirt_floor));
     glBindVertexArray(t.gpu.vao);
-    // The surface, then the sides that hang a skirt this frame (adjacent ones in one call).
+    // The surface, then the skirt quads hung this frame (skirts.hpp), a run per call; cut
+    // quads lie on the mask's edge by design and are drawn unmasked.
     const GLenum type = t.gpu.wide_indices ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT;
     const std::size_t index_size = t.gpu.wide_indices ? 4 : 2;
-    std::uint32_t first = 0, count = t.gpu.surface_index_count, next = count;
+    std::uint32_t side_quads = 0;
+    for (const std::uint32_t n : t.gpu.skirt_index_count) side_quads += n / 6;
+    std::uint32_t first = 0, count = t.gpu.surface_index_count;
     const auto flush = [&] {
       if (count == 0) return;
       // GL takes the byte offset into the bound index buffer as a pointer.
@@ -405,18 +409,20 @@ RenderStats GlobeRenderer::render(const Camera& camera, const std::vector<DrawIt
         ++stats.flushes;
       }
     };
-    for (std::size_t s = 0; s < 4; ++s) {
-      const std::uint32_t n = t.gpu.skirt_index_count[s];
-      if (d.skirt_sides & (1u << s)) {
-        if (first + count != next) {
-          flush();
-          first = next;
-          count = 0;
-        }
-        count += n;
-        stats.skirt_triangles += n / 3;
+    bool unmasked = false;
+    for (const auto& [quad, quads] : d.skirt_runs) {
+      const std::uint32_t begin = t.gpu.surface_index_count + quad * 6;
+      if (first + count != begin || (quad >= side_quads && !unmasked)) {
+        flush();
+        first = begin;
+        count = 0;
       }
-      next += n;
+      if (quad >= side_quads && !unmasked) {
+        glUniform1i(p.mask, 0xF);
+        unmasked = true;
+      }
+      count += quads * 6;
+      stats.skirt_triangles += std::uint64_t{quads} * 2;
     }
     flush();
     ++stats.tiles;

@@ -1,5 +1,7 @@
 // The tile store as a tile source: every connection is its own read-only TileStore (one SQLite
 // connection per worker thread, as the store requires).
+#include <filesystem>
+#include <system_error>
 #include <utility>
 
 #include "tinstream/client/imagery.hpp"
@@ -65,9 +67,17 @@ class StoreConnection final : public TileConnection {
   store::TileStore store_;
 };
 
+std::filesystem::path absolute_or_given(const std::filesystem::path& path) {
+  std::error_code ec;
+  std::filesystem::path full = std::filesystem::absolute(path, ec);
+  return ec ? path : full.lexically_normal();
+}
+
 class StoreSource final : public TileSource {
  public:
-  explicit StoreSource(std::filesystem::path path) : path_(std::move(path)) {}
+  // The path as an absolute one (what the panel and the statistics show: a relative --store
+  // says nothing once the viewer runs elsewhere); as given when it cannot be made absolute.
+  explicit StoreSource(const std::filesystem::path& path) : path_(absolute_or_given(path)) {}
 
   std::string describe() const override { return "store " + path_.string(); }
   bool remote() const override { return false; }

@@ -193,8 +193,9 @@ void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::Ti
   }
 }
 
-void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask) {
-  frame_result_.draws.push_back({key, p.tile, mask, sse, p.distance});
+void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask,
+                        bool stand_in) {
+  frame_result_.draws.push_back({key, p.tile, mask, stand_in, sse, p.distance});
   ++frame_result_.drawn_per_level[key.tile.z];
   frame_result_.max_sse_drawn = std::max(frame_result_.max_sse_drawn, sse);
 }
@@ -217,7 +218,7 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
     waiting |= child[i].state == State::not_ready;
   }
   if (waiting) {  // no holes: the parent stays until every visible child is resident
-    draw(key, self, sse, 0xF);
+    draw(key, self, sse, 0xF, /*stand_in=*/true);
     for (std::size_t i = 0; i < 4; ++i)
       if (child[i].state == State::not_ready)
         prefetch(view, layer, children[i], options_.prefetch_levels);
@@ -247,8 +248,9 @@ void TileStreamer::upload(GpuUploader& gpu) {
     const std::uint64_t bytes = (*mesh)->byte_size();
     if (frame_result_.uploaded > 0 && used + bytes > options_.upload_bytes_per_frame) break;
     const TileMesh& m = **mesh;
-    ResidentTile t{gpu.upload(m), m.centre, m.frame,         m.bounds,       m.geometric_error,
-                   m.min_z,       m.max_z,  m.quadrant_data, m.skirt_margin, m.skirt_lowest};
+    ResidentTile t{gpu.upload(m),     m.centre,       m.frame,      m.bounds,
+                   m.geometric_error, m.min_z,        m.max_z,      m.quadrant_data,
+                   m.skirt_margin,    m.skirt_lowest, m.skirt_spans};
     const std::uint64_t gpu_bytes = t.gpu.bytes;
     if (!gpu_.insert(r.key, t, gpu_bytes, frame_, frame_, release)) break;
     used += bytes;

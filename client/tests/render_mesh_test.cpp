@@ -77,9 +77,11 @@ TEST(RenderMesh, SpecWorldTileDecodes) {
     const Vec3 want = expected_ecef(cx[i], cy[i], tile->corners[i].z);
     EXPECT_LT(length(world_of(*mesh, i) - want), 1.0) << "corner " << i;
   }
-  // Four sides, each one segment: four skirt quads under the four corners.
-  EXPECT_EQ(mesh->vertices.size(), 8u);
-  EXPECT_EQ(mesh->index_count(), 6u + 4 * 6);
+  // Four sides, each one segment: four skirt quads under the four corners. The diagonal SW–NE
+  // crosses both mid lines at the centre: each half-line is one cut quad (4 vertices each).
+  EXPECT_EQ(mesh->vertices.size(), 8u + 4 * 4);
+  EXPECT_EQ(mesh->index_count(), 6u + 4 * 6 + 4 * 6);
+  EXPECT_EQ(mesh->cut_index_count, (std::array<std::uint32_t, 4>{6, 6, 6, 6}));
 }
 
 TEST(RenderMesh, FastEcefAgreesWithGeographicLib) {
@@ -128,8 +130,11 @@ TEST(RenderMesh, FineTileKeepsMillimetres) {
   EXPECT_EQ(mesh->vertices[3].v, 65535);
   // A full tile: every border segment gets a skirt, 8 per side for a 9×9 grid.
   EXPECT_EQ(mesh->data_triangles, 2u * 8 * 8);
-  EXPECT_EQ(mesh->index_count() - mesh->surface_index_count, 4u * 8 * 6);
+  // The mid lines run along grid lines: 4 grid edges per half-line, each cut once.
+  EXPECT_EQ(mesh->index_count() - mesh->surface_index_count, 4u * 8 * 6 + 4u * 4 * 6);
   EXPECT_EQ(mesh->skirt_index_count, (std::array<std::uint32_t, 4>{48, 48, 48, 48}));
+  EXPECT_EQ(mesh->cut_index_count, (std::array<std::uint32_t, 4>{24, 24, 24, 24}));
+  EXPECT_EQ(mesh->skirt_spans.size(), 4u * 8 + 4u * 4);
   EXPECT_EQ(mesh->quadrant_data, 0xF);
 }
 
@@ -153,7 +158,8 @@ TEST(RenderMesh, SkirtVerticesSitOnTheBorderAndTheBoxHoldsTheirDeepest) {
   // A 5×5 grid: 4 segments per side, one quad (6 indices) each, side by side N, E, S, W.
   for (std::size_t s = 0; s < 4; ++s) EXPECT_EQ(mesh.skirt_index_count[s], 4u * 6) << s;
   const std::size_t surface = t.vertex_count();
-  ASSERT_EQ(mesh.vertices.size(), surface + 16);  // one skirt vertex per border vertex
+  // One skirt vertex per border vertex, then 4 per cut quad (2 grid edges per half-line).
+  ASSERT_EQ(mesh.vertices.size(), surface + 16 + std::size_t{8} * 4);
   // Each north skirt quad (a, sa, sb, a, sb, b) hangs from a north border vertex pair.
   const auto north = t.border(geo::Direction::north);
   for (std::size_t q = 0; q < 4; ++q) {
@@ -163,7 +169,8 @@ TEST(RenderMesh, SkirtVerticesSitOnTheBorderAndTheBoxHoldsTheirDeepest) {
     EXPECT_LT(length(b - expected_ecef(north[q + 1].x, north[q + 1].y, 250.0)), 1e-3) << q;
   }
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const bool skirt = i >= surface;
+    // Cut vertices: on the cross-section, then lowered, by turns.
+    const bool skirt = i >= surface + 16 ? (i - surface - 16) % 2 == 1 : i >= surface;
     EXPECT_EQ((mesh.vertices[i].normal >> 30) & 3u, skirt ? 1u : 0u);
     // Flat at 250 m: the normal is the geodetic up (cos φ cos λ, cos φ sin λ, sin φ).
     const geo::Geodetic g =
@@ -203,8 +210,10 @@ TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
   }
   // Skirts only under the border segments of drawn triangles: NW–N (north) and NW–W (west);
   // none along the east and south sides, whose every segment touches a NODATA corner.
-  EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, std::size_t{12});  // 2 quads × 6
+  // Cut quads under the drawn edges on the mid lines: N–C, C–S (x = mid), W–C, C–E (y = mid).
+  EXPECT_EQ(mesh.index_count() - mesh.surface_index_count, std::size_t{12 + 24});  // 6 quads
   EXPECT_EQ(mesh.skirt_index_count, (std::array<std::uint32_t, 4>{6, 0, 0, 6}));
+  EXPECT_EQ(mesh.cut_index_count, (std::array<std::uint32_t, 4>{6, 6, 6, 6}));
   // The box ignores the NODATA corners at z = 0 (the surface is near 300 m, the layer's lowest
   // height, where skirts may reach, 170 m).
   EXPECT_GT(mesh.min_z, 100);

@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <deque>
 #include <iostream>
+#include <limits>
 
 #include "tinstream/client/camera_path.hpp"
 #include "tinstream/client/navigation.hpp"
@@ -132,8 +133,11 @@ std::string megabytes(std::uint64_t bytes) {
 void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight, double frame_ms) {
   ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
   ImGui::SetNextWindowSize(ImVec2(390, 0), ImGuiCond_FirstUseEver);
+  // Never taller than the window (at 640×360 it was): it scrolls instead.
+  ImGui::SetNextWindowSizeConstraints(
+      ImVec2(0, 0), ImVec2(std::numeric_limits<float>::max(), ImGui::GetIO().DisplaySize.y - 20));
   ImGui::Begin("tinstream");
-  ImGui::TextUnformatted(s.source->describe().c_str());
+  ImGui::TextWrapped("%s", s.source->describe().c_str());  // an absolute store path is long
 
   // Layers and flying to them.
   std::vector<const char*> names;
@@ -358,7 +362,7 @@ int run_window(const ViewerOptions& o) {
     (*renderer)->render(camera, f.draws, s.render_settings(ps.wireframe));
     (*renderer)->present(fb_w, fb_h);
     draw_panel(s, camera, ps, flight, frame_ms);
-    draw_legend(s.legend);
+    if (o.legend) draw_legend(s.legend);
     (*overlay)->render(fb_w, fb_h);
     complete = f.complete;
     complete_frames = f.complete ? complete_frames + 1 : 0;

@@ -9,15 +9,22 @@
 // NODATA triangles are left out (TinTile::footprint_mask, docs/tile-format.md §2.1).
 //
 // Skirts: every border segment of a drawn triangle gets a skirt quad, grouped by side (north,
-// east, south, west, each in edge order) so that the renderer draws only the sides that need one
-// in a frame (skirts.hpp decides: a drawn neighbour of another level across the side). A skirt
+// east, south, west, each in edge order), each quad with its extent along the side
+// (TileMesh::skirt_spans), so that the renderer draws only the quads that need one in a frame
+// (skirts.hpp decides: beside the data of a drawn neighbour of another level across the side).
+// Cut skirts: the tile's drawn surface is also cut along its two mid lines (where a quadrant
+// mask's discard cuts it when a child is drawn in one quadrant and the tile in the other) and
+// gets skirt quads under that cross-section, in four groups (TileMesh::cut_index_count): nothing
+// else closes the opening between the tile's cut edge and a lower child. A
 // vertex sits *at* its border vertex, flagged; the vertex shader lowers it along the ellipsoid
 // normal by the frame's depth, never below the frame's floor (how deep depends on the neighbours,
 // known only when drawing). The bounding box holds the deepest a skirt may hang: down to the
 // layer's lowest height less the margin (no neighbour surface lies lower).
 //
 //   surface vertices (tile numbering)  skirt vertices (one per border vertex that is drawn)
-//   indices: surface triangles, then skirt quads (triangle pairs): north, east, south, west
+//   indices: surface triangles, then skirt quads (triangle pairs): north, east, south, west,
+//            then cut quads: x = mid north half, x = mid south half, y = mid west half, east half
+//   cut vertices: four per cut quad (two on the cross-section, two lowered)
 //
 // The result owns plain vectors; it is immutable once built and shared between the RAM tier and
 // the upload queue (std::shared_ptr<const TileMesh>).
@@ -59,6 +66,15 @@ Result<std::vector<std::uint8_t>> inflate_payload(std::span<const std::uint8_t> 
                                                   ContentEncoding encoding,
                                                   std::size_t max_output = 64u << 20);
 
+// Where one skirt quad lies along its line, normalised Mercator: x for a north or south side and
+// a cut along y = mid, y for an east or west side and a cut along x = mid. lo < hi.
+struct SkirtSpan {
+  double lo = 0, hi = 0;
+};
+
+// The cut groups, in index order after the four sides: the half-lines between two quadrants.
+enum class Cut : std::uint8_t { north = 0, south = 1, west = 2, east = 3 };
+
 struct TileMesh {
   TileKey key;
   Vec3 centre;                  // ECEF origin of the float positions
@@ -70,11 +86,15 @@ struct TileMesh {
   // Indices of each side's skirt quads (0 north, 1 east, 2 south, 3 west), in that order after
   // the surface: side s starts at surface_index_count + the counts of the sides before it.
   std::array<std::uint32_t, 4> skirt_index_count{};
-  Obb bounds;                   // every drawn vertex, skirts at their deepest included
-  double geometric_error = 0;   // the tile's own (header), metres
-  double min_z = 0, max_z = 0;  // of the drawn vertices
-  double skirt_margin = 0;      // metres added to a skirt's depth against rounding
-  double skirt_lowest = 0;      // the lowest height a skirt may reach (the box holds it)
+  // Indices of the cut quads after the sides' (Cut order): north = x = mid between NW and NE,
+  // south = x = mid between SW and SE, west = y = mid between NW and SW, east = between NE, SE.
+  std::array<std::uint32_t, 4> cut_index_count{};
+  std::vector<SkirtSpan> skirt_spans;  // one per skirt quad (sides, then cuts), in index order
+  Obb bounds;                          // every drawn vertex, skirts at their deepest included
+  double geometric_error = 0;          // the tile's own (header), metres
+  double min_z = 0, max_z = 0;         // of the drawn vertices
+  double skirt_margin = 0;             // metres added to a skirt's depth against rounding
+  double skirt_lowest = 0;             // the lowest height a skirt may reach (the box holds it)
   std::uint32_t data_triangles = 0, nodata_triangles = 0;
   std::uint8_t quadrant_data = 0;  // bit q (quadkey digit): a drawn triangle reaches quadrant q
 

@@ -57,6 +57,7 @@ struct GpuMesh {
   std::uint32_t vao = 0, vbo = 0, ibo = 0;
   std::uint32_t index_count = 0, surface_index_count = 0;
   std::array<std::uint32_t, 4> skirt_index_count{};  // per side, after the surface (TileMesh)
+  std::array<std::uint32_t, 4> cut_index_count{};    // per cut, after the sides (TileMesh)
   bool wide_indices = false;
   std::uint32_t texture = 0;  // an imagery tile: its texture (no buffers)
   std::uint64_t bytes = 0;
@@ -82,16 +83,24 @@ struct ResidentTile {
   double min_z = 0, max_z = 0;
   std::uint8_t quadrant_data = 0;
   double skirt_margin = 0, skirt_lowest = 0;  // TileMesh's
+  std::vector<SkirtSpan> skirt_spans{};       // TileMesh's
 };
 
 struct DrawItem {
   TileKey key;
   const ResidentTile* tile = nullptr;  // valid until the next update()
   std::uint8_t quadrant_mask = 0xF;    // bit q: draw quadrant q (quadkey digit) of the tile
-  double sse = 0;                      // screen-space error, pixels
-  double distance = 0;                 // metres from the camera to the tile's box
-  // Skirts of this frame (skirts.hpp): bit s = side s (0 N, 1 E, 2 S, 3 W) hangs its skirt,
-  // lowered skirt_depth metres but never below the height skirt_floor.
+  // Drawn only until its children arrive (its screen-space error is above the target): it gets
+  // resident imagery, but no imagery is asked for it (it would arrive for a tile soon gone).
+  bool stand_in = false;
+  double sse = 0;       // screen-space error, pixels
+  double distance = 0;  // metres from the camera to the tile's box
+  // Skirts of this frame (skirts.hpp): the skirt quads hung, as runs {first quad, count} in
+  // index order (quad q: the 6 indices from surface_index_count + 6q; a run never mixes side
+  // and cut quads), lowered skirt_depth metres but never below the height skirt_floor.
+  // skirt_sides sums them up: bit s = a quad of side s (0 N, 1 E, 2 S, 3 W) hangs, bit 4 + c =
+  // one of cut c (Cut).
+  std::vector<std::array<std::uint32_t, 2>> skirt_runs{};
   std::uint8_t skirt_sides = 0;
   double skirt_depth = 0, skirt_floor = 0;
   // Imagery draped this frame (drape.cpp): the texture (0: none, the colour ramp) and where the
@@ -188,7 +197,8 @@ class TileStreamer {
               bool needed = true);
   void prefetch(const View& view, std::uint16_t layer, const geo::TileId& id, int levels);
   void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
-  void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask);
+  void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask,
+            bool stand_in = false);
   // Imagery (drape.cpp): picks each drawn tile's imagery tile, asks for what is missing.
   void drape();
   void take_image(LoadResult& r);
