@@ -133,78 +133,8 @@ class GreedyInserter {
   // Copies the kernel's triangulation (the fixed points), files every point under its triangle
   // and ranks the triangles.
   Status start() {
-    const auto& mesh = kernel_.mesh();
-    std::vector<std::uint32_t> local_vertex(kernel_.vertex_id_bound(), kNone);
-    std::vector<std::uint32_t> local_tri(mesh.triangle_slots(), kNone);
-    kernel_.for_each_finite_triangle([&](TriangleId t, const kernel::Triangle& T) {
-      local_tri[t] = static_cast<std::uint32_t>(tris_.size());
-      kernel_slot_.push_back(t);
-      Tri m{};
-      for (int k = 0; k < 3; ++k) {
-        const VertexId v = T.v[static_cast<std::size_t>(k)];
-        if (local_vertex[v] == kNone) {
-          local_vertex[v] = static_cast<std::uint32_t>(xy_.size());
-          kernel_vertex_.push_back(v);
-          xy_.push_back(kernel_.xy(v));
-          z_.push_back(kernel_.z(v));
-        }
-        m.v[static_cast<std::size_t>(k)] = local_vertex[v];
-      }
-      tris_.push_back(m);
-    });
-    nodata_.assign(xy_.size(), 0);
-    for (const VertexId v : nodata_kernel_) {
-      if (v < local_vertex.size() && local_vertex[v] != kNone) nodata_[local_vertex[v]] = 1;
-    }
-    kernel_.for_each_finite_triangle([&](TriangleId t, const kernel::Triangle& T) {
-      Tri& m = tris_[local_tri[t]];
-      for (std::size_t k = 0; k < 3; ++k) {
-        const TriangleId u = T.n[k];
-        const bool wall =
-            u == kNone || local_tri[u] == kNone || mesh.constrained(t, static_cast<int>(k));
-        m.n[k] = wall ? kNone : local_tri[u];
-      }
-    });
-    begin_.assign(tris_.size(), 0);
-    count_.assign(tris_.size(), 0);
-    best_.assign(tris_.size(), kNone);
-    heap_.grow(tris_.size());
-    // where[i − filed_from_]: the triangle of point i.
-    std::vector<std::uint32_t> where(pts_.size() - filed_from_, kNone);
-    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
-      if (state_[i] != kCandidate && state_[i] != kExtra) continue;
-      const tile::Vertex& p = pts_[i];
-      const TriangleId t = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)
-                               ? kernel_.locate_triangle(p.x, p.y)
-                               : kNone;
-      if (t == kNone) {
-        if (state_[i] == kCandidate) {
-          return invalid_argument("interior point #" + std::to_string(i) +
-                                  " lies outside the tile or is not finite");
-        }
-        state_[i] = kGone;  // an extra point outside: not part of this surface
-        continue;
-      }
-      where[i - filed_from_] = local_tri[t];
-      ++count_[local_tri[t]];
-    }
-    // Buckets in triangle order (counting sort).
-    std::uint32_t at = 0;
-    for (std::uint32_t t = 0; t < tris_.size(); ++t) begin_[t] = at, at += count_[t];
-    // A re-filing appends at most the live points and compaction (in place) follows once the
-    // pool holds more than 1.5 × them (or could not take the next re-filing): 2.5 × never
-    // reallocates.
-    pool_.reserve(5 * static_cast<std::size_t>(at) / 2 + 8192);
-    pool_.resize(at);
-    std::fill(count_.begin(), count_.end(), 0);
-    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
-      const std::uint32_t t = where[i - filed_from_];
-      if (t == kNone) continue;
-      const tile::Vertex& p = pts_[i];
-      pool_[begin_[t] + count_[t]++] = {
-          p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i], weight_index(p.weight)};
-    }
-    live_ = at;
+    const std::vector<std::uint32_t> local_tri = copy_kernel_mesh();
+    if (Status s = file_points(local_tri); !s.ok()) return s;
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
       if (count_[t] != 0 || lattice_) rank(t);
     }
@@ -310,6 +240,93 @@ class GreedyInserter {
 
  private:
   enum class Outcome { inserted, duplicate, on_wall };
+
+  // start(), step 1: the kernel's finite triangles and their vertices become the own mesh
+  // (kernel_slot_, kernel_vertex_: where each came from; nodata_: which are NODATA corners).
+  // Returns the own triangle of each kernel triangle slot (kNone: not copied).
+  std::vector<std::uint32_t> copy_kernel_mesh() {
+    const auto& mesh = kernel_.mesh();
+    std::vector<std::uint32_t> local_vertex(kernel_.vertex_id_bound(), kNone);
+    std::vector<std::uint32_t> local_tri(mesh.triangle_slots(), kNone);
+    kernel_.for_each_finite_triangle([&](TriangleId t, const kernel::Triangle& T) {
+      local_tri[t] = static_cast<std::uint32_t>(tris_.size());
+      kernel_slot_.push_back(t);
+      Tri m{};
+      for (int k = 0; k < 3; ++k) {
+        const VertexId v = T.v[static_cast<std::size_t>(k)];
+        if (local_vertex[v] == kNone) {
+          local_vertex[v] = static_cast<std::uint32_t>(xy_.size());
+          kernel_vertex_.push_back(v);
+          xy_.push_back(kernel_.xy(v));
+          z_.push_back(kernel_.z(v));
+        }
+        m.v[static_cast<std::size_t>(k)] = local_vertex[v];
+      }
+      tris_.push_back(m);
+    });
+    nodata_.assign(xy_.size(), 0);
+    for (const VertexId v : nodata_kernel_) {
+      if (v < local_vertex.size() && local_vertex[v] != kNone) nodata_[local_vertex[v]] = 1;
+    }
+    // Invariant of the own mesh: an edge on the tile's boundary or constrained in the kernel has
+    // no neighbour (kNone), so legalize() never flips it and insert() never walks across it.
+    kernel_.for_each_finite_triangle([&](TriangleId t, const kernel::Triangle& T) {
+      Tri& m = tris_[local_tri[t]];
+      for (std::size_t k = 0; k < 3; ++k) {
+        const TriangleId u = T.n[k];
+        const bool wall =
+            u == kNone || local_tri[u] == kNone || mesh.constrained(t, static_cast<int>(k));
+        m.n[k] = wall ? kNone : local_tri[u];
+      }
+    });
+    begin_.assign(tris_.size(), 0);
+    count_.assign(tris_.size(), 0);
+    best_.assign(tris_.size(), kNone);
+    heap_.grow(tris_.size());
+    return local_tri;
+  }
+
+  // start(), step 2: every point from filed_from_ on that is a candidate or an extra point goes
+  // into the bucket of the triangle that contains it (counting sort: buckets in triangle order).
+  // An extra point outside the tile becomes kGone; a candidate outside is an error.
+  Status file_points(const std::vector<std::uint32_t>& local_tri) {
+    // where[i − filed_from_]: the triangle of point i.
+    std::vector<std::uint32_t> where(pts_.size() - filed_from_, kNone);
+    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
+      if (state_[i] != kCandidate && state_[i] != kExtra) continue;
+      const tile::Vertex& p = pts_[i];
+      const TriangleId t = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)
+                               ? kernel_.locate_triangle(p.x, p.y)
+                               : kNone;
+      if (t == kNone) {
+        if (state_[i] == kCandidate) {
+          return invalid_argument("interior point #" + std::to_string(i) +
+                                  " lies outside the tile or is not finite");
+        }
+        state_[i] = kGone;  // an extra point outside: not part of this surface
+        continue;
+      }
+      where[i - filed_from_] = local_tri[t];
+      ++count_[local_tri[t]];
+    }
+    std::uint32_t at = 0;
+    for (std::uint32_t t = 0; t < tris_.size(); ++t) begin_[t] = at, at += count_[t];
+    // A re-filing appends at most the live points and compaction (in place) follows once the
+    // pool holds more than 1.5 × them (or could not take the next re-filing): 2.5 × never
+    // reallocates.
+    pool_.reserve(5 * static_cast<std::size_t>(at) / 2 + 8192);
+    pool_.resize(at);
+    std::fill(count_.begin(), count_.end(), 0);
+    for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
+      const std::uint32_t t = where[i - filed_from_];
+      if (t == kNone) continue;
+      const tile::Vertex& p = pts_[i];
+      pool_[begin_[t] + count_[t]++] = {
+          p.x, p.y, p.z, static_cast<std::uint32_t>(i), state_[i], weight_index(p.weight)};
+    }
+    live_ = at;
+    return {};
+  }
 
   // A point filed under a triangle: a copy of its position, so that scanning a bucket reads
   // memory in order (32 bytes: its weight is an index into the few distinct weights of the
@@ -918,12 +935,11 @@ class GreedyInserter {
   std::uint16_t last_weight_ = kWeightById;  // (none yet)
 };
 
-}  // namespace
-
-Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
-                                   std::span<const tile::Vertex> extra, std::size_t max_vertices,
-                                   double epsilon, const Lattice* lattice,
-                                   std::span<const VertexId> nodata_vertices) {
+// The points of one greedy_insert call: candidates first (all kCandidate), then the extra
+// points (kExtra).
+PointSet make_point_set(std::span<const tile::Vertex> candidates,
+                        std::span<const tile::Vertex> extra, const Lattice* lattice,
+                        std::span<const VertexId> nodata_vertices) {
   PointSet points;
   points.nodata_vertices = nodata_vertices;
   points.candidates = candidates.size();
@@ -933,39 +949,59 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
   points.state.assign(points.pts.size(), kExtra);
   std::fill(points.state.begin(),
             points.state.begin() + static_cast<std::ptrdiff_t>(candidates.size()), kCandidate);
+  return points;
+}
+
+// Inserts the chosen points into the kernel's triangulation, in their order (`bulk`: in one
+// insert_bulk call, which may order them otherwise), and records their vertices in out.vertex.
+// Every chosen point must go in: it was a vertex of the own mesh, so it duplicates no vertex.
+Status commit_to_kernel(Triangulation& tri, const PointList& pts,
+                        const std::vector<std::uint32_t>& chosen, bool bulk, GreedyResult& out) {
+  if (bulk) {
+    std::vector<kernel::Point3> p3;
+    p3.reserve(chosen.size());
+    for (std::uint32_t i : chosen) {
+      const tile::Vertex& p = pts[i];
+      p3.push_back({p.x, p.y, p.z, p.weight});
+    }
+    const std::vector<kernel::InsertResult> ins = tri.insert_bulk(p3);
+    for (std::size_t k = 0; k < chosen.size(); ++k) {
+      if (ins[k].outcome == kernel::InsertOutcome::inserted) out.vertex[chosen[k]] = ins[k].vertex;
+    }
+  } else {
+    for (const std::uint32_t c : chosen) {
+      const tile::Vertex& p = pts[c];
+      const kernel::InsertResult r = tri.insert({p.x, p.y, p.z, p.weight});
+      if (r.outcome != kernel::InsertOutcome::inserted) break;
+      out.vertex[c] = r.vertex;
+    }
+  }
+  for (std::uint32_t i : chosen) {
+    if (out.vertex[i] == kNone) {
+      return Error(ErrorCode::internal, "interior point #" + std::to_string(i) +
+                                            " chosen by greedy insertion was not inserted");
+    }
+  }
+  out.inserted += chosen.size();
+  return {};
+}
+
+// The last step of every way out: the points still filed (in `g`'s mesh, which is the kernel's
+// triangle for triangle) and the largest error left.
+void finish(const GreedyInserter& g, GreedyResult& out) {
+  g.hand_over(out.orphans);
+  out.max_error = g.top_error();
+}
+
+}  // namespace
+
+Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
+                                   std::span<const tile::Vertex> extra, std::size_t max_vertices,
+                                   double epsilon, const Lattice* lattice,
+                                   std::span<const VertexId> nodata_vertices) {
+  PointSet points = make_point_set(candidates, extra, lattice, nodata_vertices);
   GreedyResult out;
   out.vertex.assign(candidates.size(), kNone);
-  auto commit = [&](const std::vector<std::uint32_t>& chosen, bool bulk) -> Status {
-    for (const std::uint32_t c : chosen) {
-      const tile::Vertex& p = points.pts[c];
-      if (!bulk) {
-        const kernel::InsertResult r = tri.insert({p.x, p.y, p.z, p.weight});
-        if (r.outcome != kernel::InsertOutcome::inserted) break;
-        out.vertex[c] = r.vertex;
-      }
-    }
-    if (bulk) {
-      std::vector<kernel::Point3> p3;
-      p3.reserve(chosen.size());
-      for (std::uint32_t i : chosen) {
-        const tile::Vertex& p = points.pts[i];
-        p3.push_back({p.x, p.y, p.z, p.weight});
-      }
-      const std::vector<kernel::InsertResult> ins = tri.insert_bulk(p3);
-      for (std::size_t k = 0; k < chosen.size(); ++k) {
-        if (ins[k].outcome == kernel::InsertOutcome::inserted)
-          out.vertex[chosen[k]] = ins[k].vertex;
-      }
-    }
-    for (std::uint32_t i : chosen) {
-      if (out.vertex[i] == kNone) {
-        return Error(ErrorCode::internal, "interior point #" + std::to_string(i) +
-                                              " chosen by greedy insertion was not inserted");
-      }
-    }
-    out.inserted += chosen.size();
-    return {};
-  };
   // Round 0 selects in the own mesh; the kernel's triangulation of the chosen points may
   // resolve cocircular ties (common on grids) with other diagonals than the own mesh did. When
   // it does, the next round copies the kernel's mesh back, re-files and re-ranks every point and
@@ -982,24 +1018,25 @@ Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Ver
     // (Repairs are for errors the kernel's diagonals raised; the point that round 0 stopped at
     // comes out equal up to rounding, which must not decide whether it goes in.)
     if (round == 0) floor = g.top_error() * (1 + 1e-9);
-    if (chosen.empty() || round == kMaxRounds) {
-      if (!chosen.empty()) {
-        // Give up repairing: re-file in the kernel's mesh as it is (the error stays honest).
-        if (Status s = commit(chosen, false); !s.ok()) return s.error();
-        GreedyInserter last(tri, points);
-        if (Status s = last.start(); !s.ok()) return s.error();
-        last.hand_over(out.orphans);
-        out.max_error = last.top_error();
-      } else {
-        g.hand_over(out.orphans);
-        out.max_error = g.top_error();
-      }
+    if (chosen.empty()) {  // g's mesh is the kernel's: copied by start(), nothing inserted since
+      finish(g, out);
       break;
     }
-    if (Status s = commit(chosen, round == 0); !s.ok()) return s.error();
+    if (round == kMaxRounds) {
+      // Give up repairing: re-file in the kernel's mesh as it is (the error stays honest).
+      if (Status s = commit_to_kernel(tri, points.pts, chosen, false, out); !s.ok()) {
+        return s.error();
+      }
+      GreedyInserter last(tri, points);
+      if (Status s = last.start(); !s.ok()) return s.error();
+      finish(last, out);
+      break;
+    }
+    if (Status s = commit_to_kernel(tri, points.pts, chosen, round == 0, out); !s.ok()) {
+      return s.error();
+    }
     if (g.matches_kernel(out.vertex)) {
-      g.hand_over(out.orphans);
-      out.max_error = g.top_error();
+      finish(g, out);
       break;
     }
   }
