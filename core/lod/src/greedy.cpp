@@ -90,6 +90,9 @@ struct DefaultInit : std::allocator<T> {
   }
 };
 
+// What became of a point (PointSet::state, by point). A filed point's copy (Filed::kind) is kept
+// equal by set_state(); only kCandidate and kExtra points belong in a bucket, the others leave it
+// at its next scan (rank(), refile()).
 enum State : std::uint8_t {
   kCandidate,  // may be inserted
   kInserted,
@@ -166,23 +169,17 @@ class GreedyInserter {
       if (vertices >= watch_from) settled = std::min(settled, e);
       if (vertices >= max_vertices && !(e > settled && vertices < hard_cap)) break;
       const Pick pick = picked(t);
-      const std::uint32_t i = pick.id;
       const Outcome outcome = insert(pick, t);
-      switch (outcome) {
-        case Outcome::inserted:
-          chosen.push_back(i);
-          ++vertices;
-          break;
-        case Outcome::duplicate:
-          ++*duplicates;
-          break;
-        case Outcome::on_wall:
-          break;
+      if (outcome == Outcome::inserted) {
+        chosen.push_back(pick.id);
+        ++vertices;
+        continue;
       }
-      if (outcome != Outcome::inserted) {
-        set_state(pick, outcome == Outcome::duplicate ? kGone : kExtra);
-        rank(t);
-      }
+      // Not insertable (insert() changed nothing): the point stays filed as an extra one (on a
+      // wall) or leaves (a duplicate), and t is ranked again without it.
+      if (outcome == Outcome::duplicate) ++*duplicates;
+      set_state(pick, outcome == Outcome::duplicate ? kGone : kExtra);
+      rank(t);
     }
     return chosen;
   }
@@ -374,8 +371,9 @@ class GreedyInserter {
     return last_weight_;
   }
 
-  // Recomputes t's best candidate from its bucket (compacting away points that left) and its
-  // heap key.
+  // Recomputes t's best candidate and its heap key. Scanning the bucket also compacts it: points
+  // inserted or gone since leave here (their entries stay behind in the bucket until then, so
+  // every bucket scan skips them).
   void rank(std::uint32_t t) {
     const Plane pl = plane(t);
     double best_e = -1, w;
@@ -391,6 +389,14 @@ class GreedyInserter {
     }
     live_ -= begin_[t] + count_[t] - kept;
     count_[t] = kept - begin_[t];
+    publish_best(t, best, best_e);
+  }
+
+  // The three ways a triangle is ranked, after its bucket was scanned for the plain effective
+  // error (`best`: the pool index of the largest, `best_e`): on a lattice the candidates are not
+  // filed but scanned by cell (rank_cells); in a fan (a NODATA corner) the coverage cost counts
+  // too (rank_fan: a second scan, rare); otherwise the scan's answer stands.
+  void publish_best(std::uint32_t t, std::uint32_t best, double best_e) {
     if (lattice_) {
       rank_cells(t);
     } else if (is_fan(t)) {
@@ -571,12 +577,38 @@ class GreedyInserter {
   }
 
   // Inserts the candidate `c`, found in t (t contains it up to rounding: a short walk corrects
-  // it).
+  // it): split, Lawson flips, re-filing of the star's points, re-ranking.
   Outcome insert(const Pick& c, std::uint32_t t) {
     const XY p{c.x, c.y};
-    const double pz = c.z;
     const std::uint32_t filed_under = t;
     double o[3];
+    if (!walk_to(p, t, o)) return Outcome::on_wall;
+    const int zeros = (o[0] == 0) + (o[1] == 0) + (o[2] == 0);
+    if (zeros >= 2) return Outcome::duplicate;
+    const int edge = zeros == 1 ? (o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2)) : -1;  // p lies on it
+    if (edge >= 0 && tris_[t].n[static_cast<std::size_t>(edge)] == kNone) return Outcome::on_wall;
+    set_state(c, kInserted);
+    const auto pv = static_cast<std::uint32_t>(xy_.size());
+    xy_.push_back(p), z_.push_back(c.z), vertex_point_.push_back(c.id);
+    star_.clear();
+    taken_.clear();
+    if (edge >= 0) {
+      split_edge(t, edge, pv);
+    } else {
+      split_triangle(t, pv);
+    }
+    legalize(pv);
+    refile();
+    // Filed under a neighbour by rounding: that triangle's ranking still names the point.
+    if (std::find(star_.begin(), star_.end(), filed_under) == star_.end()) rank(filed_under);
+    compact_if_due();
+    return Outcome::inserted;
+  }
+
+  // Moves t to the triangle that contains p exactly (orientations in o: o[k] of p against the
+  // edge opposite v[k], all ≥ 0). False when the walk would cross a wall (p off the mesh, or
+  // beyond a constrained edge) or takes more than 64 steps.
+  bool walk_to(const XY& p, std::uint32_t& t, double (&o)[3]) const {
     for (int steps = 0;; ++steps) {
       const Tri& T = tris_[t];
       int out = -1;
@@ -585,41 +617,21 @@ class GreedyInserter {
                                 xy_[T.v[static_cast<std::size_t>(prev3(k))]], p);
         if (o[k] < 0 && out < 0) out = k;
       }
-      if (out < 0) break;
+      if (out < 0) return true;
       const std::uint32_t u = T.n[static_cast<std::size_t>(out)];
-      if (u == kNone || steps > 64) return Outcome::on_wall;
+      if (u == kNone || steps > 64) return false;
       t = u;
     }
-    const int zeros = (o[0] == 0) + (o[1] == 0) + (o[2] == 0);
-    if (zeros >= 2) return Outcome::duplicate;
-    if (zeros == 1 &&
-        tris_[t].n[static_cast<std::size_t>(o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2))] == kNone) {
-      return Outcome::on_wall;
-    }
-    set_state(c, kInserted);
-    const auto pv = static_cast<std::uint32_t>(xy_.size());
-    star_.clear();
-    taken_.clear();
-    if (zeros == 1) {
-      const int k = o[0] == 0 ? 0 : (o[1] == 0 ? 1 : 2);
-      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(c.id);
-      split_edge(t, k, pv);
-    } else {
-      xy_.push_back(p), z_.push_back(pz), vertex_point_.push_back(c.id);
-      split_triangle(t, pv);
-    }
-    legalize(pv);
-    refile();
-    // Filed under a neighbour by rounding: that triangle's ranking still names the point.
-    if (std::find(star_.begin(), star_.end(), filed_under) == star_.end()) rank(filed_under);
-    // Compact when the garbage reaches half the live points (the pool's memory stays within
-    // 2.5 × theirs: a parent thinned from 64 sources files up to a million), and before the next
-    // re-filing (which appends at most the live points) could outgrow the pool: a reallocation
-    // would double it.
+  }
+
+  // Compacts when the garbage reaches half the live points (the pool's memory stays within
+  // 2.5 × theirs: a parent thinned from 64 sources files up to a million), and before the next
+  // re-filing (which appends at most the live points) could outgrow the pool: a reallocation
+  // would double it, and refile() holds pool indices across its growth.
+  void compact_if_due() {
     if (pool_.size() > live_ + live_ / 2 + 4096 || pool_.size() + live_ > pool_.capacity()) {
       compact();
     }
-    return Outcome::inserted;
   }
 
   void split_triangle(std::uint32_t t, std::uint32_t p) {
@@ -694,31 +706,50 @@ class GreedyInserter {
   // for a big star the one of its angle and then that one's two neighbours) whose smallest
   // barycentric weight is ≥ 0, and when rounding puts it in none, under the one where that
   // weight is largest.
+  // Relies on: every star triangle was taken (take()) or is new, so its count_ is 0 and its old
+  // bucket is listed in taken_; the taken buckets stay readable in the pool until step 3.
   void refile() {
-    const std::size_t n = star_.size();
     std::size_t entries = 0;
     for (const auto& [b, c] : taken_) entries += c;
     if (entries == 0 && lattice_) {  // nothing filed (the usual case on a lattice): rank only
-      for (std::uint32_t t : star_) count_[t] = 0, rank_cells(t);
+      for (std::uint32_t t : star_) rank_cells(t);
       return;
     }
+    prepare_star(entries);
+    const std::uint32_t moved = assign_to_star();
+    const std::uint32_t end = place_star_buckets();
+    move_into_star_buckets(end);
+    live_ += moved;
+    for (std::size_t k = 0; k < star_.size(); ++k) {
+      publish_best(star_[k], star_best_[k], star_error_[k]);
+    }
+  }
+
+  // refile(), step 0: the star's planes and empty per-star tallies; slot_ room for `entries`.
+  void prepare_star(std::size_t entries) {
+    const std::size_t n = star_.size();
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
     star_best_.assign(n, kNone);  // the index in its new bucket, then in the pool
     star_error_.assign(n, -1.0);
     star_count_.assign(n, 0);
     if (slot_.size() < entries) slot_.resize(entries);
+    if (n > kSmallStar) sort_star_by_angle();
+  }
+
+  // refile(), step 1: each gathered point's star triangle (slot_, by gathered entry; kNone for a
+  // point that left), its place in that triangle's new bucket (in gather order), and each
+  // bucket's best candidate (star_best_, star_error_). Returns the number of points that stay.
+  // (The hot loop of the stage. It works on raw pointers: through the vectors, every store made
+  // the compiler reload their bounds.)
+  std::uint32_t assign_to_star() {
+    const std::size_t n = star_.size();
     const bool by_angle = n > kSmallStar;
-    if (by_angle) sort_star_by_angle();
-    // (The loops work on raw pointers: through the vectors, every store made the compiler reload
-    // their bounds.)
     std::uint32_t* const slot = slot_.data();
     std::uint32_t* const star_count = star_count_.data();
     std::uint32_t* const star_best = star_best_.data();
     double* const star_error = star_error_.data();
     const Plane* const planes = planes_.data();
-    // Pass 1: each point's star triangle (slot, by gathered entry; kNone for a point that left),
-    // its place in that triangle's new bucket (in gather order), and the buckets' best.
     std::uint32_t moved = 0, m = 0;
     for (const auto& [b, cnt] : taken_) {
       const Filed* const bucket = pool_.data() + b;
@@ -744,37 +775,38 @@ class GreedyInserter {
         if (err > star_error[k]) star_error[k] = err, star_best[k] = place;
       }
     }
-    // The new buckets go after everything (the taken ones included), in star order; positions
-    // are indices, valid across the growth (which insert() keeps within the capacity).
+    return moved;
+  }
+
+  // refile(), step 2: the new buckets' places, after everything in the pool (the taken buckets
+  // included), in star order; star_best_ becomes a pool index, star_count_ the next free entry of
+  // each bucket. Returns the pool's new end. Positions are indices, valid across the pool's
+  // growth (which compact_if_due() keeps within its capacity).
+  std::uint32_t place_star_buckets() {
     auto at = static_cast<std::uint32_t>(pool_.size());
-    for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t k = 0; k < star_.size(); ++k) {
       const std::uint32_t t = star_[k];
       begin_[t] = at;
-      count_[t] = star_count[k];
-      if (star_best[k] != kNone) star_best[k] += at;
-      star_count[k] = at;  // from here: where the bucket's next point goes
+      count_[t] = star_count_[k];
+      if (star_best_[k] != kNone) star_best_[k] += at;
+      star_count_[k] = at;  // from here: where the bucket's next point goes
       at += count_[t];
     }
-    // Pass 2: the points into their buckets, straight from the taken ones (no scratch copy).
-    pool_.resize(at);
+    return at;
+  }
+
+  // refile(), step 3: the points into their buckets, straight from the taken ones (no scratch
+  // copy: the new buckets lie after every taken one).
+  void move_into_star_buckets(std::uint32_t end) {
+    pool_.resize(end);
     Filed* const pool = pool_.data();
-    m = 0;
+    const std::uint32_t* const slot = slot_.data();
+    std::uint32_t* const next = star_count_.data();
+    std::uint32_t m = 0;
     for (const auto& [b, cnt] : taken_) {
       for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
         const std::uint32_t k = slot[m];
-        if (k != kNone) pool[star_count[k]++] = pool[b + e];
-      }
-    }
-    live_ += moved;
-    for (std::size_t k = 0; k < n; ++k) {
-      if (lattice_) {
-        rank_cells(star_[k]);
-      } else {
-        if (is_fan(star_[k])) {
-          rank_fan(star_[k]);
-        } else {
-          set_best(star_[k], star_best_[k], star_error_[k]);
-        }
+        if (k != kNone) pool[next[k]++] = pool[b + e];
       }
     }
   }
@@ -904,7 +936,8 @@ class GreedyInserter {
   std::span<const VertexId> nodata_kernel_;  // PointSet::nodata_vertices
   std::vector<std::uint8_t> nodata_;         // by own vertex: a NODATA corner
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
-  std::vector<TriangleId> kernel_slot_;      // by own triangle, as copied in start()
+  // By own triangle: its kernel slot, as copied in start(), then as found by matches_kernel().
+  std::vector<TriangleId> kernel_slot_;
   std::vector<VertexId> kernel_vertex_;      // by own vertex copied from the kernel
   std::vector<std::uint32_t> vertex_point_;  // by own vertex inserted here (after the copied)
   // The own mesh.
@@ -916,8 +949,10 @@ class GreedyInserter {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> order_;  // compact(): (begin, triangle)
   std::vector<std::uint32_t> begin_, count_;                    // by triangle
   std::size_t live_ = 0;                                        // points in buckets
-  std::vector<std::uint32_t> best_;  // by triangle: pool index of its candidate of largest error
-  IndexedHeap heap_;                 // triangles by −(largest effective error), then id
+  // By triangle: its candidate of largest effective error, as a pool index (or on a lattice a
+  // cell: Pick), kNone when it has none (then it is not in heap_).
+  std::vector<std::uint32_t> best_;
+  IndexedHeap heap_;  // triangles by −(largest effective error), then id
   // Scratch of one insertion.
   std::vector<std::uint32_t> star_, stack_, star_best_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
