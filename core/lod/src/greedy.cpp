@@ -17,6 +17,17 @@
 //     /  p  \    ─────▶    /  p  \     (x, y, p) + (y,  │   \ │            │ /   │
 //    a ───── b            a ─────b      x, q) → (x, q,  p ─── y            p ─── y
 //                                       p) + (q, y, p)
+//
+// How a triangle finds its best candidate (rank(), then publish_best()), three paths:
+//   filed    the candidates are filed in buckets like the extra points; the bucket's scan
+//            (rank(), or refile()'s assign_to_star() right after an insertion) names the best;
+//   fan      a triangle at a NODATA corner (is_fan) scans again with the coverage cost
+//            (rank_fan, or rank_fan_cells on a lattice);
+//   lattice  the candidates are the cells of a Lattice and are never filed (only the extra
+//            points are, from filed_from_ on): rank_cells scans the cells inside the triangle,
+//            and a candidate that is no longer one has a NaN candidate_z, which never wins.
+// Either way best_[t] names the candidate (pool index or cell: picked()) and heap_ orders the
+// triangles by it.
 #include "greedy.hpp"
 
 #include <algorithm>
