@@ -58,6 +58,7 @@ struct PanelState {
   bool wireframe = false;
   float max_sse = 2;
   int threads = 1;
+  bool imagery = true;  // --imagery draped (the streamer's switch)
   std::optional<geo::Geodetic> cursor;
 };
 
@@ -128,6 +129,18 @@ std::string megabytes(std::uint64_t bytes) {
   char text[32];
   std::snprintf(text, sizeof text, "%.1f MB", static_cast<double>(bytes) / (1 << 20));
   return text;
+}
+
+// --imagery: its switch and counters (404: absent imagery tiles).
+void draw_imagery_row(Session& s, PanelState& ps) {
+  if (ImGui::Checkbox("imagery", &ps.imagery)) s.streamer->set_imagery_enabled(ps.imagery);
+  ImGui::SameLine();
+  ImGui::TextUnformatted(s.imagery->name.c_str());
+  const ImageryStats i = imagery_stats(*s.streamer);
+  ImGui::Text("requested %llu  loaded %llu  draped %llu  404 %llu  failed %llu",
+              static_cast<unsigned long long>(i.requested),
+              static_cast<unsigned long long>(i.loaded), static_cast<unsigned long long>(i.draped),
+              static_cast<unsigned long long>(i.absent), static_cast<unsigned long long>(i.failed));
 }
 
 void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight, double frame_ms) {
@@ -224,6 +237,7 @@ void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight,
               static_cast<unsigned long long>(lc.not_found),
               static_cast<unsigned long long>(lc.failed),
               static_cast<unsigned long long>(lc.dropped));
+  if (s.imagery) draw_imagery_row(s, ps);
   if (!s.streamer->last_error().empty())
     ImGui::TextWrapped("last error: %s", s.streamer->last_error().c_str());
   ImGui::End();
