@@ -37,7 +37,7 @@ void TileStreamer::take_image(LoadResult& r) {
 }
 
 void TileStreamer::drape() {
-  if (options_.imagery_layer < 0 ||
+  if (!imagery_enabled_ || options_.imagery_layer < 0 ||
       static_cast<std::size_t>(options_.imagery_layer) >= layers_.size())
     return;
   const auto il = static_cast<std::uint16_t>(options_.imagery_layer);

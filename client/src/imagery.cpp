@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "layer_common.hpp"
 #include "tinstream/store/tile_store.hpp"
 
 namespace tinstream::client {
@@ -10,19 +11,9 @@ namespace tinstream::client {
 using nlohmann::json;
 
 LayerDescription from_imagery_info(const store::ImageryInfo& info) {
-  LayerDescription l;
+  LayerDescription l = common_description(info);
   l.kind = TileKind::imagery;
-  l.name = info.name;
   l.image_format = info.format;
-  l.projection = info.projection;
-  l.mercator_bounds = info.mercator_bounds;
-  l.bounds = info.bounds;
-  l.min_level = info.min_level;
-  l.max_level = info.max_level;
-  l.tile_count = info.tile_count;
-  l.version = info.version;
-  l.created_unix = info.created_unix;
-  l.attribution = info.attribution;
   return l;
 }
 

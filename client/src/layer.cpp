@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "layer_common.hpp"
 #include "tinstream/client/tile_key.hpp"
 #include "tinstream/store/tile_store.hpp"
 
@@ -80,20 +81,10 @@ Result<std::vector<LayerDescription>> parse_layers_json(std::string_view text) {
 }
 
 LayerDescription from_store_info(const store::LayerInfo& info) {
-  LayerDescription l;
-  l.name = info.name;
-  l.projection = info.projection;
-  l.mercator_bounds = info.mercator_bounds;
-  l.bounds = info.bounds;
-  l.min_level = info.min_level;
-  l.max_level = info.max_level;
+  LayerDescription l = common_description(info);
   l.min_z = info.min_z;
   l.max_z = info.max_z;
   l.level_max_error = info.level_max_error;
-  l.tile_count = info.tile_count;
-  l.version = info.version;
-  l.created_unix = info.created_unix;
-  l.attribution = info.attribution;
   return l;
 }
 

@@ -143,231 +143,313 @@ double skirt_margin(const tile::TinTile& tile, const LayerDescription& layer) {
   return std::max(1e-5 * width_m, 0.05);
 }
 
-TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& layer, TileKey key) {
-  const geo::NormalisedMercator projection(layer.projection);
-  const std::vector<tile::Vertex> vertices = tile.vertices();
-  const geo::MercatorRect rect = tile.id.bounds();
-  const double mid_x = (rect.min_x + rect.max_x) / 2, mid_y = (rect.min_y + rect.max_y) / 2;
+namespace {
 
-  TileMesh mesh;
-  mesh.key = key;
-  mesh.geometric_error = tile.geometric_error;
-  mesh.skirt_margin = skirt_margin(tile, layer);
+// A point of a cut skirt's cross-section: ECEF, normalised Mercator and height.
+struct CutPoint {
+  Vec3 ecef;
+  double x, y, z;
+};
 
-  // Drawn triangles and the vertices they use.
-  std::vector<tile::Triangle> drawn;
-  drawn.reserve(tile.triangles.size());
-  std::vector<bool> used(vertices.size(), false);
-  const std::vector<std::uint8_t> footprint = tile.footprint_mask();
-  for (std::size_t i = 0; i < tile.triangles.size(); ++i) {
-    const tile::Triangle& t = tile.triangles[i];
+CutPoint between(const CutPoint& p, const CutPoint& q, double t) {
+  return CutPoint{p.ecef + (q.ecef - p.ecef) * t, p.x + (q.x - p.x) * t, p.y + (q.y - p.y) * t,
+                  p.z + (q.z - p.z) * t};
+}
+
+// The steps of build_render_mesh, in this order; each reads what the steps before it left.
+class MeshBuilder {
+ public:
+  MeshBuilder(const tile::TinTile& tile, const LayerDescription& layer, TileKey key);
+
+  TileMesh build() && {
+    select_drawn();
+    place_vertices();
+    emit_surface();
+    add_side_skirts();
+    add_cut_skirts();
+    write_indices();
+    fit_bounds();
+    return std::move(mesh_);
+  }
+
+ private:
+  void select_drawn();
+  void place_vertices();
+  void emit_surface();
+  void add_side_skirts();
+  void add_cut_skirts();
+  void write_indices();
+  void fit_bounds();
+
+  void emit(Vec3 p, double height, Vec3 n, bool skirt, const tile::Vertex& v);
+  std::uint32_t skirt_vertex(std::uint32_t v);
+  CutPoint along_edge(std::uint32_t a, std::uint32_t b, double t) const;
+  // The cross-section of drawn triangle t with the mid line (x = mid when vertical, else y =
+  // mid), split where it crosses the other mid line.
+  void cut_triangle(const tile::Triangle& t, bool vertical,
+                    std::unordered_set<std::uint64_t>& cut_edges);
+  void emit_cut(const CutPoint& p, const CutPoint& q, Vec3 n, bool vertical);
+
+  const tile::TinTile& tile_;
+  const LayerDescription& layer_;
+  const geo::NormalisedMercator projection_;
+  const std::vector<tile::Vertex> vertices_;
+  const geo::MercatorRect rect_;
+  const double mid_x_, mid_y_;
+  const double inv_w_, inv_h_;
+  TileMesh mesh_;
+
+  std::vector<tile::Triangle> drawn_;  // inside the data footprint
+  std::vector<bool> used_;             // a vertex of a drawn triangle
+  std::vector<GeodeticTerms> terms_;   // per vertex
+  std::vector<Vec3> ecef_, normal_;    // per vertex, double precision
+  double deepest_ = 0;                 // the lowest a skirt may hang (for the box)
+  std::vector<std::uint32_t> skirt_triangles_;
+  std::unordered_map<std::uint32_t, std::uint32_t> skirt_of_;  // border vertex → skirt vertex
+  std::vector<Vec3> skirt_points_;  // every skirt vertex at its deepest (for the box)
+  std::array<std::vector<std::uint32_t>, 4> cut_triangles_;
+  std::array<std::vector<SkirtSpan>, 4> cut_spans_;
+};
+
+MeshBuilder::MeshBuilder(const tile::TinTile& tile, const LayerDescription& layer, TileKey key)
+    : tile_(tile),
+      layer_(layer),
+      projection_(layer.projection),
+      vertices_(tile.vertices()),
+      rect_(tile.id.bounds()),
+      mid_x_((rect_.min_x + rect_.max_x) / 2),
+      mid_y_((rect_.min_y + rect_.max_y) / 2),
+      inv_w_(1.0 / rect_.width()),
+      inv_h_(1.0 / rect_.height()) {
+  mesh_.key = key;
+  mesh_.geometric_error = tile.geometric_error;
+  mesh_.skirt_margin = skirt_margin(tile, layer);
+}
+
+// Drawn triangles (the data footprint) and the vertices they use; the quadrants they reach.
+void MeshBuilder::select_drawn() {
+  drawn_.reserve(tile_.triangles.size());
+  used_.assign(vertices_.size(), false);
+  const std::vector<std::uint8_t> footprint = tile_.footprint_mask();
+  for (std::size_t i = 0; i < tile_.triangles.size(); ++i) {
+    const tile::Triangle& t = tile_.triangles[i];
     if (!footprint[i]) {
-      ++mesh.nodata_triangles;
+      ++mesh_.nodata_triangles;
       continue;
     }
-    drawn.push_back(t);
-    double lo_x = vertices[t[0]].x, hi_x = lo_x, lo_y = vertices[t[0]].y, hi_y = lo_y;
+    drawn_.push_back(t);
+    double lo_x = vertices_[t[0]].x, hi_x = lo_x, lo_y = vertices_[t[0]].y, hi_y = lo_y;
     for (const std::uint32_t v : t) {
-      used[v] = true;
-      lo_x = std::min(lo_x, vertices[v].x);
-      hi_x = std::max(hi_x, vertices[v].x);
-      lo_y = std::min(lo_y, vertices[v].y);
-      hi_y = std::max(hi_y, vertices[v].y);
+      used_[v] = true;
+      lo_x = std::min(lo_x, vertices_[v].x);
+      hi_x = std::max(hi_x, vertices_[v].x);
+      lo_y = std::min(lo_y, vertices_[v].y);
+      hi_y = std::max(hi_y, vertices_[v].y);
     }
     // Quadkey digits: 0 NW, 1 NE, 2 SW, 3 SE.
-    const bool west = lo_x<mid_x, east = hi_x> mid_x, north = hi_y > mid_y, south = lo_y < mid_y;
-    mesh.quadrant_data |=
+    const bool west = lo_x<mid_x_, east = hi_x> mid_x_, north = hi_y > mid_y_,
+               south = lo_y < mid_y_;
+    mesh_.quadrant_data |=
         static_cast<std::uint8_t>((north && west ? 1 : 0) | (north && east ? 2 : 0) |
                                   (south && west ? 4 : 0) | (south && east ? 8 : 0));
   }
-  mesh.data_triangles = static_cast<std::uint32_t>(drawn.size());
+  mesh_.data_triangles = static_cast<std::uint32_t>(drawn_.size());
+}
 
-  // Double-precision ECEF of every vertex; the drawn height range.
-  std::vector<Vec3> ecef(vertices.size());
-  std::vector<GeodeticTerms> terms(vertices.size());
+// Double-precision ECEF of every vertex; the drawn height range; the mesh's origin and frame.
+void MeshBuilder::place_vertices() {
+  ecef_.resize(vertices_.size());
+  terms_.resize(vertices_.size());
   double min_z = std::numeric_limits<double>::infinity(), max_z = -min_z;
-  for (std::size_t i = 0; i < vertices.size(); ++i) {
-    terms[i] = GeodeticTerms::from_mercator(projection, vertices[i].x, vertices[i].y);
-    ecef[i] = terms[i].ecef(vertices[i].z);
-    if (used[i]) {
-      min_z = std::min(min_z, vertices[i].z);
-      max_z = std::max(max_z, vertices[i].z);
+  for (std::size_t i = 0; i < vertices_.size(); ++i) {
+    terms_[i] = GeodeticTerms::from_mercator(projection_, vertices_[i].x, vertices_[i].y);
+    ecef_[i] = terms_[i].ecef(vertices_[i].z);
+    if (used_[i]) {
+      min_z = std::min(min_z, vertices_[i].z);
+      max_z = std::max(max_z, vertices_[i].z);
     }
   }
-  if (drawn.empty()) min_z = max_z = 0;
-  mesh.min_z = min_z;
-  mesh.max_z = max_z;
+  if (drawn_.empty()) min_z = max_z = 0;
+  mesh_.min_z = min_z;
+  mesh_.max_z = max_z;
+  const geo::LonLat centre_ll = projection_.inverse({mid_x_, mid_y_});
+  mesh_.centre = to_vec(geo::to_ecef({centre_ll.lon, centre_ll.lat, (min_z + max_z) / 2}));
+  mesh_.frame = enu_frame(centre_ll.lon, centre_ll.lat);
+}
 
-  const geo::LonLat centre_ll = projection.inverse({mid_x, mid_y});
-  mesh.centre = to_vec(geo::to_ecef({centre_ll.lon, centre_ll.lat, (min_z + max_z) / 2}));
-  mesh.frame = enu_frame(centre_ll.lon, centre_ll.lat);
+void MeshBuilder::emit(Vec3 p, double height, Vec3 n, bool skirt, const tile::Vertex& v) {
+  const Vec3 local = p - mesh_.centre;
+  mesh_.vertices.push_back(
+      {{static_cast<float>(local.x), static_cast<float>(local.y), static_cast<float>(local.z)},
+       static_cast<float>(height),
+       pack_normal(n, skirt),
+       unorm16((v.x - rect_.min_x) * inv_w_),
+       unorm16((rect_.max_y - v.y) * inv_h_)});
+}
 
-  // Area-weighted vertex normals (the cross product's length is twice the area).
-  std::vector<Vec3> normal(vertices.size());
-  for (const tile::Triangle& t : drawn) {
-    const Vec3 n = cross(ecef[t[1]] - ecef[t[0]], ecef[t[2]] - ecef[t[0]]);
-    for (const std::uint32_t v : t) normal[v] += n;
+// Area-weighted vertex normals (the cross product's length is twice the area), then every
+// vertex in tile numbering.
+void MeshBuilder::emit_surface() {
+  normal_.resize(vertices_.size());
+  for (const tile::Triangle& t : drawn_) {
+    const Vec3 n = cross(ecef_[t[1]] - ecef_[t[0]], ecef_[t[2]] - ecef_[t[0]]);
+    for (const std::uint32_t v : t) normal_[v] += n;
   }
-  const double inv_w = 1.0 / rect.width(), inv_h = 1.0 / rect.height();
-  mesh.vertices.reserve(vertices.size() + 2 * (tile.north.size() + tile.east.size() +
-                                               tile.south.size() + tile.west.size() + 4));
-  const auto emit = [&](Vec3 p, double height, Vec3 n, bool skirt, const tile::Vertex& v) {
-    const Vec3 local = p - mesh.centre;
-    mesh.vertices.push_back(
-        {{static_cast<float>(local.x), static_cast<float>(local.y), static_cast<float>(local.z)},
-         static_cast<float>(height),
-         pack_normal(n, skirt),
-         unorm16((v.x - rect.min_x) * inv_w),
-         unorm16((rect.max_y - v.y) * inv_h)});
-  };
-  for (std::size_t i = 0; i < vertices.size(); ++i) {
-    const double len = length(normal[i]);
-    normal[i] = len > 0 ? normal[i] / len : mesh.frame[2];
-    emit(ecef[i], vertices[i].z, normal[i], false, vertices[i]);
+  mesh_.vertices.reserve(vertices_.size() + 2 * (tile_.north.size() + tile_.east.size() +
+                                                 tile_.south.size() + tile_.west.size() + 4));
+  for (std::size_t i = 0; i < vertices_.size(); ++i) {
+    const double len = length(normal_[i]);
+    normal_[i] = len > 0 ? normal_[i] / len : mesh_.frame[2];
+    emit(ecef_[i], vertices_[i].z, normal_[i], false, vertices_[i]);
   }
+}
 
-  // Skirts: under every border segment that is an edge of a drawn triangle, side by side. A
-  // skirt vertex sits at its border vertex (the shader lowers it); for the box, its deepest
-  // point: the layer's lowest height less the margin (the floor never lies below it).
-  const double deepest = std::min(layer.min_z, min_z) - mesh.skirt_margin;
-  mesh.skirt_lowest = deepest;
+std::uint32_t MeshBuilder::skirt_vertex(std::uint32_t v) {
+  const auto [it, fresh] =
+      skirt_of_.try_emplace(v, static_cast<std::uint32_t>(mesh_.vertices.size()));
+  if (fresh) {
+    skirt_points_.push_back(terms_[v].ecef(std::min(vertices_[v].z, deepest_)));
+    emit(ecef_[v], vertices_[v].z, normal_[v], true, vertices_[v]);
+  }
+  return it->second;
+}
+
+// Skirts: under every border segment that is an edge of a drawn triangle, side by side. A
+// skirt vertex sits at its border vertex (the shader lowers it); for the box, its deepest
+// point: the layer's lowest height less the margin (the floor never lies below it).
+void MeshBuilder::add_side_skirts() {
+  deepest_ = std::min(layer_.min_z, mesh_.min_z) - mesh_.skirt_margin;
+  mesh_.skirt_lowest = deepest_;
   std::unordered_set<std::uint64_t> border_edges;
   const std::uint32_t border_end = static_cast<std::uint32_t>(
-      4 + tile.north.size() + tile.east.size() + tile.south.size() + tile.west.size());
-  for (const tile::Triangle& t : drawn)
+      4 + tile_.north.size() + tile_.east.size() + tile_.south.size() + tile_.west.size());
+  for (const tile::Triangle& t : drawn_)
     for (int e = 0; e < 3; ++e) {
       const std::uint32_t a = t[static_cast<std::size_t>(e)],
                           b = t[static_cast<std::size_t>((e + 1) % 3)];
       if (a < border_end && b < border_end) border_edges.insert(edge_key(a, b));
     }
-  std::vector<std::uint32_t> skirt_triangles;
-  std::unordered_map<std::uint32_t, std::uint32_t> skirt_of;  // border vertex → skirt vertex
-  std::vector<Vec3> skirt_points;
-  const auto skirt_vertex = [&](std::uint32_t v) {
-    const auto [it, fresh] =
-        skirt_of.try_emplace(v, static_cast<std::uint32_t>(mesh.vertices.size()));
-    if (fresh) {
-      skirt_points.push_back(terms[v].ecef(std::min(vertices[v].z, deepest)));
-      emit(ecef[v], vertices[v].z, normal[v], true, vertices[v]);
-    }
-    return it->second;
-  };
-  const auto sides = border_loops(tile);
+  const auto sides = border_loops(tile_);
   for (std::size_t s = 0; s < sides.size(); ++s) {
-    const std::size_t before = skirt_triangles.size();
+    const std::size_t before = skirt_triangles_.size();
     const bool along_x = s == 0 || s == 2;
     for (std::size_t i = 0; i + 1 < sides[s].size(); ++i) {
       const std::uint32_t a = sides[s][i], b = sides[s][i + 1];
       if (!border_edges.contains(edge_key(a, b))) continue;
       const std::uint32_t sa = skirt_vertex(a), sb = skirt_vertex(b);
-      skirt_triangles.insert(skirt_triangles.end(), {a, sa, sb, a, sb, b});
-      const double ca = along_x ? vertices[a].x : vertices[a].y,
-                   cb = along_x ? vertices[b].x : vertices[b].y;
-      mesh.skirt_spans.push_back({std::min(ca, cb), std::max(ca, cb)});
+      skirt_triangles_.insert(skirt_triangles_.end(), {a, sa, sb, a, sb, b});
+      const double ca = along_x ? vertices_[a].x : vertices_[a].y,
+                   cb = along_x ? vertices_[b].x : vertices_[b].y;
+      mesh_.skirt_spans.push_back({std::min(ca, cb), std::max(ca, cb)});
     }
-    mesh.skirt_index_count[s] = static_cast<std::uint32_t>(skirt_triangles.size() - before);
+    mesh_.skirt_index_count[s] = static_cast<std::uint32_t>(skirt_triangles_.size() - before);
   }
+}
 
-  // Cut skirts: the drawn surface's cross-sections along x = mid and y = mid, split at the
-  // centre into the four half-lines between two quadrants. A point of a cross-section lies on a
-  // triangle's edge (or is its vertex); position, height and uv are affine in the triangle, so
-  // interpolating them along the edge gives the very line the fragment shader's mask cuts along.
-  struct CutPoint {
-    Vec3 ecef;
-    double x, y, z;
-  };
-  const auto along_edge = [&](std::uint32_t a, std::uint32_t b, double t) {
-    if (a > b) std::swap(a, b), t = 1 - t;  // both triangles of an edge get the same point
-    const tile::Vertex &va = vertices[a], &vb = vertices[b];
-    return CutPoint{ecef[a] + (ecef[b] - ecef[a]) * t, va.x + (vb.x - va.x) * t,
-                    va.y + (vb.y - va.y) * t, va.z + (vb.z - va.z) * t};
-  };
-  const auto between = [](const CutPoint& p, const CutPoint& q, double t) {
-    return CutPoint{p.ecef + (q.ecef - p.ecef) * t, p.x + (q.x - p.x) * t, p.y + (q.y - p.y) * t,
-                    p.z + (q.z - p.z) * t};
-  };
-  std::array<std::vector<std::uint32_t>, 4> cut_triangles;
-  std::array<std::vector<SkirtSpan>, 4> cut_spans;
-  const auto emit_cut = [&](const CutPoint& p, const CutPoint& q, Vec3 n, bool vertical) {
-    const double cp = vertical ? p.y : p.x, cq = vertical ? q.y : q.x;
-    if (cp == cq) return;
-    const std::size_t group =
-        vertical ? (std::min(cp, cq) >= mid_y ? 0 : 1) : (std::max(cp, cq) <= mid_x ? 2 : 3);
-    const auto first = static_cast<std::uint32_t>(mesh.vertices.size());
-    for (const CutPoint* c : {&p, &q}) {
-      const tile::Vertex v{c->x, c->y, c->z, 0};
-      emit(c->ecef, c->z, n, false, v);
-      emit(c->ecef, c->z, n, true, v);
-      skirt_points.push_back(
-          GeodeticTerms::from_mercator(projection, c->x, c->y).ecef(std::min(c->z, deepest)));
+CutPoint MeshBuilder::along_edge(std::uint32_t a, std::uint32_t b, double t) const {
+  if (a > b) std::swap(a, b), t = 1 - t;  // both triangles of an edge get the same point
+  const tile::Vertex &va = vertices_[a], &vb = vertices_[b];
+  return CutPoint{ecef_[a] + (ecef_[b] - ecef_[a]) * t, va.x + (vb.x - va.x) * t,
+                  va.y + (vb.y - va.y) * t, va.z + (vb.z - va.z) * t};
+}
+
+void MeshBuilder::emit_cut(const CutPoint& p, const CutPoint& q, Vec3 n, bool vertical) {
+  const double cp = vertical ? p.y : p.x, cq = vertical ? q.y : q.x;
+  if (cp == cq) return;
+  const std::size_t group =
+      vertical ? (std::min(cp, cq) >= mid_y_ ? 0 : 1) : (std::max(cp, cq) <= mid_x_ ? 2 : 3);
+  const auto first = static_cast<std::uint32_t>(mesh_.vertices.size());
+  for (const CutPoint* c : {&p, &q}) {
+    const tile::Vertex v{c->x, c->y, c->z, 0};
+    emit(c->ecef, c->z, n, false, v);
+    emit(c->ecef, c->z, n, true, v);
+    skirt_points_.push_back(
+        GeodeticTerms::from_mercator(projection_, c->x, c->y).ecef(std::min(c->z, deepest_)));
+  }
+  cut_triangles_[group].insert(cut_triangles_[group].end(),
+                               {first, first + 1, first + 3, first, first + 3, first + 2});
+  cut_spans_[group].push_back({std::min(cp, cq), std::max(cp, cq)});
+}
+
+void MeshBuilder::cut_triangle(const tile::Triangle& t, bool vertical,
+                               std::unordered_set<std::uint64_t>& cut_edges) {
+  const double m = vertical ? mid_x_ : mid_y_, other = vertical ? mid_y_ : mid_x_;
+  const auto c = [&](std::uint32_t v) { return vertical ? vertices_[v].x : vertices_[v].y; };
+  std::vector<CutPoint> points;
+  std::uint32_t on_line[2]{}, on = 0;
+  for (std::size_t e = 0; e < 3; ++e) {
+    const std::uint32_t a = t[e], b = t[(e + 1) % 3];
+    if (c(a) == m) {
+      if (on < 2) on_line[on] = a;
+      ++on;
+      points.push_back(along_edge(a, a, 0));
+    } else if ((c(a) < m) != (c(b) < m) && c(b) != m) {
+      points.push_back(along_edge(a, b, (m - c(a)) / (c(b) - c(a))));
     }
-    cut_triangles[group].insert(cut_triangles[group].end(),
-                                {first, first + 1, first + 3, first, first + 3, first + 2});
-    cut_spans[group].push_back({std::min(cp, cq), std::max(cp, cq)});
-  };
+  }
+  if (points.size() != 2) return;  // touches the line at a vertex, or degenerate
+  if (on == 2 && !cut_edges.insert(edge_key(on_line[0], on_line[1])).second) return;
+  const Vec3 n = normalize(cross(ecef_[t[1]] - ecef_[t[0]], ecef_[t[2]] - ecef_[t[0]]));
+  const CutPoint &p = points[0], &q = points[1];
+  const double ap = vertical ? p.y : p.x, aq = vertical ? q.y : q.x;
+  if ((ap < other) != (aq < other) && ap != other && aq != other) {
+    const CutPoint mid = between(p, q, (other - ap) / (aq - ap));
+    emit_cut(p, mid, n, vertical);
+    emit_cut(mid, q, n, vertical);
+  } else {
+    emit_cut(p, q, n, vertical);
+  }
+}
+
+// Cut skirts: the drawn surface's cross-sections along x = mid and y = mid, split at the
+// centre into the four half-lines between two quadrants. A point of a cross-section lies on a
+// triangle's edge (or is its vertex); position, height and uv are affine in the triangle, so
+// interpolating them along the edge gives the very line the fragment shader's mask cuts along.
+void MeshBuilder::add_cut_skirts() {
   std::unordered_set<std::uint64_t> cut_edges;  // an edge on a mid line is cut once
-  for (const bool vertical : {true, false}) {
-    const double m = vertical ? mid_x : mid_y, other = vertical ? mid_y : mid_x;
-    const auto c = [&](std::uint32_t v) { return vertical ? vertices[v].x : vertices[v].y; };
-    const auto a_of = [&](const CutPoint& p) { return vertical ? p.y : p.x; };
-    for (const tile::Triangle& t : drawn) {
-      std::vector<CutPoint> points;
-      std::uint32_t on_line[2]{}, on = 0;
-      for (std::size_t e = 0; e < 3; ++e) {
-        const std::uint32_t a = t[e], b = t[(e + 1) % 3];
-        if (c(a) == m) {
-          if (on < 2) on_line[on] = a;
-          ++on;
-          points.push_back(along_edge(a, a, 0));
-        } else if ((c(a) < m) != (c(b) < m) && c(b) != m) {
-          points.push_back(along_edge(a, b, (m - c(a)) / (c(b) - c(a))));
-        }
-      }
-      if (points.size() != 2) continue;  // touches the line at a vertex, or degenerate
-      if (on == 2 && !cut_edges.insert(edge_key(on_line[0], on_line[1])).second) continue;
-      const Vec3 n = normalize(cross(ecef[t[1]] - ecef[t[0]], ecef[t[2]] - ecef[t[0]]));
-      const CutPoint &p = points[0], &q = points[1];
-      const double ap = a_of(p), aq = a_of(q);
-      if ((ap < other) != (aq < other) && ap != other && aq != other) {
-        const CutPoint mid = between(p, q, (other - ap) / (aq - ap));
-        emit_cut(p, mid, n, vertical);
-        emit_cut(mid, q, n, vertical);
-      } else {
-        emit_cut(p, q, n, vertical);
-      }
-    }
-  }
+  for (const bool vertical : {true, false})
+    for (const tile::Triangle& t : drawn_) cut_triangle(t, vertical, cut_edges);
   for (std::size_t g = 0; g < 4; ++g) {
-    mesh.cut_index_count[g] = static_cast<std::uint32_t>(cut_triangles[g].size());
-    skirt_triangles.insert(skirt_triangles.end(), cut_triangles[g].begin(), cut_triangles[g].end());
-    mesh.skirt_spans.insert(mesh.skirt_spans.end(), cut_spans[g].begin(), cut_spans[g].end());
+    mesh_.cut_index_count[g] = static_cast<std::uint32_t>(cut_triangles_[g].size());
+    skirt_triangles_.insert(skirt_triangles_.end(), cut_triangles_[g].begin(),
+                            cut_triangles_[g].end());
+    mesh_.skirt_spans.insert(mesh_.skirt_spans.end(), cut_spans_[g].begin(), cut_spans_[g].end());
   }
+}
 
-  // Indices: surface first, then skirts; 16-bit when every index fits.
-  const std::size_t total = drawn.size() * 3 + skirt_triangles.size();
-  mesh.surface_index_count = static_cast<std::uint32_t>(drawn.size() * 3);
+// Indices: surface first, then skirts; 16-bit when every index fits.
+void MeshBuilder::write_indices() {
+  const std::size_t total = drawn_.size() * 3 + skirt_triangles_.size();
+  mesh_.surface_index_count = static_cast<std::uint32_t>(drawn_.size() * 3);
   const auto fill = [&](auto& out) {
     out.reserve(total);
     using T = typename std::remove_reference_t<decltype(out)>::value_type;
-    for (const tile::Triangle& t : drawn)
+    for (const tile::Triangle& t : drawn_)
       for (const std::uint32_t v : t) out.push_back(static_cast<T>(v));
-    for (const std::uint32_t v : skirt_triangles) out.push_back(static_cast<T>(v));
+    for (const std::uint32_t v : skirt_triangles_) out.push_back(static_cast<T>(v));
   };
-  if (mesh.vertices.size() <= 65536) {
-    fill(mesh.indices16);
+  if (mesh_.vertices.size() <= 65536) {
+    fill(mesh_.indices16);
   } else {
-    fill(mesh.indices32);
+    fill(mesh_.indices32);
   }
+}
 
-  // The box holds every vertex drawn: used surface vertices and all skirt vertices.
+// The box holds every vertex drawn: used surface vertices and all skirt vertices.
+void MeshBuilder::fit_bounds() {
   std::vector<Vec3> points;
-  points.reserve(vertices.size() + skirt_points.size());
-  for (std::size_t i = 0; i < vertices.size(); ++i)
-    if (used[i]) points.push_back(ecef[i]);
-  points.insert(points.end(), skirt_points.begin(), skirt_points.end());
-  if (points.empty()) points.push_back(mesh.centre);
-  mesh.bounds = fit_obb(points, mesh.centre, mesh.frame);
-  return mesh;
+  points.reserve(vertices_.size() + skirt_points_.size());
+  for (std::size_t i = 0; i < vertices_.size(); ++i)
+    if (used_[i]) points.push_back(ecef_[i]);
+  points.insert(points.end(), skirt_points_.begin(), skirt_points_.end());
+  if (points.empty()) points.push_back(mesh_.centre);
+  mesh_.bounds = fit_obb(points, mesh_.centre, mesh_.frame);
+}
+
+}  // namespace
+
+TileMesh build_render_mesh(const tile::TinTile& tile, const LayerDescription& layer, TileKey key) {
+  return MeshBuilder(tile, layer, key).build();
 }
 
 Result<TileMesh> decode_render_mesh(std::span<const std::uint8_t> payload, ContentEncoding encoding,

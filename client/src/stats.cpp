@@ -43,11 +43,20 @@ int centre_level(const Session& session, const Camera& camera) {
   return best;
 }
 
+ImageryStats imagery_stats(const TileStreamer& streamer) {
+  const LevelCounters& c = streamer.imagery_counters();
+  const std::vector<DrawItem>& draws = streamer.last_frame().draws;
+  return {c.requested, c.loaded, c.absent, c.failed,
+          static_cast<std::uint64_t>(std::count_if(
+              draws.begin(), draws.end(), [](const DrawItem& d) { return d.texture != 0; }))};
+}
+
 std::string summary_json(const ViewerOptions& o, const Session& s, const RunSummary& run) {
   using nlohmann::json;
   const TileStreamer& st = *s.streamer;
   const FrameResult& f = st.last_frame();
   const LoaderCounters lc = s.loader->counters();
+  const ImageryStats img = imagery_stats(st);
 
   json levels = json::array();
   std::uint64_t requested = 0, loaded = 0, absent = 0, failed = 0;
@@ -122,16 +131,14 @@ std::string summary_json(const ViewerOptions& o, const Session& s, const RunSumm
        {{"gpu", tier_json(st.gpu_counters())},
         {"ram", tier_json(st.ram_counters())},
         {"disk", s.disk ? tier_json(s.disk->counters()) : json(nullptr)}}},
-      {"imagery",
-       s.imagery ? json{{"layer", s.imagery->name},
-                        {"requested", st.imagery_counters().requested},
-                        {"loaded", st.imagery_counters().loaded},
-                        {"absent", st.imagery_counters().absent},
-                        {"failed", st.imagery_counters().failed},
-                        {"draped", std::count_if(f.draws.begin(), f.draws.end(),
-                                                 [](const DrawItem& d) { return d.texture != 0; })},
-                        {"ram", tier_json(st.image_ram_counters())}}
-                 : json(nullptr)},
+      {"imagery", s.imagery ? json{{"layer", s.imagery->name},
+                                   {"requested", img.requested},
+                                   {"loaded", img.loaded},
+                                   {"absent", img.absent},
+                                   {"failed", img.failed},
+                                   {"draped", img.draped},
+                                   {"ram", tier_json(st.image_ram_counters())}}
+                            : json(nullptr)},
       {"rss_bytes", resident_bytes()},
       {"last_error", st.last_error()},
   };

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tinstream/store/tile_store.hpp"
+
 namespace tinstream::client {
 namespace {
 
@@ -39,6 +41,36 @@ TEST(ImageryJson, TheNamedLayerIsReadWithMercatorBounds) {
   EXPECT_EQ(l->version, 3);
   EXPECT_EQ(l->mercator_bounds.min_x, geo::NormalisedMercator::x_from_lon(6.0));
   EXPECT_LT(l->mercator_bounds.min_y, l->mercator_bounds.max_y);
+}
+
+TEST(ImageryDescription, FromAStoreRowKeepsEveryField) {
+  store::ImageryInfo info;
+  info.name = "ortho";
+  info.projection = geo::Projection::ellipsoidal;
+  info.format = "webp";
+  info.mercator_bounds = {0.0333, 0.3131, 0.0389, 0.3205};
+  info.bounds = {6.0, 49.0, 7.0, 50.0};
+  info.min_level = 8;
+  info.max_level = 15;
+  info.tile_count = 12;
+  info.version = 3;
+  info.created_unix = 1700000000;
+  info.attribution = "test";
+  const LayerDescription l = from_imagery_info(info);
+  EXPECT_EQ(l.kind, TileKind::imagery);
+  EXPECT_EQ(l.name, "ortho");
+  EXPECT_EQ(l.image_format, "webp");
+  EXPECT_EQ(l.projection, geo::Projection::ellipsoidal);
+  EXPECT_EQ(l.mercator_bounds.min_x, 0.0333);
+  EXPECT_EQ(l.mercator_bounds.max_y, 0.3205);
+  EXPECT_EQ(l.bounds.south, 49.0);
+  EXPECT_EQ(l.bounds.east, 7.0);
+  EXPECT_EQ(l.min_level, 8u);
+  EXPECT_EQ(l.max_level, 15u);
+  EXPECT_EQ(l.tile_count, 12u);
+  EXPECT_EQ(l.cache_version(), "v3-1700000000");
+  EXPECT_EQ(l.attribution, "test");
+  EXPECT_TRUE(l.level_max_error.empty());  // imagery has no heights nor errors
 }
 
 TEST(ImageryJson, AnUnknownNameListsTheLayersThereAre) {

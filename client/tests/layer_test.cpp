@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tinstream/store/tile_store.hpp"
+
 namespace tinstream::client {
 namespace {
 
@@ -44,6 +46,39 @@ TEST(LayerJson, NamesWhatIsMissingOrWrong) {
   std::string bad_projection = kLayer;
   bad_projection.replace(bad_projection.find("ellipsoidal"), 11, "conical");
   EXPECT_FALSE(parse_layer_json(bad_projection).ok());
+}
+
+TEST(LayerDescription, FromAStoreRowKeepsEveryField) {
+  store::LayerInfo info;
+  info.name = "dem";
+  info.projection = geo::Projection::ellipsoidal;
+  info.mercator_bounds = {-0.6575, 0.2020, -0.6553, 0.2035};
+  info.bounds = {-118.35, 34.23, -117.95, 34.41};
+  info.min_level = 2;
+  info.max_level = 13;
+  info.min_z = 300.5;
+  info.max_z = 2100.25;
+  info.level_max_error = {900, 800, 6};
+  info.tile_count = 120;
+  info.version = 7;
+  info.created_unix = 1764000000;
+  info.attribution = "SRTM";
+  const LayerDescription l = from_store_info(info);
+  EXPECT_EQ(l.kind, TileKind::terrain);
+  EXPECT_EQ(l.name, "dem");
+  EXPECT_EQ(l.projection, geo::Projection::ellipsoidal);
+  EXPECT_EQ(l.mercator_bounds.min_x, -0.6575);
+  EXPECT_EQ(l.mercator_bounds.max_y, 0.2035);
+  EXPECT_EQ(l.bounds.west, -118.35);
+  EXPECT_EQ(l.bounds.north, 34.41);
+  EXPECT_EQ(l.min_level, 2u);
+  EXPECT_EQ(l.max_level, 13u);
+  EXPECT_EQ(l.min_z, 300.5);
+  EXPECT_EQ(l.max_z, 2100.25);
+  EXPECT_EQ(l.level_max_error, (std::vector<double>{900, 800, 6}));
+  EXPECT_EQ(l.tile_count, 120u);
+  EXPECT_EQ(l.cache_version(), "v7-1764000000");
+  EXPECT_EQ(l.attribution, "SRTM");
 }
 
 TEST(LayerDescription, MayContainOnlyTilesOverItsDataAndLevels) {

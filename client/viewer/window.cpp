@@ -58,6 +58,7 @@ struct PanelState {
   bool wireframe = false;
   float max_sse = 2;
   int threads = 1;
+  bool imagery = true;  // --imagery draped (the streamer's switch)
   std::optional<geo::Geodetic> cursor;
 };
 
@@ -128,6 +129,18 @@ std::string megabytes(std::uint64_t bytes) {
   char text[32];
   std::snprintf(text, sizeof text, "%.1f MB", static_cast<double>(bytes) / (1 << 20));
   return text;
+}
+
+// --imagery: its switch and counters (404: absent imagery tiles).
+void draw_imagery_row(Session& s, PanelState& ps) {
+  if (ImGui::Checkbox("imagery", &ps.imagery)) s.streamer->set_imagery_enabled(ps.imagery);
+  ImGui::SameLine();
+  ImGui::TextUnformatted(s.imagery->name.c_str());
+  const ImageryStats i = imagery_stats(*s.streamer);
+  ImGui::Text("requested %llu  loaded %llu  draped %llu  404 %llu  failed %llu",
+              static_cast<unsigned long long>(i.requested),
+              static_cast<unsigned long long>(i.loaded), static_cast<unsigned long long>(i.draped),
+              static_cast<unsigned long long>(i.absent), static_cast<unsigned long long>(i.failed));
 }
 
 void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight, double frame_ms) {
@@ -224,21 +237,15 @@ void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight,
               static_cast<unsigned long long>(lc.not_found),
               static_cast<unsigned long long>(lc.failed),
               static_cast<unsigned long long>(lc.dropped));
+  if (s.imagery) draw_imagery_row(s, ps);
   if (!s.streamer->last_error().empty())
     ImGui::TextWrapped("last error: %s", s.streamer->last_error().c_str());
   ImGui::End();
 }
 
-}  // namespace
-
-int run_window(const ViewerOptions& o) {
-  auto session = open_session(o);
-  if (!session) {
-    std::cerr << "tinstream-viewer: " << session.error().message << '\n';
-    return 2;
-  }
-  Session& s = *session;
-  GlfwSession glfw;
+// Opens the window with an OpenGL 3.3 core context and makes it current. Returns 0, or the exit
+// status after saying what was missing.
+int open_window(GlfwSession& glfw, const ViewerOptions& o) {
   glfwSetErrorCallback([](int code, const char* text) {
     std::cerr << "GLFW error " << code << ": " << text << '\n';
   });
@@ -258,9 +265,16 @@ int run_window(const ViewerOptions& o) {
   }
   glfwMakeContextCurrent(glfw.window);
   glfwSwapInterval(1);
+  return 0;
+}
 
-  int fb_w = 0, fb_h = 0;
-  glfwGetFramebufferSize(glfw.window, &fb_w, &fb_h);
+// What draws into the window: the globe and the panel's overlay.
+struct Graphics {
+  std::unique_ptr<GlobeRenderer> renderer;
+  std::unique_ptr<Overlay> overlay;
+};
+
+Result<Graphics> create_graphics(const Session& s, const ViewerOptions& o, int fb_w, int fb_h) {
   RendererOptions ro;
   ro.width = fb_w;
   ro.height = fb_h;
@@ -269,39 +283,133 @@ int run_window(const ViewerOptions& o) {
   ro.flush_triangles = o.flush_triangles;
   ro.globe_height = s.globe_height();
   auto renderer = GlobeRenderer::create(ro);
-  if (!renderer) {
-    std::cerr << "tinstream-viewer: " << renderer.error().message << '\n';
-    return 1;
-  }
+  if (!renderer) return renderer.error();
   auto overlay = Overlay::create();
-  if (!overlay) {
-    std::cerr << "tinstream-viewer: " << overlay.error().message << '\n';
-    return 1;
-  }
-  ImGui_ImplGlfw_InitForOpenGL(glfw.window, true);
+  if (!overlay) return overlay.error();
+  return Graphics{std::move(*renderer), std::move(*overlay)};
+}
 
-  Camera camera(fb_w, fb_h, o.fov);
-  camera.log_depth = (*renderer)->log_depth();
-  // Start at --camera, or far out and fly to the layers.
+// Who moves the camera besides the user: a fly-to in progress, or the --camera-path.
+struct Autopilot {
   FlyTo flight;
+  std::optional<PathPlayer> path;
+  double path_s = 0;  // the path's flight time, waits excluded
+
+  bool scripted() const { return path && !path->finished(); }
+};
+
+// Places the camera at --camera, or far out flying to the layers; loads --camera-path.
+Result<Autopilot> start_camera(const Session& s, const ViewerOptions& o, Camera& camera) {
+  Autopilot pilot;
   if (o.camera) {
     camera.set_pose(*o.camera);
   } else {
     camera.set_pose(
         {(s.extent.west + s.extent.east) / 2, (s.extent.south + s.extent.north) / 2, 2e7, 0, -90});
-    flight = FlyTo(camera.pose(), s.framing(camera), 3.0);
+    pilot.flight = FlyTo(camera.pose(), s.framing(camera), 3.0);
   }
-  std::optional<PathPlayer> path;
-  double path_s = 0;  // the path's flight time, waits excluded
   if (!o.camera_path.empty()) {
     auto p = load_camera_path(o.camera_path);
-    if (!p) {
-      std::cerr << "tinstream-viewer: " << p.error().message << '\n';
-      return 2;
+    if (!p) return p.error();
+    pilot.path_s = p->duration();
+    pilot.path.emplace(std::move(*p));
+    pilot.flight = FlyTo();
+  }
+  return pilot;
+}
+
+// Follows the framebuffer's size (the renderer and the camera's viewport). Returns the
+// framebuffer's pixels per window unit (cursor positions are in window units).
+Result<double> follow_framebuffer(GLFWwindow* window, GlobeRenderer& renderer, Camera& camera,
+                                  int& fb_w, int& fb_h) {
+  glfwGetFramebufferSize(window, &fb_w, &fb_h);
+  if (fb_w > 0 && fb_h > 0 && (fb_w != renderer.width() || fb_h != renderer.height())) {
+    if (Status st = renderer.resize(fb_w, fb_h); !st) return st.error();
+    camera.set_viewport(fb_w, fb_h);
+  }
+  int win_w = 1, win_h = 1;
+  glfwGetWindowSize(window, &win_w, &win_h);
+  return static_cast<double>(fb_w) / std::max(win_w, 1);
+}
+
+// Moves the camera for this frame: the path, else a fly-to, else the user's mouse and keys.
+void steer_camera(GLFWwindow* window, const Session& s, GlobeRenderer& renderer, Camera& camera,
+                  Autopilot& pilot, DragState& drag, const PanelState& ps, double dt, double scale,
+                  bool complete) {
+  if (pilot.scripted()) {
+    camera.set_pose(pilot.path->advance(dt, complete));
+  } else if (pilot.flight.active()) {
+    camera.set_pose(pilot.flight.advance(dt));
+  } else {
+    handle_mouse(window, renderer, camera, drag, scale);
+    handle_keys(window, camera, dt);
+    if (!ImGui::GetIO().WantCaptureKeyboard) {
+      if (ImGui::IsKeyPressed(GLFW_KEY_F))
+        pilot.flight =
+            FlyTo(camera.pose(), s.framing(camera, static_cast<std::size_t>(ps.layer_choice)), 2.5);
+      if (ImGui::IsKeyPressed(GLFW_KEY_R))
+        pilot.flight = FlyTo(camera.pose(), s.framing(camera), 2.5);
     }
-    path_s = p->duration();
-    path.emplace(std::move(*p));
-    flight = FlyTo();
+  }
+}
+
+// The ground point under the cursor, for the panel (none over the sky).
+std::optional<geo::Geodetic> ground_under_cursor(GLFWwindow* window, GlobeRenderer& renderer,
+                                                 const Camera& camera, double scale) {
+  double cx = 0, cy = 0;
+  glfwGetCursorPos(window, &cx, &cy);
+  if (auto p = renderer.pick(camera, static_cast<int>(cx * scale), static_cast<int>(cy * scale)))
+    return geo::from_ecef({p->x, p->y, p->z});
+  return std::nullopt;
+}
+
+// --out: once the view is complete and the path flown (or --timeout passed), writes the window
+// to the PNG. Returns the exit status when it wrote (or failed to write), nothing before.
+std::optional<int> snapshot_when_settled(const ViewerOptions& o, int complete_frames,
+                                         const Autopilot& pilot, double elapsed_s, int fb_w,
+                                         int fb_h) {
+  const bool settled = complete_frames >= 3 && !pilot.flight.active() && !pilot.scripted();
+  const bool timed_out = elapsed_s > o.timeout_s + pilot.path_s;
+  if (!settled && !timed_out) return std::nullopt;
+  const Image shot{fb_w, fb_h, read_framebuffer_rgba(0, fb_w, fb_h)};
+  if (Status st = write_png(o.out, shot); !st) {
+    std::cerr << "tinstream-viewer: " << st.error().message << '\n';
+    return 1;
+  }
+  std::cerr << "tinstream-viewer: wrote " << o.out.string() << '\n';
+  if (settled) return 0;
+  std::cerr << "tinstream-viewer: the view was not complete after " << o.timeout_s
+            << " s (--timeout); the window shows what had arrived\n";
+  return 3;
+}
+
+}  // namespace
+
+int run_window(const ViewerOptions& o) {
+  auto session = open_session(o);
+  if (!session) {
+    std::cerr << "tinstream-viewer: " << session.error().message << '\n';
+    return 2;
+  }
+  Session& s = *session;
+  GlfwSession glfw;
+  if (int st = open_window(glfw, o); st != 0) return st;
+  int fb_w = 0, fb_h = 0;
+  glfwGetFramebufferSize(glfw.window, &fb_w, &fb_h);
+  auto graphics = create_graphics(s, o, fb_w, fb_h);
+  if (!graphics) {
+    std::cerr << "tinstream-viewer: " << graphics.error().message << '\n';
+    return 1;
+  }
+  GlobeRenderer& renderer = *graphics->renderer;
+  ImGui_ImplGlfw_InitForOpenGL(glfw.window, true);
+
+  Camera camera(fb_w, fb_h, o.fov);
+  camera.log_depth = renderer.log_depth();
+  auto pilot = start_camera(s, o, camera);
+  if (!pilot) {
+    std::cerr << "tinstream-viewer: " << pilot.error().message << '\n';
+    return 2;
   }
   PanelState ps;
   ps.wireframe = o.wireframe;
@@ -320,79 +428,39 @@ int run_window(const ViewerOptions& o) {
     const auto now = Clock::now();
     const double dt = std::chrono::duration<double>(now - last).count();
     last = now;
-    glfwGetFramebufferSize(glfw.window, &fb_w, &fb_h);
-    if (fb_w > 0 && fb_h > 0 && (fb_w != (*renderer)->width() || fb_h != (*renderer)->height())) {
-      if (Status st = (*renderer)->resize(fb_w, fb_h); !st) {
-        std::cerr << "tinstream-viewer: " << st.error().message << '\n';
-        break;
-      }
-      camera.set_viewport(fb_w, fb_h);
+    const auto scale = follow_framebuffer(glfw.window, renderer, camera, fb_w, fb_h);
+    if (!scale) {
+      std::cerr << "tinstream-viewer: " << scale.error().message << '\n';
+      break;
     }
-    int win_w = 1, win_h = 1;
-    glfwGetWindowSize(glfw.window, &win_w, &win_h);
-    const double scale = static_cast<double>(fb_w) / std::max(win_w, 1);
-
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
-    const bool scripted = path && !path->finished();
-    if (scripted) {
-      camera.set_pose(path->advance(dt, complete));
-    } else if (flight.active()) {
-      camera.set_pose(flight.advance(dt));
-    } else {
-      handle_mouse(glfw.window, **renderer, camera, drag, scale);
-      handle_keys(glfw.window, camera, dt);
-      if (!ImGui::GetIO().WantCaptureKeyboard) {
-        if (ImGui::IsKeyPressed(GLFW_KEY_F))
-          flight = FlyTo(camera.pose(),
-                         s.framing(camera, static_cast<std::size_t>(ps.layer_choice)), 2.5);
-        if (ImGui::IsKeyPressed(GLFW_KEY_R)) flight = FlyTo(camera.pose(), s.framing(camera), 2.5);
-      }
-    }
-    double cx = 0, cy = 0;
-    glfwGetCursorPos(glfw.window, &cx, &cy);
-    if (auto p =
-            (*renderer)->pick(camera, static_cast<int>(cx * scale), static_cast<int>(cy * scale)))
-      ps.cursor = geo::from_ecef({p->x, p->y, p->z});
-    else
-      ps.cursor.reset();
+    steer_camera(glfw.window, s, renderer, camera, *pilot, drag, ps, dt, *scale, complete);
+    ps.cursor = ground_under_cursor(glfw.window, renderer, camera, *scale);
 
     const auto t0 = Clock::now();
-    const FrameResult& f = s.streamer->update(camera, **renderer);
-    (*renderer)->render(camera, f.draws, s.render_settings(ps.wireframe));
-    (*renderer)->present(fb_w, fb_h);
-    draw_panel(s, camera, ps, flight, frame_ms);
+    const FrameResult& f = s.streamer->update(camera, renderer);
+    renderer.render(camera, f.draws, s.render_settings(ps.wireframe));
+    renderer.present(fb_w, fb_h);
+    draw_panel(s, camera, ps, pilot->flight, frame_ms);
     if (o.legend) draw_legend(s.legend);
-    (*overlay)->render(fb_w, fb_h);
+    graphics->overlay->render(fb_w, fb_h);
     complete = f.complete;
     complete_frames = f.complete ? complete_frames + 1 : 0;
     if (!o.out.empty()) {
-      const bool settled = complete_frames >= 3 && !flight.active() && !(path && !path->finished());
-      const bool timed_out =
-          std::chrono::duration<double>(Clock::now() - start).count() > o.timeout_s + path_s;
-      if (settled || timed_out) {
-        const Image shot{fb_w, fb_h, read_framebuffer_rgba(0, fb_w, fb_h)};
-        if (Status st = write_png(o.out, shot); !st) {
-          std::cerr << "tinstream-viewer: " << st.error().message << '\n';
-          status = 1;
-        } else {
-          std::cerr << "tinstream-viewer: wrote " << o.out.string() << '\n';
-          if (!settled) {
-            std::cerr << "tinstream-viewer: the view was not complete after " << o.timeout_s
-                      << " s (--timeout); the window shows what had arrived\n";
-            status = 3;
-          }
-        }
+      const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+      if (auto shot = snapshot_when_settled(o, complete_frames, *pilot, elapsed_s, fb_w, fb_h)) {
+        status = *shot;
         glfwSetWindowShouldClose(glfw.window, GLFW_TRUE);
       }
     }
     glfwSwapBuffers(glfw.window);
     frame_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   }
-  s.streamer->release_all(**renderer);
+  s.streamer->release_all(renderer);
   ImGui_ImplGlfw_Shutdown();
-  renderer->reset();
-  overlay->reset();
+  graphics->renderer.reset();
+  graphics->overlay.reset();
   return status;
 }
 

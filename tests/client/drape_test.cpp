@@ -12,10 +12,13 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "process.hpp"
 #include "synthetic_store.hpp"
+#include "tinstream/client/egl_context.hpp"
 #include "tinstream/client/png.hpp"
+#include "tinstream/client/viewer.hpp"
 #include "tinstream/imagery/image.hpp"
 #include "tinstream/store/tile_store.hpp"
 
@@ -173,6 +176,70 @@ TEST_F(Drape, TheImageryTileOfTheSameQuadkeyIsDrapedAndCountedInTheGpuTier) {
   EXPECT_GE(a.stats["cache"]["gpu"]["bytes"].get<double>() -
                 bare.stats["cache"]["gpu"]["bytes"].get<double>(),
             kSize * kSize * 4.0);
+}
+
+TEST_F(Drape, ImagerySwitchedOffAtRunTimeIsNeitherAskedForNorDraped) {
+  // The window panel's switch (TileStreamer::set_imagery_enabled) and its counters
+  // (imagery_stats), in this process: the session the viewer opens, the real renderer (EGL on
+  // Mesa). Off from the start: the terrain completes with no imagery asked for; on: every drawn
+  // tile gets its imagery; off again: the next frame drapes none and asks for nothing more.
+  write_imagery(store_(), tiles_, imagery::ImageFormat::png);
+  ViewerOptions o;
+  o.store = store_();
+  o.layers = {"synth"};
+  o.imagery = "synth";
+  o.threads = 2;
+  o.max_sse = 0.1;
+  o.heap_trim_ms = -1;
+  auto session = open_session(o);
+  ASSERT_TRUE(session.ok()) << session.error().message;
+  Session& s = *session;
+  auto context = EglContext::create();
+  ASSERT_TRUE(context.ok()) << context.error().message;
+  RendererOptions ro;
+  ro.width = ro.height = 160;
+  ro.msaa = 0;
+  auto renderer = GlobeRenderer::create(ro);
+  ASSERT_TRUE(renderer.ok()) << renderer.error().message;
+  GlobeRenderer& gl = **renderer;
+  Camera camera(160, 160, 60);
+  camera.log_depth = gl.log_depth();
+  const geo::LonLatRect r =
+      kTile.lonlat_bounds(geo::NormalisedMercator(geo::Projection::spherical));
+  camera.set_pose({(r.west + r.east) / 2, (r.south + r.north) / 2, 4500, 0, -90});
+  // Frames until `done` holds (a generous deadline: the loader works on other threads).
+  const auto frames_until = [&](const auto& done) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(90);
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (done(s.streamer->update(camera, gl))) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return false;
+  };
+
+  s.streamer->set_imagery_enabled(false);
+  ASSERT_TRUE(frames_until([](const FrameResult& f) { return f.complete; }));
+  ImageryStats i = imagery_stats(*s.streamer);
+  EXPECT_EQ(i.requested, 0u);
+  EXPECT_EQ(i.loaded, 0u);
+  EXPECT_EQ(i.draped, 0u);
+
+  s.streamer->set_imagery_enabled(true);
+  ASSERT_TRUE(frames_until([&](const FrameResult& f) {
+    return f.complete && !f.draws.empty() && imagery_stats(*s.streamer).draped == f.draws.size();
+  }));
+  i = imagery_stats(*s.streamer);
+  EXPECT_GT(i.requested, 0u);
+  EXPECT_GT(i.loaded, 0u);
+  EXPECT_EQ(i.failed, 0u);
+
+  s.streamer->set_imagery_enabled(false);
+  const FrameResult& f = s.streamer->update(camera, gl);
+  EXPECT_FALSE(f.draws.empty());
+  const ImageryStats off = imagery_stats(*s.streamer);
+  EXPECT_EQ(off.draped, 0u);
+  EXPECT_EQ(off.requested, i.requested);
+  s.streamer->release_all(gl);
 }
 
 TEST_F(Drape, TheServerAndTheDiskTierDeliverTheSameImagery) {

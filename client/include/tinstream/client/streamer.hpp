@@ -164,6 +164,10 @@ class TileStreamer {
 
   void set_max_sse(double pixels) { options_.max_sse = pixels; }
   double max_sse() const { return options_.max_sse; }
+  // Imagery switched off at run time (the window's panel): drape() gives no tile a texture and
+  // asks for no imagery tile until it is switched on again; what is resident stays cached.
+  void set_imagery_enabled(bool on) { imagery_enabled_ = on; }
+  bool imagery_enabled() const { return imagery_enabled_; }
   const StreamerOptions& options() const { return options_; }
 
   const FrameResult& last_frame() const { return frame_result_; }
@@ -225,6 +229,7 @@ class TileStreamer {
   std::unordered_set<TileKey, TileKeyHash> requested_ever_;
   std::array<LevelCounters, kLevels> levels_{};
   LevelCounters imagery_counters_;  // imagery tiles (levels_ counts terrain tiles only)
+  bool imagery_enabled_ = true;
   std::uint64_t failures_ = 0;
   std::string last_error_;
   std::uint64_t tiles_taken_ = 0;    // meshes received from the loader

@@ -82,6 +82,14 @@ Result<Session> open_session(const ViewerOptions& options);
 // the same), 1 no usable OpenGL.
 int run_headless(const ViewerOptions& options);
 
+// The imagery counters the statistics line and the window's panel show: the streamer's imagery
+// tiles requested, loaded, absent (404) and failed so far, and the terrain tiles of the last
+// frame drawn with imagery (draped).
+struct ImageryStats {
+  std::uint64_t requested = 0, loaded = 0, absent = 0, failed = 0, draped = 0;
+};
+ImageryStats imagery_stats(const TileStreamer& streamer);
+
 // The statistics line of a finished view (one JSON object).
 struct RunSummary {
   bool complete = false;
