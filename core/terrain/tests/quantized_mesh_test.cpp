@@ -440,7 +440,8 @@ TEST(FillerTile, TakesItsStoredNeighboursBorderAndIsAValidTile) {
 TEST(FillerTile, WrapsAroundTheAntimeridianAndIsFlatWithoutStoredNeighbours) {
   const geo::TileId id = *geo::TileId::from_zxy(1, 1, 0), other = *geo::TileId::from_zxy(1, 0, 0);
   tile::TinTile o = stored_corners(other, {500, 8, 600, 8});
-  o.west.push_back({other.bounds().min_x, (other.bounds().min_y + other.bounds().max_y) / 2, 550, 0});
+  o.west.push_back(
+      {other.bounds().min_x, (other.bounds().min_y + other.bounds().max_y) / 2, 550, 0});
   auto filler = filler_tile(id, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
     if (n == other) return std::optional<tile::TinTile>(o);
     return std::optional<tile::TinTile>();
