@@ -14,6 +14,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcgal-dev libgmp-dev libmpfr-dev    # test/benchmark peer only
   libglfw3-dev libepoxy-dev libglm-dev libpng-dev libosmesa6-dev libegl-dev libgl-dev
+  libimgui-dev                     # the viewer's window panel (client/CMakeLists.txt)
   clang clang-format clang-tidy curl   # clang: the libFuzzer build (scripts/fuzz.sh)
   libjpeg-dev libwebp-dev          # imagery tiles (JPEG, WebP; PNG through libpng-dev)
   wrk python3                      # the server's abuse/load test (ctest Server.Abuse)
