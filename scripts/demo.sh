@@ -69,10 +69,7 @@ curl -fsS --compressed "$base/tiles/sample/layer.json" | head -c 400; echo
 if [[ -x "$bin/tinstream-viewer" ]]; then
   step "4. Look at it: tinstream-viewer, headless (EGL on Mesa), streaming from $base"
   rm -f "$out/snapshot.png"
-  # --max-sse 0.3: imagery is draped per terrain tile, at that tile's level; at the default 2 px
-  # the sample's flat-enough terrain needs its level-0 tile alone, whose orthophoto is one
-  # 256-pixel tile (blurred over 1280x720). 0.3 px draws 8 tiles, each with its own imagery.
-  if "$bin/tinstream-viewer" --headless --url "$base" --layer sample --imagery sample --max-sse 0.3 --size 1280x720 --timeout 300 \
+  if "$bin/tinstream-viewer" --headless --url "$base" --layer sample --imagery sample --size 1280x720 --timeout 300 \
       --out "$out/snapshot.png" --stats "$out/snapshot.json"; then
     echo "statistics: $(head -c 300 "$out/snapshot.json") … (all of it in $out/snapshot.json)"
   else

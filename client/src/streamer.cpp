@@ -1,6 +1,7 @@
 #include "tinstream/client/streamer.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 #if defined(__GLIBC__)  // (defined by any libc header, so after <cstdlib>)
@@ -8,6 +9,8 @@
 #endif
 
 #include "tinstream/client/skirts.hpp"
+#include "tinstream/geo/ecef.hpp"
+#include "tinstream/geo/mercator.hpp"
 
 namespace tinstream::client {
 
@@ -205,7 +208,11 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
   const TileKey key{TileKind::terrain, layer, id};
   const double error = self.tile->geometric_error;
   const double sse = view.camera.screen_space_error(error, self.distance);
-  if (sse <= options_.max_sse || error <= 0 || id.z >= layers_[layer].max_level ||
+  const double texel_sse =
+      view.camera.screen_space_error(imagery_texel_error(layer, id), self.distance);
+  const bool terrain_refines = sse > options_.max_sse && error > 0;
+  const bool imagery_refines = texel_sse > options_.max_sse;
+  if ((!terrain_refines && !imagery_refines) || id.z >= layers_[layer].max_level ||
       id.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) {
     draw(key, self, sse, 0xF);
     return;
@@ -214,7 +221,7 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
   std::array<Probe, 4> child;
   bool waiting = false;
   for (std::size_t i = 0; i < 4; ++i) {
-    child[i] = probe(view, layer, children[i], sse);
+    child[i] = probe(view, layer, children[i], std::max(sse, texel_sse));
     waiting |= child[i].state == State::not_ready;
   }
   if (waiting) {  // no holes: the parent stays until every visible child is resident
@@ -231,6 +238,27 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
     if (child[i].state == State::ready) descend(view, layer, children[i], child[i]);
   }
   if (mask) draw(key, self, sse, mask);
+}
+
+double TileStreamer::imagery_texel_error(std::uint16_t layer, const geo::TileId& id) const {
+  if (!imagery_enabled_ || options_.imagery_layer < 0 ||
+      static_cast<std::size_t>(options_.imagery_layer) >= layers_.size())
+    return 0;
+  const LayerDescription& img = layers_[static_cast<std::size_t>(options_.imagery_layer)];
+  const LayerDescription& terrain = layers_[layer];
+  if (img.projection != terrain.projection || id.z >= img.max_level) return 0;
+  const geo::MercatorRect r = id.bounds();
+  const geo::MercatorRect& data = img.mercator_bounds;
+  if (r.min_x >= data.max_x || r.max_x <= data.min_x || r.min_y >= data.max_y ||
+      r.max_y <= data.min_y)
+    return 0;
+  // Normalised Mercator spans [-1, 1] for 360°: a unit is π·a metres at the equator, scaled by
+  // cos(latitude) (the spherical scale; the ellipsoid's differs by < 0.7 %, enough for a budget).
+  constexpr double kPi = 3.14159265358979323846;
+  constexpr double kImageryTilePixels = 256;
+  const double lat =
+      geo::NormalisedMercator(terrain.projection).lat_from_y((r.min_y + r.max_y) / 2);
+  return (r.max_x - r.min_x) * kPi * geo::kWgs84A * std::cos(lat * kPi / 180) / kImageryTilePixels;
 }
 
 void TileStreamer::upload(GpuUploader& gpu) {

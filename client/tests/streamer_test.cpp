@@ -9,9 +9,13 @@
 #include <chrono>
 #include <limits>
 #include <map>
+#include <numbers>
+#include <set>
 
 #include "synthetic_store.hpp"
 #include "tinstream/geo/ecef.hpp"
+#include "tinstream/imagery/image.hpp"
+#include "tinstream/store/tile_store.hpp"
 
 namespace tinstream::client {
 namespace {
@@ -31,14 +35,27 @@ class CountingUploader final : public GpuUploader {
     alive_bytes += g.bytes;
     return g;
   }
+  GpuMesh upload_image(const imagery::RgbaImage& image) override {
+    GpuMesh g;
+    g.texture = ++next_;
+    g.bytes = image.pixels.size();
+    ++images;
+    return g;
+  }
   void release(GpuMesh& mesh) override {
+    if (mesh.texture != 0) {
+      --images;
+      mesh.texture = 0;
+      return;
+    }
     ASSERT_NE(mesh.vao, 0u);
     --alive;
     alive_bytes -= mesh.bytes;
     mesh.vao = 0;
   }
-  int alive = 0;
+  int alive = 0;  // meshes
   std::uint64_t alive_bytes = 0;
+  int images = 0;  // textures
 
  private:
   std::uint32_t next_ = 0;
@@ -161,6 +178,86 @@ TEST(TileStreamer, ALowerCameraDrawsFinerLevels) {
   EXPECT_LT(finest(high), 12);
   EXPECT_LE(s.last_frame().max_sse_drawn, 2.0);
   s.release_all(gpu);
+}
+
+// Imagery is draped per terrain tile at that tile's level. From 20 km up the synthetic root's
+// terrain (40 m error: 1.25 px) needs no refinement, but its 256-pixel imagery tile spreads
+// ~99 m texels over ~3 px: with imagery draped the root is refined until each drawn tile's texels
+// look no larger than max_sse (or the imagery has no finer level), as CesiumJS picks imagery by
+// texel size (#19: make demo's view stretched one level-0 imagery tile over 1280×720).
+TEST(TileStreamer, DrapedImageryRefinesTilesWhoseTexelsWouldLookTooLarge) {
+  TempDir dir("streamer_imagery_refine");
+  const std::filesystem::path store_path = dir.path / "s.db";
+  const std::vector<geo::TileId> tiles = testing::write_layer(store_path, testing::default_layer());
+  {
+    auto st = store::TileStore::open(store_path, store::TileStore::Mode::read_write);
+    ASSERT_TRUE(st.ok()) << st.error().message;
+    auto terrain = st->layer("synth");
+    ASSERT_TRUE(terrain.ok()) << terrain.error().message;
+    store::ImageryInfo info;
+    info.name = "ortho";
+    info.format = "png";
+    info.mercator_bounds = terrain->mercator_bounds;
+    info.bounds = terrain->bounds;
+    info.min_level = 10;
+    info.max_level = 12;
+    auto writer = st->begin_imagery(info);
+    ASSERT_TRUE(writer.ok()) << writer.error().message;
+    auto png = imagery::encode(imagery::RgbaImage(256, 256), imagery::ImageFormat::png);
+    ASSERT_TRUE(png.ok()) << png.error().message;
+    for (const geo::TileId& id : tiles) ASSERT_TRUE((*writer)->put({id, *png, {}}).ok());
+    ASSERT_TRUE((*writer)->publish(info).ok());
+  }
+  auto source = open_store_source(store_path);
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  auto layers = (*source)->layers({"synth"});
+  ASSERT_TRUE(layers.ok()) << layers.error().message;
+  auto ortho = (*source)->imagery_layer("ortho");
+  ASSERT_TRUE(ortho.ok()) << ortho.error().message;
+  std::vector<LayerDescription> table = *layers;
+  table.push_back(*ortho);
+  TileLoader loader(*source, table, nullptr, LoaderOptions{2});
+  const geo::LonLat c = block_centre();
+  const Camera camera = above(c.lon, c.lat, 20000);
+  CountingUploader gpu;
+
+  // The ground width of a texel of the 256-pixel imagery tile of `id`, from its longitudes and
+  // latitude (degrees on the WGS84 equator's circle, scaled by the cosine of the latitude).
+  const auto texel_metres = [](const geo::TileId& id) {
+    const geo::LonLatRect r = id.lonlat_bounds(geo::NormalisedMercator());
+    const double rad = std::numbers::pi / 180;
+    return (r.east - r.west) * rad * geo::kWgs84A * std::cos((r.south + r.north) / 2 * rad) / 256;
+  };
+  const auto levels = [](const FrameResult& f) {
+    std::set<std::uint32_t> z;
+    for (const DrawItem& d : f.draws) z.insert(d.key.tile.z);
+    return z;
+  };
+
+  StreamerOptions options;  // 2 px
+  options.imagery_layer = 1;
+  TileStreamer with(loader, options);
+  with.set_imagery_enabled(false);
+  ASSERT_TRUE(run_until_complete(with, loader, camera, gpu));
+  EXPECT_EQ(levels(with.last_frame()), std::set<std::uint32_t>{10});  // the terrain alone
+
+  with.set_imagery_enabled(true);
+  ASSERT_TRUE(run_until_complete(with, loader, camera, gpu));
+  const FrameResult& f = with.last_frame();
+  ASSERT_FALSE(f.draws.empty());
+  EXPECT_EQ(levels(f).count(10), 0u) << "the root's texels look ~3 px: it must be refined";
+  for (const DrawItem& d : f.draws) {
+    EXPECT_TRUE(d.key.tile.z >= 12 ||
+                camera.screen_space_error(texel_metres(d.key.tile), d.distance) <= 2.0)
+        << d.key.tile.to_string() << ": texels of "
+        << camera.screen_space_error(texel_metres(d.key.tile), d.distance) << " px";
+    // Coarse enough: its parent's texels would have looked too large.
+    EXPECT_GT(camera.screen_space_error(texel_metres(d.key.tile.parent()), d.distance), 2.0)
+        << d.key.tile.to_string() << " is finer than its imagery needs";
+  }
+  with.release_all(gpu);
+  EXPECT_EQ(gpu.alive, 0);
+  EXPECT_EQ(gpu.images, 0);
 }
 
 TEST(TileStreamer, NothingBeyondTheHorizonIsRequested) {

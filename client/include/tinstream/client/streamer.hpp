@@ -205,6 +205,13 @@ class TileStreamer {
             bool stand_in = false);
   // Imagery (drape.cpp): picks each drawn tile's imagery tile, asks for what is missing.
   void drape();
+  // The ground size (metres) of one texel of the draped imagery's tile of `id` (256-pixel tiles,
+  // at the tile's centre latitude) when the imagery layer has a finer level over it; 0 when no
+  // imagery is draped there or none finer exists. descend() refines a tile whose texels would
+  // look larger than max_sse pixels as it refines one whose geometric error does: imagery is
+  // draped per terrain tile at that tile's level, so a smooth terrain drawn with few tiles would
+  // otherwise stretch one coarse imagery tile over the whole view (#19).
+  double imagery_texel_error(std::uint16_t layer, const geo::TileId& id) const;
   void take_image(LoadResult& r);
   // 1 uploaded, 0 nothing to upload, −1 stop (the frame's upload budget or the GPU tier is full).
   int upload_image(const TileRequest& r, GpuUploader& gpu, std::uint64_t& used);
