@@ -216,6 +216,8 @@ int run_headless(const ViewerOptions& o) {
     std::cerr << "tinstream-viewer: " << session.error().message << '\n';
     return 2;
   }
+  for (const std::string& w : session->warnings)
+    std::cerr << "tinstream-viewer: warning: " << w << '\n';
   StatsOut stats(o.stats);
   if (!stats.ok()) {
     std::cerr << "tinstream-viewer: cannot write " << o.stats.string() << '\n';

@@ -81,6 +81,20 @@ Result<Session> open_session(const ViewerOptions& o) {
     table.push_back(std::move(*imagery));
     s.legend.footer += "; imagery " + s.imagery->name +
                        (s.imagery->attribution.empty() ? "" : " (" + s.imagery->attribution + ")");
+    // Imagery is draped tile for tile on its own quadtree: over a terrain layer of the other
+    // Mercator (spherical / ellipsoidal) no tile matches, and that layer shows the colour ramp.
+    const std::string imagery_projection(geo::to_string(s.imagery->projection));
+    for (const LayerDescription& l : s.layers) {
+      if (l.projection == s.imagery->projection) continue;
+      const std::string terrain_projection(geo::to_string(l.projection));
+      s.warnings.push_back("imagery layer \"" + s.imagery->name + "\" is on the " +
+                           imagery_projection + " Mercator quadtree, terrain layer \"" + l.name +
+                           "\" on the " + terrain_projection + " one: \"" + l.name +
+                           "\" is drawn with the colour ramp, not draped (ingest the imagery "
+                           "again with --projection " +
+                           terrain_projection + ")");
+      s.legend.footer += " (not over " + l.name + ": other projection)";
+    }
   }
   s.loader =
       std::make_unique<TileLoader>(s.source, std::move(table), s.disk, LoaderOptions{o.threads});

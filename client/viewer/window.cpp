@@ -392,6 +392,7 @@ int run_window(const ViewerOptions& o) {
     return 2;
   }
   Session& s = *session;
+  for (const std::string& w : s.warnings) std::cerr << "tinstream-viewer: warning: " << w << '\n';
   GlfwSession glfw;
   if (int st = open_window(glfw, o); st != 0) return st;
   int fb_w = 0, fb_h = 0;

@@ -63,6 +63,9 @@ struct Session {
   geo::LonLatRect extent{};  // of all layers
   LegendInfo legend;
   std::optional<LayerDescription> imagery;  // --imagery (last in the loader's layer table)
+  // What the user should know but that does not stop the viewer (printed on stderr): a terrain
+  // layer on another Mercator quadtree than the imagery, which therefore is not draped there.
+  std::vector<std::string> warnings;
 
   // Where the fallback globe is drawn: below every layer's lowest height.
   double globe_height() const;
