@@ -874,14 +874,27 @@ namespace {
 // The merge's progress: points merged so far; false cancels.
 using MergeTick = std::function<bool(std::uint64_t)>;
 
-// The finest level: the smallest level whose fullest tile fits the budget (max_level if none).
+// The finest level: the smallest level whose fullest tile fits the budget (max_level if none),
+// but no coarser than the data's extent asks for (extent_level). Within [min_level, max_level].
 std::uint32_t finest_level(const std::vector<std::uint64_t>& max_tile_points,
-                           const SubdivideOptions& options) {
-  for (std::uint32_t l = options.min_level; l <= options.max_level; ++l) {
-    if (max_tile_points[l] <= options.max_points) return l;
-  }
-  return options.max_level;
+                           const SubdivideOptions& options, std::uint32_t extent_floor) {
+  std::uint32_t l = options.min_level;
+  while (l < options.max_level && max_tile_points[l] > options.max_points) ++l;
+  return std::clamp(std::max(l, extent_floor), options.min_level, options.max_level);
 }
+
+}  // namespace
+
+std::uint32_t extent_level(double width, double height) {
+  const double extent = std::max(width, height);
+  if (!(extent > 0)) return 0;  // one position (or none): the data gives no scale
+  // Tiles of level l are 2 / 2^l wide; the deepest level whose tiles are at least `extent` wide.
+  std::uint32_t l = 0;
+  while (l < kKeyLevel && std::ldexp(2.0, -static_cast<int>(l + 1)) >= extent) ++l;
+  return l;
+}
+
+namespace {
 
 // The tile index of the finest level: from the merge's tally when it kept a level at least as
 // fine (tiles nest, so it coarsens exactly), else one sequential pass over the sorted run's keys.
@@ -923,6 +936,9 @@ struct SortedRunBuilder::State {
   std::vector<std::filesystem::path> runs;
   std::vector<SortedPoint> buffer, spilling;
   std::uint64_t input_points = 0, duplicates = 0;
+  // The points' bounding box (normalised Mercator): extent_level() of the finest level.
+  double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x;
+  double min_y = std::numeric_limits<double>::infinity(), max_y = -min_y;
   bool finished = false;
 
   // Owned by the spill thread while it runs (spilling, order, scratch, spill_*).
@@ -1106,6 +1122,10 @@ Status SortedRunBuilder::add(std::span<const InputPoint> points) {
     }
     // The key is computed by the spill thread (sort_chunk), off this thread.
     st.buffer.push_back({0, p.x, p.y, p.z, p.weight, 0});
+    st.min_x = std::min(st.min_x, p.x);
+    st.max_x = std::max(st.max_x, p.x);
+    st.min_y = std::min(st.min_y, p.y);
+    st.max_y = std::max(st.max_y, p.y);
     ++st.input_points;
     if (st.buffer.size() == st.sort_capacity) {
       if (Status s = st.spill(); !s) return s;
@@ -1148,7 +1168,9 @@ Result<SortedRun> SortedRunBuilder::finish(const ProgressSink& progress) {
   if (!merged) return merged.error();
   std::error_code ec;
   for (const auto& r : st.runs) std::filesystem::remove(r, ec);
-  result.finest_level = finest_level(result.max_tile_points, options);
+  const std::uint32_t extent_floor =
+      st.input_points > 0 ? extent_level(st.max_x - st.min_x, st.max_y - st.min_y) : 0;
+  result.finest_level = finest_level(result.max_tile_points, options, extent_floor);
   if (Status s = index_tiles(tally, result); !s) return s.error();
   st.temporaries.release(result.path);
   return result;

@@ -319,7 +319,49 @@ TEST(Subdivide, DuplicatesMergedLowestZWins) {
       EXPECT_EQ(p.z, 7);
     }
   }
-  EXPECT_EQ(run->finest_level, 0u);  // 3 points fit the world tile
+  // 3 points fit the world tile, but they span 0.8 of the map's width 2: level 1's tiles (1 wide)
+  // are the finest at least that wide (the extent floor).
+  EXPECT_EQ(run->finest_level, 1u);
+}
+
+TEST(Subdivide, ExtentLevelIsTheDeepestLevelWhoseTilesAreAtLeastTheBoxWide) {
+  EXPECT_EQ(extent_level(0, 0), 0u);  // one position: no scale
+  EXPECT_EQ(extent_level(2, 0), 0u);  // the whole map
+  EXPECT_EQ(extent_level(1, 0.3), 1u);
+  EXPECT_EQ(extent_level(0.3, 1.0000001), 0u);
+  for (const double w : {1e-3, 3.7e-6, 1e-9}) {
+    const std::uint32_t l = extent_level(w, w / 2);
+    EXPECT_GE(2.0 / std::pow(2.0, l), w) << w;      // its tiles hold the box's width
+    EXPECT_LT(2.0 / std::pow(2.0, l + 1), w) << w;  // the next level's do not
+  }
+  EXPECT_EQ(extent_level(1e-300, 0), 30u);  // never past the key level
+}
+
+// A small dataset (a LiDAR crop fits one tile's budget) is not stored in a world-sized tile: its
+// finest level is where it spans at most 2 × 2 tiles, as quantised encodings need (quantized-mesh:
+// 32,767 steps across a tile; a 9,003-point crop in a level-0 tile read as 5 positions).
+TEST(Subdivide, ASmallDatasetGetsTheFinestLevelItsExtentAsksFor) {
+  TempDir tmp;
+  std::vector<InputPoint> pts;
+  const double x0 = -0.5903, y0 = 0.2077, side = 1e-5;  // about 100 m square at 35° N
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) pts.push_back({x0 + side * i / 29, y0 + side * j / 29, 1.0 * i});
+  SubdivideOptions opt;
+  opt.tmp_dir = tmp.path();
+  auto run = subdivide(feed_of(pts), opt);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  // 900 points fit level 0's budget; 2 / 2^17 ≈ 1.5e-5 ≥ 1e-5 > 2 / 2^18.
+  EXPECT_EQ(run->finest_level, 17u);
+  EXPECT_GE(run->tiles.size(), 1u);
+  EXPECT_LE(run->tiles.size(), 4u);
+  std::uint64_t points = 0;
+  for (const TileRange& t : run->tiles) points += t.count;
+  EXPECT_EQ(points, 900u);
+  // max_level still caps it.
+  opt.max_level = 12;
+  auto capped = subdivide(feed_of(pts), opt);
+  ASSERT_TRUE(capped.ok()) << capped.error().message;
+  EXPECT_EQ(capped->finest_level, 12u);
 }
 
 TEST(Subdivide, LevelCappedWhenPointsCannotBeSeparated) {

@@ -16,7 +16,11 @@
 // They are counted.
 //
 // Finest level L: the smallest level at which no tile holds more than max_points points (after
-// merging duplicates), capped by max_level; never below min_level.
+// merging duplicates), but at least extent_level() of the points' bounding box (so that the data
+// spans at most 2 × 2 tiles there: a small dataset is not stored in a world-sized tile, whose
+// quantised encodings — quantized-mesh's 15-bit positions, 1.2 km steps at level 0 — would merge
+// its points; a 9,003-point LiDAR crop came out as one level-0 tile that CesiumJS read as 5
+// positions and 4 triangles); capped by max_level; never below min_level.
 //
 // Memory: at most about `memory_bytes` (sort buffers + merge buffers), whatever the input size;
 // temporary runs go to `tmp_dir` and are removed when done or on failure.
@@ -61,6 +65,10 @@ std::uint64_t morton_interleave(std::uint32_t x, std::uint32_t y);
 std::uint64_t cell_key(double x, double y);
 // The tile at `level` containing the level-30 cell `key`.
 geo::TileId tile_of_key(std::uint64_t key, std::uint32_t level);
+// The deepest level (≤ 30) whose tiles are at least max(width, height) wide (normalised Mercator:
+// level l's tiles are 2 / 2^l wide), so a box of that size meets at most 2 × 2 of its tiles;
+// 0 for an empty box (one position gives no scale).
+std::uint32_t extent_level(double width, double height);
 
 struct TileRange {
   geo::TileId id;
