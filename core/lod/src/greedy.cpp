@@ -28,8 +28,8 @@
 //            and a candidate that is no longer one has a NaN candidate_z, which never wins.
 // Either way best_[t] names the candidate (pool index or cell: picked()) and heap_ orders the
 // triangles by it — by its effective error, or by the largest error of an orphan filed under the
-// triangle when that is larger (orphans: extra points strictly inside the tile, such as a parent's
-// points on its sources' seams; greedy.hpp). An orphan is never inserted, but inserting its
+// triangle when that is larger (orphans: extra points strictly inside the tile, ThinInput::orphans
+// there; greedy.hpp). An orphan is never inserted, but inserting its
 // triangle's candidates lowers its error, so the stage also inserts where orphans deviate most.
 #include "greedy.hpp"
 

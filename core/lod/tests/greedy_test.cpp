@@ -161,7 +161,8 @@ TEST(Greedy, NeighboursThinnedSeparatelyStayWatertight) {
   EXPECT_EQ(level[0].east.size(), level[1].west.size());
 }
 
-// A parent's points on its sources' seams are orphans: never candidates, only part of the surface.
+// Orphans (ThinInput::orphans, e.g. points on a line the caller cut along) are never candidates,
+// only part of the surface.
 // A cone whose apex is such a point (H high, falling to 0 at 1.5 cells, so the candidates next to
 // it stand H/3 high) on gentle hills: ranked by its candidates alone, the greedy stage never sees
 // that the apex deviates most and spends the budget elsewhere (the apex then keeps 0.74–0.84 H at
