@@ -1,13 +1,14 @@
 // A parent tile from its four children and its sources (the tiles some levels below): merge
-// (corners and outer border from the children, the rest from the sources, whose inner grid lines
-// are orphans), thin, measure. With the children as sources:
+// (corners and outer border from the children, the rest from the sources, whose points on their
+// inner grid lines are candidates too), thin, measure. With the children as sources:
 //
 //        parent                      children (quadkey digits)
 //   NW ────── mN ────── NE            ┌────┬────┐
 //   │          │         │            │ 0  │ 1  │     mN, mE, mS, mW: midpoints of the parent's
 //   mW ─────── C ─────── mE           ├────┼────┤     sides (children's corners, kept as edge
 //   │          │         │            │ 2  │ 3  │     points); C and the cross lines through it
-//   SW ────── mS ────── SE            └────┴────┘     are cut artefacts (orphans only).
+//   SW ────── mS ────── SE            └────┴────┘     are candidates like the children's
+//                                                       interior points.
 #include "tinstream/lod/parent.hpp"
 
 #include <algorithm>
@@ -100,7 +101,7 @@ class TileGrid {
   }
 
   // The points on the inner grid lines (one copy of each shared side, then the inner grid
-  // vertices): cut artefacts, the thinning's orphans.
+  // vertices): points of the finer surface inside the parent, candidates like the others.
   void inner_lines(std::vector<Vertex>& out) const {
     // (line, position along it, side): vertical lines, then horizontal ones, each in order.
     std::vector<std::tuple<std::uint64_t, std::uint64_t, const std::vector<Vertex>*>> vertical,
@@ -146,9 +147,9 @@ class TileGrid {
 };
 
 // The thinning input of a parent (the merge rule of parent.hpp): corners and outer border from
-// the children, interior points from the sources, their inner grid lines as orphans (and, for
-// sources deeper than the children, their points on the outer border too: part of the surface,
-// but the border's candidates are the children's, which the neighbour shares).
+// the children, interior points and the points on their inner grid lines from the sources (and,
+// for sources deeper than the children, their points on the outer border as orphans: part of the
+// surface, but the border's candidates are the children's, which the neighbour shares).
 ThinInput merge(const geo::TileId& parent, const ChildViews& children, const SourceViews& sources) {
   const TileGrid kids(parent, 1, children.tiles,
                       [](const LodTile* t) { return t ? &t->tile : nullptr; });
@@ -173,26 +174,33 @@ ThinInput merge(const geo::TileId& parent, const ChildViews& children, const Sou
   in.west = kids.outer_side(D::west);
   // The interior's size is known: reserved (with the witnesses that build_from_sources may
   // append), so that up to a million points (64 sources) are not copied by doubling.
-  auto reserve = [&](const auto& tiles) {
-    std::size_t n = 0;
+  auto reserve = [&](const auto& tiles, std::size_t n) {
     for (const LodTile* t : tiles) {
       if (t) n += t->tile.interior.size() + t->witnesses.size();
     }
     in.interior.reserve(n);
   };
+  // The inner grid lines' points are candidates: they are points of the finer surface (a finest
+  // tile's side points lie on the finest TIN's edges), and on a seam where the sources' interior
+  // points are sparse (their own sides carried the detail there), nothing else can bring the
+  // parent close to the surface (measured: the 250 m Luxembourg DEM's level 9, 22.4 → 6.5 m,
+  // bench/lod/RESULTS.md).
+  std::vector<Vertex> seams;
   if (sources.depth == 1 || sources.candidates_from_children) {
-    reserve(children.tiles);
+    kids.inner_lines(seams);
+    reserve(children.tiles, seams.size());
     for (const auto& c : children.tiles) {
       if (c) append(in.interior, c->tile.interior);
     }
-    kids.inner_lines(in.orphans);
+    append(in.interior, seams);
     return in;
   }
   const TileGrid grid(parent, sources.depth, sources.tiles,
                       [](const LodTile* t) { return &t->tile; });
-  reserve(sources.tiles);
+  grid.inner_lines(seams);
+  reserve(sources.tiles, seams.size());
   for (const LodTile* t : sources.tiles) append(in.interior, t->tile.interior);
-  grid.inner_lines(in.orphans);
+  append(in.interior, seams);
   for (const D d : {D::north, D::east, D::south, D::west}) append(in.orphans, grid.outer_side(d));
   return in;
 }

@@ -109,6 +109,44 @@ TEST(Parent, StoredErrorBoundsTheFinestDataAndIsMonotone) {
   EXPECT_GE(p->geometric_error + child_max, testing::data_point_max_difference(*p, under));
 }
 
+// Two peaks on the parent's internal cross (the children's shared sides): 40 m at its centre (a
+// corner of all four children) and 30 m on a side point, on gentle hills (±5 m). Only the
+// children's points on the cross carry them (the points one cell away stand on the hills), and the
+// children keep them (a corner; a side's break). They are candidates of the parent, so it keeps
+// both; as orphans (before) they only fed the error estimate and no candidate could bring the
+// surface up there: the parent missed the 40 m peak.
+TEST(Parent, PeaksOnTheInternalCrossAreKept) {
+  const geo::TileId pid{9, 100, 140};
+  const geo::MercatorRect nw = pid.children()[0].bounds();
+  const double h = nw.width() / 32;  // the children's cell
+  const double cx = nw.max_x, cy = nw.min_y;
+  auto peak = [&](double x, double y, double py) {
+    return std::abs(x - cx) < 0.25 * h && std::abs(y - py) < 0.25 * h;
+  };
+  auto f = [&](double x, double y) {
+    return 500.0 + 5.0 * std::sin(x * 900.0) * std::cos(y * 700.0) + (peak(x, y, cy) ? 40.0 : 0.0) +
+           (peak(x, y, cy + 11 * h) ? 30.0 : 0.0);
+  };
+  std::map<geo::TileId, LodTile> kids;
+  std::vector<TinTile> finest;
+  LodOptions ko;
+  ko.epsilon = 0.1;
+  for (const auto& c : pid.children()) {
+    finest.push_back(grid_tile(c, 32, f));
+    auto t = reduce_finest(finest.back(), ko);
+    ASSERT_TRUE(t.ok()) << t.error().message;
+    kids.emplace(c, std::move(*t));
+  }
+  LodOptions o;
+  o.max_points = 200;
+  auto p = build_parent(pid, kids_of(pid, kids), o);
+  ASSERT_TRUE(p.ok()) << p.error().message;
+  EXPECT_TRUE(check_budget(p->tile, o.max_points).ok());
+  const double measured = testing::data_point_max_difference(p->tile, finest);
+  EXPECT_LT(measured, 10.0);  // before: 40 m (the centre's peak, missed)
+  EXPECT_GE(p->tile.geometric_error, measured);
+}
+
 TEST(Parent, MissingChildrenGiveNodataCorners) {
   const std::uint32_t z = 9, x0 = 100, y0 = 140;
   std::map<geo::TileId, TinTile> kids;

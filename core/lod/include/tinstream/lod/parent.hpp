@@ -12,9 +12,12 @@
 // plus the sources' witnesses (lod_tile.hpp: finest data points where a source deviates most)
 // where the sources' points exceed the budget. The sources' points on the inner grid lines
 // (depth 1: the internal cross, the two lines that split the parent) and the inner grid vertices
-// are cut artefacts: they are not candidates, but they do feed the thinning's error estimate as
-// orphans, since they are part of the surface; for depth > 1 so are the sources' points on the
-// outer border (the border's candidates are the children's).
+// are candidates too: they are points of the finer surface, and where the sources' interior points
+// near a seam are sparse (the sources' sides carried the detail there) nothing else can bring the
+// parent close to it (until 2026-11-28 they were cut artefacts, orphans only: the 250 m Luxembourg
+// DEM's level 9 measured 22.4 m instead of 6.5 m). For depth > 1 the sources' points on the outer
+// border feed the thinning's error estimate as orphans, since they are part of the surface (the
+// border's candidates are the children's).
 //
 // An absent child (no data) gives a NODATA corner whose height the caller supplies
 // (Children::absent_corner_z): docs/tile-format.md §2.1 takes it from the tiles of the children's

@@ -102,7 +102,7 @@ std::vector<tile::Vertex> thin_border_side(std::span<const tile::Vertex> side, b
 
 // What thin_tile works on: a tile's corners and border lists (tile order, corners excluded),
 // interior points, and `orphans` — points of the surface being approximated that are not
-// candidates themselves (e.g. the children's points on a parent's internal cross); they only
+// candidates themselves (e.g. deeper sources' points on a parent's border); they only
 // feed the error estimate.
 struct ThinInput {
   geo::TileId id;
