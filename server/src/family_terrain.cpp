@@ -112,7 +112,7 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   // stored tiles too).
   const Result<tile::TinTile> tin =
       synthetic ? terrain::filler_tile(
-                      r.id,
+                      r.id, info.min_level,
                       [&](const geo::TileId& id) -> Result<std::optional<tile::TinTile>> {
                         auto blob = (*st)->tile(r.layer, id);
                         if (!blob) return blob.error();
