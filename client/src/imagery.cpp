@@ -26,41 +26,22 @@ Result<LayerDescription> parse_imagery_json(std::string_view layers_json, std::s
     return not_found("the server lists no imagery layers (no \"imagery\" in /layers)");
   std::string known;
   for (const json& i : *it) {
-    try {
-      const auto n = i.at("name").get<std::string>();
-      if (n != name) {
-        known += (known.empty() ? "" : ", ") + n;
-        continue;
-      }
-      LayerDescription l;
+    auto n = layer_name_from_json(i);
+    if (!n) return n.error();
+    if (*n != name) {
+      known += (known.empty() ? "" : ", ") + *n;
+      continue;
+    }
+    // The shared metadata (layer_common.hpp), the image format, and Mercator bounds from the
+    // degrees (/layers gives imagery bounds in degrees only).
+    return layer_from_json(i, [](LayerFields& f, LayerDescription& l) {
       l.kind = TileKind::imagery;
-      l.name = n;
-      l.image_format = i.at("format").get<std::string>();
-      auto projection = geo::parse_projection(i.at("projection").get<std::string>());
-      if (!projection) return projection.error();
-      l.projection = *projection;
-      const json& b = i.at("bounds");
-      l.bounds = {b.at("west").get<double>(), b.at("south").get<double>(),
-                  b.at("east").get<double>(), b.at("north").get<double>()};
-      // /layers gives imagery bounds in degrees only.
+      l.image_format = f.get<std::string>("format");
       const geo::NormalisedMercator m(l.projection);
       l.mercator_bounds = {
           geo::NormalisedMercator::x_from_lon(l.bounds.west), m.y_from_lat(l.bounds.south),
           geo::NormalisedMercator::x_from_lon(l.bounds.east), m.y_from_lat(l.bounds.north)};
-      l.min_level = i.at("min_level").get<std::uint32_t>();
-      l.max_level = i.at("max_level").get<std::uint32_t>();
-      l.tile_count = i.value("tile_count", std::uint64_t{0});
-      l.version = i.value("version", std::int64_t{0});
-      l.created_unix = i.value("created_unix", std::int64_t{0});
-      l.attribution = i.value("attribution", std::string());
-      if (l.min_level > l.max_level || l.max_level > static_cast<std::uint32_t>(geo::kMaxLevel))
-        return invalid_argument("imagery layer \"" + n + "\": levels " +
-                                std::to_string(l.min_level) + "…" + std::to_string(l.max_level) +
-                                " out of order or above 30");
-      return l;
-    } catch (const json::exception& e) {
-      return invalid_argument(std::string("imagery layer metadata: ") + e.what());
-    }
+    });
   }
   return not_found("no imagery layer \"" + std::string(name) +
                    "\" (the server has: " + (known.empty() ? "none" : known) + ")");

@@ -27,35 +27,16 @@ bool LayerDescription::may_contain(const geo::TileId& id) const {
 
 namespace {
 
+// A terrain layer's document: the shared metadata (layer_common.hpp) and its heights and errors.
 Result<LayerDescription> from_json(const json& j) {
-  try {
-    LayerDescription l;
-    l.name = j.at("name").get<std::string>();
-    auto projection = geo::parse_projection(j.at("projection").get<std::string>());
-    if (!projection) return projection.error();
-    l.projection = *projection;
-    const json& b = j.at("bounds");
-    l.bounds = {b.at("west").get<double>(), b.at("south").get<double>(), b.at("east").get<double>(),
-                b.at("north").get<double>()};
-    const json& m = j.at("mercator_bounds");
+  return layer_from_json(j, [](LayerFields& f, LayerDescription& l) {
+    const json& m = f.at("mercator_bounds");
     l.mercator_bounds = {m.at("min_x").get<double>(), m.at("min_y").get<double>(),
                          m.at("max_x").get<double>(), m.at("max_y").get<double>()};
-    l.min_level = j.at("min_level").get<std::uint32_t>();
-    l.max_level = j.at("max_level").get<std::uint32_t>();
-    l.min_z = j.at("min_z").get<double>();
-    l.max_z = j.at("max_z").get<double>();
-    l.level_max_error = j.at("level_max_error").get<std::vector<double>>();
-    l.tile_count = j.value("tile_count", std::uint64_t{0});
-    l.version = j.value("version", std::int64_t{0});
-    l.created_unix = j.value("created_unix", std::int64_t{0});
-    l.attribution = j.value("attribution", std::string());
-    if (l.min_level > l.max_level || l.max_level > static_cast<std::uint32_t>(geo::kMaxLevel))
-      return invalid_argument("layer \"" + l.name + "\": levels " + std::to_string(l.min_level) +
-                              "…" + std::to_string(l.max_level) + " out of order or above 30");
-    return l;
-  } catch (const json::exception& e) {
-    return invalid_argument(std::string("layer metadata: ") + e.what());
-  }
+    l.min_z = f.get<double>("min_z");
+    l.max_z = f.get<double>("max_z");
+    l.level_max_error = f.get<std::vector<double>>("level_max_error");
+  });
 }
 
 }  // namespace

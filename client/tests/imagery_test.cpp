@@ -82,6 +82,75 @@ TEST(ImageryJson, AnUnknownNameListsTheLayersThereAre) {
   EXPECT_FALSE(parse_imagery_json("not json", "ortho"));
 }
 
+// One layer object that both readers take: a terrain layer's document (GET /layers/{layer}) and
+// an imagery entry of GET /layers carry the same shared metadata, plus what only their kind has.
+std::string layer_object(const std::string& field, const std::string& value) {
+  std::vector<std::pair<std::string, std::string>> fields{
+      {"name", R"("ortho")"},
+      {"projection", R"("spherical")"},
+      {"bounds", R"({"west": 6.0, "south": 49.0, "east": 7.0, "north": 50.0})"},
+      {"min_level", "8"},
+      {"max_level", "15"},
+      {"tile_count", "12"},
+      {"version", "3"},
+      {"created_unix", "1700000000"},
+      {"attribution", R"("test")"},
+      {"format", R"("webp")"},
+      {"mercator_bounds", R"({"min_x": 0.03, "min_y": 0.31, "max_x": 0.04, "max_y": 0.32})"},
+      {"min_z", "1"},
+      {"max_z", "2"},
+      {"level_max_error", "[1, 2]"}};
+  std::string out = "{";
+  for (const auto& [k, v] : fields) {
+    if (k == field && value.empty()) continue;  // the field left out
+    out += (out.size() > 1 ? ", \"" : "\"") + k + "\": " + (k == field ? value : v);
+  }
+  return out + "}";
+}
+
+TEST(ServerLayerJson, AMalformedSharedFieldIsTheSameErrorForTerrainAndImagery) {
+  // Both readers take the object as it is; each broken shared field (left out where value is
+  // empty) gives one message from both, naming the field and the layer.
+  const std::vector<std::pair<std::string, std::string>> broken{{"projection", R"("conical")"},
+                                                                {"projection", ""},
+                                                                {"bounds", R"({"west": 6.0})"},
+                                                                {"bounds", R"("everywhere")"},
+                                                                {"min_level", R"("eight")"},
+                                                                {"max_level", ""},
+                                                                {"max_level", "3"},
+                                                                {"tile_count", R"("many")"},
+                                                                {"version", "[]"},
+                                                                {"created_unix", R"("today")"},
+                                                                {"attribution", "7"}};
+  for (const auto& [field, value] : broken) {
+    const std::string object = layer_object(field, value);
+    auto terrain = parse_layers_json(R"({"layers": [)" + object + "]}");
+    auto imagery = parse_imagery_json(R"({"layers": [], "imagery": [)" + object + "]}", "ortho");
+    ASSERT_FALSE(terrain) << object;
+    ASSERT_FALSE(imagery) << object;
+    EXPECT_EQ(terrain.error().message, imagery.error().message) << object;
+    EXPECT_EQ(terrain.error().code, imagery.error().code) << object;
+    EXPECT_NE(terrain.error().message.find("\"ortho\""), std::string::npos)
+        << terrain.error().message;
+    // The field, or (max_level 3 < min_level 8) the levels.
+    EXPECT_NE(
+        terrain.error().message.find(field == "max_level" && !value.empty() ? "levels 8…3" : field),
+        std::string::npos)
+        << terrain.error().message;
+  }
+  // A name that is not a string: no layer to name, the same message still.
+  const std::string nameless = layer_object("name", "5");
+  auto terrain = parse_layers_json(R"({"layers": [)" + nameless + "]}");
+  auto imagery = parse_imagery_json(R"({"imagery": [)" + nameless + "]}", "ortho");
+  ASSERT_FALSE(terrain);
+  ASSERT_FALSE(imagery);
+  EXPECT_EQ(terrain.error().message, imagery.error().message);
+  EXPECT_NE(terrain.error().message.find("\"name\""), std::string::npos);
+  // The object itself still reads on both sides.
+  EXPECT_TRUE(parse_layers_json(R"({"layers": [)" + layer_object("", "") + "]}"));
+  EXPECT_TRUE(parse_imagery_json(R"({"imagery": [)" + layer_object("", "") + "]}", "ortho"));
+}
+
 TEST(ImageryDecode, BadBytesAndNonSquareImagesNameTheTile) {
   LayerDescription layer;
   layer.name = "ortho";

@@ -15,11 +15,6 @@
 namespace tinstream::server {
 namespace {
 
-// Closed rectangles that share at least a point.
-bool overlaps(const geo::MercatorRect& a, const geo::MercatorRect& b) {
-  return a.min_x <= b.max_x && b.min_x <= a.max_x && a.min_y <= b.max_y && b.min_y <= a.max_y;
-}
-
 // Terrain only for spherical layers; a JSON 409 explains why otherwise.
 std::optional<Response> refuse_ellipsoidal(const store::LayerInfo& info) {
   if (info.projection == geo::Projection::spherical) return std::nullopt;
@@ -96,12 +91,11 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   if (!st) return error_response(st.error());
   auto stored = (*st)->tile(r.layer, r.id);
   if (!stored) return error_response(stored.error());
-  // Flat filler tiles (what layer.json lists, terrain::synthetic_tiles): every tile of levels 0
-  // and 1, and the ancestors of the coarsest stored level, i.e. tiles above the layer's data, so
+  // Filler tiles (what layer.json lists, terrain::synthetic_tiles, by the same rule): every tile
+  // of levels 0 and 1, and the tiles above the coarsest stored level over the layer's data, so
   // their number is bounded by the layer's extent.
   const bool synthetic = !stored->has_value();
-  if (synthetic && r.id.z >= terrain::kWholeLevels &&
-      (r.id.z >= info.min_level || !overlaps(r.id.bounds(), info.mercator_bounds))) {
+  if (synthetic && !terrain::may_be_filler(r.id, info.min_level, info.mercator_bounds)) {
     return json_error(404, "no terrain tile " + r.id.to_string() + " (TMS row " +
                                std::to_string(r.id.tms_row()) + ") in layer \"" + r.layer + "\"");
   }
@@ -118,7 +112,7 @@ std::variant<std::shared_ptr<const CachedBody>, Response> encode_terrain(
   // stored tiles too).
   const Result<tile::TinTile> tin =
       synthetic ? terrain::filler_tile(
-                      r.id,
+                      r.id, info.min_level,
                       [&](const geo::TileId& id) -> Result<std::optional<tile::TinTile>> {
                         auto blob = (*st)->tile(r.layer, id);
                         if (!blob) return blob.error();

@@ -14,9 +14,9 @@
 #include <sstream>
 #include <thread>
 
+#include "offscreen_renderer.hpp"
 #include "process.hpp"
 #include "synthetic_store.hpp"
-#include "tinstream/client/egl_context.hpp"
 #include "tinstream/client/png.hpp"
 #include "tinstream/client/viewer.hpp"
 #include "tinstream/imagery/image.hpp"
@@ -194,14 +194,9 @@ TEST_F(Drape, ImagerySwitchedOffAtRunTimeIsNeitherAskedForNorDraped) {
   auto session = open_session(o);
   ASSERT_TRUE(session.ok()) << session.error().message;
   Session& s = *session;
-  auto context = EglContext::create();
-  ASSERT_TRUE(context.ok()) << context.error().message;
-  RendererOptions ro;
-  ro.width = ro.height = 160;
-  ro.msaa = 0;
-  auto renderer = GlobeRenderer::create(ro);
-  ASSERT_TRUE(renderer.ok()) << renderer.error().message;
-  GlobeRenderer& gl = **renderer;
+  auto offscreen = testing::open_offscreen_renderer(160);
+  ASSERT_TRUE(offscreen.ok()) << offscreen.error().message;
+  GlobeRenderer& gl = *offscreen->renderer;
   Camera camera(160, 160, 60);
   camera.log_depth = gl.log_depth();
   const geo::LonLatRect r =

@@ -8,7 +8,7 @@
 #include <numbers>
 
 #include "grid_tile.hpp"
-#include "tinstream/client/egl_context.hpp"
+#include "offscreen_renderer.hpp"
 #include "tinstream/client/render_mesh.hpp"
 #include "tinstream/client/renderer.hpp"
 #include "tinstream/client/skirts.hpp"
@@ -28,19 +28,16 @@ TEST(Skirts, NoOpeningShowsAboveALowerChildSeenThroughMesa) {
   // child C there 100 m lower than P's surface (within their errors, 60 + 50 m). Looking
   // south-west across the cut from above C, rays that pass over C's border below P's cut edge
   // go on under P: the sky or the globe shows through, unless P's cut skirt closes the opening.
-  auto context = EglContext::create();
-  ASSERT_TRUE(context.ok()) << context.error().message;
-  RendererOptions options;
-  options.width = options.height = 96;
-  options.msaa = 0;
-  auto renderer = GlobeRenderer::create(options);
-  ASSERT_TRUE(renderer.ok()) << renderer.error().message;
-  GlobeRenderer& gl = **renderer;
+  auto offscreen = testing::open_offscreen_renderer(96);
+  ASSERT_TRUE(offscreen.ok()) << offscreen.error().message;
+  GlobeRenderer& gl = *offscreen->renderer;
 
   const geo::TileId p_id{12, 2120, 1400}, c_id{13, 4241, 2800};
-  tile::TinTile p = testing::make_grid_tile(p_id, 4, testing::synthetic_height);
-  tile::TinTile c = testing::make_grid_tile(
-      c_id, 5, [](double lon, double lat) { return testing::synthetic_height(lon, lat) - 100; });
+  tile::TinTile p =
+      tinstream::testing::make_grid_tile(p_id, 4, tinstream::testing::synthetic_height);
+  tile::TinTile c = tinstream::testing::make_grid_tile(c_id, 5, [](double lon, double lat) {
+    return tinstream::testing::synthetic_height(lon, lat) - 100;
+  });
   p.geometric_error = 60;
   c.geometric_error = 50;
   LayerDescription layer;

@@ -87,7 +87,7 @@ int run_export_cesium_dir(const CesiumDirExport& request) {
   };
   for (const geo::TileId& id : terrain::synthetic_tiles(*ids, info->min_level)) {
     auto filler = terrain::filler_tile(
-        id, [&](const geo::TileId& n) { return st->read_tile(request.layer, n); });
+        id, info->min_level, [&](const geo::TileId& n) { return st->read_tile(request.layer, n); });
     if (!filler) return fail(filler.error().message);
     if (Status s = emit(*filler); !s) return fail(s.error().message);
   }

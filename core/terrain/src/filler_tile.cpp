@@ -37,7 +37,10 @@ double ccw_position(const tile::Vertex& v, const geo::MercatorRect& r) {
 
 }  // namespace
 
-Result<tile::TinTile> filler_tile(const geo::TileId& id, const StoredTileLookup& stored) {
+Result<tile::TinTile> filler_tile(const geo::TileId& id, std::uint32_t min_level,
+                                  const StoredTileLookup& stored) {
+  // Above the coarsest stored level the same-level neighbours are all absent: no lookup.
+  if (id.z < min_level) return flat_tile(id);
   const geo::MercatorRect r = id.bounds();
   const std::int64_t n = std::int64_t{1} << id.z;
   std::vector<tile::Vertex> shared;

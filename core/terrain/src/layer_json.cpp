@@ -48,18 +48,33 @@ std::vector<TileRange> merge_ranges(std::vector<geo::TileId> tiles) {
   return done;
 }
 
+bool is_filler(std::uint32_t z, std::uint32_t min_level, bool over_data) {
+  return z < kWholeLevels || (z < min_level && over_data);
+}
+
+bool may_be_filler(const geo::TileId& id, std::uint32_t min_level,
+                   const geo::MercatorRect& data_bounds) {
+  const geo::MercatorRect r = id.bounds();
+  // Closed rectangles: sharing a point is enough.
+  const bool overlaps = r.min_x <= data_bounds.max_x && data_bounds.min_x <= r.max_x &&
+                        r.min_y <= data_bounds.max_y && data_bounds.min_y <= r.max_y;
+  return is_filler(id.z, min_level, overlaps);
+}
+
 std::vector<geo::TileId> synthetic_tiles(const std::vector<geo::TileId>& stored,
                                          std::uint32_t min_level) {
   std::vector<geo::TileId> out;
+  // Over the data: the ancestors of the stored tiles of min_level.
   for (geo::TileId id : stored) {
     if (id.z < min_level) continue;
     while (id.z > min_level) id = id.parent();
     while (id.z > 0) {
       id = id.parent();
-      out.push_back(id);
+      if (is_filler(id.z, min_level, true)) out.push_back(id);
     }
   }
-  for (std::uint32_t z = 0; z < kWholeLevels; ++z) {
+  // Whatever the data: the whole levels.
+  for (std::uint32_t z = 0; is_filler(z, min_level, false); ++z) {
     const std::uint32_t n = 1u << z;
     for (std::uint32_t y = 0; y < n; ++y) {
       for (std::uint32_t x = 0; x < n; ++x) out.push_back(*geo::TileId::from_zxy(z, x, y));

@@ -97,6 +97,57 @@ TEST(LayerJson, SyntheticTilesAreTheAncestorsAndEveryTileOfLevelsZeroAndOne) {
                    *geo::TileId::from_zxy(1, 0, 1), *geo::TileId::from_zxy(1, 1, 1)}));
 }
 
+// The listing (synthetic_tiles, from the stored tiles) and the server's admission
+// (may_be_filler, from the layer's row) are one rule: over the levels up to min_level they agree
+// tile by tile, for layers whose data covers its stored tiles of min_level and whose bounds lie
+// strictly inside them (a quarter tile in: no tile edge of a coarser level touches them).
+TEST(LayerJson, SyntheticTilesAreExactlyTheFillersTheServerAccepts) {
+  struct Layer {
+    std::uint32_t min_level;
+    std::vector<geo::TileId> min_tiles;  // the stored tiles of min_level: a block
+  };
+  const auto block = [](std::uint32_t z, std::uint32_t x0, std::uint32_t y0, std::uint32_t w,
+                        std::uint32_t h) {
+    std::vector<geo::TileId> ids;
+    for (std::uint32_t y = y0; y < y0 + h; ++y) {
+      for (std::uint32_t x = x0; x < x0 + w; ++x) ids.push_back(*geo::TileId::from_zxy(z, x, y));
+    }
+    return ids;
+  };
+  for (const Layer& layer : {Layer{4, block(4, 5, 6, 3, 2)}, Layer{1, block(1, 1, 0, 1, 1)},
+                             Layer{0, block(0, 0, 0, 1, 1)}, Layer{3, block(3, 0, 7, 1, 1)}}) {
+    std::vector<geo::TileId> stored = layer.min_tiles;
+    geo::MercatorRect extent = layer.min_tiles.front().bounds();
+    for (const geo::TileId& id : layer.min_tiles) {
+      const geo::MercatorRect r = id.bounds();
+      extent = {std::min(extent.min_x, r.min_x), std::min(extent.min_y, r.min_y),
+                std::max(extent.max_x, r.max_x), std::max(extent.max_y, r.max_y)};
+      // A finer stored tile under each (its first child): stored tiles below min_level change
+      // nothing.
+      stored.push_back(id.children()[0]);
+    }
+    const double inset = layer.min_tiles.front().bounds().width() / 4;
+    const geo::MercatorRect data_bounds{extent.min_x + inset, extent.min_y + inset,
+                                        extent.max_x - inset, extent.max_y - inset};
+    const std::vector<geo::TileId> listed = synthetic_tiles(stored, layer.min_level);
+    std::size_t accepted = 0;
+    for (std::uint32_t z = 0; z <= std::max(layer.min_level, kWholeLevels); ++z) {
+      for (std::uint32_t y = 0; y < (1u << z); ++y) {
+        for (std::uint32_t x = 0; x < (1u << z); ++x) {
+          const geo::TileId id = *geo::TileId::from_zxy(z, x, y);
+          const bool is_stored = std::find(stored.begin(), stored.end(), id) != stored.end();
+          const bool admits = !is_stored && may_be_filler(id, layer.min_level, data_bounds);
+          const bool lists = std::binary_search(listed.begin(), listed.end(), id);
+          EXPECT_EQ(lists, admits)
+              << "min_level " << layer.min_level << ", tile " << id.to_string();
+          accepted += admits ? 1 : 0;
+        }
+      }
+    }
+    EXPECT_EQ(accepted, listed.size()) << "min_level " << layer.min_level;
+  }
+}
+
 TEST(LayerJson, ALayerOfLevelZeroOnlyStillListsLevelOne) {
   LayerJsonInput in;
   in.name = "tiny";

@@ -414,12 +414,13 @@ TEST(FillerTile, TakesItsStoredNeighboursBorderAndIsAValidTile) {
   e.west.push_back({er.min_x, (er.min_y + er.max_y) / 2, 150, 0});
   const tile::TinTile d = stored_corners(south_west, {7, 300, 7, 7});
   int asked = 0;
-  auto filler = filler_tile(id, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
-    ++asked;
-    if (n == east) return std::optional<tile::TinTile>(e);
-    if (n == south_west) return std::optional<tile::TinTile>(d);
-    return std::optional<tile::TinTile>();
-  });
+  auto filler =
+      filler_tile(id, 2, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
+        ++asked;
+        if (n == east) return std::optional<tile::TinTile>(e);
+        if (n == south_west) return std::optional<tile::TinTile>(d);
+        return std::optional<tile::TinTile>();
+      });
   ASSERT_TRUE(filler.ok()) << filler.error().message;
   EXPECT_EQ(asked, 8);
   const tile::TinTile& f = *filler;
@@ -442,10 +443,11 @@ TEST(FillerTile, WrapsAroundTheAntimeridianAndIsFlatWithoutStoredNeighbours) {
   tile::TinTile o = stored_corners(other, {500, 8, 600, 8});
   o.west.push_back(
       {other.bounds().min_x, (other.bounds().min_y + other.bounds().max_y) / 2, 550, 0});
-  auto filler = filler_tile(id, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
-    if (n == other) return std::optional<tile::TinTile>(o);
-    return std::optional<tile::TinTile>();
-  });
+  auto filler =
+      filler_tile(id, 1, [&](const geo::TileId& n) -> Result<std::optional<tile::TinTile>> {
+        if (n == other) return std::optional<tile::TinTile>(o);
+        return std::optional<tile::TinTile>();
+      });
   ASSERT_TRUE(filler.ok());
   EXPECT_TRUE(tile::check_structure(*filler).ok());
   // The east side (x = 1) is the other tile's west side (x = −1); the west side its east side.
@@ -456,16 +458,42 @@ TEST(FillerTile, WrapsAroundTheAntimeridianAndIsFlatWithoutStoredNeighbours) {
   EXPECT_EQ(filler->east[0].x, 1.0);
   EXPECT_EQ(filler->east[0].z, 550.0);
 
-  auto flat = filler_tile(id, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
+  auto flat = filler_tile(id, 1, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
     return std::optional<tile::TinTile>();
   });
   ASSERT_TRUE(flat.ok());
   EXPECT_EQ(flat->triangles, flat_tile(id).triangles);
-  auto failing = filler_tile(id, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
+  auto failing = filler_tile(id, 1, [](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
     return Error(ErrorCode::corrupt_data, "tile 1/0/0: broken blob");
   });
   ASSERT_FALSE(failing.ok());
   EXPECT_NE(failing.error().message.find("broken blob"), std::string::npos);
+}
+
+TEST(FillerTile, AboveTheCoarsestStoredLevelAsksForNoNeighbour) {
+  // No stored tile of level 2 where the layer's coarsest level is 3: the same tile as when every
+  // lookup finds nothing, without a lookup.
+  const geo::TileId id = *geo::TileId::from_zxy(2, 1, 1);
+  int asked = 0;
+  const StoredTileLookup nothing = [&](const geo::TileId&) -> Result<std::optional<tile::TinTile>> {
+    ++asked;
+    return std::optional<tile::TinTile>();
+  };
+  auto looked_up = filler_tile(id, 2, nothing);
+  ASSERT_TRUE(looked_up.ok());
+  EXPECT_EQ(asked, 8);
+  asked = 0;
+  auto skipped = filler_tile(id, 3, nothing);
+  ASSERT_TRUE(skipped.ok());
+  EXPECT_EQ(asked, 0);
+  EXPECT_EQ(skipped->triangles, looked_up->triangles);
+  EXPECT_EQ(skipped->interior.size(), looked_up->interior.size());
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(skipped->corners[k].x, looked_up->corners[k].x);
+    EXPECT_EQ(skipped->corners[k].y, looked_up->corners[k].y);
+    EXPECT_EQ(skipped->corners[k].z, looked_up->corners[k].z);
+  }
+  EXPECT_EQ(skipped->triangles, flat_tile(id).triangles);
 }
 
 std::vector<std::uint8_t> independent_gunzip(const std::vector<std::uint8_t>& gz) {

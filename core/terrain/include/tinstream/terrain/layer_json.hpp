@@ -47,7 +47,22 @@ struct LayerJsonInput {
 // holds again (found by bench/client's CesiumJS run). From level 2 (90° tiles) on it can.
 inline constexpr std::uint32_t kWholeLevels = 2;
 
-// The tiles to synthesise as flat tiles (flat_tile()): the ancestors of the stored tiles above
+// The filler rule, stated once for layer.json, the static export and the server: a tile that is
+// not stored is a filler (filler_tile()) when it lies on a whole level (z < kWholeLevels), or
+// above the coarsest stored level (z < min_level) over the layer's data. `over_data` says
+// whether data lies under the tile: synthetic_tiles() knows it exactly (a stored tile of
+// min_level lies under it); the server, which has only the layer's row, asks may_be_filler().
+bool is_filler(std::uint32_t z, std::uint32_t min_level, bool over_data);
+
+// is_filler() for a layer known by its row only: over the data = the tile shares at least a
+// point with `data_bounds` (store::LayerInfo::mercator_bounds, which holds every stored tile's
+// data). Every tile synthetic_tiles() lists passes; so does a tile over a gap of the data at
+// min_level or one that only touches the bounds, which layer.json does not list (the server
+// serves it when asked; Cesium does not ask). Bounded by the layer's extent either way.
+bool may_be_filler(const geo::TileId& id, std::uint32_t min_level,
+                   const geo::MercatorRect& data_bounds);
+
+// The tiles to synthesise as fillers, by is_filler(): the ancestors of the stored tiles above
 // `min_level` (levels 0 … min_level − 1, so that Cesium's refinement from the single level-0
 // tile reaches them), and every tile of the levels below kWholeLevels; stored tiles excluded.
 // Sorted, without duplicates.

@@ -64,9 +64,13 @@ tile::TinTile flat_tile(const geo::TileId& id);
 // corner no stored tile touches is at height 0; a centre vertex at the corners' mean height is
 // fanned to the border. With no stored neighbour it is flat_tile(id). `stored(id)` returns the
 // stored tile of that id, nullopt when there is none, or an error (passed on). East and west
-// neighbours wrap around the antimeridian (geo::TileId::neighbour).
+// neighbours wrap around the antimeridian (geo::TileId::neighbour). `min_level` is the layer's
+// coarsest stored level: above it (id.z < min_level) no neighbour can be stored, and `stored` is
+// not called at all (a filler there is flat_tile(id)).
+// Requires: no tile of a level z < min_level is stored.
 using StoredTileLookup = std::function<Result<std::optional<tile::TinTile>>(const geo::TileId&)>;
-Result<tile::TinTile> filler_tile(const geo::TileId& id, const StoredTileLookup& stored);
+Result<tile::TinTile> filler_tile(const geo::TileId& id, std::uint32_t min_level,
+                                  const StoredTileLookup& stored);
 
 // The horizon occlusion point (ellipsoid-scaled ECEF) for a set of ECEF points, seen along the
 // direction of `direction_point` — Cesium's EllipsoidalOccluder method ("Horizon culling 2",
