@@ -8,6 +8,9 @@
   analyze.py report OUT LAYER STORE DELAY_MS SIZE SSE FLIGHT_S
       reads OUT/cold.jsonl, OUT/stream.jsonl, OUT/flight.jsonl, OUT/flight.maxrss_kb,
       OUT/cesium.jsonl and prints the Markdown tables of RESULTS.md.
+  analyze.py rss OUT STORE LAYER SIZE SSE STARTED
+      (rss_flight.sh) reads OUT/rss.tsv (seconds, VmRSS kB, VmHWM kB sampled from outside) and
+      OUT/flight.jsonl, and prints the RSS over the flight against the tiers' budgets.
 """
 import json
 import math
@@ -159,10 +162,86 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
         print()
 
 
+def slope_mb_per_min(points):
+    """Least-squares slope of (seconds, bytes) points, in MB per minute."""
+    if len(points) < 2:
+        return float('nan')
+    mt = statistics.fmean(t for t, _ in points)
+    mv = statistics.fmean(v for _, v in points)
+    den = sum((t - mt) ** 2 for t, _ in points)
+    if den == 0:
+        return float('nan')
+    return sum((t - mt) * (v - mv) for t, v in points) / den * 60 / (1 << 20)
+
+
+def rss(out, store, layer, size, sse, started):
+    mb = 1 << 20
+    samples = []  # (seconds, VmRSS bytes, VmHWM bytes)
+    with open(f'{out}/rss.tsv') as f:
+        for line in f:
+            t, r, h = line.split()
+            samples.append((float(t), int(r) * 1024, int(h) * 1024))
+    lines = read_jsonl(f'{out}/flight.jsonl')
+    frames = [f for f in lines if 'frame' in f]
+    summary = next(f for f in lines if 'cache' in f)
+    gpu, ram = summary['cache']['gpu'], summary['cache']['ram']
+    budgets = gpu['budget'] + ram['budget']
+    end_t = samples[-1][0]
+    first, peak, end = samples[0][1], samples[-1][2], samples[-1][1]
+    thirds = [[r for t, r, _ in samples if k * end_t / 3 <= t <= (k + 1) * end_t / 3]
+              for k in range(3)]
+    later = [(t, r) for t, r, _ in samples if t >= end_t / 3]
+    slope = slope_mb_per_min(later)
+    earlier = max(thirds[0] + thirds[1])
+    # Bounded: the last third peaks no higher than the first two thirds did (5 % allowed: on a
+    # software rasteriser a frame's memory follows its triangles), and RSS does not trend
+    # upwards over the last two thirds (< 1 MB a minute).
+    bounded = max(thirds[2]) <= 1.05 * earlier and slope < 1.0
+    filled = gpu['evictions'] > 0 or ram['evictions'] > 0
+    verdict = (('bounded' if bounded else 'NOT bounded') if filled
+               else 'not tested (tiers still filling)')
+    print(f'### RSS over a {end_t:.0f} s flight (rss_flight.sh, started {started})\n')
+    print(f'store `{store}`, layer `{layer}`, {size}, max SSE {sse} px, 8 threads, '
+          f'`--gpu-mb {gpu["budget"] // mb} --cache-mb {ram["budget"] // mb}`, '
+          f'{len(samples)} samples of /proc/PID/status, {len(frames)} frames, '
+          f'{summary["tiles"]["loaded"]} tiles loaded, '
+          f'{summary["requests"]["downloaded_bytes"] / mb:.1f} MB downloaded; '
+          f'renderer {summary.get("renderer", "?")}\n')
+    print('| RSS first sample | peak (VmHWM) | RSS at the end | budgets | peak − first sample | '
+          'peak GPU tier (evictions) | peak RAM tier (evictions) |')
+    print('|---|---|---|---|---|---|---|')
+    print(f'| {first / mb:.0f} MB | {peak / mb:.0f} MB | {end / mb:.0f} MB | {budgets / mb:.0f} MB | '
+          f'{(peak - first) / mb:.0f} MB | {gpu["peak_bytes"] / mb:.1f} MB ({gpu["evictions"]}) | '
+          f'{ram["peak_bytes"] / mb:.1f} MB ({ram["evictions"]}) |')
+    print('\n| minute | RSS min | RSS max | VmHWM at its end | tiles loaded by its end |')
+    print('|---|---|---|---|---|')
+    for m in range(int(end_t // 60) + 1):
+        in_m = [(r, h) for t, r, h in samples if m * 60 <= t < (m + 1) * 60]
+        if not in_m:
+            continue
+        loaded = max((f['loaded'] for f in frames if f['t'] < (m + 1) * 60), default=0)
+        print(f'| {m} | {min(r for r, _ in in_m) / mb:.0f} MB | {max(r for r, _ in in_m) / mb:.0f} MB '
+              f'| {in_m[-1][1] / mb:.0f} MB | {loaded} |')
+    print(f'\npeak RSS by third of the flight: {", ".join(f"{max(t) / mb:.0f} MB" for t in thirds)}; '
+          f'slope over the last two thirds {slope:+.2f} MB/min; '
+          f'**{verdict}** (last third ≤ 1.05 × the peak '
+          f'before it, slope < 1 MB/min)')
+    if not filled:
+        print('\nneither tier evicted: the flight never filled them, so RSS still grows with '
+              'the tiles it loads and the LRU bound is not reached (smaller budgets, lower '
+              'max SSE)')
+    target = budgets + first
+    print(f'\nissue #17 target, budgets + the first sample as the fixed overhead: '
+          f'{target / mb:.0f} MB; peak {"within" if peak <= target else "over"} it by '
+          f'{abs(peak - target) / mb:.0f} MB\n')
+
+
 if __name__ == '__main__':
     if sys.argv[1] == 'cameras':
         cameras(sys.argv[2], sys.argv[3], float(sys.argv[4]), sys.argv[5])
     elif sys.argv[1] == 'report':
         report(*sys.argv[2:9])
+    elif sys.argv[1] == 'rss':
+        rss(*sys.argv[2:8])
     else:
         sys.exit(__doc__)

@@ -67,26 +67,9 @@ for b in tinstream-viewer tinstream-server tinstream; do
 done
 
 # --- the store ---
-if [[ -n ${STORE_IN:-} ]]; then
-  store=$STORE_IN
-  layer=${LAYER:?LAYER= names the layer of STORE_IN}
-elif [[ -f $BUILD/tests/client/stores/dem.sqlite ]]; then
-  store=$BUILD/tests/client/stores/dem.sqlite
-  layer=dem
-else
-  store=$OUT/bench.sqlite
-  layer=dem
-  if [[ ! -f $store ]]; then
-    dem=$ROOT/../shared/data/bigtujunga_srtm30m_utm11.tif
-    if [[ -f $dem ]]; then input=$dem; else
-      "$BIN/tinstream" sample --out "$OUT/sample.las" --points 1000000 --density 0.05
-      input=$OUT/sample.las
-    fi
-    echo "ingesting $input into $store"
-    "$BIN/tinstream" ingest --store "$store.tmp" --layer "$layer" "$input"
-    mv "$store.tmp" "$store"
-  fi
-fi
+# shellcheck source=SCRIPTDIR/store.sh
+source "$HERE/store.sh"
+pick_store
 echo "store $store, layer $layer"
 
 # --- server and proxy ---

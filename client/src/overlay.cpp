@@ -159,7 +159,7 @@ void Overlay::render(int framebuffer_width, int framebuffer_height) {
   glUseProgram(0);
 }
 
-void draw_legend(const LegendInfo& legend) {
+OverlayRect draw_legend(const LegendInfo& legend) {
   const float bar_w = 200, bar_h = 14;
   // Bottom right, as wide as its bar (the title and footer wrap): the panel (window mode) sits
   // top left and at 640×360 reaches the bottom left corner.
@@ -196,7 +196,9 @@ void draw_legend(const LegendInfo& legend) {
   ImGui::TextUnformatted(text);
   if (!legend.footer.empty()) ImGui::TextUnformatted(legend.footer.c_str());
   ImGui::PopTextWrapPos();
+  const ImVec2 pos = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
   ImGui::End();
+  return {pos.x, pos.y, size.x, size.y};
 }
 
 }  // namespace tinstream::client

@@ -93,9 +93,10 @@ int main(int argc, char** argv) {
                  "clockwise from north, pitch −90 = down (default: framing the layers)");
   app.add_option("--fov", o.fov, "vertical field of view in degrees (default 60)")
       ->check(CLI::Range(5.0, 120.0));
-  app.add_option("--out", o.out,
-                 "the PNG to write once the view is complete (window mode: the window, panel "
-                 "included, then it closes)");
+  app.add_option(
+      "--out", o.out,
+      "the PNG to write once the view is complete (window mode: the window, panel "
+      "included, then it prints the panel's and legend's rectangles as a JSON line and closes)");
   app.add_option("--camera-path", o.camera_path,
                  "fly this scripted path (headless: one JSON statistics line per frame)");
   app.add_option("--fps", o.fps,

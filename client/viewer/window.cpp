@@ -7,7 +7,8 @@
 // F flies to the selected layer, R frames every layer.
 // Scripted use: --camera-path flies the path in the window (input is ignored meanwhile); --out
 // writes the window (panel and legend included) to a PNG once the view is complete and the path
-// is flown, and closes it (exit status 3 when --timeout passed first).
+// is flown, prints that frame's layout (the panel's and the legend's rectangles) as one JSON line
+// on stdout, and closes it (exit status 3 when --timeout passed first).
 #include "window.hpp"
 
 // clang-format off
@@ -26,6 +27,8 @@
 #include <deque>
 #include <iostream>
 #include <limits>
+#include <optional>
+#include <string>
 
 #include "tinstream/client/camera_path.hpp"
 #include "tinstream/client/navigation.hpp"
@@ -143,7 +146,20 @@ void draw_imagery_row(Session& s, PanelState& ps) {
               static_cast<unsigned long long>(i.absent), static_cast<unsigned long long>(i.failed));
 }
 
-void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight, double frame_ms) {
+// Where the panel was laid out this frame (--out reports it; the layout test checks it).
+struct PanelLayout {
+  OverlayRect panel;
+  OverlayRect source_line;  // the source's description, wrapped to the panel's width
+};
+
+OverlayRect last_item_rect() {
+  const ImVec2 min = ImGui::GetItemRectMin(), max = ImGui::GetItemRectMax();
+  return {min.x, min.y, max.x - min.x, max.y - min.y};
+}
+
+PanelLayout draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight,
+                       double frame_ms) {
+  PanelLayout layout;
   ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
   ImGui::SetNextWindowSize(ImVec2(390, 0), ImGuiCond_FirstUseEver);
   // Never taller than the window (at 640×360 it was): it scrolls instead.
@@ -151,6 +167,7 @@ void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight,
       ImVec2(0, 0), ImVec2(std::numeric_limits<float>::max(), ImGui::GetIO().DisplaySize.y - 20));
   ImGui::Begin("tinstream");
   ImGui::TextWrapped("%s", s.source->describe().c_str());  // an absolute store path is long
+  layout.source_line = last_item_rect();
 
   // Layers and flying to them.
   std::vector<const char*> names;
@@ -240,7 +257,26 @@ void draw_panel(Session& s, const Camera& camera, PanelState& ps, FlyTo& flight,
   if (s.imagery) draw_imagery_row(s, ps);
   if (!s.streamer->last_error().empty())
     ImGui::TextWrapped("last error: %s", s.streamer->last_error().c_str());
+  const ImVec2 pos = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
+  layout.panel = {pos.x, pos.y, size.x, size.y};
   ImGui::End();
+  return layout;
+}
+
+// --out: one JSON line on stdout with the written frame's layout, in window units (the window's
+// size, then x, y, width, height of each rectangle; no legend: null).
+void print_layout(const PanelLayout& p, const std::optional<OverlayRect>& legend) {
+  const auto rect = [](const OverlayRect& r) {
+    char text[96];
+    std::snprintf(text, sizeof text, "[%.1f,%.1f,%.1f,%.1f]", r.x, r.y, r.width, r.height);
+    return std::string(text);
+  };
+  const ImVec2 display = ImGui::GetIO().DisplaySize;
+  std::printf(
+      "{\"layout\":{\"window\":[%.0f,%.0f],\"panel\":%s,\"source_line\":%s,\"legend\":%s}}\n",
+      display.x, display.y, rect(p.panel).c_str(), rect(p.source_line).c_str(),
+      legend ? rect(*legend).c_str() : "null");
+  std::fflush(stdout);
 }
 
 // Opens the window with an OpenGL 3.3 core context and makes it current. Returns 0, or the exit
@@ -443,8 +479,9 @@ int run_window(const ViewerOptions& o) {
     const FrameResult& f = s.streamer->update(camera, renderer);
     renderer.render(camera, f.draws, s.render_settings(ps.wireframe));
     renderer.present(fb_w, fb_h);
-    draw_panel(s, camera, ps, pilot->flight, frame_ms);
-    if (o.legend) draw_legend(s.legend);
+    const PanelLayout layout = draw_panel(s, camera, ps, pilot->flight, frame_ms);
+    std::optional<OverlayRect> legend;
+    if (o.legend) legend = draw_legend(s.legend);
     graphics->overlay->render(fb_w, fb_h);
     complete = f.complete;
     complete_frames = f.complete ? complete_frames + 1 : 0;
@@ -452,6 +489,7 @@ int run_window(const ViewerOptions& o) {
       const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
       if (auto shot = snapshot_when_settled(o, complete_frames, *pilot, elapsed_s, fb_w, fb_h)) {
         status = *shot;
+        print_layout(layout, legend);
         glfwSetWindowShouldClose(glfw.window, GLFW_TRUE);
       }
     }

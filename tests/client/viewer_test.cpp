@@ -665,5 +665,115 @@ TEST_F(Viewer, WindowModeOutWritesTheWindowPanelIncludedUnderXvfb) {
   EXPECT_GT(panel_differs, panel / 2);
 }
 
+// A rectangle of window mode's layout line: x, y, width, height in window units.
+struct Rect {
+  double x = 0, y = 0, w = 0, h = 0;
+};
+
+Rect rect_of(const json& j) {
+  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>(),
+          j.at(3).get<double>()};
+}
+
+bool within(const Rect& inner, const Rect& outer) {
+  return inner.x >= outer.x && inner.y >= outer.y && inner.x + inner.w <= outer.x + outer.w &&
+         inner.y + inner.h <= outer.y + outer.h;
+}
+
+bool intersect(const Rect& a, const Rect& b) {
+  return a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h;
+}
+
+bool covers(const Rect& r, int x, int y, double margin) {
+  return x >= r.x - margin && x < r.x + r.w + margin && y >= r.y - margin && y < r.y + r.h + margin;
+}
+
+std::ostream& operator<<(std::ostream& os, const Rect& r) {
+  return os << '[' << r.x << ", " << r.y << ", " << r.w << " x " << r.h << ']';
+}
+
+TEST_F(Viewer, WindowModeLayoutKeepsPanelAndLegendInsideTheWindowAndApart) {
+  // Window mode with the legend under xvfb-run at 640×360 (where the panel, sized for larger
+  // windows, once ran off the bottom and over the legend) and at 1280×720. --out prints the
+  // written frame's layout: the panel, the source line in it and the legend, as ImGui placed
+  // them. The panel and the legend lie inside the window and apart; the source line (a store
+  // path longer than the panel is wide) wraps inside the panel. The rectangles are checked
+  // against the image: outside them the window shows what the headless renderer draws without
+  // a legend, inside them it does not.
+  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
+  if (!std::filesystem::exists(xvfb))
+    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  TempDir dir("viewer_layout");
+  const std::filesystem::path store =
+      dir.path / std::string(90, 'd') / "a_store_path_far_longer_than_the_panel_is_wide.sqlite";
+  std::filesystem::create_directories(store.parent_path());
+  std::filesystem::create_symlink(dem_, store);
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  for (const auto& [width, height] : {std::pair{640, 360}, std::pair{1280, 720}}) {
+    const std::string size = std::to_string(width) + "x" + std::to_string(height);
+    SCOPED_TRACE(size);
+    const std::vector<std::string> view{
+        "--size",  size,           "--msaa",    "0",  "--camera", camera_above(l, 30000),
+        "--store", store.string(), "--timeout", "300"};
+    const std::filesystem::path shot = dir.path / (size + "_window.png");
+    testing::Child window(xvfb.string(),
+                          std::vector<std::string>{"-a", "-s", "-screen 0 1920x1080x24",
+                                                   testing::binary("tinstream-viewer")} +
+                              view + std::vector<std::string>{"--out", shot.string()},
+                          /*capture_stderr=*/true);
+    ASSERT_EQ(window.wait(std::chrono::minutes(10)), 0) << window.err();
+    json layout;
+    std::istringstream lines(window.out());
+    for (std::string line; std::getline(lines, line);) {
+      const json j = json::parse(line, nullptr, false);
+      if (!j.is_discarded() && j.contains("layout")) layout = j["layout"];
+    }
+    ASSERT_TRUE(layout.is_object()) << "no layout line in: " << window.out();
+    ASSERT_EQ(layout["window"], json::array({width, height}));
+    const Rect screen{0, 0, static_cast<double>(width), static_cast<double>(height)};
+    const Rect panel = rect_of(layout["panel"]), legend = rect_of(layout["legend"]);
+    const Rect source = rect_of(layout["source_line"]);
+    EXPECT_TRUE(within(panel, screen)) << "panel " << panel;
+    EXPECT_TRUE(within(legend, screen)) << "legend " << legend;
+    EXPECT_FALSE(intersect(panel, legend)) << "panel " << panel << ", legend " << legend;
+    EXPECT_TRUE(within(source, panel)) << "source line " << source << ", panel " << panel;
+    // ImGui's default font is 13 px high: more than one line.
+    EXPECT_GT(source.h, 1.5 * 13.0) << "the source line did not wrap: " << source;
+
+    const ViewerRun headless =
+        viewer(std::vector<std::string>{"--headless", "--no-legend", "--out",
+                                        (dir.path / (size + "_headless.png")).string()} +
+               view);
+    expect_clean(headless);
+    const Image w = png(shot), h = png(dir.path / (size + "_headless.png"));
+    ASSERT_EQ(w.width, width);
+    ASSERT_EQ(w.height, height);
+    ASSERT_EQ(h.width, width);
+    ASSERT_EQ(h.height, height);
+    const auto differs = [&](int x, int y) {
+      const std::uint8_t *a = pixel(w, x, y), *b = pixel(h, x, y);
+      return std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]) > 12;
+    };
+    int outside = 0, outside_differs = 0, in_panel = 0, panel_differs = 0, in_legend = 0,
+        legend_differs = 0;
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        if (covers(panel, x, y, -2)) {
+          ++in_panel;
+          panel_differs += differs(x, y);
+        } else if (covers(legend, x, y, -2)) {
+          ++in_legend;
+          legend_differs += differs(x, y);
+        } else if (!covers(panel, x, y, 2) && !covers(legend, x, y, 2)) {
+          ++outside;
+          outside_differs += differs(x, y);
+        }
+      }
+    EXPECT_LT(outside_differs, outside / 50) << "drawn outside the reported rectangles";
+    EXPECT_GT(panel_differs, in_panel / 2);
+    EXPECT_GT(legend_differs, in_legend / 4);
+  }
+}
+
 }  // namespace
 }  // namespace tinstream::client

@@ -47,7 +47,13 @@ class Overlay {
   std::unique_ptr<Impl> impl_;
 };
 
-// ImGui calls that draw the colour-ramp legend in the bottom-left corner (inside a frame).
-void draw_legend(const LegendInfo& legend);
+// A rectangle of the overlay in ImGui's display units (window units, origin top left, y down).
+struct OverlayRect {
+  float x = 0, y = 0, width = 0, height = 0;
+};
+
+// ImGui calls that draw the colour-ramp legend in the bottom-right corner (inside a frame).
+// Returns where ImGui placed it this frame (window mode reports it with --out).
+OverlayRect draw_legend(const LegendInfo& legend);
 
 }  // namespace tinstream::client
