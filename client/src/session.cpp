@@ -87,13 +87,14 @@ Result<Session> open_session(const ViewerOptions& o) {
     for (const LayerDescription& l : s.layers) {
       if (l.projection == s.imagery->projection) continue;
       const std::string terrain_projection(geo::to_string(l.projection));
-      s.warnings.push_back("imagery layer \"" + s.imagery->name + "\" is on the " +
-                           imagery_projection + " Mercator quadtree, terrain layer \"" + l.name +
-                           "\" on the " + terrain_projection + " one: \"" + l.name +
-                           "\" is drawn with the colour ramp, not draped (ingest the imagery "
-                           "again with --projection " +
-                           terrain_projection + ")");
-      s.legend.footer += " (not over " + l.name + ": other projection)";
+      std::string w = "imagery layer \"";
+      w.append(s.imagery->name).append("\" is on the ").append(imagery_projection);
+      w.append(" Mercator quadtree, terrain layer \"").append(l.name).append("\" on the ");
+      w.append(terrain_projection).append(" one: \"").append(l.name);
+      w.append("\" is drawn with the colour ramp, not draped (ingest the imagery again with ");
+      w.append("--projection ").append(terrain_projection).append(")");
+      s.warnings.push_back(std::move(w));
+      s.legend.footer.append(" (not over ").append(l.name).append(": other projection)");
     }
   }
   s.loader =
