@@ -164,7 +164,7 @@ ThinInput merge(const geo::TileId& parent, const ChildViews& children, const Sou
       in.corner_nodata[k] = c->tile.corner_nodata[k];
     } else {
       in.corners[k] = Vertex{corner_xy[k][0], corner_xy[k][1], children.absent_corner_z[k], 0.0};
-      in.corner_nodata[k] = true;
+      in.corner_nodata[k] = children.absent_corner_nodata[k];
     }
   }
   using D = geo::Direction;
@@ -212,6 +212,7 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
                                    ThinStats* stats) {
   ChildViews child_views;
   child_views.absent_corner_z = children.absent_corner_z;
+  child_views.absent_corner_nodata = children.absent_corner_nodata;
   for (std::size_t k = 0; k < 4; ++k) {
     if (const auto& c = children.tiles[k]) child_views.tiles[k] = &*c;
   }

@@ -25,25 +25,35 @@ struct FlatTriangle {
 };
 
 // Linear interpolation at q in triangle t with barycentric weights clamped to the triangle (q is
-// inside up to rounding); coordinates relative to p[0] for accuracy. *min_weight (optional)
-// receives the smallest unclamped weight (≥ 0 inside).
-inline double plane_at(const FlatTriangle& t, double qx0, double qy0,
-                       double* min_weight = nullptr) {
-  const double bx = t.p[1].x - t.p[0].x, by = t.p[1].y - t.p[0].y;
-  const double cx = t.p[2].x - t.p[0].x, cy = t.p[2].y - t.p[0].y;
-  const double qx = qx0 - t.p[0].x, qy = qy0 - t.p[0].y;
-  const double det = bx * cy - by * cx;
+// inside up to rounding). *min_weight (optional) receives the smallest unclamped weight (≥ 0
+// inside). Each corner's weight is the cross product of its opposite edge with q measured from
+// that edge's end nearer q: small terms where q is near the edge, so a sliver reaching a far
+// corner (a level-0 tile's corners at ±1, its data a few metres wide) does not see q on its
+// side of a data edge that q lies 7 mm beyond (measured from the far corner, that corner's
+// weight came out 5.5e-17 where it is -2.2e-10, and q read the edge's height, 0.03 m off).
+inline double plane_at(const FlatTriangle& t, double qx, double qy, double* min_weight = nullptr) {
+  const double det =
+      (t.p[1].x - t.p[0].x) * (t.p[2].y - t.p[0].y) - (t.p[1].y - t.p[0].y) * (t.p[2].x - t.p[0].x);
   if (!(det != 0)) {
     if (min_weight) *min_weight = -std::numeric_limits<double>::infinity();
     return t.z[0];
   }
-  double wb = (qx * cy - qy * cx) / det;
-  double wc = (bx * qy - by * qx) / det;
-  double wa = 1.0 - wb - wc;
-  if (min_weight) *min_weight = std::min({wa, wb, wc});
-  wa = std::max(wa, 0.0), wb = std::max(wb, 0.0), wc = std::max(wc, 0.0);
-  const double s = wa + wb + wc;
-  return (wa * t.z[0] + wb * t.z[1] + wc * t.z[2]) / s;
+  double w[3];
+  for (int k = 0; k < 3; ++k) {
+    const P2& u = t.p[(k + 1) % 3];
+    const P2& v = t.p[(k + 2) % 3];
+    const double du = (qx - u.x) * (qx - u.x) + (qy - u.y) * (qy - u.y);
+    const double dv = (qx - v.x) * (qx - v.x) + (qy - v.y) * (qy - v.y);
+    const P2& o = du <= dv ? u : v;
+    w[k] = ((v.x - u.x) * (qy - o.y) - (v.y - u.y) * (qx - o.x)) / det;
+  }
+  if (min_weight) *min_weight = std::min({w[0], w[1], w[2]});
+  double s = 0, z = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double c = std::max(w[k], 0.0);
+    s += c, z += c * t.z[k];
+  }
+  return s > 0 ? z / s : t.z[0];
 }
 
 // Triangles of a tile, skipping those incident to a NODATA corner when skip_nodata.

@@ -234,16 +234,25 @@ Result<std::shared_ptr<const LodTile>> decoded(NeededTile& t, DecodedTiles& cach
   return t.decoded;
 }
 
-// Where a child is absent, the parent's NODATA corner there takes its height from the tiles of
-// the children's level (docs/tile-format.md §2.1). Runs on the calling thread (it reads the
-// writer); answers are kept per corner, which up to four parents share.
+// Where a child is absent, the parent's corner there takes its height from the tiles of the
+// children's level (docs/tile-format.md §2.1), and its NODATA flag too: a tile of that level
+// that has the corner gives both (NODATA or not, as it has it), else the corner is NODATA. The
+// parent across the corner, whose child there is present, takes the same from that child: the
+// two agree, and thin their shared side alike (issue #20: the 250 m Luxembourg DEM at
+// --max-points 2048 had one flag the corner data, the other NODATA). Runs on the calling thread
+// (it reads the writer); answers are kept per corner, which up to four parents share.
 class AbsentCorners {
  public:
+  struct Corner {
+    double z = 0;
+    bool nodata = true;
+  };
+
   AbsentCorners(store::LayerWriter& writer, const std::set<geo::TileId>& level)
       : writer_(writer), level_(level) {}
 
-  // The height of corner k of `parent`, whose child k is absent.
-  Result<double> height(const geo::TileId& parent, int k) {
+  // Corner k of `parent`, whose child k is absent: its height and NODATA flag.
+  Result<Corner> corner(const geo::TileId& parent, int k) {
     const geo::TileId child = parent.children()[static_cast<std::size_t>(k)];
     // The corner in the children's level: column gx, row gy of the tile grid lines.
     const std::int64_t gx = std::int64_t{child.x} + (k & 1), gy = std::int64_t{child.y} + (k >> 1);
@@ -255,7 +264,7 @@ class AbsentCorners {
   }
 
  private:
-  Result<double> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
+  Result<Corner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
     const std::int64_t n = std::int64_t{1} << level;
     auto present = [&](std::int64_t x, std::int64_t y) -> std::optional<geo::TileId> {
       if (x < 0 || y < 0 || x >= n || y >= n) return std::nullopt;
@@ -263,14 +272,15 @@ class AbsentCorners {
       if (!level_.count(id)) return std::nullopt;
       return id;
     };
-    // A tile of the level that has the corner: its height there (all of them agree).
+    // A tile of the level that has the corner: its height and flag there (all of them agree).
     for (int q = 0; q < 4; ++q) {
       const std::int64_t tx = gx - 1 + (q & 1), ty = gy - 1 + (q >> 1);
       const auto id = present(tx, ty);
       if (!id) continue;
       auto t = tile(*id);
       if (!t) return t.error();
-      return (*t)->corners[static_cast<std::size_t>(3 - q)].z;  // the corner at (gx, gy)
+      const auto c = static_cast<std::size_t>(3 - q);  // the corner at (gx, gy)
+      return Corner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
     }
     // Else the nearest data vertex of the level, searched in square rings of tiles around the
     // corner: ring r holds the tiles r tiles away from the four that meet there, at least r tile
@@ -297,7 +307,7 @@ class AbsentCorners {
       if (best && best->d2 < reach * reach * (1 - 1e-9)) break;
     }
     if (!best) return Error(ErrorCode::internal, "lod: no data vertex for a NODATA corner");
-    return best->z;
+    return Corner{best->z, true};
   }
 
   // A decoded tile of the level (the last few are kept: neighbouring corners read the same).
@@ -317,7 +327,7 @@ class AbsentCorners {
 
   store::LayerWriter& writer_;
   const std::set<geo::TileId>& level_;
-  std::map<std::pair<std::int64_t, std::int64_t>, double> known_;
+  std::map<std::pair<std::int64_t, std::int64_t>, Corner> known_;
   std::deque<std::pair<geo::TileId, TinTile>> cache_;
 };
 
@@ -593,6 +603,7 @@ class PyramidBuilder {
   Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent) {
     auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
     std::array<double, 4> absent_z{};
+    std::array<bool, 4> absent_nodata{true, true, true, true};
     const auto ids = pid.children();
     for (std::size_t i = 0; i < 4; ++i) {
       if (z + 1 == finest_) {  // each finest tile accounted once, from the store
@@ -611,9 +622,10 @@ class PyramidBuilder {
           continue;
         }
       }
-      auto z_corner = absent.height(pid, static_cast<int>(i));
-      if (!z_corner) return z_corner.error();
-      absent_z[i] = *z_corner;
+      auto corner = absent.corner(pid, static_cast<int>(i));
+      if (!corner) return corner.error();
+      absent_z[i] = corner->z;
+      absent_nodata[i] = corner->nodata;
     }
     const std::uint32_t depth = depth_of(pid, z);
     // All the data under one child, thinned from the same sources (the same counts give the same
@@ -630,10 +642,11 @@ class PyramidBuilder {
         sources->push_back(std::move(**t));
       }
     }
-    return TilePool::Job(
-        [kids, sources, depth, one_child, pid, lod = options_.lod, absent_z, cache = &cache_]() {
-          return build_parent(pid, *kids, absent_z, *sources, depth, one_child, lod, *cache);
-        });
+    return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_z,
+                          absent_nodata, cache = &cache_]() {
+      return build_parent(pid, *kids, absent_z, absent_nodata, *sources, depth, one_child, lod,
+                          *cache);
+    });
   }
 
   // A parent's job, on a worker: decodes what it needs (or takes it from the cache), thins the
@@ -641,10 +654,12 @@ class PyramidBuilder {
   static Result<Built> build_parent(const geo::TileId& pid,
                                     std::array<std::optional<NeededTile>, 4>& kids,
                                     const std::array<double, 4>& absent_z,
+                                    const std::array<bool, 4>& absent_nodata,
                                     std::vector<NeededTile>& sources, std::uint32_t depth,
                                     bool one_child, const LodOptions& lod, DecodedTiles& cache) {
     ChildViews children;
     children.absent_corner_z = absent_z;
+    children.absent_corner_nodata = absent_nodata;
     for (std::size_t i = 0; i < 4; ++i) {
       if (!kids[i]) continue;
       auto t = decoded(*kids[i], cache);

@@ -376,6 +376,38 @@ TEST(SurfaceDifference, FindsTheMaximumOnAnEdgeCrossing) {
   EXPECT_LT(*m, 1e-9);
 }
 
+TEST(MeasuredError, ATileMeasuredAgainstItselfIsExactNextToSliversToFarCorners) {
+  // A level-0 tile over a few metres of data (a small LiDAR crop's one-tile levels): its
+  // triangles from the data's hull to the map's corners are slivers 1e-6 wide and 1 long. Every
+  // vertex of the tile lies on the tile's own surface, so measured against itself the error is 0
+  // up to rounding; barycentrics taken relative to a far corner were off by 1e-10, enough to put a
+  // vertex 7 mm beyond a hull edge inside the sliver and read 0.029 m there (issue #20).
+  // The three points are that vertex q and that edge a–b, from nm_4_6_crop.las's pyramid; the
+  // tile holds the two triangles there: the sliver (NE corner, a, b) and (q, b, a) beyond it.
+  const geo::TileId id{0, 0, 0};
+  const geo::MercatorRect r = id.bounds();
+  auto v = [](double x, double y, double z) { return tile::Vertex{x, y, z, 0}; };
+  TinTile t;
+  t.id = id;
+  t.corners = {v(r.min_x, r.max_y, 2158.5), v(r.max_x, r.max_y, 2158.5),
+               v(r.min_x, r.min_y, 2158.5), v(r.max_x, r.min_y, 2158.5)};
+  t.corner_nodata = {true, true, true, true};
+  t.interior = {v(-0.59028927470709014, 0.20779051711088137, 2161.48),   // q (4)
+                v(-0.59028927415188348, 0.20779058102774384, 2161.51),   // a (5)
+                v(-0.59028927673307152, 0.20778980806287725, 2161.53)};  // b (6)
+  t.triangles = {{1, 5, 6}, {4, 6, 5}};                                  // both counter-clockwise
+  // The sliver does not hold q: q lies beyond a–b, seen from the NE corner (the tests' own
+  // orientation, on differences small enough to be exact here).
+  auto orient = [](const tile::Vertex& p, const tile::Vertex& q, const tile::Vertex& s) {
+    return (q.x - p.x) * (s.y - p.y) - (q.y - p.y) * (s.x - p.x);
+  };
+  ASSERT_LT(orient(t.interior[1], t.interior[2], t.interior[0]), 0.0);
+  ASSERT_GT(orient(t.interior[1], t.interior[2], t.corners[1]), 0.0);
+  auto m = measured_max_error(t, {t});
+  ASSERT_TRUE(m.ok()) << m.error().message;
+  EXPECT_LT(*m, 1e-6);
+}
+
 TEST(SurfaceDifference, MaximumAndAreaMatchABruteForceOverlay) {
   // A 16×16 lattice of a rough surface against a thinned version of itself: fine triangles
   // inside one coarse triangle (the fast path) and fine triangles cut by coarse edges (the

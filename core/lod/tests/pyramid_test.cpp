@@ -8,6 +8,8 @@
 #include <map>
 #include <mutex>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "dem_crop.hpp"
 #include "lod_test_support.hpp"
@@ -192,6 +194,48 @@ TEST(Pyramid, ThreadCountDoesNotChangeTheResult) {
         EXPECT_LE(ta[i].vertex_count(), 40u);
         EXPECT_GT(ta[i].geometric_error, 0.0);
       }
+    }
+  }
+}
+
+// Tiles that meet at a grid vertex flag it alike, NODATA or not, on every level (issue #20: the
+// 250 m Luxembourg DEM at --max-points 2048 had two level-11 tiles thin their shared side
+// differently, one flagging their common corner data, the other NODATA). Level 2 here: the four
+// tiles of the NW quarter and (2, 0), all with data corners. Level 1: (0, 0) takes its SE corner
+// from its child (1, 1), data; (1, 0) has no child (2, 1) there, and takes the corner from the
+// tiles of level 2 around it: (1, 1) has it as data, so data too (it was NODATA).
+TEST(Pyramid, TilesMeetingAtACornerFlagItAlikeWhereAChildIsAbsent) {
+  TempStore ts("corner-flags");
+  auto w = ts.writer("a");
+  ASSERT_TRUE(w);
+  for (const auto& [x, y] : std::vector<std::pair<std::uint32_t, std::uint32_t>>{
+           {0, 0}, {1, 0}, {0, 1}, {1, 1}, {2, 0}}) {
+    const auto t = grid_tile({2, x, y}, 8, world_hills);
+    ASSERT_FALSE(t.corner_nodata[0] || t.corner_nodata[1] || t.corner_nodata[2] ||
+                 t.corner_nodata[3]);
+    ASSERT_TRUE(w->put(t).ok());
+  }
+  PyramidOptions o;
+  o.lod.max_points = 1000;
+  ASSERT_TRUE(build_pyramid(*w, 2, 0, o, 1).ok());
+  for (std::uint32_t z = 0; z < 2; ++z) {
+    // By grid vertex of the level: the first tile's flag and height there.
+    std::map<std::pair<std::uint64_t, std::uint64_t>, std::pair<bool, double>> seen;
+    std::size_t shared = 0;
+    for (const auto& t : level_tiles(*w, z)) {
+      for (std::size_t k = 0; k < 4; ++k) {
+        const std::pair<std::uint64_t, std::uint64_t> g{t.id.x + (k & 1), t.id.y + (k >> 1)};
+        const std::pair<bool, double> here{t.corner_nodata[k], t.corners[k].z};
+        const auto [it, first] = seen.emplace(g, here);
+        if (first) continue;
+        ++shared;
+        EXPECT_EQ(it->second.first, here.first)
+            << t.id.to_string() << " corner " << k << ": NODATA flags differ";
+        EXPECT_EQ(it->second.second, here.second) << t.id.to_string() << " corner " << k;
+      }
+    }
+    if (z == 1) {
+      EXPECT_EQ(shared, 2u);  // (0, 0) and (1, 0) share their NE/NW and SE/SW corners
     }
   }
 }

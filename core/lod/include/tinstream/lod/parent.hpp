@@ -19,10 +19,11 @@
 // border feed the thinning's error estimate as orphans, since they are part of the surface (the
 // border's candidates are the children's).
 //
-// An absent child (no data) gives a NODATA corner whose height the caller supplies
-// (Children::absent_corner_z): docs/tile-format.md §2.1 takes it from the tiles of the children's
-// level around that corner, which the pyramid reads; deciding it from the children alone could
-// disagree with the tile across the corner, whose children are different tiles.
+// An absent child (no data) gives a corner whose height and NODATA flag the caller supplies
+// (Children::absent_corner_z, absent_corner_nodata; NODATA unless told): docs/tile-format.md
+// §2.1 takes them from the tiles of the children's level around that corner, which the pyramid
+// reads; deciding them from the children alone could disagree with the tile across the corner,
+// whose children are different tiles (a flag that differs thins the shared side differently).
 //
 // Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
@@ -47,8 +48,10 @@ namespace tinstream::lod {
 
 struct Children {
   std::array<std::optional<LodTile>, 4> tiles;  // parent.children()[i]: NW, NE, SW, SE
-  // Where tiles[k] is absent: the height of the parent's corner k (NODATA there).
+  // Where tiles[k] is absent: the height of the parent's corner k, and whether it is NODATA
+  // (as the tiles of the children's level around it have it; none there: NODATA).
   std::array<double, 4> absent_corner_z{};
+  std::array<bool, 4> absent_corner_nodata{true, true, true, true};
 };
 
 // A coarse tile's sources beside its children: the tiles `depth` levels below it that exist
@@ -67,6 +70,7 @@ struct Sources {
 struct ChildViews {
   std::array<const LodTile*, 4> tiles{};
   std::array<double, 4> absent_corner_z{};
+  std::array<bool, 4> absent_corner_nodata{true, true, true, true};
 };
 struct SourceViews {
   std::uint32_t depth = 1;
