@@ -100,6 +100,29 @@ class TileGrid {
     return out;
   }
 
+  // outer_side for the children's grid (n = 2): where a child is absent, its stretch of side `d`
+  // as `absent` has it (the side of the tile across), and the midpoint too where both children
+  // along the side are absent. The parent across builds its side from its own children, which
+  // are those tiles across: both get the same points (issue #20).
+  std::vector<Vertex> outer_side(geo::Direction d, const AbsentBorder& absent) const {
+    using D = geo::Direction;
+    const bool along_x = d == D::north || d == D::south;
+    const std::uint64_t fixed = (d == D::north || d == D::west) ? 0 : 1;
+    const std::uint64_t vfixed = fixed == 0 ? 0 : 2;
+    const auto di = static_cast<std::size_t>(d);
+    const std::array<const TinTile*, 2> tiles = {along_x ? at(0, fixed) : at(fixed, 0),
+                                                 along_x ? at(1, fixed) : at(fixed, 1)};
+    std::vector<Vertex> out;
+    append(out, tiles[0] ? side(*tiles[0], d) : absent.sides[di][0]);
+    if (tiles[0] || tiles[1]) {
+      if (auto c = along_x ? corner(1, vfixed) : corner(vfixed, 1)) out.push_back(*c);
+    } else if (absent.midpoints[di]) {
+      out.push_back(*absent.midpoints[di]);
+    }
+    append(out, tiles[1] ? side(*tiles[1], d) : absent.sides[di][1]);
+    return out;
+  }
+
   // The points on the inner grid lines (one copy of each shared side, then the inner grid
   // vertices): points of the finer surface inside the parent, candidates like the others.
   void inner_lines(std::vector<Vertex>& out) const {
@@ -168,10 +191,18 @@ ThinInput merge(const geo::TileId& parent, const ChildViews& children, const Sou
     }
   }
   using D = geo::Direction;
-  in.north = kids.outer_side(D::north);
-  in.east = kids.outer_side(D::east);
-  in.south = kids.outer_side(D::south);
-  in.west = kids.outer_side(D::west);
+  if (children.absent_border) {
+    const AbsentBorder& across = *children.absent_border;
+    in.north = kids.outer_side(D::north, across);
+    in.east = kids.outer_side(D::east, across);
+    in.south = kids.outer_side(D::south, across);
+    in.west = kids.outer_side(D::west, across);
+  } else {
+    in.north = kids.outer_side(D::north);
+    in.east = kids.outer_side(D::east);
+    in.south = kids.outer_side(D::south);
+    in.west = kids.outer_side(D::west);
+  }
   // The interior's size is known: reserved (with the witnesses that build_from_sources may
   // append), so that up to a million points (64 sources) are not copied by doubling.
   auto reserve = [&](const auto& tiles, std::size_t n) {
@@ -213,6 +244,7 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
   ChildViews child_views;
   child_views.absent_corner_z = children.absent_corner_z;
   child_views.absent_corner_nodata = children.absent_corner_nodata;
+  child_views.absent_border = &children.absent_border;
   for (std::size_t k = 0; k < 4; ++k) {
     if (const auto& c = children.tiles[k]) child_views.tiles[k] = &*c;
   }

@@ -234,6 +234,43 @@ Result<std::shared_ptr<const LodTile>> decoded(NeededTile& t, DecodedTiles& cach
   return t.decoded;
 }
 
+// The tiles of the children's level while a level is built, read back from the writer on the
+// calling thread (the last few decoded are kept: neighbouring parents read the same).
+class LevelTiles {
+ public:
+  LevelTiles(store::LayerWriter& writer, const std::set<geo::TileId>& level)
+      : writer_(writer), level_(level) {}
+
+  // The tile at column x, row y of `level` when the level has it.
+  std::optional<geo::TileId> present(std::uint32_t level, std::int64_t x, std::int64_t y) const {
+    const std::int64_t n = std::int64_t{1} << level;
+    if (x < 0 || y < 0 || x >= n || y >= n) return std::nullopt;
+    const geo::TileId id{level, static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y)};
+    if (!level_.count(id)) return std::nullopt;
+    return id;
+  }
+
+  // A decoded tile of the level.
+  Result<const TinTile*> tile(const geo::TileId& id) {
+    for (const auto& [cached_id, t] : cache_) {
+      if (cached_id == id) return &t;
+    }
+    auto stored = writer_.get_stored(id);
+    if (!stored) return stored.error();
+    if (!*stored) return not_found("lod: tile " + id.to_string() + " vanished");
+    auto decoded = decode_child(**stored);
+    if (!decoded) return decoded.error();
+    if (cache_.size() >= 8) cache_.pop_front();
+    cache_.emplace_back(id, std::move(*decoded));
+    return &cache_.back().second;
+  }
+
+ private:
+  store::LayerWriter& writer_;
+  const std::set<geo::TileId>& level_;
+  std::deque<std::pair<geo::TileId, TinTile>> cache_;
+};
+
 // Where a child is absent, the parent's corner there takes its height from the tiles of the
 // children's level (docs/tile-format.md §2.1), and its NODATA flag too: a tile of that level
 // that has the corner gives both (NODATA or not, as it has it), else the corner is NODATA. The
@@ -248,8 +285,7 @@ class AbsentCorners {
     bool nodata = true;
   };
 
-  AbsentCorners(store::LayerWriter& writer, const std::set<geo::TileId>& level)
-      : writer_(writer), level_(level) {}
+  explicit AbsentCorners(LevelTiles& level) : level_(level) {}
 
   // Corner k of `parent`, whose child k is absent: its height and NODATA flag.
   Result<Corner> corner(const geo::TileId& parent, int k) {
@@ -266,18 +302,13 @@ class AbsentCorners {
  private:
   Result<Corner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
     const std::int64_t n = std::int64_t{1} << level;
-    auto present = [&](std::int64_t x, std::int64_t y) -> std::optional<geo::TileId> {
-      if (x < 0 || y < 0 || x >= n || y >= n) return std::nullopt;
-      const geo::TileId id{level, static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y)};
-      if (!level_.count(id)) return std::nullopt;
-      return id;
-    };
+    auto present = [&](std::int64_t x, std::int64_t y) { return level_.present(level, x, y); };
     // A tile of the level that has the corner: its height and flag there (all of them agree).
     for (int q = 0; q < 4; ++q) {
       const std::int64_t tx = gx - 1 + (q & 1), ty = gy - 1 + (q >> 1);
       const auto id = present(tx, ty);
       if (!id) continue;
-      auto t = tile(*id);
+      auto t = level_.tile(*id);
       if (!t) return t.error();
       const auto c = static_cast<std::size_t>(3 - q);  // the corner at (gx, gy)
       return Corner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
@@ -297,7 +328,7 @@ class AbsentCorners {
           if (!edge) continue;
           const auto id = present(tx, ty);
           if (!id) continue;
-          auto t = tile(*id);
+          auto t = level_.tile(*id);
           if (!t) return t.error();
           const auto v = nearest_data_vertex(**t, x, y);
           if (v && (!best || v->closer_than(*best))) best = v;
@@ -310,25 +341,70 @@ class AbsentCorners {
     return Corner{best->z, true};
   }
 
-  // A decoded tile of the level (the last few are kept: neighbouring corners read the same).
-  Result<const TinTile*> tile(const geo::TileId& id) {
-    for (const auto& [cached_id, t] : cache_) {
-      if (cached_id == id) return &t;
+  LevelTiles& level_;
+  std::map<std::pair<std::int64_t, std::int64_t>, Corner> known_;
+};
+
+// Where a child is absent, its stretch of the parent's outer border as the tiles of the
+// children's level across that border have it (parent.hpp's AbsentBorder): the side of the tile
+// across, and the side's midpoint where both children along it are absent. The parent across
+// builds its side from its own children there, which are those tiles, so both parents get the
+// same side points (issue #20: the 250 m Luxembourg DEM at --max-points 2048 had 11/1059/699,
+// whose child 12/2118/1398 is absent, without the points that 11/1059/698 and 11/1058/699 took
+// from 12/2118/1397 and 12/2117/1398 on their shared sides). Only the children's level is read:
+// the border's candidates are the children's, for sources of any depth (deeper sources' border
+// points are orphans, which do not thin the border).
+class AbsentSides {
+ public:
+  explicit AbsentSides(LevelTiles& level) : level_(level) {}
+
+  // The border of `parent` across its absent children (present[k]: child k is present).
+  Result<AbsentBorder> border(const geo::TileId& parent, const std::array<bool, 4>& present) {
+    using D = geo::Direction;
+    struct Side {
+      D d;
+      std::array<std::size_t, 2> along;            // the children along it, west or north first
+      std::int64_t dx, dy;                         // the step across it
+      std::vector<tile::Vertex> TinTile::*facing;  // the side of the tile across that faces it
+    };
+    static constexpr std::array<Side, 4> kSides = {{{D::north, {0, 1}, 0, -1, &TinTile::south},
+                                                    {D::east, {1, 3}, 1, 0, &TinTile::west},
+                                                    {D::south, {2, 3}, 0, 1, &TinTile::north},
+                                                    {D::west, {0, 2}, -1, 0, &TinTile::east}}};
+    const auto kids = parent.children();
+    AbsentBorder out;
+    for (const Side& side : kSides) {
+      const auto di = static_cast<std::size_t>(side.d);
+      // The side's midpoint, column gx and row gy of the children's level's grid lines.
+      const geo::TileId& first = kids[side.along[0]];
+      const std::int64_t gx = std::int64_t{first.x} + (side.d == D::east ? 1 : 0) +
+                              (side.d == D::north || side.d == D::south ? 1 : 0);
+      const std::int64_t gy = std::int64_t{first.y} + (side.d == D::south ? 1 : 0) +
+                              (side.d == D::east || side.d == D::west ? 1 : 0);
+      bool midpoint_seen = false;
+      for (std::size_t h = 0; h < 2; ++h) {
+        const geo::TileId& child = kids[side.along[h]];
+        if (present[side.along[h]]) continue;
+        const auto id = level_.present(child.z, std::int64_t{child.x} + side.dx,
+                                       std::int64_t{child.y} + side.dy);
+        if (!id) continue;
+        auto t = level_.tile(*id);
+        if (!t) return t.error();
+        out.sides[di][h] = (**t).*side.facing;
+        // Where both children along the side are absent, the midpoint from the first tile
+        // across that has it, as the parent across takes it from its children (which all flag
+        // it alike).
+        if (present[side.along[0]] || present[side.along[1]] || midpoint_seen) continue;
+        midpoint_seen = true;
+        const auto k = static_cast<std::size_t>((gx - id->x) + 2 * (gy - id->y));
+        if (!(*t)->corner_nodata[k]) out.midpoints[di] = (*t)->corners[k];
+      }
     }
-    auto stored = writer_.get_stored(id);
-    if (!stored) return stored.error();
-    if (!*stored) return not_found("lod: tile " + id.to_string() + " vanished");
-    auto decoded = decode_child(**stored);
-    if (!decoded) return decoded.error();
-    if (cache_.size() >= 8) cache_.pop_front();
-    cache_.emplace_back(id, std::move(*decoded));
-    return &cache_.back().second;
+    return out;
   }
 
-  store::LayerWriter& writer_;
-  const std::set<geo::TileId>& level_;
-  std::map<std::pair<std::int64_t, std::int64_t>, Corner> known_;
-  std::deque<std::pair<geo::TileId, TinTile>> cache_;
+ private:
+  LevelTiles& level_;
 };
 
 // Pass 4 for one layer: the state the levels share, and one method per step. Runs on the calling
@@ -572,10 +648,12 @@ class PyramidBuilder {
     if (Status s = report(true); !s.ok()) return s;
     std::set<geo::TileId> child_set;
     for (const auto& [m, id] : levels_[z + 1]) child_set.insert(id);
-    AbsentCorners absent(writer_, child_set);
+    LevelTiles child_tiles(writer_, child_set);
+    AbsentCorners absent(child_tiles);
+    AbsentSides across(child_tiles);
     std::uint64_t written = 0;
     Status s = run_level(
-        parents, [&](const geo::TileId& pid) { return parent_job(pid, z, absent); },
+        parents, [&](const geo::TileId& pid) { return parent_job(pid, z, absent, across); },
         [&](Built&& b) -> Status {
           account(b.stored);
           if (Status st = put(std::move(b)); !st.ok()) return st;
@@ -598,9 +676,11 @@ class PyramidBuilder {
     return std::optional<NeededTile>{NeededTile{nullptr, std::move(**t), again}};
   }
 
-  // Gathers what the parent `pid` (level z) needs — its children (or, where one is absent, the
-  // height of that NODATA corner) and its sources — and returns the job that builds it.
-  Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent) {
+  // Gathers what the parent `pid` (level z) needs — its children (or, where one is absent, that
+  // corner's height and flag and the border across it) and its sources — and returns the job
+  // that builds it.
+  Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent,
+                                   AbsentSides& across) {
     auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
     std::array<double, 4> absent_z{};
     std::array<bool, 4> absent_nodata{true, true, true, true};
@@ -627,6 +707,14 @@ class PyramidBuilder {
       absent_z[i] = corner->z;
       absent_nodata[i] = corner->nodata;
     }
+    std::array<bool, 4> present{};
+    for (std::size_t i = 0; i < 4; ++i) present[i] = (*kids)[i].has_value();
+    auto border = std::make_shared<AbsentBorder>();
+    if (std::count(present.begin(), present.end(), true) < 4) {
+      auto b = across.border(pid, present);
+      if (!b) return b.error();
+      *border = std::move(*b);
+    }
     const std::uint32_t depth = depth_of(pid, z);
     // All the data under one child, thinned from the same sources (the same counts give the same
     // source level): its vertices are the candidates, the sources only measure.
@@ -643,9 +731,9 @@ class PyramidBuilder {
       }
     }
     return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_z,
-                          absent_nodata, cache = &cache_]() {
-      return build_parent(pid, *kids, absent_z, absent_nodata, *sources, depth, one_child, lod,
-                          *cache);
+                          absent_nodata, border, cache = &cache_]() {
+      return build_parent(pid, *kids, absent_z, absent_nodata, *border, *sources, depth, one_child,
+                          lod, *cache);
     });
   }
 
@@ -655,11 +743,13 @@ class PyramidBuilder {
                                     std::array<std::optional<NeededTile>, 4>& kids,
                                     const std::array<double, 4>& absent_z,
                                     const std::array<bool, 4>& absent_nodata,
-                                    std::vector<NeededTile>& sources, std::uint32_t depth,
-                                    bool one_child, const LodOptions& lod, DecodedTiles& cache) {
+                                    const AbsentBorder& border, std::vector<NeededTile>& sources,
+                                    std::uint32_t depth, bool one_child, const LodOptions& lod,
+                                    DecodedTiles& cache) {
     ChildViews children;
     children.absent_corner_z = absent_z;
     children.absent_corner_nodata = absent_nodata;
+    children.absent_border = &border;
     for (std::size_t i = 0; i < 4; ++i) {
       if (!kids[i]) continue;
       auto t = decoded(*kids[i], cache);

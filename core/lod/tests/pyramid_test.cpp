@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -238,6 +239,39 @@ TEST(Pyramid, TilesMeetingAtACornerFlagItAlikeWhereAChildIsAbsent) {
       EXPECT_EQ(shared, 2u);  // (0, 0) and (1, 0) share their NE/NW and SE/SW corners
     }
   }
+}
+
+// Tiles whose children differ along their shared side still share their side points (issue #20:
+// the 250 m Luxembourg DEM at --max-points 2048 had 11/1059/699, whose child 12/2118/1398 is
+// absent, without the points its neighbours took from their children beside that tile). Level 2
+// here: the four children of 1/0/0, (2, 0) under 1/1/0 and (1, 3) under 1/0/1. 1/1/0's west side
+// has no child along its southern half, where 1/0/0 has (1, 1); 1/0/1's north side has none at
+// all, where 1/0/0 has (0, 1) and (1, 1), and the point between them. Each takes those points from
+// the tiles across (before: nothing there, so the sides differed).
+TEST(Pyramid, TilesSharingASideShareItsPointsWhereAChildIsAbsent) {
+  TempStore ts("absent-sides");
+  auto w = ts.writer("a");
+  ASSERT_TRUE(w);
+  for (const auto& [x, y] : std::vector<std::pair<std::uint32_t, std::uint32_t>>{
+           {0, 0}, {1, 0}, {0, 1}, {1, 1}, {2, 0}, {1, 3}}) {
+    ASSERT_TRUE(w->put(grid_tile({2, x, y}, 8, world_hills)).ok());
+  }
+  PyramidOptions o;
+  o.lod.max_points = 1000;
+  ASSERT_TRUE(build_pyramid(*w, 2, 0, o, 1).ok());
+  const std::vector<TinTile> level = level_tiles(*w, 1);
+  ASSERT_EQ(level.size(), 3u);
+  const Status s = check_level_watertight(level);
+  EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+  // The two shared sides have their points (the watertightness check compares them), here the
+  // children's 7 per side, and the point between the two of 1/0/1's north side.
+  const auto tile_of = [&](std::uint32_t x, std::uint32_t y) {
+    return *std::find_if(level.begin(), level.end(), [&](const TinTile& t) {
+      return t.id == geo::TileId{1, x, y};
+    });
+  };
+  EXPECT_GE(tile_of(1, 0).west.size(), 14u);
+  EXPECT_GE(tile_of(0, 1).north.size(), 15u);
 }
 
 // The cache of decoded tiles (PyramidOptions::decoded_cache_bytes) only spares decodes: without

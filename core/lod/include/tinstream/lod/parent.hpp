@@ -24,6 +24,12 @@
 // §2.1 takes them from the tiles of the children's level around that corner, which the pyramid
 // reads; deciding them from the children alone could disagree with the tile across the corner,
 // whose children are different tiles (a flag that differs thins the shared side differently).
+// Likewise its stretch of the parent's outer border (Children::absent_border): the parent across
+// builds that stretch of their shared side from its own child there, so this parent takes the
+// same points, the side of that tile (and the side's midpoint, where both children along it are
+// absent); the caller reads them, as the pyramid does (docs/tile-format.md §2.1). Left empty, the
+// stretch has no points (until 2026-11-28 always: the 250 m Luxembourg DEM at --max-points 2048
+// had two level-11 tiles with different points on their shared side, issue #20).
 //
 // Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
@@ -46,12 +52,25 @@
 
 namespace tinstream::lod {
 
+// The parent's outer border where children are absent, as the tiles of the children's level across
+// it have it (what the parents across take from their children there).
+struct AbsentBorder {
+  // [side d (geo::Direction)][half h (0: the side's west or north half)]: where the child along
+  // that half of side d is absent, the side points of the tile across (its side facing the child,
+  // in the parent's edge order: west to east, north to south); empty where that tile is absent.
+  std::array<std::array<std::vector<tile::Vertex>, 2>, 4> sides;
+  // [side d]: where both children along side d are absent, the midpoint of side d as the tiles
+  // across have it, when it is a data corner there (else nullopt).
+  std::array<std::optional<tile::Vertex>, 4> midpoints;
+};
+
 struct Children {
   std::array<std::optional<LodTile>, 4> tiles;  // parent.children()[i]: NW, NE, SW, SE
   // Where tiles[k] is absent: the height of the parent's corner k, and whether it is NODATA
   // (as the tiles of the children's level around it have it; none there: NODATA).
   std::array<double, 4> absent_corner_z{};
   std::array<bool, 4> absent_corner_nodata{true, true, true, true};
+  AbsentBorder absent_border;  // nothing across absent children unless told
 };
 
 // A coarse tile's sources beside its children: the tiles `depth` levels below it that exist
@@ -71,6 +90,7 @@ struct ChildViews {
   std::array<const LodTile*, 4> tiles{};
   std::array<double, 4> absent_corner_z{};
   std::array<bool, 4> absent_corner_nodata{true, true, true, true};
+  const AbsentBorder* absent_border = nullptr;  // null: nothing across absent children
 };
 struct SourceViews {
   std::uint32_t depth = 1;
