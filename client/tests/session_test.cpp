@@ -20,24 +20,15 @@ std::filesystem::path write_store(const TempDir& dir, geo::Projection terrain,
   SyntheticLayer layer = testing::default_layer();
   layer.projection = terrain;
   testing::write_layer(path, layer);
-  auto st = store::TileStore::open(path, store::TileStore::Mode::read_write);
-  if (!st) throw std::runtime_error(st.error().message);
-  auto t = st->layer("synth");
-  if (!t) throw std::runtime_error(t.error().message);
   store::ImageryInfo info;
   info.name = "ortho";
   info.projection = imagery;
   info.format = "png";
-  info.mercator_bounds = t->mercator_bounds;
-  info.bounds = t->bounds;
   info.min_level = info.max_level = 10;
-  auto writer = st->begin_imagery(info);
-  if (!writer) throw std::runtime_error(writer.error().message);
   auto png = imagery::encode(imagery::RgbaImage(256, 256), imagery::ImageFormat::png);
   if (!png) throw std::runtime_error(png.error().message);
-  if (Status ok = (*writer)->put({{10, 530, 350}, *png, {}}); !ok)
-    throw std::runtime_error(ok.error().message);
-  if (Status ok = (*writer)->publish(info); !ok) throw std::runtime_error(ok.error().message);
+  testing::write_imagery(path, "synth", info, {{10, 530, 350}},
+                         [&](const geo::TileId&) { return std::optional{*png}; });
   return path;
 }
 

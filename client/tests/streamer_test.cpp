@@ -189,25 +189,15 @@ TEST(TileStreamer, DrapedImageryRefinesTilesWhoseTexelsWouldLookTooLarge) {
   TempDir dir("streamer_imagery_refine");
   const std::filesystem::path store_path = dir.path / "s.db";
   const std::vector<geo::TileId> tiles = testing::write_layer(store_path, testing::default_layer());
-  {
-    auto st = store::TileStore::open(store_path, store::TileStore::Mode::read_write);
-    ASSERT_TRUE(st.ok()) << st.error().message;
-    auto terrain = st->layer("synth");
-    ASSERT_TRUE(terrain.ok()) << terrain.error().message;
-    store::ImageryInfo info;
-    info.name = "ortho";
-    info.format = "png";
-    info.mercator_bounds = terrain->mercator_bounds;
-    info.bounds = terrain->bounds;
-    info.min_level = 10;
-    info.max_level = 12;
-    auto writer = st->begin_imagery(info);
-    ASSERT_TRUE(writer.ok()) << writer.error().message;
-    auto png = imagery::encode(imagery::RgbaImage(256, 256), imagery::ImageFormat::png);
-    ASSERT_TRUE(png.ok()) << png.error().message;
-    for (const geo::TileId& id : tiles) ASSERT_TRUE((*writer)->put({id, *png, {}}).ok());
-    ASSERT_TRUE((*writer)->publish(info).ok());
-  }
+  store::ImageryInfo info;
+  info.name = "ortho";
+  info.format = "png";
+  info.min_level = 10;
+  info.max_level = 12;
+  auto png = imagery::encode(imagery::RgbaImage(256, 256), imagery::ImageFormat::png);
+  ASSERT_TRUE(png.ok()) << png.error().message;
+  testing::write_imagery(store_path, "synth", info, tiles,
+                         [&](const geo::TileId&) { return std::optional{*png}; });
   auto source = open_store_source(store_path);
   ASSERT_TRUE(source.ok()) << source.error().message;
   auto layers = (*source)->layers({"synth"});

@@ -97,4 +97,24 @@ std::vector<geo::TileId> write_layer(const std::filesystem::path& path,
   return {ids.begin(), ids.end()};
 }
 
+void write_imagery(const std::filesystem::path& store, const std::string& terrain,
+                   store::ImageryInfo info, const std::vector<geo::TileId>& tiles,
+                   const ImageBytes& bytes) {
+  auto st = store::TileStore::open(store, store::TileStore::Mode::read_write);
+  if (!st) throw std::runtime_error(st.error().message);
+  auto layer = st->layer(terrain);
+  if (!layer) throw std::runtime_error(layer.error().message);
+  info.mercator_bounds = layer->mercator_bounds;
+  info.bounds = layer->bounds;
+  auto writer = st->begin_imagery(info);
+  if (!writer) throw std::runtime_error(writer.error().message);
+  for (const geo::TileId& id : tiles) {
+    std::optional<std::vector<std::uint8_t>> data = bytes(id);
+    if (!data) continue;
+    if (Status ok = (*writer)->put({id, std::move(*data), {}}); !ok)
+      throw std::runtime_error(ok.error().message);
+  }
+  if (Status ok = (*writer)->publish(info); !ok) throw std::runtime_error(ok.error().message);
+}
+
 }  // namespace tinstream::client::testing

@@ -61,34 +61,23 @@ imagery::RgbaImage pattern_tile(const geo::TileId& id) {
 void write_imagery(const std::filesystem::path& path, const std::vector<geo::TileId>& tiles,
                    imagery::ImageFormat format, std::optional<geo::TileId> missing = {},
                    std::optional<geo::TileId> corrupt = {}) {
-  auto st = store::TileStore::open(path, store::TileStore::Mode::read_write);
-  if (!st) throw std::runtime_error(st.error().message);
-  auto terrain = st->layer("synth");
-  if (!terrain) throw std::runtime_error(terrain.error().message);
   store::ImageryInfo info;
   info.name = "synth";
   info.format = std::string(imagery::to_string(format));
-  info.mercator_bounds = terrain->mercator_bounds;
-  info.bounds = terrain->bounds;
   info.min_level = 10;
   info.max_level = 12;
-  auto writer = st->begin_imagery(info);
-  if (!writer) throw std::runtime_error(writer.error().message);
-  for (const geo::TileId& id : tiles) {
-    if (id == missing) continue;
-    store::StoredImage s;
-    s.id = id;
-    if (id == corrupt) {
-      const std::string junk = "these bytes are no image";
-      s.data.assign(junk.begin(), junk.end());
-    } else {
-      auto bytes = imagery::encode(pattern_tile(id), format, {.quality = 95, .lossless = true});
-      if (!bytes) throw std::runtime_error(bytes.error().message);
-      s.data = std::move(*bytes);
-    }
-    if (Status ok = (*writer)->put(std::move(s)); !ok) throw std::runtime_error(ok.error().message);
-  }
-  if (Status ok = (*writer)->publish(info); !ok) throw std::runtime_error(ok.error().message);
+  testing::write_imagery(path, "synth", info, tiles,
+                         [&](const geo::TileId& id) -> std::optional<std::vector<std::uint8_t>> {
+                           if (id == missing) return std::nullopt;
+                           if (id == corrupt) {
+                             const std::string junk = "these bytes are no image";
+                             return std::vector<std::uint8_t>(junk.begin(), junk.end());
+                           }
+                           auto bytes = imagery::encode(pattern_tile(id), format,
+                                                        {.quality = 95, .lossless = true});
+                           if (!bytes) throw std::runtime_error(bytes.error().message);
+                           return std::move(*bytes);
+                         });
 }
 
 struct ViewRun {
