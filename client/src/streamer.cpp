@@ -21,6 +21,11 @@ constexpr std::size_t kMaxRoots = 4096;
 // Roots are asked for before anything else.
 constexpr double kRootPriority = 1e300;
 
+// Whether the two rectangles share interior (touching along an edge does not count).
+bool interiors_meet(const geo::MercatorRect& a, const geo::MercatorRect& b) {
+  return a.min_x < b.max_x && a.max_x > b.min_x && a.min_y < b.max_y && a.max_y > b.min_y;
+}
+
 std::vector<geo::TileId> root_tiles(const LayerDescription& l) {
   const geo::MercatorRect& b = l.mercator_bounds;
   const geo::TileId nw = geo::TileId::containing({b.min_x, b.max_y}, l.min_level);
@@ -185,10 +190,7 @@ void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::Ti
   for (const geo::TileId& child : id.children()) {
     // Only tiles that overlap the data (may_contain also admits those that touch its edge: a
     // guess below a tile not known to exist would ask for their 404s).
-    const geo::MercatorRect r = child.bounds();
-    if (r.min_x >= data.max_x || r.max_x <= data.min_x || r.min_y >= data.max_y ||
-        r.max_y <= data.min_y)
-      continue;
+    if (!interiors_meet(child.bounds(), data)) continue;
     // Ranked after every tile a frame needs (whose priorities are positive errors), among
     // themselves by the estimate: workers send them only when nothing needed is waiting.
     if (probe(view, layer, child, -1.0 / sse, false).state == State::not_ready)
@@ -248,10 +250,7 @@ double TileStreamer::imagery_texel_error(std::uint16_t layer, const geo::TileId&
   const LayerDescription& terrain = layers_[layer];
   if (img.projection != terrain.projection || id.z >= img.max_level) return 0;
   const geo::MercatorRect r = id.bounds();
-  const geo::MercatorRect& data = img.mercator_bounds;
-  if (r.min_x >= data.max_x || r.max_x <= data.min_x || r.min_y >= data.max_y ||
-      r.max_y <= data.min_y)
-    return 0;
+  if (!interiors_meet(r, img.mercator_bounds)) return 0;
   // Normalised Mercator spans [-1, 1] for 360°: a unit is π·a metres at the equator, scaled by
   // cos(latitude) (the spherical scale; the ellipsoid's differs by < 0.7 %, enough for a budget).
   constexpr double kPi = 3.14159265358979323846;
