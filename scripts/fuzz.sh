@@ -4,6 +4,10 @@
 #   scripts/fuzz.sh                       every target for 60 s (what CI runs: make fuzz)
 #   scripts/fuzz.sh --seconds 1800        longer
 #   scripts/fuzz.sh --runs 10000000       a fixed number of executions per target (a long run)
+#   scripts/fuzz.sh --runs 10000000 --procs 16 --jobs 1
+#                                         the long run on a many-core machine: 16 processes per
+#                                         target sharing its corpus (-reload=1), the runs split
+#                                         between them (docs/SECURITY.md, "The long run")
 #   scripts/fuzz.sh --only kernel_fuzzer,qmesh_fuzzer --jobs 1
 #   scripts/fuzz.sh --seed 1              libFuzzer's random seed (default: a new one each run).
 #                                         CI passes --seed 1 and a fresh corpus: the same inputs in
@@ -27,6 +31,7 @@ seconds=60
 runs=
 seed=
 jobs=$(nproc)
+procs=1
 only=
 do_build=1
 while (($#)); do
@@ -36,11 +41,12 @@ while (($#)); do
     --runs) runs=$2; shift 2 ;;
     --seed) seed=$2; shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
+    --procs) procs=$2; shift 2 ;;
     --only) only=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --no-build) do_build=0; shift ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown option $1 (--help)" >&2; exit 2 ;;
   esac
 done
@@ -80,11 +86,18 @@ run_one() {
   mkdir -p "$dir/corpus" "$dir/artifacts"
   local args=(-timeout="$timeout" -max_len="$max_len" -rss_limit_mb=2048 -print_final_stats=1
               -artifact_prefix="$dir/artifacts/")
-  if [[ -n $runs ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
+  if [[ -n $runs ]]; then args+=(-runs="$(((runs + procs - 1) / procs))"); else args+=(-max_total_time="$seconds"); fi
   [[ $dict != - ]] && args+=(-dict="$dict")
-  [[ -n $seed ]] && args+=(-seed="$seed")
-  local start=$SECONDS rc=0
-  "$bin" "${args[@]}" "$dir/corpus" "${seeds[@]}" >"$dir/log" 2>&1 || rc=$?
+  ((procs > 1)) && args+=(-reload=1)
+  rm -f "$dir"/log.*
+  local start=$SECONDS rc=0 i pids=()
+  for ((i = 1; i <= procs; i++)); do
+    local seed_arg=()
+    [[ -n $seed ]] && seed_arg=(-seed="$((seed + i - 1))")
+    "$bin" "${args[@]}" "${seed_arg[@]}" "$dir/corpus" "${seeds[@]}" >"$dir/log.$i" 2>&1 &
+    pids+=($!)
+  done
+  for pid in "${pids[@]}"; do wait "$pid" || rc=$?; done
   echo "$((SECONDS - start))" >"$dir/seconds"
   echo "$rc" >"$dir/rc"
 }
@@ -105,10 +118,11 @@ printf '%-22s %8s %14s %10s %8s %8s %8s %s\n' target seconds executions exec/s c
 printf 'target\tseconds\texecutions\texec_per_s\tcov\tcorpus\tpeak_rss_mb\tresult\n' >"$out/summary.tsv"
 for name in "${names[@]}"; do
   dir=$out/$name
-  log=$dir/log
-  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | tail -1 | awk '{print $2}' || true)
-  rss=$(grep -o 'stat::peak_rss_mb: [0-9]*' "$log" | tail -1 | awk '{print $2}' || true)
-  cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | awk '{print $2}' || true)
+  log=$dir/log.1
+  # Summed over the target's processes (--procs); peak memory and coverage: the largest.
+  execs=$(cat "$dir"/log.* | grep -o 'stat::number_of_executed_units: [0-9]*' | awk '{s += $2} END {if (NR) print s}' || true)
+  rss=$(cat "$dir"/log.* | grep -oE 'stat::peak_rss_mb: *[0-9]+' | awk '$2 > m {m = $2} END {if (NR) print m}' || true)
+  cov=$(cat "$dir"/log.* | grep -oE 'cov: [0-9]+' | awk '$2 > m {m = $2} END {if (NR) print m}' || true)
   corpus=$(find "$dir/corpus" -type f | wc -l)
   secs=$(cat "$dir/seconds")
   rc=$(cat "$dir/rc")
