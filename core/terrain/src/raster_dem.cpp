@@ -34,21 +34,28 @@ std::array<double, 3> barycentric(const tile::Vertex& a, const tile::Vertex& b,
   return {1.0 - wb - wc, wb, wc};
 }
 
-// The height at a pixel centre of a NODATA triangle: interpolated over its data vertices only
-// (weights renormalised), their mean when those weights vanish, the tile's lowest height when
-// the triangle has no data vertex at all.
+// The height at a pixel centre of a NODATA triangle. A NODATA corner whose height lies within the
+// tile's data range carries a height continued from the data (docs/tile-format.md §2.1): the
+// triangle's own plane then holds, as CesiumJS draws it from the quantized-mesh, with no crease
+// inside the triangle (a renormalised interpolation over the data vertices alone curves, and
+// hillshading showed its creases as ridges). A corner outside that range (tiles written when
+// NODATA corners sat at height 0) is left out and the weights of the others renormalised, so no
+// wall comes back; their mean when those weights vanish, the tile's lowest height when nothing
+// is left.
 double nodata_height(const tile::TinTile& t, const tile::Triangle& tri,
                      const std::array<const tile::Vertex*, 3>& v, const std::array<double, 3>& w) {
   double sum = 0, weight = 0, plain = 0;
   int count = 0;
   for (std::size_t k = 0; k < 3; ++k) {
-    if (t.is_nodata_vertex(tri[k])) continue;
+    const bool continued = v[k]->z >= t.min_z && v[k]->z <= t.max_z;
+    if (t.is_nodata_vertex(tri[k]) && !continued) continue;
     const double wk = std::max(0.0, w[k]);
     sum += wk * v[k]->z;
     weight += wk;
     plain += v[k]->z;
     ++count;
   }
+  if (count == 3) return w[0] * v[0]->z + w[1] * v[1]->z + w[2] * v[2]->z;
   if (count == 0) return t.min_z;
   return weight > 0 ? sum / weight : plain / count;
 }

@@ -1,5 +1,6 @@
 // Raster-DEM tiles decode to the TIN's heights at their pixel centres, within half the
-// encoding's step; NODATA triangles are wall-free, transparent or opaque as asked.
+// encoding's step — NODATA triangles too, their corners carrying continued heights — and NODATA
+// triangles are wall-free (also with legacy corners at height 0), transparent or opaque as asked.
 #include "tinstream/terrain/raster_dem.hpp"
 
 #include <gtest/gtest.h>
@@ -19,6 +20,7 @@ namespace {
 struct Hit {
   long double height;
   bool nodata;
+  bool legacy;                // a NODATA corner outside the tile's data range (e.g. at 0 m)
   double data_min, data_max;  // over the triangle's data vertices
 };
 
@@ -43,10 +45,11 @@ std::vector<Hit> triangles_at(const tile::TinTile& t, double px, double py) {
         ((static_cast<long double>(b.x) - a.x) * (static_cast<long double>(py) - a.y) -
          (static_cast<long double>(b.y) - a.y) * (static_cast<long double>(px) - a.x)) /
         det;
-    Hit h{(1 - wb - wc) * a.z + wb * b.z + wc * c.z, false, 1e300, -1e300};
+    Hit h{(1 - wb - wc) * a.z + wb * b.z + wc * c.z, false, false, 1e300, -1e300};
     for (const auto idx : tri) {
       if (idx < 4 && t.corner_nodata[idx]) {
         h.nodata = true;
+        h.legacy |= vs[idx].z < t.min_z || vs[idx].z > t.max_z;
       } else {
         h.data_min = std::min(h.data_min, vs[idx].z);
         h.data_max = std::max(h.data_max, vs[idx].z);
@@ -77,10 +80,14 @@ void expect_raster_matches_tin(const tile::TinTile& t, DemEncoding encoding, std
       // The renderer may have taken any of the triangles sharing this centre.
       bool ok = false;
       for (const Hit& h : hits) {
-        if (h.nodata) {
-          ok |= p[3] == 0 && decoded >= h.data_min - step && decoded <= h.data_max + step;
+        const std::uint8_t alpha = h.nodata ? 0 : 255;
+        if (h.legacy) {
+          // No wall: within the heights of the triangle's data vertices.
+          ok |= p[3] == alpha && decoded >= h.data_min - step && decoded <= h.data_max + step;
         } else {
-          ok |= p[3] == 255 && std::abs(decoded - static_cast<double>(h.height)) <= step / 2 + 1e-9;
+          // The triangle's plane (hillshading shows no crease inside it).
+          ok |=
+              p[3] == alpha && std::abs(decoded - static_cast<double>(h.height)) <= step / 2 + 1e-9;
         }
       }
       ASSERT_TRUE(ok) << "pixel " << i << "," << j << " of " << t.id.to_string() << ": decoded "
@@ -136,6 +143,32 @@ TEST(RasterDem, IrregularTinsWithNodataCornersDecodeToTheTinAtPixelCentres) {
       expect_raster_matches_tin(t, e, round < 3 ? 256 : 64);
     }
   }
+}
+
+// Tiles as the ingest writes them: NODATA corners carry heights continued from the data, within the
+// tile's data range. Their NODATA triangles decode to the triangle's plane, as CesiumJS draws them;
+// an interpolation over the data vertices alone curves inside them (MapLibre's hillshade showed
+// its creases as ridges along the data's edge).
+TEST(RasterDem, NodataTrianglesWithContinuedCornersDecodeToTheirPlane) {
+  std::mt19937_64 rng(23);
+  std::uint64_t nodata_pixels = 0;
+  for (int round = 0; round < 6; ++round) {
+    const geo::TileId id = tile::testing::random_tile_id(rng, 20);
+    const auto nx = 2 + static_cast<std::uint32_t>(rng() % 8);
+    const auto ny = 2 + static_cast<std::uint32_t>(rng() % 8);
+    tile::TinTile t = tile::testing::make_grid_tile(id, nx, ny, rng, true);
+    t.corner_nodata = {true, round % 2 == 0, round % 3 == 0, true};
+    t.update_z_range();
+    std::uniform_real_distribution<double> within(t.min_z, t.max_z);
+    for (std::size_t c = 0; c < 4; ++c) {
+      if (t.corner_nodata[c]) t.corners[c].z = within(rng);
+    }
+    for (const auto e : {DemEncoding::terrarium, DemEncoding::mapbox}) {
+      expect_raster_matches_tin(t, e, 64);
+    }
+    nodata_pixels += render_raster_dem(t, DemEncoding::mapbox, 64)->nodata_pixels;
+  }
+  EXPECT_GT(nodata_pixels, 0u);  // the NODATA triangles were there to be checked
 }
 
 // A 33 × 33 vertex grid on a 128-pixel raster: every cell spans 4 × 4 pixels and its diagonal

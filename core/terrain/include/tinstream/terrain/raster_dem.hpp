@@ -12,9 +12,11 @@
 //   mapbox     h = −10000 + (R·65536 + G·256 + B)·0.1  step 0.1 m,   range [−10000, 1667721.5]
 // rounded to the nearest step (so a decoded height is within step/2 of the TIN's) and clamped to
 // the range. In NODATA triangles (those with a NODATA corner, TinTile::is_nodata_triangle;
-// docs/tile-format.md §2.1) the height is interpolated over the triangle's data vertices only —
-// the data continued, no wall down to the NODATA corners, even in tiles written when those still
-// sat at height 0 — and their pixels are, by DemNodata:
+// docs/tile-format.md §2.1) the height is the triangle's plane like anywhere else, the NODATA
+// corners carrying heights continued from the data (no wall, and no crease inside the triangle
+// for a hillshade to show); a NODATA corner outside the tile's data range (tiles written when
+// those sat at height 0) is left out and the other vertices' weights renormalised, so no wall
+// comes back there either. Their pixels are, by DemNodata:
 //   opaque       alpha 255, like the data. What browsers need: they premultiply alpha when they
 //                decode a PNG into a canvas or texture, so a transparent pixel's R, G, B become 0,
 //                i.e. −32768 m (Terrarium) or −10000 m (Terrain-RGB) in MapLibre: a wall.
