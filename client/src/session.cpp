@@ -105,6 +105,7 @@ Result<Session> open_session(const ViewerOptions& o) {
   so.ram_budget = o.cache_mb << 20;
   so.upload_bytes_per_frame = o.upload_mb << 20;
   so.heap_trim_interval = std::chrono::milliseconds(o.heap_trim_ms);
+  so.idle_heap_trim_interval = std::chrono::milliseconds(o.idle_heap_trim_ms);
   so.prefetch_levels = o.prefetch_levels;
   so.imagery_layer = s.imagery ? static_cast<int>(s.layers.size()) : -1;
   s.streamer = std::make_unique<TileStreamer>(*s.loader, so);

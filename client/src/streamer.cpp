@@ -317,9 +317,12 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
 
 void TileStreamer::trim_heap() {
   const std::uint64_t churn = gpu_.counters().evictions + ram_.counters().evictions + tiles_taken_;
-  if (churn == trimmed_churn_ || options_.heap_trim_interval.count() < 0) return;
+  if (options_.heap_trim_interval.count() < 0) return;
+  const bool churned = churn != trimmed_churn_;
+  if (!churned && options_.idle_heap_trim_interval.count() < 0) return;
   const auto now = std::chrono::steady_clock::now();
-  if (heap_trims_ > 0 && now - last_trim_ < options_.heap_trim_interval) return;
+  const auto interval = churned ? options_.heap_trim_interval : options_.idle_heap_trim_interval;
+  if (heap_trims_ > 0 && now - last_trim_ < interval) return;
   {
     std::lock_guard lock(trim_mutex_);
     trim_requested_ = true;

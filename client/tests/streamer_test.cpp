@@ -11,6 +11,7 @@
 #include <map>
 #include <numbers>
 #include <set>
+#include <thread>
 
 #include "synthetic_store.hpp"
 #include "tinstream/geo/ecef.hpp"
@@ -391,6 +392,7 @@ TEST(TileStreamer, GpuAndRamBudgetsHoldWithinOneTileAndEvictionsAndNewTilesTrimT
   options.gpu_budget = 40000;  // a few tiles of 9×9 vertices (≈ 3 KB each)… too few for the view
   options.ram_budget = 30000;
   options.heap_trim_interval = std::chrono::milliseconds(0);  // every frame that may trim does
+  options.idle_heap_trim_interval = std::chrono::milliseconds(-1);  // and only those
   // Evictions from both tiers plus meshes received: what makes a frame trim the heap.
   const auto churn = [](const TileStreamer& t) {
     std::uint64_t loaded = 0;
@@ -428,4 +430,54 @@ TEST(TileStreamer, GpuAndRamBudgetsHoldWithinOneTileAndEvictionsAndNewTilesTrimT
 }
 
 }  // namespace
+// A view that stopped changing (nothing evicted, nothing new) still trims the heap, on the idle
+// period: memory freed elsewhere (a software rasteriser's frame bins) goes back to the system too.
+TEST(TileStreamer, AnUnchangingViewTrimsTheHeapOnTheIdlePeriodOnly) {
+  Fixture fx("streamer_idle_trim");
+  StreamerOptions options;
+  options.max_sse = 0.01;
+  options.heap_trim_interval = std::chrono::milliseconds(0);
+  options.idle_heap_trim_interval = std::chrono::milliseconds(40);
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  const geo::LonLat c = block_centre();
+  const Camera camera = above(c.lon, c.lat, 60000);
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, camera, gpu));
+  s.update(camera, gpu);  // the last arrivals' trim, if any
+  const std::uint64_t loaded = s.level_counters()[12].loaded;
+  const std::uint64_t trims_before = s.heap_trims();
+  const auto start = std::chrono::steady_clock::now();
+  std::uint64_t frames = 0;
+  while (std::chrono::steady_clock::now() - start < std::chrono::milliseconds(400)) {
+    s.update(camera, gpu);
+    ++frames;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  const auto elapsed_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                              std::chrono::steady_clock::now() - start)
+                              .count();
+  ASSERT_EQ(s.level_counters()[12].loaded, loaded);  // nothing new: only idle trims below
+  ASSERT_EQ(s.gpu_counters().evictions + s.ram_counters().evictions, 0u);
+  const std::uint64_t idle_trims = s.heap_trims() - trims_before;
+  EXPECT_GE(idle_trims, 2u) << frames << " frames in " << elapsed_ms << " ms";
+  // At most one per started 40 ms, far fewer than frames.
+  EXPECT_LE(idle_trims, static_cast<std::uint64_t>(elapsed_ms / 40 + 1));
+  EXPECT_LT(idle_trims, frames);
+
+  // Off (-1): an unchanging view never trims.
+  StreamerOptions off = options;
+  off.idle_heap_trim_interval = std::chrono::milliseconds(-1);
+  TileStreamer quiet(*fx.loader, off);
+  ASSERT_TRUE(run_until_complete(quiet, *fx.loader, camera, gpu));
+  quiet.update(camera, gpu);
+  const std::uint64_t quiet_before = quiet.heap_trims();
+  for (int i = 0; i < 50; ++i) {
+    quiet.update(camera, gpu);
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_EQ(quiet.heap_trims(), quiet_before);
+  s.release_all(gpu);
+  quiet.release_all(gpu);
+}
+
 }  // namespace tinstream::client

@@ -74,6 +74,10 @@ int main(int argc, char** argv) {
                  "after cache evictions, give free heap memory back to the system at most every "
                  "MS ms (default 1000; -1: never)")
       ->check(CLI::Range(-1, 3600000));
+  app.add_option("--idle-heap-trim-ms", o.idle_heap_trim_ms,
+                 "without evictions or new tiles, give free heap memory back at most every MS ms "
+                 "(default 10000; -1: never; --heap-trim-ms -1 turns both off)")
+      ->check(CLI::Range(-1, 3600000));
   app.add_option("--prefetch-levels", o.prefetch_levels,
                  "ask for up to N levels below a tile that has not arrived yet, by the layer's "
                  "per-level error, instead of one level per round trip (default 3; 0: none)")

@@ -145,6 +145,10 @@ struct StreamerOptions {
   // on eviction, so without it the RSS keeps every arena's high-water mark (bench/client: the
   // scripted flight's RSS).
   std::chrono::milliseconds heap_trim_interval{1000};
+  // Without evictions or new tiles the heap is trimmed too, at most this often; negative: never.
+  // Memory freed by others — a software rasteriser's per-frame bins (Mesa llvmpipe), a camera
+  // move's dropped meshes — otherwise stays with the process while the tiers are not full.
+  std::chrono::milliseconds idle_heap_trim_interval{10000};
   // Levels below a missing tile asked for ahead of it (the header's "Prefetch"); 0: none.
   int prefetch_levels = 3;
   // The loader's layer table index of the imagery layer draped over the terrain; −1: none.
@@ -180,7 +184,8 @@ class TileStreamer {
   const TierCounters& image_ram_counters() const { return image_ram_.counters(); }
   std::uint64_t frames() const { return frame_; }
   std::uint64_t failures() const { return failures_; }
-  // How often update() asked for free heap memory to go back (heap_trim_interval); the trimmer
+  // How often update() asked for free heap memory to go back (heap_trim_interval, or
+  // idle_heap_trim_interval in frames without churn); the trimmer
   // thread does it (malloc_trim takes milliseconds: 5–8, up to 37 in bench/client's flights).
   std::uint64_t heap_trims() const { return heap_trims_; }
   const std::string& last_error() const { return last_error_; }

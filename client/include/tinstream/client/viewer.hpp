@@ -32,6 +32,7 @@ struct ViewerOptions {
   std::filesystem::path disk_cache;  // empty: no disk cache
   std::uint64_t upload_mb = 8;       // per frame
   int heap_trim_ms = 1000;           // StreamerOptions::heap_trim_interval; negative: never
+  int idle_heap_trim_ms = 10000;     // StreamerOptions::idle_heap_trim_interval; negative: never
   int prefetch_levels = 3;           // StreamerOptions'; 0: none
   HttpOptions http;
 
