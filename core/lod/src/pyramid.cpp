@@ -280,15 +280,10 @@ class LevelTiles {
 // (it reads the sink); answers are kept per corner, which up to four parents share.
 class AbsentCorners {
  public:
-  struct Corner {
-    double z = 0;
-    bool nodata = true;
-  };
-
   explicit AbsentCorners(LevelTiles& level) : level_(level) {}
 
   // Corner k of `parent`, whose child k is absent: its height and NODATA flag.
-  Result<Corner> corner(const geo::TileId& parent, int k) {
+  Result<AbsentCorner> corner(const geo::TileId& parent, int k) {
     const geo::TileId child = parent.children()[static_cast<std::size_t>(k)];
     // The corner in the children's level: column gx, row gy of the tile grid lines.
     const std::int64_t gx = std::int64_t{child.x} + (k & 1), gy = std::int64_t{child.y} + (k >> 1);
@@ -300,7 +295,7 @@ class AbsentCorners {
   }
 
  private:
-  Result<Corner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
+  Result<AbsentCorner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
     const std::int64_t n = std::int64_t{1} << level;
     auto present = [&](std::int64_t x, std::int64_t y) { return level_.present(level, x, y); };
     // A tile of the level that has the corner: its height and flag there (all of them agree).
@@ -311,7 +306,7 @@ class AbsentCorners {
       auto t = level_.tile(*id);
       if (!t) return t.error();
       const auto c = static_cast<std::size_t>(3 - q);  // the corner at (gx, gy)
-      return Corner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
+      return AbsentCorner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
     }
     // Else the nearest data vertex of the level, searched in square rings of tiles around the
     // corner: ring r holds the tiles r tiles away from the four that meet there, at least r tile
@@ -338,11 +333,11 @@ class AbsentCorners {
       if (best && best->d2 < reach * reach * (1 - 1e-9)) break;
     }
     if (!best) return Error(ErrorCode::internal, "lod: no data vertex for a NODATA corner");
-    return Corner{best->z, true};
+    return AbsentCorner{best->z, true};
   }
 
   LevelTiles& level_;
-  std::map<std::pair<std::int64_t, std::int64_t>, Corner> known_;
+  std::map<std::pair<std::int64_t, std::int64_t>, AbsentCorner> known_;
 };
 
 // Where a child is absent, its stretch of the parent's outer border as the tiles of the
@@ -682,8 +677,7 @@ class PyramidBuilder {
   Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent,
                                    AbsentSides& across) {
     auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
-    std::array<double, 4> absent_z{};
-    std::array<bool, 4> absent_nodata{true, true, true, true};
+    std::array<AbsentCorner, 4> absent_corners;
     const auto ids = pid.children();
     for (std::size_t i = 0; i < 4; ++i) {
       if (z + 1 == finest_) {  // each finest tile accounted once, from the sink
@@ -704,8 +698,7 @@ class PyramidBuilder {
       }
       auto corner = absent.corner(pid, static_cast<int>(i));
       if (!corner) return corner.error();
-      absent_z[i] = corner->z;
-      absent_nodata[i] = corner->nodata;
+      absent_corners[i] = *corner;
     }
     std::array<bool, 4> present{};
     for (std::size_t i = 0; i < 4; ++i) present[i] = (*kids)[i].has_value();
@@ -730,10 +723,10 @@ class PyramidBuilder {
         sources->push_back(std::move(**t));
       }
     }
-    return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_z,
-                          absent_nodata, border, cache = &cache_, sink = &sink_]() {
-      return build_parent(pid, *kids, absent_z, absent_nodata, *border, *sources, depth, one_child,
-                          lod, *cache, *sink);
+    return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_corners,
+                          border, cache = &cache_, sink = &sink_]() {
+      return build_parent(pid, *kids, absent_corners, *border, *sources, depth, one_child, lod,
+                          *cache, *sink);
     });
   }
 
@@ -741,14 +734,12 @@ class PyramidBuilder {
   // parent from its sources, encodes it for the sink.
   static Result<Built> build_parent(const geo::TileId& pid,
                                     std::array<std::optional<NeededTile>, 4>& kids,
-                                    const std::array<double, 4>& absent_z,
-                                    const std::array<bool, 4>& absent_nodata,
+                                    const std::array<AbsentCorner, 4>& absent_corners,
                                     const AbsentBorder& border, std::vector<NeededTile>& sources,
                                     std::uint32_t depth, bool one_child, const LodOptions& lod,
                                     DecodedTiles& cache, const TileSink& sink) {
     ChildViews children;
-    children.absent_corner_z = absent_z;
-    children.absent_corner_nodata = absent_nodata;
+    children.absent_corners = absent_corners;
     children.absent_border = &border;
     for (std::size_t i = 0; i < 4; ++i) {
       if (!kids[i]) continue;
