@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "tinstream/ingest/layer_sink.hpp"
 #include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/queued_writer.hpp"
 #include "tinstream/subdivide/sorted_run.hpp"
@@ -347,7 +348,8 @@ Status build_lod(const IngestOptions& options, const SortedPoints& in, const fs:
     popt.reduce_finest = reduce;
     popt.scratch = scratch;
     const std::uint32_t coarsest = options.pyramid ? info.min_level : finest;
-    auto pyramid = lod::build_pyramid(writer, finest, coarsest, popt, threads, progress);
+    LayerSink sink(writer);
+    auto pyramid = lod::build_pyramid(sink, finest, coarsest, popt, threads, progress);
     if (!pyramid) return pyramid.error();
     for (std::uint32_t z = coarsest; z <= finest; ++z) {
       const double err = z < pyramid->level_max_error.size() ? pyramid->level_max_error[z] : 0.0;

@@ -186,8 +186,9 @@ ThinInput merge(const geo::TileId& parent, const ChildViews& children, const Sou
       in.corners[k] = c->tile.corners[k];
       in.corner_nodata[k] = c->tile.corner_nodata[k];
     } else {
-      in.corners[k] = Vertex{corner_xy[k][0], corner_xy[k][1], children.absent_corner_z[k], 0.0};
-      in.corner_nodata[k] = children.absent_corner_nodata[k];
+      const AbsentCorner& absent = children.absent_corners[k];
+      in.corners[k] = Vertex{corner_xy[k][0], corner_xy[k][1], absent.z, 0.0};
+      in.corner_nodata[k] = absent.nodata;
     }
   }
   using D = geo::Direction;
@@ -242,8 +243,7 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& ch
                                    const Sources& sources, const LodOptions& options,
                                    ThinStats* stats) {
   ChildViews child_views;
-  child_views.absent_corner_z = children.absent_corner_z;
-  child_views.absent_corner_nodata = children.absent_corner_nodata;
+  child_views.absent_corners = children.absent_corners;
   child_views.absent_border = &children.absent_border;
   for (std::size_t k = 0; k < 4; ++k) {
     if (const auto& c = children.tiles[k]) child_views.tiles[k] = &*c;
@@ -395,7 +395,7 @@ Result<TinTile> build_parent(const geo::TileId& parent,
       const auto n = nearest_data_vertex(c->tile, x, y);
       if (n && (!best || n->closer_than(*best))) best = n;
     }
-    ch.absent_corner_z[k] = best ? best->z : 0.0;
+    ch.absent_corners[k].z = best ? best->z : 0.0;
   }
   auto built = build_parent(parent, ch, options, stats);
   if (!built) return built.error();

@@ -1,10 +1,10 @@
-// Pass 4 driver. The calling thread owns the LayerWriter: it reads the children of a parent (still
-// compressed), hands the parent to a worker, and writes finished parents. Workers do all the CPU
-// work: decoding the children and sources (or taking them from the cache of decoded tiles that a
-// coarser level reads again), building the parent, encoding it for the store.
+// Pass 4 driver. The calling thread owns the TileSink's reads and writes: it reads the children
+// of a parent (still encoded), hands the parent to a worker, and writes finished parents. Workers
+// do all the CPU work: decoding the children and sources (or taking them from the cache of
+// decoded tiles that a coarser level reads again), building the parent, encoding it for the sink.
 //
-//   calling thread:  read 4 blobs ─▶ tasks ─▶ [workers: decode, build_parent, prepare_tile]
-//                    ─▶ done ─▶ writer.put   (at most max_in_flight parents between read and put)
+//   calling thread:  read 4 blobs ─▶ tasks ─▶ [workers: decode, build_parent, sink.encode]
+//                    ─▶ done ─▶ sink.put   (at most max_in_flight parents between read and put)
 #include "tinstream/lod/pyramid.hpp"
 
 #include <algorithm>
@@ -31,9 +31,9 @@ using tile::TinTile;
 
 namespace {
 
-// What a job hands back: the tile prepared for the store and its side record.
+// What a job hands back: the tile encoded for the sink and its side record.
 struct Built {
-  store::StoredTile stored;
+  std::unique_ptr<EncodedTile> stored;
   std::vector<std::uint8_t> side;
 };
 
@@ -132,11 +132,11 @@ class Throttle {
 };
 
 // A child tile read back from the layer being written, decoded on a worker.
-Result<TinTile> decode_child(const store::StoredTile& stored) {
-  auto decoded = store::decode_tile(stored);
+Result<TinTile> decode_child(const TileSink& sink, const EncodedTile& stored) {
+  auto decoded = sink.decode(stored);
   if (!decoded) {
     return Error(decoded.error().code,
-                 "lod: tile " + stored.id.to_string() + ": " + decoded.error().message);
+                 "lod: tile " + stored.id().to_string() + ": " + decoded.error().message);
   }
   return decoded;
 }
@@ -144,12 +144,12 @@ Result<TinTile> decode_child(const store::StoredTile& stored) {
 // A tile as read for the next level: the stored blob and its side record (none for an unreduced
 // finest tile), decoded on a worker.
 struct ReadTile {
-  store::StoredTile stored;
+  std::unique_ptr<EncodedTile> stored;
   std::optional<std::vector<std::uint8_t>> side;
 };
 
-Result<LodTile> decode_lod_tile(const ReadTile& read) {
-  auto tile = decode_child(read.stored);
+Result<LodTile> decode_lod_tile(const TileSink& sink, const ReadTile& read) {
+  auto tile = decode_child(sink, *read.stored);
   if (!tile) return tile.error();
   LodTile out;
   out.tile = std::move(*tile);
@@ -214,7 +214,7 @@ class DecodedTiles {
   std::size_t bytes_ = 0;
 };
 
-// A tile a job needs: decoded already (from the cache) or still as read from the store, and
+// A tile a job needs: decoded already (from the cache) or still as read from the sink, and
 // whether a coarser level reads it again (then the cache may keep it).
 struct NeededTile {
   std::shared_ptr<const LodTile> decoded;
@@ -223,9 +223,10 @@ struct NeededTile {
 };
 
 // The decoded tile, decoding (and caching) it on the first call.
-Result<std::shared_ptr<const LodTile>> decoded(NeededTile& t, DecodedTiles& cache) {
+Result<std::shared_ptr<const LodTile>> decoded(const TileSink& sink, NeededTile& t,
+                                               DecodedTiles& cache) {
   if (!t.decoded) {
-    auto d = decode_lod_tile(*t.read);
+    auto d = decode_lod_tile(sink, *t.read);
     if (!d) return d.error();
     t.decoded = std::make_shared<const LodTile>(std::move(*d));
     if (t.read_again) cache.add(t.decoded->tile.id, t.decoded);
@@ -234,12 +235,11 @@ Result<std::shared_ptr<const LodTile>> decoded(NeededTile& t, DecodedTiles& cach
   return t.decoded;
 }
 
-// The tiles of the children's level while a level is built, read back from the writer on the
+// The tiles of the children's level while a level is built, read back from the sink on the
 // calling thread (the last few decoded are kept: neighbouring parents read the same).
 class LevelTiles {
  public:
-  LevelTiles(store::LayerWriter& writer, const std::set<geo::TileId>& level)
-      : writer_(writer), level_(level) {}
+  LevelTiles(TileSink& sink, const std::set<geo::TileId>& level) : sink_(sink), level_(level) {}
 
   // The tile at column x, row y of `level` when the level has it.
   std::optional<geo::TileId> present(std::uint32_t level, std::int64_t x, std::int64_t y) const {
@@ -255,10 +255,10 @@ class LevelTiles {
     for (const auto& [cached_id, t] : cache_) {
       if (cached_id == id) return &t;
     }
-    auto stored = writer_.get_stored(id);
+    auto stored = sink_.get(id);
     if (!stored) return stored.error();
     if (!*stored) return not_found("lod: tile " + id.to_string() + " vanished");
-    auto decoded = decode_child(**stored);
+    auto decoded = decode_child(sink_, **stored);
     if (!decoded) return decoded.error();
     if (cache_.size() >= 8) cache_.pop_front();
     cache_.emplace_back(id, std::move(*decoded));
@@ -266,7 +266,7 @@ class LevelTiles {
   }
 
  private:
-  store::LayerWriter& writer_;
+  TileSink& sink_;
   const std::set<geo::TileId>& level_;
   std::deque<std::pair<geo::TileId, TinTile>> cache_;
 };
@@ -277,18 +277,13 @@ class LevelTiles {
 // parent across the corner, whose child there is present, takes the same from that child: the
 // two agree, and thin their shared side alike (issue #20: the 250 m Luxembourg DEM at
 // --max-points 2048 had one flag the corner data, the other NODATA). Runs on the calling thread
-// (it reads the writer); answers are kept per corner, which up to four parents share.
+// (it reads the sink); answers are kept per corner, which up to four parents share.
 class AbsentCorners {
  public:
-  struct Corner {
-    double z = 0;
-    bool nodata = true;
-  };
-
   explicit AbsentCorners(LevelTiles& level) : level_(level) {}
 
   // Corner k of `parent`, whose child k is absent: its height and NODATA flag.
-  Result<Corner> corner(const geo::TileId& parent, int k) {
+  Result<AbsentCorner> corner(const geo::TileId& parent, int k) {
     const geo::TileId child = parent.children()[static_cast<std::size_t>(k)];
     // The corner in the children's level: column gx, row gy of the tile grid lines.
     const std::int64_t gx = std::int64_t{child.x} + (k & 1), gy = std::int64_t{child.y} + (k >> 1);
@@ -300,7 +295,7 @@ class AbsentCorners {
   }
 
  private:
-  Result<Corner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
+  Result<AbsentCorner> compute(std::uint32_t level, std::int64_t gx, std::int64_t gy) {
     const std::int64_t n = std::int64_t{1} << level;
     auto present = [&](std::int64_t x, std::int64_t y) { return level_.present(level, x, y); };
     // A tile of the level that has the corner: its height and flag there (all of them agree).
@@ -311,7 +306,7 @@ class AbsentCorners {
       auto t = level_.tile(*id);
       if (!t) return t.error();
       const auto c = static_cast<std::size_t>(3 - q);  // the corner at (gx, gy)
-      return Corner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
+      return AbsentCorner{(*t)->corners[c].z, (*t)->corner_nodata[c]};
     }
     // Else the nearest data vertex of the level, searched in square rings of tiles around the
     // corner: ring r holds the tiles r tiles away from the four that meet there, at least r tile
@@ -338,11 +333,11 @@ class AbsentCorners {
       if (best && best->d2 < reach * reach * (1 - 1e-9)) break;
     }
     if (!best) return Error(ErrorCode::internal, "lod: no data vertex for a NODATA corner");
-    return Corner{best->z, true};
+    return AbsentCorner{best->z, true};
   }
 
   LevelTiles& level_;
-  std::map<std::pair<std::int64_t, std::int64_t>, Corner> known_;
+  std::map<std::pair<std::int64_t, std::int64_t>, AbsentCorner> known_;
 };
 
 // Where a child is absent, its stretch of the parent's outer border as the tiles of the
@@ -408,12 +403,12 @@ class AbsentSides {
 };
 
 // Pass 4 for one layer: the state the levels share, and one method per step. Runs on the calling
-// thread (it alone touches the writer); the jobs it makes run on the pool.
+// thread (it alone reads and writes the sink); the jobs it makes run on the pool.
 class PyramidBuilder {
  public:
-  PyramidBuilder(store::LayerWriter& writer, std::uint32_t finest_level, std::uint32_t min_level,
+  PyramidBuilder(TileSink& sink, std::uint32_t finest_level, std::uint32_t min_level,
                  const PyramidOptions& options, unsigned threads, const ProgressSink& progress)
-      : writer_(writer),
+      : sink_(sink),
         finest_(finest_level),
         min_(min_level),
         options_(options),
@@ -430,14 +425,14 @@ class PyramidBuilder {
 
   Result<PyramidSummary> run() {
     if (Status s = pool_.start(threads_); !s) return s.error();
-    auto finest_ids = writer_.tile_ids(finest_);
+    auto finest_ids = sink_.tile_ids(finest_);
     if (!finest_ids.ok()) return finest_ids.error();
     if (options_.reduce_finest) {
       if (Status s = reduce_finest_level(*finest_ids); !s) return s.error();
     }
     if (finest_ == min_) {  // no parent: the finest level is the whole pyramid
       for (const auto& id : *finest_ids) {
-        auto t = writer_.get_stored(id);
+        auto t = sink_.get(id);
         if (!t.ok()) return t.error();
         if (*t) account(**t);
       }
@@ -454,11 +449,11 @@ class PyramidBuilder {
  private:
   using Level = std::vector<std::pair<std::uint64_t, geo::TileId>>;  // (Morton code, id), sorted
 
-  void account(const store::StoredTile& t) {
-    summary_.level_max_error[t.id.z] =
-        std::max(summary_.level_max_error[t.id.z], t.geometric_error);
-    ++summary_.level_tiles[t.id.z];
-    summary_.level_vertices[t.id.z] += t.vertex_count;
+  void account(const EncodedTile& t) {
+    const std::uint32_t z = t.id().z;
+    summary_.level_max_error[z] = std::max(summary_.level_max_error[z], t.geometric_error());
+    ++summary_.level_tiles[z];
+    summary_.level_vertices[z] += t.vertex_count();
   }
 
   Status report(bool force) {
@@ -502,23 +497,23 @@ class PyramidBuilder {
       }
     }
     if (failure) return *failure;
-    return writer_.flush();
+    return sink_.flush();
   }
 
   // Stores a built tile and its side record.
   Status put(Built&& b) {
-    const geo::TileId id = b.stored.id;
+    const geo::TileId id = b.stored->id();
     if (Status s = side_.put(id, std::move(b.side)); !s.ok()) return s;
-    return writer_.put(std::move(b.stored));
+    return sink_.put(std::move(b.stored));
   }
 
   Result<std::optional<ReadTile>> read(const geo::TileId& id) {
-    auto t = writer_.get_stored(id);
+    auto t = sink_.get(id);
     if (!t.ok()) return t.error();
     if (!*t) return std::optional<ReadTile>{};
     auto record = side_.get(id);
     if (!record.ok()) return record.error();
-    return std::optional<ReadTile>{ReadTile{std::move(**t), std::move(*record)}};
+    return std::optional<ReadTile>{ReadTile{std::move(*t), std::move(*record)}};
   }
 
   // The optional reduced TIN at the finest level (PyramidOptions::reduce_finest).
@@ -528,16 +523,16 @@ class PyramidBuilder {
     return run_level(
         finest_ids,
         [&](const geo::TileId& id) -> Result<TilePool::Job> {
-          auto t = writer_.get_stored(id);
+          auto t = sink_.get(id);
           if (!t.ok()) return t.error();
           if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
-          auto blob = std::make_shared<store::StoredTile>(std::move(**t));
-          return TilePool::Job([blob, lod]() -> Result<Built> {
-            auto decoded = decode_child(*blob);
+          std::shared_ptr<const EncodedTile> blob = std::move(*t);
+          return TilePool::Job([blob, lod, sink = &sink_]() -> Result<Built> {
+            auto decoded = decode_child(*sink, *blob);
             if (!decoded) return decoded.error();
             auto reduced = reduce_finest(*decoded, lod);
             if (!reduced) return reduced.error();
-            auto stored = store::prepare_tile(reduced->tile);
+            auto stored = sink->encode(reduced->tile);
             if (!stored) return stored.error();
             return Built{std::move(*stored), detail::encode_side(*reduced)};
           });
@@ -562,10 +557,10 @@ class PyramidBuilder {
     finest_points_.assign(1, 0);
     finest_points_.reserve(levels_[finest_].size() + 1);
     for (const auto& [m, id] : levels_[finest_]) {
-      auto t = writer_.get_stored(id);
+      auto t = sink_.get(id);
       if (!t.ok()) return t.error();
       if (!*t) return not_found("lod: finest tile " + id.to_string() + " vanished");
-      finest_points_.push_back(finest_points_.back() + (*t)->vertex_count);
+      finest_points_.push_back(finest_points_.back() + (*t)->vertex_count());
     }
     for (std::uint32_t z = finest_; z-- > min_;) {
       std::set<geo::TileId> parent_set;
@@ -648,14 +643,14 @@ class PyramidBuilder {
     if (Status s = report(true); !s.ok()) return s;
     std::set<geo::TileId> child_set;
     for (const auto& [m, id] : levels_[z + 1]) child_set.insert(id);
-    LevelTiles child_tiles(writer_, child_set);
+    LevelTiles child_tiles(sink_, child_set);
     AbsentCorners absent(child_tiles);
     AbsentSides across(child_tiles);
     std::uint64_t written = 0;
     Status s = run_level(
         parents, [&](const geo::TileId& pid) { return parent_job(pid, z, absent, across); },
         [&](Built&& b) -> Status {
-          account(b.stored);
+          account(*b.stored);
           if (Status st = put(std::move(b)); !st.ok()) return st;
           ++written;
           return {};
@@ -665,8 +660,8 @@ class PyramidBuilder {
     return {};
   }
 
-  // A tile a parent's job needs: from the cache when it is there, else as read from the store
-  // (nothing when the store has no such tile).
+  // A tile a parent's job needs: from the cache when it is there, else as read from the sink
+  // (nothing when the sink has no such tile).
   Result<std::optional<NeededTile>> need(const geo::TileId& id, std::uint32_t z) {
     const bool again = last_read(id) < z;
     if (auto hit = cache_.find(id)) return std::optional<NeededTile>{NeededTile{hit, {}, again}};
@@ -682,15 +677,14 @@ class PyramidBuilder {
   Result<TilePool::Job> parent_job(const geo::TileId& pid, std::uint32_t z, AbsentCorners& absent,
                                    AbsentSides& across) {
     auto kids = std::make_shared<std::array<std::optional<NeededTile>, 4>>();
-    std::array<double, 4> absent_z{};
-    std::array<bool, 4> absent_nodata{true, true, true, true};
+    std::array<AbsentCorner, 4> absent_corners;
     const auto ids = pid.children();
     for (std::size_t i = 0; i < 4; ++i) {
-      if (z + 1 == finest_) {  // each finest tile accounted once, from the store
+      if (z + 1 == finest_) {  // each finest tile accounted once, from the sink
         auto t = read(ids[i]);
         if (!t.ok()) return t.error();
         if (*t) {
-          account((*t)->stored);
+          account(*(*t)->stored);
           (*kids)[i] = NeededTile{nullptr, std::move(**t), last_read(ids[i]) < z};
           continue;
         }
@@ -704,8 +698,7 @@ class PyramidBuilder {
       }
       auto corner = absent.corner(pid, static_cast<int>(i));
       if (!corner) return corner.error();
-      absent_z[i] = corner->z;
-      absent_nodata[i] = corner->nodata;
+      absent_corners[i] = *corner;
     }
     std::array<bool, 4> present{};
     for (std::size_t i = 0; i < 4; ++i) present[i] = (*kids)[i].has_value();
@@ -730,29 +723,27 @@ class PyramidBuilder {
         sources->push_back(std::move(**t));
       }
     }
-    return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_z,
-                          absent_nodata, border, cache = &cache_]() {
-      return build_parent(pid, *kids, absent_z, absent_nodata, *border, *sources, depth, one_child,
-                          lod, *cache);
+    return TilePool::Job([kids, sources, depth, one_child, pid, lod = options_.lod, absent_corners,
+                          border, cache = &cache_, sink = &sink_]() {
+      return build_parent(pid, *kids, absent_corners, *border, *sources, depth, one_child, lod,
+                          *cache, *sink);
     });
   }
 
   // A parent's job, on a worker: decodes what it needs (or takes it from the cache), thins the
-  // parent from its sources, encodes it for the store.
+  // parent from its sources, encodes it for the sink.
   static Result<Built> build_parent(const geo::TileId& pid,
                                     std::array<std::optional<NeededTile>, 4>& kids,
-                                    const std::array<double, 4>& absent_z,
-                                    const std::array<bool, 4>& absent_nodata,
+                                    const std::array<AbsentCorner, 4>& absent_corners,
                                     const AbsentBorder& border, std::vector<NeededTile>& sources,
                                     std::uint32_t depth, bool one_child, const LodOptions& lod,
-                                    DecodedTiles& cache) {
+                                    DecodedTiles& cache, const TileSink& sink) {
     ChildViews children;
-    children.absent_corner_z = absent_z;
-    children.absent_corner_nodata = absent_nodata;
+    children.absent_corners = absent_corners;
     children.absent_border = &border;
     for (std::size_t i = 0; i < 4; ++i) {
       if (!kids[i]) continue;
-      auto t = decoded(*kids[i], cache);
+      auto t = decoded(sink, *kids[i], cache);
       if (!t) return t.error();
       children.tiles[i] = t->get();
     }
@@ -761,18 +752,18 @@ class PyramidBuilder {
     src.candidates_from_children = one_child && depth > 1;
     src.tiles.reserve(sources.size());
     for (auto& r : sources) {
-      auto t = decoded(r, cache);
+      auto t = decoded(sink, r, cache);
       if (!t) return t.error();
       src.tiles.push_back(t->get());
     }
     auto parent = build_from_sources(pid, children, src, lod);
     if (!parent) return parent.error();
-    auto stored = store::prepare_tile(parent->tile);
+    auto stored = sink.encode(parent->tile);
     if (!stored) return stored.error();
     return Built{std::move(*stored), detail::encode_side(*parent)};
   }
 
-  store::LayerWriter& writer_;
+  TileSink& sink_;
   const std::uint32_t finest_, min_;
   const PyramidOptions& options_;
   const unsigned threads_;
@@ -793,7 +784,7 @@ class PyramidBuilder {
 
 }  // namespace
 
-Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
+Result<PyramidSummary> build_pyramid(TileSink& sink, std::uint32_t finest_level,
                                      std::uint32_t min_level, const PyramidOptions& options,
                                      unsigned threads, const ProgressSink& progress) {
   if (finest_level > static_cast<std::uint32_t>(geo::kMaxLevel) || min_level > finest_level) {
@@ -801,7 +792,7 @@ Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t f
                             std::to_string(min_level) + " and " + std::to_string(finest_level));
   }
   if (options.lod.max_points < 4) return invalid_argument("lod: max_points must be at least 4");
-  PyramidBuilder builder(writer, finest_level, min_level, options, threads, progress);
+  PyramidBuilder builder(sink, finest_level, min_level, options, threads, progress);
   return builder.run();
 }
 

@@ -208,7 +208,7 @@ TEST(PyramidQuality, StoredCoarseTileIsNotFarBehindGreedyInsertionOnARealDem) {
   o.lod.max_points = 600;
   o.lod.epsilon = 1.0;
   o.reduce_finest = true;
-  auto summary = build_pyramid(*w, L, L - 3, o, 2);
+  auto summary = testing::build_stored_pyramid(*w, L, L - 3, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   auto ids = w->tile_ids(L - 3);
   ASSERT_TRUE(ids.ok());

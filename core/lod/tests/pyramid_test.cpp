@@ -22,6 +22,7 @@
 namespace tinstream::lod {
 namespace {
 
+using testing::build_stored_pyramid;
 using testing::grid_tile;
 using testing::TempStore;
 using tile::TinTile;
@@ -142,7 +143,7 @@ TEST(Pyramid, GridPyramidKeepsAWeightedPeakToLevelZero) {
   PyramidOptions o;
   o.lod.max_points = 24;
   std::vector<Progress> seen;
-  auto summary = build_pyramid(*w, L, 0, o, 2, [&](const Progress& p) {
+  auto summary = build_stored_pyramid(*w, L, 0, o, 2, [&](const Progress& p) {
     seen.push_back(p);
     return true;
   });
@@ -182,8 +183,8 @@ TEST(Pyramid, ThreadCountDoesNotChangeTheResult) {
   o.lod.max_points = 40;
   o.lod.epsilon = 0.5;
   o.reduce_finest = true;
-  ASSERT_TRUE(build_pyramid(*a, 2, 0, o, 1).ok());
-  ASSERT_TRUE(build_pyramid(*b, 2, 0, o, 3).ok());
+  ASSERT_TRUE(build_stored_pyramid(*a, 2, 0, o, 1).ok());
+  ASSERT_TRUE(build_stored_pyramid(*b, 2, 0, o, 3).ok());
   for (std::uint32_t z = 0; z <= 2; ++z) {
     const auto ta = level_tiles(*a, z), tb = level_tiles(*b, z);
     ASSERT_EQ(ta.size(), tb.size());
@@ -218,7 +219,7 @@ TEST(Pyramid, TilesMeetingAtACornerFlagItAlikeWhereAChildIsAbsent) {
   }
   PyramidOptions o;
   o.lod.max_points = 1000;
-  ASSERT_TRUE(build_pyramid(*w, 2, 0, o, 1).ok());
+  ASSERT_TRUE(build_stored_pyramid(*w, 2, 0, o, 1).ok());
   for (std::uint32_t z = 0; z < 2; ++z) {
     // By grid vertex of the level: the first tile's flag and height there.
     std::map<std::pair<std::uint64_t, std::uint64_t>, std::pair<bool, double>> seen;
@@ -258,7 +259,7 @@ TEST(Pyramid, TilesSharingASideShareItsPointsWhereAChildIsAbsent) {
   }
   PyramidOptions o;
   o.lod.max_points = 1000;
-  ASSERT_TRUE(build_pyramid(*w, 2, 0, o, 1).ok());
+  ASSERT_TRUE(build_stored_pyramid(*w, 2, 0, o, 1).ok());
   const std::vector<TinTile> level = level_tiles(*w, 1);
   ASSERT_EQ(level.size(), 3u);
   const Status s = check_level_watertight(level);
@@ -299,7 +300,7 @@ TEST(Pyramid, DecodedTileCacheDoesNotChangeTheStoredTiles) {
     PyramidOptions o;
     o.lod.max_points = 50;
     o.decoded_cache_bytes = budgets[b];
-    auto summary = build_pyramid(*writers[b], L, 0, o, 2);
+    auto summary = build_stored_pyramid(*writers[b], L, 0, o, 2);
     ASSERT_TRUE(summary.ok()) << summary.error().message;
   }
   for (std::uint32_t z = 0; z < L; ++z) {
@@ -328,7 +329,8 @@ TEST(Pyramid, ProgressSinkCancels) {
     for (std::uint32_t x = 0; x < 4; ++x)
       ASSERT_TRUE(w->put(grid_tile({2, x, y}, 4, world_hills)).ok());
   }
-  auto r = build_pyramid(*w, 2, 0, PyramidOptions{}, 2, [](const Progress&) { return false; });
+  auto r =
+      build_stored_pyramid(*w, 2, 0, PyramidOptions{}, 2, [](const Progress&) { return false; });
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.error().code, ErrorCode::cancelled);
 }
@@ -373,7 +375,7 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
   PyramidOptions o;
   o.lod.max_points = 800;
   o.lod.epsilon = 0.05;
-  auto summary = build_pyramid(*w, L, 0, o, 2);
+  auto summary = build_stored_pyramid(*w, L, 0, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   EXPECT_EQ(summary->level_tiles[0], 1u);
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 5, 1);
@@ -404,7 +406,7 @@ TEST(Pyramid, RecordedErrorBoundsAndTracksTheMeasuredErrorOnEveryLevel) {
   }
   PyramidOptions o;
   o.lod.max_points = 60;
-  auto summary = build_pyramid(*w, L, 0, o, 2);
+  auto summary = build_stored_pyramid(*w, L, 0, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 1, 5);
   for (std::uint32_t z = 0; z < L; ++z) {
@@ -453,7 +455,7 @@ TEST(Pyramid, ParentOverSparseFinestTilesChainsExactlyAgainstThem) {
   o.source_depth = 1;
   o.lod.max_points = 180;
   ASSERT_EQ(vertices, 4 * o.lod.max_points);  // the 16 tiles just fit the point rule
-  auto summary = build_pyramid(*w, L, 0, o, 2);
+  auto summary = build_stored_pyramid(*w, L, 0, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 1, 7);
   for (std::uint32_t z = 0; z <= 2; ++z) {
@@ -507,7 +509,7 @@ TEST(Pyramid, RealDemCropReducedAndThinnedThroughTheStore) {
   o.lod.max_points = 1500;
   o.lod.epsilon = 1.0;
   o.reduce_finest = true;
-  auto summary = build_pyramid(*w, L, L - 2, o, 2);
+  auto summary = build_stored_pyramid(*w, L, L - 2, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   EXPECT_EQ(summary->level_tiles[L], 16u);
   EXPECT_EQ(summary->level_tiles[L - 1], 4u);

@@ -1,5 +1,5 @@
 // A tile store in a fresh temporary directory, removed with it: the pyramid tests' real SQLite
-// file.
+// file, and build_pyramid over a layer of it through the ingest's sink.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -11,6 +11,8 @@
 #include <string>
 #include <system_error>
 
+#include "tinstream/ingest/layer_sink.hpp"
+#include "tinstream/lod/pyramid.hpp"
 #include "tinstream/store/tile_store.hpp"
 
 namespace tinstream::lod::testing {
@@ -42,5 +44,15 @@ struct TempStore {
     return w.ok() ? std::move(*w) : nullptr;
   }
 };
+
+// build_pyramid over the unpublished layer `writer` writes, as the ingest runs it.
+inline Result<PyramidSummary> build_stored_pyramid(store::LayerWriter& writer,
+                                                   std::uint32_t finest_level,
+                                                   std::uint32_t min_level,
+                                                   const PyramidOptions& options, unsigned threads,
+                                                   const ProgressSink& progress = {}) {
+  ingest::LayerSink sink(writer);
+  return build_pyramid(sink, finest_level, min_level, options, threads, progress);
+}
 
 }  // namespace tinstream::lod::testing

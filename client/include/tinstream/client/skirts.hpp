@@ -1,8 +1,8 @@
 // tinstream/client/skirts.hpp — which tile sides hang a skirt in a frame, and how deep.
 //
 // A skirt exists to hide a crack, and a crack exists only between two drawn tiles of the same
-// layer at different levels (tiles of one level share bit-identical borders, DESIGN.md §3). So,
-// for each drawn tile T and each skirt quad along each of its sides:
+// layer at different levels (tiles of one level share bit-identical borders, docs/DESIGN.md §3.3,
+// §3.5). So, for each drawn tile T and each skirt quad along each of its sides:
 //
 //   * the quad hangs only where a drawn tile N of the same layer and of another level touches
 //     the side from beyond it (a coarser N: the quadrant of N there is drawn; a finer N: its

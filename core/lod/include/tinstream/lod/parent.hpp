@@ -20,7 +20,7 @@
 // border's candidates are the children's).
 //
 // An absent child (no data) gives a corner whose height and NODATA flag the caller supplies
-// (Children::absent_corner_z, absent_corner_nodata; NODATA unless told): docs/tile-format.md
+// (Children::absent_corners; NODATA unless told): docs/tile-format.md
 // §2.1 takes them from the tiles of the children's level around that corner, which the pyramid
 // reads; deciding them from the children alone could disagree with the tile across the corner,
 // whose children are different tiles (a flag that differs thins the shared side differently).
@@ -64,13 +64,17 @@ struct AbsentBorder {
   std::array<std::optional<tile::Vertex>, 4> midpoints;
 };
 
+// The parent's corner k where child k is absent: its height, and whether it is NODATA (as the
+// tiles of the children's level around it have it; none there: NODATA).
+struct AbsentCorner {
+  double z = 0;
+  bool nodata = true;
+};
+
 struct Children {
   std::array<std::optional<LodTile>, 4> tiles;  // parent.children()[i]: NW, NE, SW, SE
-  // Where tiles[k] is absent: the height of the parent's corner k, and whether it is NODATA
-  // (as the tiles of the children's level around it have it; none there: NODATA).
-  std::array<double, 4> absent_corner_z{};
-  std::array<bool, 4> absent_corner_nodata{true, true, true, true};
-  AbsentBorder absent_border;  // nothing across absent children unless told
+  std::array<AbsentCorner, 4> absent_corners;   // [k]: read where tiles[k] is absent
+  AbsentBorder absent_border;                   // nothing across absent children unless told
 };
 
 // A coarse tile's sources beside its children: the tiles `depth` levels below it that exist
@@ -88,8 +92,7 @@ struct Sources {
 // tiles[k] null where child k is absent; the sources in the order given.
 struct ChildViews {
   std::array<const LodTile*, 4> tiles{};
-  std::array<double, 4> absent_corner_z{};
-  std::array<bool, 4> absent_corner_nodata{true, true, true, true};
+  std::array<AbsentCorner, 4> absent_corners;
   const AbsentBorder* absent_border = nullptr;  // null: nothing across absent children
 };
 struct SourceViews {

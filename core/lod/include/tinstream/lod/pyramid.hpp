@@ -18,20 +18,22 @@
 //
 // What a level hands to the coarser ones beside its tiles (lod_tile.hpp: per-triangle error
 // bounds, witnesses) is kept in a side file per level under PyramidOptions::scratch (in memory
-// when empty), never in the store, until the pyramid is built (any coarser level may read it).
+// when empty), never in the sink, until the pyramid is built (any coarser level may read it).
 // A parent whose child k is absent gets its NODATA corner k's height by the rule of
 // docs/tile-format.md §2.1: from a tile of the children's level around that corner, else from
 // the nearest data vertex of that level (searched in rings of tiles around the corner).
 //
-// Threads: the LayerWriter is used only on the calling thread (reads of children and sources,
-// writes of parents); build_from_sources runs on `threads` workers. At most `max_in_flight`
-// parents (and their children and sources, at most 4 + 4^source_depth tiles of at most
-// max_points each) are in memory at once, so memory is bounded by options, not by the layer's
-// size; the tile ids of every level are listed in memory (16 bytes + 16 per tile). The largest
-// term is a worker thinning a parent from all of its sources: about 200 bytes per source point
-// (≈ 200 MB at 64 sources of 16384 points; bench/lod/RESULTS.md, 2026-11-27 14:35). Beside them,
-// decoded tiles that a coarser level reads again (as a source) are kept, shared by the workers,
-// up to PyramidOptions::decoded_cache_bytes: the levels above the one where the data fit
+// Tiles: read from and written to `sink` (tile_sink.hpp; the ingest's is the store's unpublished
+// layer version, ingest/layer_sink.hpp), which starts with the finest level's tiles.
+// Threads: the sink is read and written only on the calling thread (reads of children and
+// sources, writes of parents); build_from_sources and the sink's codec run on `threads` workers. At
+// most `max_in_flight` parents (and their children and sources, at most 4 + 4^source_depth tiles of
+// at most max_points each) are in memory at once, so memory is bounded by options, not by the
+// layer's size; the tile ids of every level are listed in memory (16 bytes + 16 per tile). The
+// largest term is a worker thinning a parent from all of its sources: about 200 bytes per source
+// point (≈ 200 MB at 64 sources of 16384 points; bench/lod/RESULTS.md, 2026-11-27 14:35). Beside
+// them, decoded tiles that a coarser level reads again (as a source) are kept, shared by the
+// workers, up to PyramidOptions::decoded_cache_bytes: the levels above the one where the data fit
 // 4^source_depth tiles read the same tiles level after level. Levels whose tiles outnumber the
 // budget decode again what did not fit (a level reads all of its sources before the next one
 // starts). The tiles stored are the same with or without the cache.
@@ -47,7 +49,7 @@
 #include "tinstream/base/result.hpp"
 #include "tinstream/lod/parent.hpp"
 #include "tinstream/lod/thinning.hpp"
-#include "tinstream/store/tile_store.hpp"
+#include "tinstream/lod/tile_sink.hpp"
 
 namespace tinstream::lod {
 
@@ -77,7 +79,7 @@ struct PyramidSummary {
 };
 
 // Requires: min_level ≤ finest_level ≤ geo::kMaxLevel, threads ≥ 1 (0 is taken as 1).
-Result<PyramidSummary> build_pyramid(store::LayerWriter& writer, std::uint32_t finest_level,
+Result<PyramidSummary> build_pyramid(TileSink& sink, std::uint32_t finest_level,
                                      std::uint32_t min_level, const PyramidOptions& options,
                                      unsigned threads, const ProgressSink& progress = {});
 
