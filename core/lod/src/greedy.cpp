@@ -138,6 +138,7 @@ struct PointSet {
   // wins the scan's comparison, so the scan needs no look-up of the state).
   std::vector<double> candidate_z;
   std::span<const VertexId> nodata_vertices;  // kernel ids of the NODATA corners
+  double outline_tolerance = 0;               // greedy_insert's
 };
 
 class GreedyInserter {
@@ -149,6 +150,7 @@ class GreedyInserter {
         lattice_(points.lattice),
         candidate_z_(points.candidate_z),
         nodata_kernel_(points.nodata_vertices),
+        tolerance_(points.outline_tolerance),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
 
@@ -453,14 +455,18 @@ class GreedyInserter {
     return false;
   }
 
-  // A point of fan t outside the footprint (greedy.hpp): anywhere in t but exactly on its data
-  // edge (exact orient2d = 0 with its two data vertices, when it has one NODATA vertex), where
-  // the data triangle beside it covers it.
+  // A point of fan t outside the footprint (greedy.hpp): anywhere in t but on its data edge
+  // (exact orient2d = 0 with its two data vertices, when it has one NODATA vertex), where the
+  // data triangle beside it covers it, or within the outline tolerance of that edge.
   struct FanEdge {
     bool has_edge = false;
     XY a, b;
+    double tolerance = 0;  // times |b − a|: compared with the cross product
     bool outside(double x, double y) const {
-      return !has_edge || kernel::orient2d(a, b, XY{x, y}) != 0;
+      if (!has_edge) return true;
+      if (kernel::orient2d(a, b, XY{x, y}) == 0) return false;
+      const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
+      return !(std::abs(cross) <= tolerance);
     }
   };
   FanEdge fan_edge(std::uint32_t t) const {
@@ -474,6 +480,7 @@ class GreedyInserter {
       fe.has_edge = true;
       fe.a = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 1) % 3)]];
       fe.b = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 2) % 3)]];
+      fe.tolerance = tolerance_ * std::hypot(fe.b.x - fe.a.x, fe.b.y - fe.a.y);
     }
     return fe;
   }
@@ -983,6 +990,7 @@ class GreedyInserter {
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
   std::span<const VertexId> nodata_kernel_;  // PointSet::nodata_vertices
+  double tolerance_;                         // PointSet::outline_tolerance
   std::vector<std::uint8_t> nodata_;         // by own vertex: a NODATA corner
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   // By own triangle: its kernel slot, as copied in start(), then as found by matches_kernel().
@@ -1024,9 +1032,10 @@ class GreedyInserter {
 // points (kExtra).
 PointSet make_point_set(std::span<const tile::Vertex> candidates,
                         std::span<const tile::Vertex> extra, const Lattice* lattice,
-                        std::span<const VertexId> nodata_vertices) {
+                        std::span<const VertexId> nodata_vertices, double outline_tolerance) {
   PointSet points;
   points.nodata_vertices = nodata_vertices;
+  points.outline_tolerance = outline_tolerance;
   points.candidates = candidates.size();
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;
@@ -1083,8 +1092,9 @@ void finish(const GreedyInserter& g, GreedyResult& out) {
 Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
                                    double epsilon, const Lattice* lattice,
-                                   std::span<const VertexId> nodata_vertices) {
-  PointSet points = make_point_set(candidates, extra, lattice, nodata_vertices);
+                                   std::span<const VertexId> nodata_vertices,
+                                   double outline_tolerance) {
+  PointSet points = make_point_set(candidates, extra, lattice, nodata_vertices, outline_tolerance);
   GreedyResult out;
   out.vertex.assign(candidates.size(), kNone);
   // Round 0 selects in the own mesh; the kernel's triangulation of the chosen points may
