@@ -77,10 +77,8 @@ inline constexpr double kCoverageCost = 1e6;
 // error is its vertical distance to the surface + its weight (+ kCoverageCost in a triangle at
 // one of `nodata_vertices`, the NODATA corners). `extra` points are
 // filed and carried along but never inserted (dropped border points, deep sources' points on a
-// parent's border, ThinInput::orphans); those strictly inside the triangulation's domain
-// (orphans: not on the tile's boundary, where only the border decides the surface) rank their
-// triangle too: its key is the larger of its best candidate's effective error and its orphans'
-// largest vertical error, so the candidates around an orphan that deviates most go in first.
+// parent's border, ThinInput::orphans): they only feed the drop stage's error estimate
+// (GreedyResult::orphans).
 // With `lattice` (the candidates form it, lattice.hpp), the candidates are not filed: each
 // triangle's best one is found by scanning its lattice cells, and GreedyResult::orphans holds the
 // extra points only.
