@@ -27,10 +27,7 @@
 //            points are, from filed_from_ on): rank_cells scans the cells inside the triangle,
 //            and a candidate that is no longer one has a NaN candidate_z, which never wins.
 // Either way best_[t] names the candidate (pool index or cell: picked()) and heap_ orders the
-// triangles by it — by its effective error, or by the largest error of an orphan filed under the
-// triangle when that is larger (orphans: extra points strictly inside the tile, ThinInput::orphans
-// there; greedy.hpp). An orphan is never inserted, but inserting its
-// triangle's candidates lowers its error, so the stage also inserts where orphans deviate most.
+// triangles by it.
 #include "greedy.hpp"
 
 #include <algorithm>
@@ -40,7 +37,6 @@
 #include <limits>
 #include <memory>
 #include <new>
-#include <optional>
 #include <string>
 #include <utility>
 
@@ -106,17 +102,13 @@ struct DefaultInit : std::allocator<T> {
 };
 
 // What became of a point (PointSet::state, by point). A filed point's copy (Filed::kind) is kept
-// equal by set_state(); only kCandidate, kExtra and kOrphan points belong in a bucket, the others
-// leave it at its next scan (rank(), refile()).
+// equal by set_state(); only kCandidate and kExtra points belong in a bucket, the others leave it
+// at its next scan (rank(), refile()).
 enum State : std::uint8_t {
   kCandidate,  // may be inserted
   kInserted,
   kGone,   // a duplicate, or an extra point outside the tile: neither inserted nor filed
   kExtra,  // filed, never inserted (extra points; a candidate on a boundary edge)
-  // An extra point strictly inside the tile: filed, never inserted, and its error ranks its
-  // triangle (on the tile's boundary only the border's vertices decide the surface, so there an
-  // extra point's error is what the border thinning left and no insertion can lower it).
-  kOrphan,
 };
 
 // The candidates, then the extra points, as one list (views of the caller's: no copy).
@@ -138,6 +130,7 @@ struct PointSet {
   // wins the scan's comparison, so the scan needs no look-up of the state).
   std::vector<double> candidate_z;
   std::span<const VertexId> nodata_vertices;  // kernel ids of the NODATA corners
+  double outline_tolerance = 0;               // greedy_insert's
 };
 
 class GreedyInserter {
@@ -149,6 +142,7 @@ class GreedyInserter {
         lattice_(points.lattice),
         candidate_z_(points.candidate_z),
         nodata_kernel_(points.nodata_vertices),
+        tolerance_(points.outline_tolerance),
         filed_from_(points.lattice ? points.candidates : 0),
         heap_(0) {}
 
@@ -163,18 +157,8 @@ class GreedyInserter {
     return {};
   }
 
-  // The largest ranking key: a candidate's effective error or an orphan's error (0 when no
-  // triangle has a candidate left).
-  double top_error() const { return heap_.empty() ? 0.0 : -heap_.key(heap_.top()); }
-
   // The largest effective error of a candidate (0 when none is left).
-  double candidate_error() const {
-    double e = 0;
-    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-      if (best_[t] != kNone) e = std::max(e, candidate_error_[t]);
-    }
-    return e;
-  }
+  double top_error() const { return heap_.empty() ? 0.0 : -heap_.key(heap_.top()); }
 
   // Greedy insertion in the own mesh while the mesh has fewer than max_vertices vertices (see
   // settling below) and the largest effective error is > floor, > 0 and ≥ epsilon. Returns the
@@ -259,7 +243,7 @@ class GreedyInserter {
     for (std::uint32_t t = 0; t < tris_.size(); ++t) {
       for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
         const Filed& f = pool_[k];
-        if (f.kind != kInserted && f.kind != kGone) out.push(f.x, f.y, f.z, kernel_slot_[t]);
+        if (f.kind == kCandidate || f.kind == kExtra) out.push(f.x, f.y, f.z, kernel_slot_[t]);
       }
     }
   }
@@ -308,21 +292,18 @@ class GreedyInserter {
     begin_.assign(tris_.size(), 0);
     count_.assign(tris_.size(), 0);
     best_.assign(tris_.size(), kNone);
-    candidate_error_.assign(tris_.size(), 0.0);
     heap_.grow(tris_.size());
     return local_tri;
   }
 
   // start(), step 2: every point from filed_from_ on that is a candidate or an extra point goes
   // into the bucket of the triangle that contains it (counting sort: buckets in triangle order).
-  // An extra point outside the tile becomes kGone, one strictly inside it kOrphan; a candidate
-  // outside is an error.
+  // An extra point outside the tile becomes kGone; a candidate outside is an error.
   Status file_points(const std::vector<std::uint32_t>& local_tri) {
     // where[i − filed_from_]: the triangle of point i.
     std::vector<std::uint32_t> where(pts_.size() - filed_from_, kNone);
-    const std::optional<kernel::Rect>& domain = kernel_.domain();
     for (std::size_t i = filed_from_; i < pts_.size(); ++i) {
-      if (state_[i] == kInserted || state_[i] == kGone) continue;
+      if (state_[i] != kCandidate && state_[i] != kExtra) continue;
       const tile::Vertex& p = pts_[i];
       const TriangleId t = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)
                                ? kernel_.locate_triangle(p.x, p.y)
@@ -334,10 +315,6 @@ class GreedyInserter {
         }
         state_[i] = kGone;  // an extra point outside: not part of this surface
         continue;
-      }
-      if (state_[i] == kExtra && i >= pts_.candidates.size() && domain && p.x > domain->xmin &&
-          p.x < domain->xmax && p.y > domain->ymin && p.y < domain->ymax) {
-        state_[i] = kOrphan;
       }
       where[i - filed_from_] = local_tri[t];
       ++count_[local_tri[t]];
@@ -412,7 +389,7 @@ class GreedyInserter {
   // every bucket scan skips them).
   void rank(std::uint32_t t) {
     const Plane pl = plane(t);
-    double best_e = -1, orphan_e = 0, w;
+    double best_e = -1, w;
     std::uint32_t best = kNone, kept = begin_[t];
     for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
       const Filed f = pool_[k];
@@ -420,28 +397,25 @@ class GreedyInserter {
       if (f.kind == kCandidate) {
         const double e = effective_error(f, pl.at(f.x, f.y, &w));
         if (e > best_e) best_e = e, best = kept;
-      } else if (f.kind == kOrphan) {
-        orphan_e = std::max(orphan_e, std::abs(f.z - pl.at(f.x, f.y, &w)));
       }
       pool_[kept++] = f;
     }
     live_ -= begin_[t] + count_[t] - kept;
     count_[t] = kept - begin_[t];
-    publish_best(t, best, best_e, orphan_e);
+    publish_best(t, best, best_e);
   }
 
   // The three ways a triangle is ranked, after its bucket was scanned for the plain effective
   // error (`best`: the pool index of the largest, `best_e`): on a lattice the candidates are not
   // filed but scanned by cell (rank_cells); in a fan (a NODATA corner) the coverage cost counts
-  // too (rank_fan: a second scan, rare); otherwise the scan's answer stands. `orphan_e`: the
-  // largest error of an orphan filed under t (found by the same scan), which t's key is at least.
-  void publish_best(std::uint32_t t, std::uint32_t best, double best_e, double orphan_e) {
+  // too (rank_fan: a second scan, rare); otherwise the scan's answer stands.
+  void publish_best(std::uint32_t t, std::uint32_t best, double best_e) {
     if (lattice_) {
-      rank_cells(t, orphan_e);
+      rank_cells(t);
     } else if (is_fan(t)) {
-      rank_fan(t, orphan_e);
+      rank_fan(t);
     } else {
-      set_best(t, best, best_e, orphan_e);
+      set_best(t, best, best_e);
     }
   }
 
@@ -453,14 +427,18 @@ class GreedyInserter {
     return false;
   }
 
-  // A point of fan t outside the footprint (greedy.hpp): anywhere in t but exactly on its data
-  // edge (exact orient2d = 0 with its two data vertices, when it has one NODATA vertex), where
-  // the data triangle beside it covers it.
+  // A point of fan t outside the footprint (greedy.hpp): anywhere in t but on its data edge
+  // (exact orient2d = 0 with its two data vertices, when it has one NODATA vertex), where the
+  // data triangle beside it covers it, or within the outline tolerance of that edge.
   struct FanEdge {
     bool has_edge = false;
     XY a, b;
+    double tolerance = 0;  // times |b − a|: compared with the cross product
     bool outside(double x, double y) const {
-      return !has_edge || kernel::orient2d(a, b, XY{x, y}) != 0;
+      if (!has_edge) return true;
+      if (kernel::orient2d(a, b, XY{x, y}) == 0) return false;
+      const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
+      return !(std::abs(cross) <= tolerance);
     }
   };
   FanEdge fan_edge(std::uint32_t t) const {
@@ -474,13 +452,14 @@ class GreedyInserter {
       fe.has_edge = true;
       fe.a = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 1) % 3)]];
       fe.b = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 2) % 3)]];
+      fe.tolerance = tolerance_ * std::hypot(fe.b.x - fe.a.x, fe.b.y - fe.a.y);
     }
     return fe;
   }
 
   // Fan t's best candidate from its bucket (filed path): effective error + kCoverageCost for a
   // point outside the footprint.
-  void rank_fan(std::uint32_t t, double orphan_e) {
+  void rank_fan(std::uint32_t t) {
     const FanEdge fe = fan_edge(t);
     const Plane pl = plane(t);
     double best_e = -1, w;
@@ -492,12 +471,12 @@ class GreedyInserter {
           effective_error(f, pl.at(f.x, f.y, &w)) + (fe.outside(f.x, f.y) ? kCoverageCost : 0.0);
       if (e > best_e) best_e = e, best = k;
     }
-    set_best(t, best, best_e, orphan_e);
+    set_best(t, best, best_e);
   }
 
   // On a lattice: t's best candidate is the candidate cell of largest effective error inside it.
-  void rank_cells(std::uint32_t t, double orphan_e) {
-    if (is_fan(t)) return rank_fan_cells(t, orphan_e);
+  void rank_cells(std::uint32_t t) {
+    if (is_fan(t)) return rank_fan_cells(t);
     const auto& v = tris_[t].v;
     const Lattice& l = *lattice_;
     const Gradient g(xy_[v[0]], xy_[v[1]], xy_[v[2]], z_[v[0]], z_[v[1]], z_[v[2]]);
@@ -530,11 +509,11 @@ class GreedyInserter {
       if (row_i != kNone) best_e = row_e, best = static_cast<std::uint32_t>(row + row_i);
     };
     l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row, candidate_z_.data());
-    set_best(t, best, best_e, orphan_e);
+    set_best(t, best, best_e);
   }
 
   // The same for a fan (coverage first: rank_fan), cell by cell.
-  void rank_fan_cells(std::uint32_t t, double orphan_e) {
+  void rank_fan_cells(std::uint32_t t) {
     const auto& v = tris_[t].v;
     const Lattice& l = *lattice_;
     const FanEdge fe = fan_edge(t);
@@ -553,7 +532,7 @@ class GreedyInserter {
       }
     };
     l.for_each_run(xy_[v[0]], xy_[v[1]], xy_[v[2]], scan_row);
-    set_best(t, best, best_e, orphan_e);
+    set_best(t, best, best_e);
   }
 
   // The candidate named by best_[t]: a pool entry, or on a lattice a cell.
@@ -578,15 +557,12 @@ class GreedyInserter {
     if (lattice_ && s != kCandidate) candidate_z_[c.pos] = std::numeric_limits<double>::quiet_NaN();
   }
 
-  // t's best candidate and its effective error; t's key is the larger of that error and
-  // `orphan_e` (a triangle without a candidate has none: its orphans wait for a neighbour's).
-  void set_best(std::uint32_t t, std::uint32_t best, double error, double orphan_e) {
+  void set_best(std::uint32_t t, std::uint32_t best, double error) {
     best_[t] = best;
-    candidate_error_[t] = error;
     if (best == kNone) {
       heap_.erase(t);
     } else {
-      heap_.set(t, -std::max(error, orphan_e));
+      heap_.set(t, -error);
     }
   }
 
@@ -595,7 +571,6 @@ class GreedyInserter {
     begin_.push_back(0);
     count_.push_back(0);
     best_.push_back(kNone);
-    candidate_error_.push_back(0.0);
     heap_.grow(tris_.size());
     return static_cast<std::uint32_t>(tris_.size() - 1);
   }
@@ -755,7 +730,7 @@ class GreedyInserter {
     std::size_t entries = 0;
     for (const auto& [b, c] : taken_) entries += c;
     if (entries == 0 && lattice_) {  // nothing filed (the usual case on a lattice): rank only
-      for (std::uint32_t t : star_) rank_cells(t, 0.0);
+      for (std::uint32_t t : star_) rank_cells(t);
       return;
     }
     prepare_star(entries);
@@ -764,7 +739,7 @@ class GreedyInserter {
     move_into_star_buckets(end);
     live_ += moved;
     for (std::size_t k = 0; k < star_.size(); ++k) {
-      publish_best(star_[k], star_best_[k], star_error_[k], star_orphan_[k]);
+      publish_best(star_[k], star_best_[k], star_error_[k]);
     }
   }
 
@@ -775,7 +750,6 @@ class GreedyInserter {
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
     star_best_.assign(n, kNone);  // the index in its new bucket, then in the pool
     star_error_.assign(n, -1.0);
-    star_orphan_.assign(n, 0.0);
     star_count_.assign(n, 0);
     if (slot_.size() < entries) slot_.resize(entries);
     if (n > kSmallStar) sort_star_by_angle();
@@ -783,8 +757,7 @@ class GreedyInserter {
 
   // refile(), step 1: each gathered point's star triangle (slot_, by gathered entry; kNone for a
   // point that left), its place in that triangle's new bucket (in gather order), and each
-  // bucket's best candidate (star_best_, star_error_) and largest orphan error (star_orphan_).
-  // Returns the number of points that stay.
+  // bucket's best candidate (star_best_, star_error_). Returns the number of points that stay.
   // (The hot loop of the stage. It works on raw pointers: through the vectors, every store made
   // the compiler reload their bounds.)
   std::uint32_t assign_to_star() {
@@ -794,14 +767,13 @@ class GreedyInserter {
     std::uint32_t* const star_count = star_count_.data();
     std::uint32_t* const star_best = star_best_.data();
     double* const star_error = star_error_.data();
-    double* const star_orphan = star_orphan_.data();
     const Plane* const planes = planes_.data();
     std::uint32_t moved = 0, m = 0;
     for (const auto& [b, cnt] : taken_) {
       const Filed* const bucket = pool_.data() + b;
       for (std::uint32_t e = 0; e < cnt; ++e, ++m) {
         const Filed& f = bucket[e];
-        if (f.kind == kInserted || f.kind == kGone) {
+        if (f.kind != kCandidate && f.kind != kExtra) {
           slot[m] = kNone;
           continue;
         }
@@ -816,10 +788,7 @@ class GreedyInserter {
         slot[m] = k;
         const std::uint32_t place = star_count[k]++;
         ++moved;
-        if (f.kind != kCandidate) {
-          if (f.kind == kOrphan) star_orphan[k] = std::max(star_orphan[k], std::abs(f.z - surface));
-          continue;
-        }
+        if (f.kind != kCandidate) continue;
         const double err = effective_error(f, surface);
         if (err > star_error[k]) star_error[k] = err, star_best[k] = place;
       }
@@ -983,6 +952,7 @@ class GreedyInserter {
   const Lattice* lattice_;            // the candidates' lattice, or null (then they are filed too)
   std::vector<double>& candidate_z_;  // PointSet::candidate_z
   std::span<const VertexId> nodata_kernel_;  // PointSet::nodata_vertices
+  double tolerance_;                         // PointSet::outline_tolerance
   std::vector<std::uint8_t> nodata_;         // by own vertex: a NODATA corner
   std::size_t filed_from_;  // points below this index are scanned on the lattice, not filed
   // By own triangle: its kernel slot, as copied in start(), then as found by matches_kernel().
@@ -1001,14 +971,13 @@ class GreedyInserter {
   // By triangle: its candidate of largest effective error, as a pool index (or on a lattice a
   // cell: Pick), kNone when it has none (then it is not in heap_).
   std::vector<std::uint32_t> best_;
-  std::vector<double> candidate_error_;  // by triangle: best_'s effective error
-  IndexedHeap heap_;  // triangles by −max(best_'s error, largest orphan error), then id
+  IndexedHeap heap_;  // triangles by −(largest effective error), then id
   // Scratch of one insertion.
   std::vector<std::uint32_t> star_, stack_, star_best_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> taken_;  // (begin, count) of taken buckets
   std::vector<std::uint32_t> slot_;        // by gathered entry: its star index, or kNone
   std::vector<std::uint32_t> star_count_;  // by star index: its new bucket's size, then its end
-  std::vector<double> star_error_, star_orphan_;
+  std::vector<double> star_error_;
   std::vector<std::uint32_t> sector_;
   std::vector<double> angle_, sector_start_;
   std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
@@ -1024,9 +993,10 @@ class GreedyInserter {
 // points (kExtra).
 PointSet make_point_set(std::span<const tile::Vertex> candidates,
                         std::span<const tile::Vertex> extra, const Lattice* lattice,
-                        std::span<const VertexId> nodata_vertices) {
+                        std::span<const VertexId> nodata_vertices, double outline_tolerance) {
   PointSet points;
   points.nodata_vertices = nodata_vertices;
+  points.outline_tolerance = outline_tolerance;
   points.candidates = candidates.size();
   points.lattice = lattice;
   if (lattice) points.candidate_z = lattice->z;
@@ -1075,7 +1045,7 @@ Status commit_to_kernel(Triangulation& tri, const PointList& pts,
 // triangle for triangle) and the largest error left.
 void finish(const GreedyInserter& g, GreedyResult& out) {
   g.hand_over(out.orphans);
-  out.max_error = g.candidate_error();
+  out.max_error = g.top_error();
 }
 
 }  // namespace
@@ -1083,8 +1053,9 @@ void finish(const GreedyInserter& g, GreedyResult& out) {
 Result<GreedyResult> greedy_insert(Triangulation& tri, std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
                                    double epsilon, const Lattice* lattice,
-                                   std::span<const VertexId> nodata_vertices) {
-  PointSet points = make_point_set(candidates, extra, lattice, nodata_vertices);
+                                   std::span<const VertexId> nodata_vertices,
+                                   double outline_tolerance) {
+  PointSet points = make_point_set(candidates, extra, lattice, nodata_vertices, outline_tolerance);
   GreedyResult out;
   out.vertex.assign(candidates.size(), kNone);
   // Round 0 selects in the own mesh; the kernel's triangulation of the chosen points may

@@ -64,7 +64,12 @@ struct GreedyResult {
 // candidate there goes in before any other) and in the drop stage
 // (a vertex next to a NODATA corner, whose removal would widen the corner's fan over the data,
 // goes after every other). So a coarse tile keeps its data's outline while its budget allows, and
-// no data hides under a fan whose continued heights only roughly follow it.
+// no data hides under a fan whose continued heights only roughly follow it. A point within
+// `outline_tolerance` (greedy_insert) of the fan's data edge counts as covered too: thin_tile
+// passes one quantized-mesh step of the tile (its width / 32767), so that a data outline that is
+// straight to within what a client can show (a UTM raster's row of cell centres, a little curved
+// in Mercator) needs a few vertices, not every cell (until 2026-11-28 every one: Big Tujunga's
+// ~3,700 outline cells took a coarse tile's whole budget at --max-points 1024).
 inline constexpr double kCoverageCost = 1e6;
 
 // Inserts candidates into `tri` (already holding the fixed points) until it has `max_vertices`
@@ -72,10 +77,8 @@ inline constexpr double kCoverageCost = 1e6;
 // error is its vertical distance to the surface + its weight (+ kCoverageCost in a triangle at
 // one of `nodata_vertices`, the NODATA corners). `extra` points are
 // filed and carried along but never inserted (dropped border points, deep sources' points on a
-// parent's border, ThinInput::orphans); those strictly inside the triangulation's domain
-// (orphans: not on the tile's boundary, where only the border decides the surface) rank their
-// triangle too: its key is the larger of its best candidate's effective error and its orphans'
-// largest vertical error, so the candidates around an orphan that deviates most go in first.
+// parent's border, ThinInput::orphans): they only feed the drop stage's error estimate
+// (GreedyResult::orphans).
 // With `lattice` (the candidates form it, lattice.hpp), the candidates are not filed: each
 // triangle's best one is found by scanning its lattice cells, and GreedyResult::orphans holds the
 // extra points only.
@@ -86,6 +89,7 @@ Result<GreedyResult> greedy_insert(kernel::Triangulation& tri,
                                    std::span<const tile::Vertex> candidates,
                                    std::span<const tile::Vertex> extra, std::size_t max_vertices,
                                    double epsilon, const Lattice* lattice = nullptr,
-                                   std::span<const kernel::VertexId> nodata_vertices = {});
+                                   std::span<const kernel::VertexId> nodata_vertices = {},
+                                   double outline_tolerance = 0);
 
 }  // namespace tinstream::lod::detail

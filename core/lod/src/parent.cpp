@@ -19,6 +19,7 @@
 #include <string>
 #include <tuple>
 
+#include "tinstream/geo/mercator.hpp"
 #include "tinstream/lod/error.hpp"
 
 namespace tinstream::lod {
@@ -237,7 +238,60 @@ ThinInput merge(const geo::TileId& parent, const ChildViews& children, const Sou
   return in;
 }
 
+// The area of a tile's data footprint (its triangles without a NODATA vertex), in normalised
+// Mercator units.
+double footprint_area(const TinTile& t) {
+  double twice = 0;
+  for (std::size_t k = 0; k < t.triangles.size(); ++k) {
+    if (t.is_nodata_triangle(k)) continue;
+    const Vertex& a = t.vertex(t.triangles[k][0]);
+    const Vertex& b = t.vertex(t.triangles[k][1]);
+    const Vertex& c = t.vertex(t.triangles[k][2]);
+    twice += std::abs((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
+  }
+  return 0.5 * twice;
+}
+
+// The candidates' distinct positions on the parent's quantized-mesh grid (2^15 steps each way,
+// linear in longitude and latitude, docs/tile-format.md §8): corners, border, interior.
+std::size_t quantised_positions(const ThinInput& in) {
+  const geo::NormalisedMercator merc(geo::Projection::spherical);
+  const geo::LonLatRect rect = in.id.lonlat_bounds(merc);
+  constexpr double kSteps = 32767.0;
+  std::vector<std::uint32_t> cells;
+  cells.reserve(4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() +
+                in.interior.size());
+  auto add = [&](const Vertex& v) {
+    const double u =
+        (geo::NormalisedMercator::lon_from_x(v.x) - rect.west) / (rect.east - rect.west);
+    const double w = (merc.lat_from_y(v.y) - rect.south) / (rect.north - rect.south);
+    const auto q = [](double t) {
+      return static_cast<std::uint32_t>(std::round(std::clamp(t, 0.0, 1.0) * kSteps));
+    };
+    cells.push_back((q(u) << 15) | q(w));
+  };
+  for (const auto& c : in.corners) add(c);
+  for (const auto* list : {&in.north, &in.east, &in.south, &in.west, &in.interior}) {
+    for (const auto& v : *list) add(v);
+  }
+  std::sort(cells.begin(), cells.end());
+  return static_cast<std::size_t>(std::unique(cells.begin(), cells.end()) - cells.begin());
+}
+
 }  // namespace
+
+std::size_t coverage_budget(double covered, const LodOptions& options) {
+  const std::size_t floor_points = std::min(options.max_points, outline_budget(options));
+  if (!(covered < 0.25)) return options.max_points;
+  const double by_area =
+      std::ceil(4.0 * static_cast<double>(options.max_points) * std::max(covered, 0.0));
+  return std::max(floor_points, static_cast<std::size_t>(by_area));
+}
+
+std::size_t outline_budget(const LodOptions& options) {
+  return std::max<std::size_t>(
+      4, static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(options.max_points)))));
+}
 
 Result<LodTile> build_from_sources(const geo::TileId& parent, const Children& children,
                                    const Sources& sources, const LodOptions& options,
@@ -311,6 +365,36 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
   }
 
   ThinInput in = merge(parent, children, sources);
+  // The parent's budget (parent.hpp, "Budget"): 4 × max_points times the share of the parent
+  // that its children's data footprints cover, at least the outline budget, plus the border
+  // points, whose per-side budget stays that of max_points (the neighbours share it).
+  double covered = 0;
+  for (const LodTile* c : children.tiles) {
+    if (c) covered += footprint_area(c->tile);
+  }
+  const geo::MercatorRect pr = parent.bounds();
+  covered /= (pr.max_x - pr.min_x) * (pr.max_y - pr.min_y);
+  LodOptions thin_options = options;
+  thin_options.border_points_per_side = side_budget(options);
+  std::size_t border = 0;
+  for (const auto* side : {&in.north, &in.east, &in.south, &in.west}) {
+    border += std::min(side->size(), thin_options.border_points_per_side);
+  }
+  thin_options.max_points =
+      std::min(options.max_points, coverage_budget(covered, options) + border);
+  // A parent that takes its one child's vertices as candidates (Sources::candidates_from_children)
+  // but keeps fewer than they are is thinned from its sources instead: dropping a thinned child's
+  // vertices judges each removal at the known points only (measured: Terrain-RGB's level 13, 15
+  // vertices fewer than its child, 0.60 → 2.06 m, 2.9× Delatin's error; bench/lod/RESULTS.md).
+  bool from_children = sources.candidates_from_children;
+  if (from_children && thin_options.max_points < 4 + in.north.size() + in.east.size() +
+                                                     in.south.size() + in.west.size() +
+                                                     in.interior.size()) {
+    SourceViews own = sources;
+    own.candidates_from_children = false;
+    in = merge(parent, children, own);
+    from_children = false;
+  }
   // The finer tiles' witnesses join the candidates only where their own points exceed the
   // budget: when they fit, the parent keeps them all (thin_tile drops at most the few corners it
   // adds), and a witness could only displace a finer vertex whose removal the thinning judges
@@ -318,8 +402,8 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
   // 512 x 512 DEM: 1.44x the error of the level below with witnesses, bench/lod/RESULTS.md).
   const std::size_t merged = 4 + in.north.size() + in.east.size() + in.south.size() +
                              in.west.size() + in.interior.size() + in.orphans.size();
-  if (merged > options.max_points) {
-    if (sources.candidates_from_children) {
+  if (merged > thin_options.max_points) {
+    if (from_children) {
       for (const auto& c : children.tiles) {
         if (c) append(in.interior, c->witnesses);
       }
@@ -342,7 +426,14 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
       if (c) ties.drawn.push_back(&c->tile);
     }
   }
-  auto thinned = thin_tile(in, options, stats, &ties);
+  // Where the data are small in the parent (the outline budget decides), no more vertices than
+  // the candidates have distinct quantized-mesh positions: more would be bytes and triangles a
+  // client cannot tell apart (counted only there: elsewhere the area bound is far tighter).
+  if (thin_options.max_points <= outline_budget(options) + border && thin_options.max_points > 4) {
+    thin_options.max_points =
+        std::max<std::size_t>(4, std::min(thin_options.max_points, quantised_positions(in)));
+  }
+  auto thinned = thin_tile(in, thin_options, stats, &ties);
   if (!thinned.ok()) return thinned.error();
   LodTile out;
   out.tile = std::move(*thinned);

@@ -59,6 +59,10 @@ std::size_t side_budget(const LodOptions& options) {
 
 namespace {
 
+// Quantized-mesh steps across a tile (2^15 − 1): the greedy stage's outline tolerance is one of
+// them (greedy.hpp, coverage first).
+constexpr double kOutlineSteps = 32767.0;
+
 struct QueueEntry {
   double error;  // effective (error + weight)
   double key_a;  // tie-break: position
@@ -675,7 +679,8 @@ class TileThinner {
       std::vector<Vertex> extra = in_.orphans;
       extra.insert(extra.end(), dropped_.begin(), dropped_.end());
       auto g = detail::greedy_insert(tri_, in_.interior, extra, target_, options_.epsilon,
-                                     lattice ? &*lattice : nullptr, nodata_corners_);
+                                     lattice ? &*lattice : nullptr, nodata_corners_,
+                                     std::max(r_.width(), r_.height()) / kOutlineSteps);
       if (!g.ok()) {
         return Error(g.error().code, "lod: " + tile_name(in_.id) + ": " + g.error().message);
       }

@@ -161,50 +161,6 @@ TEST(Greedy, NeighboursThinnedSeparatelyStayWatertight) {
   EXPECT_EQ(level[0].east.size(), level[1].west.size());
 }
 
-// Orphans (ThinInput::orphans, e.g. points on a line the caller cut along) are never candidates,
-// only part of the surface.
-// A cone whose apex is such a point (H high, falling to 0 at 1.5 cells, so the candidates next to
-// it stand H/3 high) on gentle hills: ranked by its candidates alone, the greedy stage never sees
-// that the apex deviates most and spends the budget elsewhere (the apex then keeps 0.74–0.84 H at
-// these budgets). Ranked by its orphans too, a triangle holding the apex draws insertions until no
-// candidate is left in it; with the candidates beside the apex in, the apex's error is about 2H/3
-// (the most they can do: the orphan itself is never inserted), and the drop stage, which sees
-// the orphans, keeps them.
-TEST(Greedy, OrphanThatDeviatesMostDrawsInsertionsAroundIt) {
-  const geo::MercatorRect r = kTile.bounds();
-  constexpr int kCells = 64;
-  constexpr double kH = 30.0;
-  const double h = r.width() / kCells;
-  const double seam_x = r.min_x + 32 * h, apex_y = r.max_y - 21 * h;
-  auto f = [&](double x, double y) {
-    const double d = std::hypot(x - seam_x, y - apex_y) / h;
-    return 300.0 + 10.0 * std::sin(x * 1.1e4) * std::cos(y * 0.9e4) +
-           kH * std::max(0.0, 1.0 - d / 1.5);
-  };
-  ThinInput in = thin_input(grid_tile(kTile, kCells, f));
-  std::vector<Vertex> candidates;
-  for (const Vertex& p : in.interior) (p.x == seam_x ? in.orphans : candidates).push_back(p);
-  in.interior = candidates;
-  ASSERT_EQ(in.orphans.size(), static_cast<std::size_t>(kCells - 1));
-  for (const std::size_t budget : {40u, 60u}) {
-    LodOptions o;
-    o.max_points = budget;
-    ThinStats st;
-    auto t = thin_tile(in, o, &st);
-    ASSERT_TRUE(t.ok()) << t.error().message;
-    ASSERT_GT(st.greedy_inserted, 0u);
-    EXPECT_EQ(t->vertex_count(), budget);
-    double apex = -1;
-    for (const auto& p : in.orphans) {
-      if (p.y != apex_y) continue;
-      const auto z = brute_height(*t, p.x, p.y, false);
-      ASSERT_TRUE(z.has_value());
-      apex = std::abs(*z - p.z);
-    }
-    EXPECT_LT(apex, 0.7 * kH) << "budget " << budget;  // before: 25.2 m (40), 22.3 m (60)
-  }
-}
-
 TEST(Greedy, RejectsANegativeFactor) {
   const auto full = grid_tile(kTile, 8, rough);
   LodOptions o;

@@ -3,18 +3,21 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <limits>
 #include <map>
 #include <mutex>
 #include <random>
+#include <set>
 #include <utility>
 #include <vector>
 
 #include "dem_crop.hpp"
 #include "lod_test_support.hpp"
 #include "temp_store.hpp"
+#include "tinstream/geo/mercator.hpp"
 #include "tinstream/lod/error.hpp"
 #include "tinstream/store/tile_store.hpp"
 #include "tinstream/triangulate/finest_tiles.hpp"
@@ -335,22 +338,42 @@ TEST(Pyramid, ProgressSinkCancels) {
   EXPECT_EQ(r.error().code, ErrorCode::cancelled);
 }
 
-// Finest tiles from pass 2 + 3 on random points, then the whole pyramid through a real store.
-TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
-  TempStore ts("random");
-  std::mt19937_64 rng(42);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const double x0 = 0.1, y0 = 0.2, span = 2e-3;
-  std::vector<subdivide::InputPoint> pts;
-  for (int i = 0; i < 12000; ++i) {
-    const double x = x0 + span * u(rng), y = y0 + span * u(rng);
-    pts.push_back(
-        {x, y,
-         100.0 + 50.0 * std::sin(x * 3e3) + 30.0 * std::cos(y * 2e3) + 5.0 * std::sin(x * 4e4)});
+// The distinct positions of `pts` on tile `id`'s quantized-mesh grid: 32767 steps each way,
+// linear in longitude and latitude (spherical Mercator).
+std::size_t quantised_positions(const geo::TileId& id, const std::vector<tile::Vertex>& pts) {
+  const geo::NormalisedMercator merc(geo::Projection::spherical);
+  const geo::LonLatRect r = id.lonlat_bounds(merc);
+  std::set<std::pair<long, long>> cells;
+  for (const auto& p : pts) {
+    const double u = (geo::NormalisedMercator::lon_from_x(p.x) - r.west) / (r.east - r.west);
+    const double v = (merc.lat_from_y(p.y) - r.south) / (r.north - r.south);
+    cells.emplace(std::lround(std::clamp(u, 0.0, 1.0) * 32767.0),
+                  std::lround(std::clamp(v, 0.0, 1.0) * 32767.0));
   }
+  return cells.size();
+}
+
+// `n` uniform random points in the square of side `span` whose south-west corner is `sw`, at
+// the heights of `f`.
+std::vector<subdivide::InputPoint> random_points(std::uint64_t seed, std::array<double, 2> sw,
+                                                 double span, int n, const testing::Surface& f) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<subdivide::InputPoint> pts;
+  for (int i = 0; i < n; ++i) {
+    const double x = sw[0] + span * u(rng), y = sw[1] + span * u(rng);
+    pts.push_back({x, y, f(x, y)});
+  }
+  return pts;
+}
+
+// Passes 2 and 3 on `pts` at `max_points` into `w`: the finest tiles; their level.
+Result<std::uint32_t> store_finest_tiles(const TempStore& ts, store::LayerWriter& w,
+                                         const std::vector<subdivide::InputPoint>& pts,
+                                         std::uint32_t max_points) {
   subdivide::SubdivideOptions so;
   so.tmp_dir = ts.dir;
-  so.max_points = 1500;
+  so.max_points = max_points;
   std::size_t pos = 0;
   auto run = subdivide::subdivide(
       [&](std::vector<subdivide::InputPoint>& batch) -> Result<std::size_t> {
@@ -361,16 +384,27 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
         return n;
       },
       so);
-  ASSERT_TRUE(run.ok()) << run.error().message;
-  auto w = ts.writer("random");
-  ASSERT_TRUE(w);
+  if (!run.ok()) return run.error();
   std::mutex mutex;  // the sink runs on the workers, concurrently
   auto tri = triangulate::build_finest_tiles(*run, 2, [&](TinTile&& t) {
     std::lock_guard lock(mutex);
-    return w->put(t);
+    return w.put(t);
   });
-  ASSERT_TRUE(tri.ok()) << tri.error().message;
-  const std::uint32_t L = run->finest_level;
+  if (!tri.ok()) return tri.error();
+  return run->finest_level;
+}
+
+// Finest tiles from pass 2 + 3 on random points, then the whole pyramid through a real store.
+TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
+  TempStore ts("random");
+  const auto pts = random_points(42, {0.1, 0.2}, 2e-3, 12000, [](double x, double y) {
+    return 100.0 + 50.0 * std::sin(x * 3e3) + 30.0 * std::cos(y * 2e3) + 5.0 * std::sin(x * 4e4);
+  });
+  auto w = ts.writer("random");
+  ASSERT_TRUE(w);
+  auto finest = store_finest_tiles(ts, *w, pts, 1500);
+  ASSERT_TRUE(finest.ok()) << finest.error().message;
+  const std::uint32_t L = *finest;
   ASSERT_GE(L, 3u);
   PyramidOptions o;
   o.lod.max_points = 800;
@@ -379,6 +413,60 @@ TEST(Pyramid, FromTriangulatedRandomPointsThroughTheStore) {
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   EXPECT_EQ(summary->level_tiles[0], 1u);
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 5, 1);
+}
+
+// A small dataset's coarse tiles keep what their level can show (parent.hpp, "Budget"): 3,000
+// points in a 2e-4 square (a few hundred metres) at --max-points 1500 give finest tiles at the
+// data's extent level; above it every tile's data lie inside the points' bounding box, so the
+// share `covered` of the tile that its data footprint covers is at most the box's share `f`, and
+// a tile holds at most max(⌈√max_points⌉, ⌈4 × max_points × f⌉) vertices besides its border
+// points; where the floor ⌈√max_points⌉ decides, at most the distinct quantized-mesh positions of
+// the finest vertices in it and its corners. Before the budget, every level up to 0 kept all
+// 1,500 the budget allowed (level 0: 1,500 vertices in a 2e-4 box, 3 × 3 quantized-mesh steps of
+// a level-0 tile).
+TEST(Pyramid, CoarseTilesOfASmallDatasetKeepTheDensityTheirLevelCanShow) {
+  TempStore ts("small");
+  const double x0 = 0.3, y0 = -0.4, span = 2e-4;
+  const auto pts = random_points(7, {x0, y0}, span, 3000, [](double x, double y) {
+    return 800.0 + 40.0 * std::sin(x * 4e4) * std::cos(y * 3e4);
+  });
+  auto w = ts.writer("small");
+  ASSERT_TRUE(w);
+  auto finest = store_finest_tiles(ts, *w, pts, 1500);
+  ASSERT_TRUE(finest.ok()) << finest.error().message;
+  const std::uint32_t L = *finest;
+  ASSERT_GE(L, 8u);
+  PyramidOptions o;
+  o.lod.max_points = 1500;
+  auto summary = build_pyramid(*w, L, 0, o, 2);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  check_pyramid(*w, L, 0, o.lod.max_points, *summary, 7, 1);
+  const std::vector<TinTile> fin = level_tiles(*w, L);
+  const auto outline = static_cast<std::size_t>(std::ceil(std::sqrt(1500.0)));
+  for (std::uint32_t z = 0; z + 1 < L; ++z) {
+    for (const auto& t : level_tiles(*w, z)) {
+      const geo::MercatorRect r = t.id.bounds();
+      const double bx = std::min(r.max_x, x0 + span) - std::max(r.min_x, x0);
+      const double by = std::min(r.max_y, y0 + span) - std::max(r.min_y, y0);
+      const double f = std::max(bx, 0.0) * std::max(by, 0.0) / (r.width() * r.height());
+      const std::size_t border = t.north.size() + t.east.size() + t.south.size() + t.west.size();
+      const auto by_area = static_cast<std::size_t>(std::ceil(4.0 * 1500.0 * f));
+      EXPECT_LE(t.vertex_count(), std::max(outline, by_area) + border)
+          << t.id.to_string() << ": data box share " << f;
+      // Where the outline floor decides, no more vertices than the distinct quantized-mesh
+      // positions of the points it can choose from (the finest vertices in it, its corners).
+      if (by_area > outline) continue;
+      std::vector<tile::Vertex> known(t.corners.begin(), t.corners.end());
+      for (const auto& q : fin) {
+        for (const auto& v : q.vertices()) {
+          if (v.x >= r.min_x && v.x <= r.max_x && v.y >= r.min_y && v.y <= r.max_y)
+            known.push_back(v);
+        }
+      }
+      EXPECT_LE(t.vertex_count(), std::max(quantised_positions(t.id, known), border + 4))
+          << t.id.to_string();
+    }
+  }
 }
 
 // Recorded errors are honest on every level: a 4 × 4 block of unreduced level-5 grid tiles with

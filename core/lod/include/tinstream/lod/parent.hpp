@@ -31,6 +31,24 @@
 // stretch has no points (until 2026-11-28 always: the 250 m Luxembourg DEM at --max-points 2048
 // had two level-11 tiles with different points on their shared side, issue #20).
 //
+// Budget (README "How it works", LOD thinning). A parent keeps at most
+// coverage_budget(covered, options) vertices plus its border points, where `covered` is the share
+// of the parent's area that its children's data footprints (tin_tile.hpp) cover: max_points × 4 ×
+// covered (no more than the data would hold in full tiles one level finer), at least the outline
+// budget ⌈√max_points⌉ (about one side's worth, for the data's outline), at most max_points. A
+// level thus keeps at most the vertex density of full tiles one level finer instead of
+// max_points per tile wherever its tiles are larger than the data (until 2026-11-28 a small LiDAR
+// crop kept ~9,000 vertices at every level 0–13, Big Tujunga's level-0 tile 16,384 vertices at
+// 1,228 distinct quantized-mesh positions). Where the outline budget decides, the parent also keeps
+// no more vertices than its candidates have distinct positions on its quantized-mesh grid (2^15
+// steps each way, linear in longitude and latitude): more are bytes and triangles no client can
+// tell apart. The border keeps the per-side budget of max_points (thinning.hpp side_budget), which
+// the tile across computes too, so same-level tiles stay watertight; a tile holds more than its
+// budget only where its corners and kept border points alone exceed it. A parent that would take
+// its one child's vertices as candidates (Sources::candidates_from_children) but keeps fewer than
+// those is thinned from its sources instead. The error is chained and recorded as before, so a
+// smaller budget records the larger error it makes.
+//
 // Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
 // triangles included); geometric_error is their largest (and at least every child's and
@@ -100,6 +118,13 @@ struct SourceViews {
   std::vector<const LodTile*> tiles;  // not null
   bool candidates_from_children = false;
 };
+
+// The budget of a parent whose children's data footprints cover the share `covered` (0 … 1) of
+// its area, border points aside: max(outline_budget, ⌈4 × max_points × covered⌉), at most
+// max_points (the rule above).
+std::size_t coverage_budget(double covered, const LodOptions& options);
+// ⌈√max_points⌉, at least 4: the least a parent with data keeps by area.
+std::size_t outline_budget(const LodOptions& options);
 
 // The parent's corners and outer border come from `children` (which its neighbours share, so
 // same-level tiles stay watertight whatever depth each one's sources have), its interior
