@@ -438,7 +438,7 @@ TEST(Pyramid, CoarseTilesOfASmallDatasetKeepTheDensityTheirLevelCanShow) {
   ASSERT_GE(L, 8u);
   PyramidOptions o;
   o.lod.max_points = 1500;
-  auto summary = build_pyramid(*w, L, 0, o, 2);
+  auto summary = build_stored_pyramid(*w, L, 0, o, 2);
   ASSERT_TRUE(summary.ok()) << summary.error().message;
   check_pyramid(*w, L, 0, o.lod.max_points, *summary, 7, 1);
   const std::vector<TinTile> fin = level_tiles(*w, L);
