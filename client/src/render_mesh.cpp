@@ -254,6 +254,16 @@ void MeshBuilder::select_drawn() {
                                   (south && west ? 4 : 0) | (south && east ? 8 : 0));
   }
   mesh_.data_triangles = static_cast<std::uint32_t>(drawn_.size());
+  // Nothing drawn (a coarse tile of a small dataset whose few data vertices all touch NODATA
+  // corners): the globe shows through where the data are, so the error of what is drawn is at
+  // least the data's height above the ellipsoid; the streamer refines on it instead of taking
+  // an empty tile for a good enough one.
+  if (drawn_.empty()) {
+    for (std::size_t i = 0; i < vertices_.size(); ++i) {
+      if (tile_.is_nodata_vertex(i)) continue;
+      mesh_.geometric_error = std::max(mesh_.geometric_error, std::abs(vertices_[i].z));
+    }
+  }
 }
 
 // Double-precision ECEF of every vertex; the drawn height range; the mesh's origin and frame.
@@ -435,12 +445,29 @@ void MeshBuilder::write_indices() {
   }
 }
 
-// The box holds every vertex drawn: used surface vertices and all skirt vertices.
+// The box holds every vertex drawn (used surface vertices and all skirt vertices) and the whole
+// tile at the heights of its data: the NODATA corners with their heights clamped into the range of
+// the data vertices (a legacy corner at 0 m does not stretch the box down to the ellipsoid). The
+// streamer culls and measures distances with this box, and a tile's children may have data where
+// it draws nothing — at a coarse level a tile's footprint can even be empty (a few data vertices,
+// every triangle touching a NODATA corner), and a box of drawn vertices alone then sat at the
+// tile's centre, so the tile was culled and never refined.
 void MeshBuilder::fit_bounds() {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::size_t i = 0; i < vertices_.size(); ++i) {
+    if (tile_.is_nodata_vertex(i)) continue;
+    lo = std::min(lo, vertices_[i].z);
+    hi = std::max(hi, vertices_[i].z);
+  }
   std::vector<Vec3> points;
   points.reserve(vertices_.size() + skirt_points_.size());
-  for (std::size_t i = 0; i < vertices_.size(); ++i)
-    if (used_[i]) points.push_back(ecef_[i]);
+  for (std::size_t i = 0; i < vertices_.size(); ++i) {
+    if (used_[i] || !tile_.is_nodata_vertex(i)) {
+      points.push_back(ecef_[i]);
+    } else if (lo <= hi) {
+      points.push_back(terms_[i].ecef(std::clamp(vertices_[i].z, lo, hi)));
+    }
+  }
   points.insert(points.end(), skirt_points_.begin(), skirt_points_.end());
   if (points.empty()) points.push_back(mesh_.centre);
   mesh_.bounds = fit_obb(points, mesh_.centre, mesh_.frame);

@@ -220,6 +220,39 @@ TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
   EXPECT_LT(mesh.bounds.half[2], 100);
 }
 
+// A coarse tile of a small dataset: one data vertex inside four NODATA corners, so every triangle
+// touches a NODATA corner and nothing is drawn. Its box must still hold the tile (the corners at
+// the data's height) and the data vertex: the streamer culls and refines with it, and the
+// children's data lie there. A box of the drawn vertices alone sat at the tile's centre at 0 m:
+// the viewer culled such a level-0 tile over Oregon and never asked for its children.
+TEST(RenderMesh, ATileThatDrawsNothingStillBoundsItsRectangleAtItsDataHeights) {
+  const geo::TileId id{12, 2121, 1401};
+  const geo::MercatorRect r = id.bounds();
+  tile::TinTile t;
+  t.id = id;
+  t.corners = {tile::Vertex{r.min_x, r.max_y, 0, 0}, tile::Vertex{r.max_x, r.max_y, 0, 0},
+               tile::Vertex{r.min_x, r.min_y, 0, 0}, tile::Vertex{r.max_x, r.min_y, 0, 0}};
+  t.corner_nodata = {true, true, true, true};
+  const double data_z = 2500;
+  t.interior.push_back({r.min_x + 0.3 * r.width(), r.min_y + 0.6 * r.height(), data_z, 1});
+  t.triangles = {{0, 2, 4}, {2, 3, 4}, {3, 1, 4}, {1, 0, 4}};
+  t.update_z_range();
+  const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
+  EXPECT_EQ(mesh.data_triangles, 0u);
+  EXPECT_EQ(mesh.nodata_triangles, 4u);
+  EXPECT_EQ(mesh.surface_index_count, 0u);
+  for (const auto& c : t.corners) {
+    EXPECT_TRUE(mesh.bounds.contains(expected_ecef(c.x, c.y, data_z))) << c.x << "," << c.y;
+  }
+  const tile::Vertex& d = t.interior[0];
+  EXPECT_TRUE(mesh.bounds.contains(expected_ecef(d.x, d.y, d.z)));
+  // The corners' 0 m did not stretch the box towards the ellipsoid.
+  EXPECT_FALSE(mesh.bounds.contains(expected_ecef(d.x, d.y, 0)));
+  // Drawing nothing, it shows the globe where the data are: its error is at least their height,
+  // whatever the header says, so the streamer refines it.
+  EXPECT_GE(mesh.geometric_error, data_z);
+}
+
 TEST(RenderMesh, WideIndicesBeyond65536Vertices) {
   const geo::TileId id{18, 135000, 90000};
   const tile::TinTile t = testing::make_grid_tile(id, 260, testing::synthetic_height);

@@ -318,17 +318,18 @@ TEST_F(Viewer, SmallBudgetsEvictDuringAFlightAndHold) {
   const double lon0 = l.bounds.west + 0.25 * (l.bounds.east - l.bounds.west);
   const double lon1 = l.bounds.west + 0.75 * (l.bounds.east - l.bounds.west);
   const double lat = (l.bounds.south + l.bounds.north) / 2;
-  // Two views 18 km apart, straight down from 4 km at 960×540: each needs about 8.4 MB of GPU
-  // buffers (the coarse ancestors they share included), both together 13.5 MB (measured on the
-  // Big Tujunga store as main's lod of 2026-11-27 09:05 makes it, coarse levels recording 29 m;
-  // the largest tile 0.58 MB): 10 MB holds one view, not both.
+  // Two views 18 km apart, straight down from 4 km at 960×540: each needs 2.0 / 2.4 MB of GPU
+  // buffers and 4.0 / 3.7 MB of decoded tiles (the coarse ancestors they share included), both
+  // together 4.4 and 7.7 MB (measured on the Big Tujunga store as the lod of 2026-11-28 makes
+  // it, coarse tiles no denser than their level can show; the largest tile 0.66 MB): 3 MiB of
+  // GPU and 5 MiB of RAM hold one view, not both.
   std::ofstream(dir.path / "path.txt")
       << "0 " << lon0 << "," << lat << ",4000,0,-90\nwait complete\n"
       << "1 " << lon1 << "," << lat << ",4000,0,-90\nwait complete\n";
   const ViewerRun r =
       viewer({"--headless", "--size", "960x540", "--msaa", "0", "--no-legend", "--store",
               dem_.string(), "--camera-path", (dir.path / "path.txt").string(), "--fps", "10",
-              "--timeout", "300", "--gpu-mb", "10", "--cache-mb", "8"});
+              "--timeout", "300", "--gpu-mb", "3", "--cache-mb", "5"});
   EXPECT_EQ(r.status, 0) << r.err;
   ASSERT_TRUE(r.stats.is_object());
   ASSERT_GT(r.frames.size(), 3u);

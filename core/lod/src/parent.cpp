@@ -19,7 +19,6 @@
 #include <string>
 #include <tuple>
 
-#include "tinstream/geo/mercator.hpp"
 #include "tinstream/lod/error.hpp"
 
 namespace tinstream::lod {
@@ -252,32 +251,6 @@ double footprint_area(const TinTile& t) {
   return 0.5 * twice;
 }
 
-// The candidates' distinct positions on the parent's quantized-mesh grid (2^15 steps each way,
-// linear in longitude and latitude, docs/tile-format.md §8): corners, border, interior.
-std::size_t quantised_positions(const ThinInput& in) {
-  const geo::NormalisedMercator merc(geo::Projection::spherical);
-  const geo::LonLatRect rect = in.id.lonlat_bounds(merc);
-  constexpr double kSteps = 32767.0;
-  std::vector<std::uint32_t> cells;
-  cells.reserve(4 + in.north.size() + in.east.size() + in.south.size() + in.west.size() +
-                in.interior.size());
-  auto add = [&](const Vertex& v) {
-    const double u =
-        (geo::NormalisedMercator::lon_from_x(v.x) - rect.west) / (rect.east - rect.west);
-    const double w = (merc.lat_from_y(v.y) - rect.south) / (rect.north - rect.south);
-    const auto q = [](double t) {
-      return static_cast<std::uint32_t>(std::round(std::clamp(t, 0.0, 1.0) * kSteps));
-    };
-    cells.push_back((q(u) << 15) | q(w));
-  };
-  for (const auto& c : in.corners) add(c);
-  for (const auto* list : {&in.north, &in.east, &in.south, &in.west, &in.interior}) {
-    for (const auto& v : *list) add(v);
-  }
-  std::sort(cells.begin(), cells.end());
-  return static_cast<std::size_t>(std::unique(cells.begin(), cells.end()) - cells.begin());
-}
-
 }  // namespace
 
 std::size_t coverage_budget(double covered, const LodOptions& options) {
@@ -425,13 +398,6 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
     for (const auto& c : children.tiles) {
       if (c) ties.drawn.push_back(&c->tile);
     }
-  }
-  // Where the data are small in the parent (the outline budget decides), no more vertices than
-  // the candidates have distinct quantized-mesh positions: more would be bytes and triangles a
-  // client cannot tell apart (counted only there: elsewhere the area bound is far tighter).
-  if (thin_options.max_points <= outline_budget(options) + border && thin_options.max_points > 4) {
-    thin_options.max_points =
-        std::max<std::size_t>(4, std::min(thin_options.max_points, quantised_positions(in)));
   }
   auto thinned = thin_tile(in, thin_options, stats, &ties);
   if (!thinned.ok()) return thinned.error();

@@ -91,10 +91,12 @@ struct TileMesh {
   std::array<std::uint32_t, 4> cut_index_count{};
   std::vector<SkirtSpan> skirt_spans;  // one per skirt quad (sides, then cuts), in index order
   Obb bounds;                          // every drawn vertex, skirts at their deepest included
-  double geometric_error = 0;          // the tile's own (header), metres
-  double min_z = 0, max_z = 0;         // of the drawn vertices
-  double skirt_margin = 0;             // metres added to a skirt's depth against rounding
-  double skirt_lowest = 0;             // the lowest height a skirt may reach (the box holds it)
+  // The tile's own (header), metres; when no triangle is drawn (data_triangles = 0), at least
+  // the largest |height| of its data vertices: the globe shows through there.
+  double geometric_error = 0;
+  double min_z = 0, max_z = 0;  // of the drawn vertices
+  double skirt_margin = 0;      // metres added to a skirt's depth against rounding
+  double skirt_lowest = 0;      // the lowest height a skirt may reach (the box holds it)
   std::uint32_t data_triangles = 0, nodata_triangles = 0;
   std::uint8_t quadrant_data = 0;  // bit q (quadkey digit): a drawn triangle reaches quadrant q
 

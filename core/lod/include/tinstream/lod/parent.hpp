@@ -39,15 +39,17 @@
 // level thus keeps at most the vertex density of full tiles one level finer instead of
 // max_points per tile wherever its tiles are larger than the data (until 2026-11-28 a small LiDAR
 // crop kept ~9,000 vertices at every level 0–13, Big Tujunga's level-0 tile 16,384 vertices at
-// 1,228 distinct quantized-mesh positions). Where the outline budget decides, the parent also keeps
-// no more vertices than its candidates have distinct positions on its quantized-mesh grid (2^15
-// steps each way, linear in longitude and latitude): more are bytes and triangles no client can
-// tell apart. The border keeps the per-side budget of max_points (thinning.hpp side_budget), which
-// the tile across computes too, so same-level tiles stay watertight; a tile holds more than its
-// budget only where its corners and kept border points alone exceed it. A parent that would take
-// its one child's vertices as candidates (Sources::candidates_from_children) but keeps fewer than
-// those is thinned from its sources instead. The error is chained and recorded as before, so a
-// smaller budget records the larger error it makes.
+// 1,228 distinct quantized-mesh positions). The outline budget is not cut further (say, to the
+// candidates' distinct quantized-mesh positions, tried 2026-11-28): a client that draws the data
+// footprint only (tinstream-viewer) then saw a coarse tile of a small dataset as a sliver of it,
+// its few vertices' triangles all touching NODATA corners, while the recorded error, measured
+// over the data, let it stop there. The border keeps the per-side budget of max_points
+// (thinning.hpp side_budget), which the tile across computes too, so same-level tiles stay
+// watertight; a tile holds more than its budget only where its corners and kept border points alone
+// exceed it. A parent that would take its one child's vertices as candidates
+// (Sources::candidates_from_children) but keeps fewer than those is thinned from its sources
+// instead. The error is chained and recorded as before, so a smaller budget records the larger
+// error it makes.
 //
 // Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
