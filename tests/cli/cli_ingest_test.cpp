@@ -45,6 +45,7 @@ Outcome run(const std::vector<std::string>& args) {
     std::freopen(out_file.c_str(), "w", stdout);
     std::freopen(err_file.c_str(), "w", stderr);
     std::vector<char*> argv;
+    argv.reserve(args.size() + 1);
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     ::execv(argv[0], argv.data());
@@ -211,6 +212,15 @@ TEST_F(Cli, LidarLasIngestVerifiesAndExports) {
   const auto all_report = nlohmann::json::parse(all.out);
   EXPECT_GT(all_report["error_checks"], 0);
   EXPECT_LE(all_report["worst_error_ratio"], 1.0);
+  // --surface-error adds the overlay check and its ratio; the exit status follows its verdict
+  // (stored errors bound the finest data points, so the surface may be further; README).
+  const Outcome surface = run({kTinstream.string(), "verify", "--store", store_.string(), "--layer",
+                               "autzen", "-q", "--surface-error"});
+  ASSERT_NE(surface.status, 2) << surface.err;
+  const auto surface_report = nlohmann::json::parse(surface.out);
+  EXPECT_GT(surface_report["worst_surface_ratio"], 0.0);
+  EXPECT_EQ(surface.status == 0, surface_report["ok"] == true);
+  EXPECT_FALSE(nlohmann::json::parse(v.out).contains("worst_surface_ratio"));
   const Outcome typo = run({kTinstream.string(), "verify", "--store", store_.string(), "--layer",
                             "autzen", "--error-samples", "lots"});
   EXPECT_EQ(typo.status, 2);
@@ -373,7 +383,7 @@ TEST_F(Cli, BadInputsGiveClearErrorsAndLeaveTheStoreUnchanged) {
     header[105] = 20;                     // record length
     header[107] = 100;                    // 100 points
     const double scale = 0.01;
-    for (int i = 0; i < 3; ++i) std::memcpy(header.data() + 131 + 8 * i, &scale, 8);
+    for (std::size_t i = 0; i < 3; ++i) std::memcpy(header.data() + 131 + 8 * i, &scale, 8);
     out.write(header.data(), header.size());
     out.write("short", 5);
   }

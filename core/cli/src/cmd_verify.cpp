@@ -15,7 +15,7 @@ namespace {
 struct VerifyArgs {
   std::string store, layer;
   std::string error_samples = "4";
-  bool no_delaunay = false, quiet = false;
+  bool no_delaunay = false, surface_error = false, quiet = false;
 };
 
 int run(const VerifyArgs& a) {
@@ -27,6 +27,7 @@ int run(const VerifyArgs& a) {
   ProgressPrinter printer(a.quiet);
   ingest::VerifyOptions options;
   options.delaunay = !a.no_delaunay;
+  options.surface_error = a.surface_error;
   if (a.error_samples == "all") {
     options.error_samples = SIZE_MAX;
   } else {
@@ -56,6 +57,7 @@ int run(const VerifyArgs& a) {
                    {"problems", report->problems},
                    {"messages", report->messages},
                    {"ok", report->ok()}};
+  if (a.surface_error) j["worst_surface_ratio"] = report->worst_surface_ratio;
   std::cout << j.dump(2) << "\n";
   return report->ok() ? 0 : 1;
 }
@@ -75,6 +77,9 @@ const CommandRegistration kRegistration{
                      "geometric error bounds the finest surface: a count (0 = no check) or "
                      "'all' (exhaustive)")
           ->default_str("4");
+      sub.add_flag("--surface-error", a->surface_error,
+                   "Also check each sampled stored error against the exact maximum difference "
+                   "to the finest surface (edge crossings included), not only at its points");
       sub.add_flag("-q,--quiet", a->quiet, "No progress display");
       return [a] { return run(*a); };
     }};

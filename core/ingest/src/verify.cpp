@@ -191,8 +191,9 @@ class TileCache {
 // against the finest surface on a sample of the finest tiles under it (verify.hpp).
 class ErrorCheck {
  public:
-  ErrorCheck(const std::vector<geo::TileId>& ids, std::uint32_t finest, std::size_t samples)
-      : finest_(finest), samples_(samples) {
+  ErrorCheck(const std::vector<geo::TileId>& ids, std::uint32_t finest, std::size_t samples,
+             bool surface)
+      : finest_(finest), samples_(samples), surface_(surface) {
     // The finest tiles in Morton order: a tile's descendants are one contiguous range of them.
     for (const auto& id : ids) {
       if (id.z == finest) finest_morton_.emplace_back(id.morton(), id);
@@ -221,6 +222,7 @@ class ErrorCheck {
                    " m is below the error measured against the finest surface, " +
                    std::to_string(*measured) + " m");
     }
+    if (surface_) check_surface(t, sample, name, problems, report);
   }
 
  private:
@@ -244,8 +246,30 @@ class ErrorCheck {
     return sample;
   }
 
+  // The exact maximum over the sample's data triangles (the overlay: vertices and edge crossings),
+  // which the vertex sample above only bounds from below. The allowance covers this evaluation's
+  // own rounding.
+  static void check_surface(const tile::TinTile& t, const std::vector<tile::TinTile>& sample,
+                            const std::string& name, Problems& problems, VerifyReport& report) {
+    std::vector<const tile::TinTile*> fines;
+    fines.reserve(sample.size());
+    for (const auto& f : sample) fines.push_back(&f);
+    const double overlay = lod::surface_difference(t, fines).max_abs;
+    if (t.geometric_error > 0) {
+      report.worst_surface_ratio =
+          std::max(report.worst_surface_ratio, overlay / t.geometric_error);
+    }
+    if (overlay > t.geometric_error + lod::error_rounding_allowance(t)) {
+      problems.add(name + ": stored geometric error " + std::to_string(t.geometric_error) +
+                   " m is below the maximum difference to the finest surface (overlay, edge "
+                   "crossings included), " +
+                   std::to_string(overlay) + " m");
+    }
+  }
+
   std::uint32_t finest_;
   std::size_t samples_;
+  bool surface_;
   std::vector<std::pair<std::uint64_t, geo::TileId>> finest_morton_;
 };
 
@@ -301,7 +325,7 @@ Result<VerifyReport> verify_layer(store::TileStore& store, const std::string& la
   TileCache cache(store, layer, problems);
   std::map<geo::TileId, bool> present;
   for (const auto& id : *ids) present[id] = true;
-  const ErrorCheck error_check(*ids, finest, options.error_samples);
+  const ErrorCheck error_check(*ids, finest, options.error_samples, options.surface_error);
 
   std::uint64_t finest_source_points = 0;
   std::map<std::uint32_t, std::uint64_t> per_level;

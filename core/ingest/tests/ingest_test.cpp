@@ -8,9 +8,11 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <random>
 
 #include "tinstream/ingest/verify.hpp"
+#include "tinstream/lod/error.hpp"
 
 namespace tinstream::ingest {
 namespace {
@@ -231,6 +233,69 @@ TEST_F(IngestTest, VerifyChecksStoredErrorsAgainstTheFinestSurface) {
   ASSERT_TRUE(skipped.ok());
   EXPECT_TRUE(skipped->ok());
   EXPECT_EQ(skipped->error_checks, 0u);
+}
+
+// The vertex sample (lod::measured_max_error) is a lower bound of the surface difference: it misses
+// the maxima where a coarse edge crosses a finest edge. A parent of the finest level whose stored
+// error lies between the two passes the default check and fails with --surface-error, which names
+// the tile, the stored and the overlay maximum. (The LOD's stored errors bound the finest data
+// points, not the surface between them, so other tiles of this fresh layer may fail it too.)
+TEST_F(IngestTest, VerifySurfaceErrorFindsAnErrorBetweenTheVertexSampleAndTheOverlay) {
+  ASSERT_TRUE(run_ingest(options({write_xyz("s.xyz", 8000, 11)}, "s")).ok());
+  auto store = store::TileStore::open(dir_ / "store.sqlite", store::TileStore::Mode::read_write);
+  ASSERT_TRUE(store.ok());
+  const auto info = *store->layer("s");
+  ASSERT_GT(info.max_level, info.min_level);
+  const auto ids = store->tile_ids("s");
+  ASSERT_TRUE(ids.ok());
+  // A parent of the finest level (verify samples all of its at most 4 children) whose overlay
+  // maximum exceeds its vertex sample by more than the rounding allowances.
+  std::optional<geo::TileId> chosen;
+  double vertex = 0, overlay = 0;
+  for (const auto& id : *ids) {
+    if (id.z + 1 != info.max_level) continue;
+    const auto t = **store->read_tile("s", id);
+    std::vector<tile::TinTile> children;
+    for (const auto& c : id.children()) {
+      if (auto ct = store->read_tile("s", c); ct.ok() && ct->has_value()) {
+        children.push_back(**ct);
+      }
+    }
+    if (children.empty()) continue;
+    std::vector<const tile::TinTile*> fines;
+    fines.reserve(children.size());
+    for (const auto& c : children) fines.push_back(&c);
+    const double v = *lod::measured_max_error(t, children);
+    const double o = lod::surface_difference(t, fines).max_abs;
+    if (o - v > 4 * lod::error_rounding_allowance(t) + 1e-3) {
+      chosen = id, vertex = v, overlay = o;
+      break;
+    }
+  }
+  ASSERT_TRUE(chosen.has_value()) << "no parent of the finest level where the overlay matters";
+  const double stored = 0.5 * (vertex + overlay);
+  republish(*store, "s", [&](tile::TinTile& t) {
+    if (t.id == *chosen) t.geometric_error = stored;
+  });
+  auto plain = verify_layer(*store, "s");
+  ASSERT_TRUE(plain.ok());
+  EXPECT_TRUE(plain->ok()) << (plain->messages.empty() ? "" : plain->messages.front());
+  VerifyOptions strict;
+  strict.surface_error = true;
+  strict.max_problems = SIZE_MAX;
+  auto bad = verify_layer(*store, "s", strict);
+  ASSERT_TRUE(bad.ok());
+  EXPECT_FALSE(bad->ok());
+  EXPECT_GT(bad->worst_surface_ratio, 1.0);
+  const std::string expected = "tile " + chosen->quadkey() + " (" + chosen->to_string() +
+                               "): stored geometric error " + std::to_string(stored) +
+                               " m is below the maximum difference to the finest surface";
+  const auto named = std::find_if(bad->messages.begin(), bad->messages.end(),
+                                  [&](const auto& m) { return m.rfind(expected, 0) == 0; });
+  ASSERT_NE(named, bad->messages.end()) << expected;
+  // The measured metres: the overlay maximum over the same tiles (up to the printed digits).
+  const std::string tail = named->substr(named->rfind(", ") + 2);
+  EXPECT_NEAR(std::stod(tail), overlay, 1e-6) << *named;
 }
 
 // #20: an edge point 1e-14 beside a tile corner became a duplicate vertex and zero-area triangles
