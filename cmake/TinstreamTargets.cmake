@@ -47,10 +47,20 @@ function(tinstream_setup_toolchain)
   # Unity builds of the test executables (CMake's UNITY_BUILD: TINSTREAM_UNITY_BATCH .cpp files
   # #included into one generated file and compiled as one, so gtest and the shared headers are
   # parsed once a batch): CI's compile CPU (docs/SECURITY.md, "CI"). The product (libraries and
-  # executables) is compiled one object per file in every tree. OFF for development: an edit
-  # recompiles its whole batch.
+  # executables) is compiled one object per file unless TINSTREAM_UNITY_PRODUCT. OFF for
+  # development: an edit recompiles its whole batch.
   option(TINSTREAM_UNITY "Unity-build the test executables" OFF)
   set(TINSTREAM_UNITY_BATCH 8 CACHE STRING "Source files per unity batch")
+  # The product too (every target created after this: libraries, executables), for a tree that
+  # is only tested (the ASan tree): what ships stays one object per file.
+  option(TINSTREAM_UNITY_PRODUCT "Unity-build the libraries and executables too" OFF)
+  if(TINSTREAM_UNITY_PRODUCT)
+    set(CMAKE_UNITY_BUILD ON PARENT_SCOPE)
+    set(CMAKE_UNITY_BUILD_BATCH_SIZE ${TINSTREAM_UNITY_BATCH} PARENT_SCOPE)
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      add_compile_options(-Wno-subobject-linkage)  # see tinstream_unity_warnings
+    endif()
+  endif()
   option(TINSTREAM_FAST_TEST_BUILD "Compile test code at -O0 (sanitizers) or -O1 (Release)" ON)
 endfunction()
 
