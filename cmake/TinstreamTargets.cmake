@@ -44,6 +44,23 @@ function(tinstream_setup_toolchain)
     add_link_options(-fuse-ld=lld)
   endif()
   set(CMAKE_EXPORT_COMPILE_COMMANDS ON PARENT_SCOPE)
+  # Unity builds of the test executables (CMake's UNITY_BUILD: TINSTREAM_UNITY_BATCH .cpp files
+  # #included into one generated file and compiled as one, so gtest and the shared headers are
+  # parsed once a batch): CI's compile CPU (docs/SECURITY.md, "CI"). The product (libraries and
+  # executables) is compiled one object per file unless TINSTREAM_UNITY_PRODUCT. OFF for
+  # development: an edit recompiles its whole batch.
+  option(TINSTREAM_UNITY "Unity-build the test executables" OFF)
+  set(TINSTREAM_UNITY_BATCH 8 CACHE STRING "Source files per unity batch")
+  # The product too (every target created after this: libraries, executables), for a tree that
+  # is only tested (the ASan tree): what ships stays one object per file.
+  option(TINSTREAM_UNITY_PRODUCT "Unity-build the libraries and executables too" OFF)
+  if(TINSTREAM_UNITY_PRODUCT)
+    set(CMAKE_UNITY_BUILD ON PARENT_SCOPE)
+    set(CMAKE_UNITY_BUILD_BATCH_SIZE ${TINSTREAM_UNITY_BATCH} PARENT_SCOPE)
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      add_compile_options(-Wno-subobject-linkage)  # see tinstream_unity_warnings
+    endif()
+  endif()
   option(TINSTREAM_FAST_TEST_BUILD "Compile test code at -O0 (sanitizers) or -O1 (Release)" ON)
 endfunction()
 
@@ -63,6 +80,25 @@ function(tinstream_configure_target target)
         target_compile_options(${target} PRIVATE -Wno-error=maybe-uninitialized)
       endif()
     endif()
+  endif()
+endfunction()
+
+# In a unity batch every .cpp is an #included file, and GCC's -Wsubobject-linkage (meant for
+# headers) then flags each class of one .cpp holding a member of that file's anonymous namespace.
+function(tinstream_unity_warnings target)
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+    target_compile_options(${target} PRIVATE -Wno-subobject-linkage)
+  endif()
+endfunction()
+
+# A test executable: unity-built when TINSTREAM_UNITY is on (a source with its own
+# COMPILE_OPTIONS, such as OPTIMIZED_SOURCES, stays a file of its own: CMake leaves it out).
+function(tinstream_configure_test_target target)
+  tinstream_configure_target(${target})
+  if(TINSTREAM_UNITY)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON
+                                               UNITY_BUILD_BATCH_SIZE ${TINSTREAM_UNITY_BATCH})
+    tinstream_unity_warnings(${target})
   endif()
 endfunction()
 
@@ -89,7 +125,7 @@ function(tinstream_add_test name)
     TINSTREAM_SHARED_DATA="${TINSTREAM_SHARED_DATA}"
     TINSTREAM_BINARY_DIR="${CMAKE_BINARY_DIR}"
     TINSTREAM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-  tinstream_configure_target(${name})
+  tinstream_configure_test_target(${name})
   # What a test exercises is the libraries, built at the tree's optimisation; the test's own code
   # (gtest macros, Beast clients, CLI11, JSON) is compiled for build speed: -O0 in the sanitizer
   # trees, where instrumenting it at -O1 was half of CI's compile time (integration_test.cpp:

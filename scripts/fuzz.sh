@@ -54,10 +54,12 @@ out=${out:-$build/fuzz-out}
 
 if ((do_build)); then
   if [[ ! -f $build/build.ninja ]]; then
-    # -O1 -g without NDEBUG: the asserts (programmer errors) are fuzzed too.
+    # -O1 without NDEBUG: the asserts (programmer errors) are fuzzed too. -g1 (line tables: every
+    # report's frames keep file:line) compiles in 12% less CPU than -g (4 of the heaviest TUs,
+    # clang 14, 2026-11-28: 67 s against 76 s).
     cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" \
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1" \
       -DTINSTREAM_FUZZ=ON -DTINSTREAM_BUILD_TESTS=OFF -DTINSTREAM_BUILD_CLIENT=OFF \
       -DTINSTREAM_WERROR=OFF >/dev/null
   fi

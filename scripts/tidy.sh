@@ -11,6 +11,12 @@ cd "$(dirname "$0")/.."
 build=${1:-build}
 shift || true
 [[ -f $build/compile_commands.json ]] || { echo "tidy.sh: no $build/compile_commands.json (configure first)" >&2; exit 2; }
+# A unity build's compile commands name its batches, not the files in them: those files would be
+# skipped below as "not compiled in this build".
+if grep -q '/Unity/unity_' "$build/compile_commands.json"; then
+  echo "tidy.sh: $build is a unity build (TINSTREAM_UNITY=ON); use a build configured without it" >&2
+  exit 2
+fi
 if (($#)); then files=("$@"); else mapfile -t files < <(git ls-files 'core/*.cpp' 'server/*.cpp' 'client/*.cpp' | grep -v '/fuzz/'); fi
 cache=${XDG_CACHE_HOME:-$HOME/.cache}/tinstream-tidy
 mkdir -p "$cache"

@@ -13,7 +13,7 @@ namespace {
 
 using testing::TempDir;
 
-TileKey key(std::uint32_t x) { return {TileKind::terrain, 0, {12, x, 1400}}; }
+TileKey disk_key(std::uint32_t x) { return {TileKind::terrain, 0, {12, x, 1400}}; }
 
 LayerDescription layer(std::int64_t version = 3) {
   LayerDescription l;
@@ -32,9 +32,9 @@ TEST(DiskCache, RoundTripsAndCountsHitsAndMisses) {
   TempDir dir("disk_roundtrip");
   auto cache = DiskCache::open(dir.path / "c", 1 << 20);
   ASSERT_TRUE(cache.ok()) << cache.error().message;
-  EXPECT_FALSE((*cache)->get(key(1), layer()).has_value());
-  (*cache)->put(key(1), layer(), entry(1000, 7, "\"e1\""));
-  const auto got = (*cache)->get(key(1), layer());
+  EXPECT_FALSE((*cache)->get(disk_key(1), layer()).has_value());
+  (*cache)->put(disk_key(1), layer(), entry(1000, 7, "\"e1\""));
+  const auto got = (*cache)->get(disk_key(1), layer());
   ASSERT_TRUE(got.has_value());
   EXPECT_EQ(got->etag, "\"e1\"");
   EXPECT_EQ(got->encoding, ContentEncoding::deflate);
@@ -43,9 +43,9 @@ TEST(DiskCache, RoundTripsAndCountsHitsAndMisses) {
   EXPECT_EQ(c.hits, 1u);
   EXPECT_EQ(c.misses, 1u);
   EXPECT_TRUE(std::filesystem::exists(dir.path / "c/terrain/dem/v3-1700000000" /
-                                      (key(1).tile.quadkey() + ".tile")));
+                                      (disk_key(1).tile.quadkey() + ".tile")));
   // Another version of the layer does not see it.
-  EXPECT_FALSE((*cache)->get(key(1), layer(4)).has_value());
+  EXPECT_FALSE((*cache)->get(disk_key(1), layer(4)).has_value());
 }
 
 TEST(DiskCache, EvictsTheLeastRecentlyUsedAndSurvivesARestart) {
@@ -54,13 +54,13 @@ TEST(DiskCache, EvictsTheLeastRecentlyUsedAndSurvivesARestart) {
     auto cache = DiskCache::open(dir.path, 3500);  // three 1 KB tiles (plus headers)
     ASSERT_TRUE(cache.ok());
     for (std::uint32_t i = 0; i < 3; ++i) {
-      (*cache)->put(key(i), layer(), entry(1000, static_cast<std::uint8_t>(i)));
+      (*cache)->put(disk_key(i), layer(), entry(1000, static_cast<std::uint8_t>(i)));
       std::this_thread::sleep_for(std::chrono::milliseconds(15));  // distinct modification times
     }
-    ASSERT_TRUE((*cache)->get(key(0), layer()).has_value());  // 0 used: 1 is the oldest now
-    (*cache)->touch(key(0), layer());
-    (*cache)->put(key(3), layer(), entry(1000, 3));
-    EXPECT_FALSE((*cache)->get(key(1), layer()).has_value());
+    ASSERT_TRUE((*cache)->get(disk_key(0), layer()).has_value());  // 0 used: 1 is the oldest now
+    (*cache)->touch(disk_key(0), layer());
+    (*cache)->put(disk_key(3), layer(), entry(1000, 3));
+    EXPECT_FALSE((*cache)->get(disk_key(1), layer()).has_value());
     const TierCounters c = (*cache)->counters();
     EXPECT_LE(c.bytes, c.budget);
     EXPECT_EQ(c.evictions, 1u);
@@ -70,7 +70,7 @@ TEST(DiskCache, EvictsTheLeastRecentlyUsedAndSurvivesARestart) {
   ASSERT_TRUE(reopened.ok());
   EXPECT_EQ((*reopened)->counters().entries, 3u);
   for (std::uint32_t i : {0u, 2u, 3u}) {
-    const auto e = (*reopened)->get(key(i), layer());
+    const auto e = (*reopened)->get(disk_key(i), layer());
     ASSERT_TRUE(e.has_value()) << i;
     EXPECT_EQ(e->bytes.front(), i);
   }
@@ -84,10 +84,10 @@ TEST(DiskCache, NeverMoreThanOneTileOverBudget) {
   TempDir dir("disk_over");
   auto cache = DiskCache::open(dir.path, 500);
   ASSERT_TRUE(cache.ok());
-  (*cache)->put(key(1), layer(), entry(2000, 1));  // alone larger than the budget: kept
-  EXPECT_TRUE((*cache)->get(key(1), layer()).has_value());
-  (*cache)->put(key(2), layer(), entry(100, 2));  // the big one goes
-  EXPECT_FALSE((*cache)->get(key(1), layer()).has_value());
+  (*cache)->put(disk_key(1), layer(), entry(2000, 1));  // alone larger than the budget: kept
+  EXPECT_TRUE((*cache)->get(disk_key(1), layer()).has_value());
+  (*cache)->put(disk_key(2), layer(), entry(100, 2));  // the big one goes
+  EXPECT_FALSE((*cache)->get(disk_key(1), layer()).has_value());
   EXPECT_LE((*cache)->counters().bytes, 500u);
 }
 
@@ -95,10 +95,10 @@ TEST(DiskCache, ADamagedFileIsAMissAndIsRemoved) {
   TempDir dir("disk_damaged");
   auto cache = DiskCache::open(dir.path, 1 << 20);
   ASSERT_TRUE(cache.ok());
-  (*cache)->put(key(5), layer(), entry(100, 5));
-  const auto file = dir.path / "terrain/dem/v3-1700000000" / (key(5).tile.quadkey() + ".tile");
+  (*cache)->put(disk_key(5), layer(), entry(100, 5));
+  const auto file = dir.path / "terrain/dem/v3-1700000000" / (disk_key(5).tile.quadkey() + ".tile");
   std::ofstream(file, std::ios::binary | std::ios::trunc) << "XXXX";
-  EXPECT_FALSE((*cache)->get(key(5), layer()).has_value());
+  EXPECT_FALSE((*cache)->get(disk_key(5), layer()).has_value());
   EXPECT_FALSE(std::filesystem::exists(file));
 }
 

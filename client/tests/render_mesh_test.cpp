@@ -112,7 +112,8 @@ TEST(RenderMesh, FastEcefAgreesWithGeographicLib) {
 
 TEST(RenderMesh, FineTileKeepsMillimetres) {
   const geo::TileId id{20, 549321, 355123};
-  const tile::TinTile t = testing::make_grid_tile(id, 9, testing::synthetic_height);
+  const tile::TinTile t =
+      tinstream::testing::make_grid_tile(id, 9, tinstream::testing::synthetic_height);
   const auto payload = tile::compress(tile::encode(t));
   auto mesh = decode_render_mesh(payload, ContentEncoding::deflate, layer_for(id),
                                  {TileKind::terrain, 0, id});
@@ -140,7 +141,8 @@ TEST(RenderMesh, FineTileKeepsMillimetres) {
 
 TEST(RenderMesh, BoundsHoldEveryVertexSkirtsIncluded) {
   const geo::TileId id{14, 8490, 5610};
-  const tile::TinTile t = testing::make_grid_tile(id, 17, testing::synthetic_height);
+  const tile::TinTile t =
+      tinstream::testing::make_grid_tile(id, 17, tinstream::testing::synthetic_height);
   const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
     EXPECT_TRUE(mesh.bounds.contains(world_of(mesh, i))) << "vertex " << i;
@@ -148,7 +150,8 @@ TEST(RenderMesh, BoundsHoldEveryVertexSkirtsIncluded) {
 
 TEST(RenderMesh, SkirtVerticesSitOnTheBorderAndTheBoxHoldsTheirDeepest) {
   const geo::TileId id{16, 33960, 22440};
-  const tile::TinTile t = testing::make_grid_tile(id, 5, [](double, double) { return 250.0; });
+  const tile::TinTile t =
+      tinstream::testing::make_grid_tile(id, 5, [](double, double) { return 250.0; });
   LayerDescription layer = layer_for(id);
   layer.min_z = 200;
   const TileMesh mesh = build_render_mesh(t, layer, {TileKind::terrain, 0, id});
@@ -190,7 +193,7 @@ TEST(RenderMesh, SkirtVerticesSitOnTheBorderAndTheBoxHoldsTheirDeepest) {
 
 TEST(RenderMesh, NodataTrianglesAreNotDrawn) {
   const geo::TileId id{12, 2121, 1401};
-  tile::TinTile t = testing::make_grid_tile(id, 3, testing::synthetic_height);
+  tile::TinTile t = tinstream::testing::make_grid_tile(id, 3, tinstream::testing::synthetic_height);
   // NE, SW and SE without data (z = 0), as tiles at the data's edge have them.
   for (std::size_t c : {1u, 2u, 3u}) {
     t.corner_nodata[c] = true;
@@ -255,7 +258,8 @@ TEST(RenderMesh, ATileThatDrawsNothingStillBoundsItsRectangleAtItsDataHeights) {
 
 TEST(RenderMesh, WideIndicesBeyond65536Vertices) {
   const geo::TileId id{18, 135000, 90000};
-  const tile::TinTile t = testing::make_grid_tile(id, 260, testing::synthetic_height);
+  const tile::TinTile t =
+      tinstream::testing::make_grid_tile(id, 260, tinstream::testing::synthetic_height);
   const TileMesh mesh = build_render_mesh(t, layer_for(id), {TileKind::terrain, 0, id});
   EXPECT_TRUE(mesh.indices16.empty());
   EXPECT_EQ(mesh.indices32.size(), mesh.index_count());
@@ -264,7 +268,8 @@ TEST(RenderMesh, WideIndicesBeyond65536Vertices) {
 
 TEST(RenderMesh, GzipAndDeflatePayloadsGiveTheSameMesh) {
   const geo::TileId id{13, 4242, 2800};
-  const auto raw = tile::encode(testing::make_grid_tile(id, 7, testing::synthetic_height));
+  const auto raw =
+      tile::encode(tinstream::testing::make_grid_tile(id, 7, tinstream::testing::synthetic_height));
   // gzip through zlib itself (not the code under test).
   std::vector<std::uint8_t> gz(compressBound(static_cast<uLong>(raw.size())) + 64);
   z_stream zs{};
@@ -289,7 +294,8 @@ TEST(RenderMesh, GzipAndDeflatePayloadsGiveTheSameMesh) {
 TEST(RenderMesh, BadPayloadsAreErrorsNamingTheTile) {
   const geo::TileId id{13, 4242, 2800};
   const TileKey key{TileKind::terrain, 0, id};
-  const auto raw = tile::encode(testing::make_grid_tile(id, 5, testing::synthetic_height));
+  const auto raw =
+      tile::encode(tinstream::testing::make_grid_tile(id, 5, tinstream::testing::synthetic_height));
   // Truncated.
   auto truncated = decode_render_mesh(std::span(raw).first(raw.size() - 3),
                                       ContentEncoding::identity, layer_for(id), key);

@@ -194,8 +194,10 @@ TEST(Skirts, OnlyQuadsBesideTheNeighboursDataHang) {
   // the rest of the side would stand beyond N's data (the fin of #17).
   MeshFrame f;
   const geo::TileId t_id{12, 2120, 1400}, n_id{13, 4242, 2800};
-  const TileMesh& t = f.add(testing::make_grid_tile(t_id, 5, testing::synthetic_height));
-  tile::TinTile n = testing::make_grid_tile(n_id, 3, testing::synthetic_height);
+  const TileMesh& t =
+      f.add(tinstream::testing::make_grid_tile(t_id, 5, tinstream::testing::synthetic_height));
+  tile::TinTile n =
+      tinstream::testing::make_grid_tile(n_id, 3, tinstream::testing::synthetic_height);
   n.corner_nodata[2] = true;
   const TileMesh& nm = f.add(n);
   plan_skirts(f.draws);
@@ -226,9 +228,11 @@ TEST(Skirts, AParentsCutHangsTowardsItsChildWhereTheChildHasData) {
   // and NE and SE (y = mid, east half) hang, all along; the other two cuts do not exist
   // (SW, SE, NW are all drawn).
   MeshFrame f;
-  const TileMesh& p =
-      f.add(testing::make_grid_tile({12, 2120, 1400}, 4, testing::synthetic_height), 0b1101);
-  f.add(testing::make_grid_tile({13, 4241, 2800}, 5, testing::synthetic_height));
+  const TileMesh& p = f.add(
+      tinstream::testing::make_grid_tile({12, 2120, 1400}, 4, tinstream::testing::synthetic_height),
+      0b1101);
+  f.add(tinstream::testing::make_grid_tile({13, 4241, 2800}, 5,
+                                           tinstream::testing::synthetic_height));
   plan_skirts(f.draws);
   const geo::MercatorRect r = geo::TileId{12, 2120, 1400}.bounds();
   const double mx = (r.min_x + r.max_x) / 2, my = (r.min_y + r.max_y) / 2;

@@ -20,7 +20,7 @@ namespace {
 using nlohmann::json;
 using testing::TempDir;
 
-const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+using testing::kTile;
 
 void sql(const std::filesystem::path& store, const std::string& statement) {
   sqlite3* db = nullptr;

@@ -53,7 +53,7 @@ class HandlerTest : public ::testing::Test {
   Context ctx_;
 };
 
-const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+using testing::kTile;
 
 TEST_F(HandlerTest, NativeTileIsTheStoredBlobWithDeflate) {
   const Response r = get("/tiles/lux/" + kTile.quadkey(), "gzip, deflate");

@@ -23,7 +23,7 @@ namespace {
 using nlohmann::json;
 using testing::TempDir;
 
-const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+using testing::kTile;
 const geo::TileId kOther = *geo::TileId::from_zxy(12, 2122, 1401);
 
 // Runs `sql` on the store file with `blob` bound to every `?` (SQLite's own API: the store's

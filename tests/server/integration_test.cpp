@@ -36,7 +36,7 @@ using testing::HttpConnection;
 using testing::OpenFilesLimit;
 using testing::TempDir;
 
-const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+using testing::kTile;
 const std::map<std::string, std::string> kAdmin = {{"Authorization", "Bearer tok"},
                                                    {"Content-Type", "application/json"}};
 

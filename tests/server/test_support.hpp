@@ -14,6 +14,9 @@
 
 namespace tinstream::testing {
 
+// The tile the server suites store and request.
+inline const geo::TileId kTile = *geo::TileId::from_zxy(12, 2121, 1401);
+
 // A fresh directory under the build tree, removed by the destructor.
 struct TempDir {
   explicit TempDir(const std::string& name);

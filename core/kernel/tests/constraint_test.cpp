@@ -9,10 +9,7 @@
 namespace tinstream::kernel {
 namespace {
 
-void expect_valid(const Triangulation& t) {
-  const Status s = t.check_valid(CheckLevel::expensive);
-  ASSERT_TRUE(s.ok()) << s.error().message;
-}
+using test::expect_valid;
 
 TEST(Constraint, ExistingEdgeBecomesConstrained) {
   Triangulation t;

@@ -12,10 +12,7 @@ namespace {
 
 using test::sorted;
 
-void expect_valid(const Triangulation& t, CheckLevel level = CheckLevel::expensive) {
-  const Status s = t.check_valid(level);
-  ASSERT_TRUE(s.ok()) << s.error().message;
-}
+using test::expect_valid;
 
 std::size_t count_containing(const Triangulation& t, VertexId v) {
   std::size_t n = 0;
@@ -122,12 +119,9 @@ TEST(Delaunay, CollinearPointsWaitForAPointOffTheirLine) {
   expect_valid(t);
 }
 
-struct Generator {
-  const char* name;
-  std::vector<Point3> (*make)();
-};
+using test::Generator;
 
-const Generator kGenerators[] = {
+const Generator kInsertionGenerators[] = {
     {"uniform", [] { return test::uniform_points(300, 1); }},
     {"clustered", [] { return test::clustered_points(300, 2); }},
     {"lattice", [] { return test::lattice_points(17); }},
@@ -183,7 +177,7 @@ TEST_P(DelaunayProperty, BulkInsertionGivesAValidTriangulationOfAllPoints) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Fixtures, DelaunayProperty, ::testing::ValuesIn(kGenerators),
+INSTANTIATE_TEST_SUITE_P(Fixtures, DelaunayProperty, ::testing::ValuesIn(kInsertionGenerators),
                          [](const auto& p) { return std::string(p.param.name); });
 
 TEST(Delaunay, GeneralPositionResultDoesNotDependOnInsertionOrder) {

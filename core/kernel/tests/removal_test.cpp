@@ -14,10 +14,7 @@ namespace {
 
 using test::sorted;
 
-void expect_valid(const Triangulation& t) {
-  const Status s = t.check_valid(CheckLevel::expensive);
-  ASSERT_TRUE(s.ok()) << s.error().message;
-}
+using test::expect_valid;
 
 std::set<VertexTriple> triangle_set(const Triangulation& t) {
   std::set<VertexTriple> s;
@@ -193,10 +190,7 @@ TEST(Removal, EditsBetweenPreviewAndRemovalAreHonoured) {
   }
 }
 
-struct Generator {
-  const char* name;
-  std::vector<Point3> (*make)();
-};
+using test::Generator;
 
 // Parallel scan lines with jitter, coordinates rounded to 1 cm as in LAS files (the benchmark's
 // LiDAR-like set, small): many exactly collinear and cocircular quadruples, so the ear queue's
@@ -218,7 +212,7 @@ std::vector<Point3> quantised_scan_lines(std::size_t n, std::uint32_t seed) {
   return p;
 }
 
-const Generator kGenerators[] = {
+const Generator kRemovalGenerators[] = {
     {"uniform", [] { return test::uniform_points(250, 41); }},
     {"clustered", [] { return test::clustered_points(250, 42); }},
     {"lattice", [] { return test::lattice_points(14); }},
@@ -258,7 +252,7 @@ TEST_P(RemovalProperty, RemovingAllPointsInRandomOrderKeepsTheStructureValid) {
   EXPECT_EQ(t.num_finite_triangles(), 0u);
 }
 
-INSTANTIATE_TEST_SUITE_P(Fixtures, RemovalProperty, ::testing::ValuesIn(kGenerators),
+INSTANTIATE_TEST_SUITE_P(Fixtures, RemovalProperty, ::testing::ValuesIn(kRemovalGenerators),
                          [](const auto& p) { return std::string(p.param.name); });
 
 // remove_vertex without a preceding preview builds the hole from its edges inwards with exact

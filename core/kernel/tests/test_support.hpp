@@ -19,6 +19,18 @@
 
 namespace tinstream::kernel::test {
 
+// A named point set for the parameterised property suites.
+struct Generator {
+  const char* name;
+  std::vector<Point3> (*make)();
+};
+
+// A gtest failure (fatal in the calling helper) when `t` fails check_valid at `level`.
+inline void expect_valid(const Triangulation& t, CheckLevel level = CheckLevel::expensive) {
+  const Status s = t.check_valid(level);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+}
+
 inline std::vector<Point3> uniform_points(std::size_t n, std::uint32_t seed, double lo = 0.0,
                                           double hi = 1.0) {
   std::mt19937_64 rng(seed);

@@ -17,7 +17,7 @@ using testing::brute_height;
 using testing::grid_tile;
 using tile::Vertex;
 
-const geo::TileId kTile{10, 300, 200};
+using testing::kTile;
 
 // A few hills and ridges across the tile (z = 10 tiles are ~1e-3 wide in normalised Mercator).
 double rough(double x, double y) {

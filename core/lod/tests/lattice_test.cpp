@@ -22,7 +22,7 @@ namespace {
 using detail::find_lattice;
 using tile::Vertex;
 
-const geo::TileId kTile{10, 300, 200};
+using testing::kTile;
 
 // Rows spaced like a geographic grid in Web Mercator (not uniform), columns uniform.
 std::vector<Vertex> mercator_like(int w, int h, std::uint32_t seed) {

@@ -9,10 +9,14 @@
 #include <optional>
 #include <vector>
 
+#include "tinstream/geo/tile_id.hpp"
 #include "tinstream/lod/thinning.hpp"
 #include "tinstream/tile/tin_tile.hpp"
 
 namespace tinstream::lod::testing {
+
+// The tile the thinning, greedy and lattice suites build their grids in.
+inline const geo::TileId kTile{10, 300, 200};
 
 using Surface = std::function<double(double, double)>;
 

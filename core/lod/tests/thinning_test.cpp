@@ -17,7 +17,7 @@ namespace {
 using testing::grid_tile;
 using tile::Vertex;
 
-const geo::TileId kTile{10, 300, 200};
+using testing::kTile;
 
 double plane(double x, double y) { return 120.0 + 3000.0 * x - 1700.0 * y; }
 

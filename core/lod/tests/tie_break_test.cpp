@@ -23,14 +23,14 @@ namespace {
 using tile::TinTile;
 using tile::Vertex;
 
-const geo::TileId kTile{10, 500, 300};
+const geo::TileId kTieTile{10, 500, 300};
 
 // One cell: the tile's corners NW, NE, SW, SE at the given heights, split by the diagonal NW–SE
 // (triangles counter-clockwise in Mercator x, y).
 TinTile saddle_cell(double nw, double ne, double sw, double se) {
-  const geo::MercatorRect r = kTile.bounds();
+  const geo::MercatorRect r = kTieTile.bounds();
   TinTile t;
-  t.id = kTile;
+  t.id = kTieTile;
   t.corners = {Vertex{r.min_x, r.max_y, nw, 0}, Vertex{r.max_x, r.max_y, ne, 0},
                Vertex{r.min_x, r.min_y, sw, 0}, Vertex{r.max_x, r.min_y, se, 0}};
   t.triangles = {{0, 2, 3}, {0, 3, 1}};
@@ -38,7 +38,7 @@ TinTile saddle_cell(double nw, double ne, double sw, double se) {
 }
 
 Vertex centre(double z) {
-  const geo::MercatorRect r = kTile.bounds();
+  const geo::MercatorRect r = kTieTile.bounds();
   return {0.5 * (r.min_x + r.max_x), 0.5 * (r.min_y + r.max_y), z, 0};
 }
 
@@ -76,7 +76,7 @@ TEST(TieBreak, ASaddleCellTakesTheDiagonalItsDataFavour) {
     EXPECT_GT(cross, 0);
     area += 0.5 * cross;
   }
-  EXPECT_DOUBLE_EQ(area, kTile.bounds().width() * kTile.bounds().height());
+  EXPECT_DOUBLE_EQ(area, kTieTile.bounds().width() * kTieTile.bounds().height());
 
   // The data on the diagonal drawn: nothing to gain, nothing flips.
   TinTile same = saddle_cell(0, 10, 10, 0);
@@ -93,7 +93,7 @@ TEST(TieBreak, NodataCornersAndNonCocircularQuadsKeepTheirDiagonal) {
   // An interior vertex off the centre: its four fans' quadrilaterals are not cocircular, so no
   // diagonal moves whatever the points say.
   TinTile fan = saddle_cell(0, 10, 10, 0);
-  const geo::MercatorRect r = kTile.bounds();
+  const geo::MercatorRect r = kTieTile.bounds();
   fan.interior.push_back({r.min_x + 0.3 * r.width(), r.min_y + 0.6 * r.height(), 50, 0});
   fan.triangles = {{4, 0, 2}, {4, 2, 3}, {4, 3, 1}, {4, 1, 0}};
   ASSERT_TRUE(tile::check_structure(fan).ok());
@@ -178,7 +178,7 @@ TEST(TieBreak, EquallyGoodDiagonalsDoNotFlipBackAndForth) {
   // mirror-symmetric heights and a point on the axis: both diagonals interpolate the point
   // equally in exact arithmetic; in floating point each drawing's rounding differed. A flip may
   // happen, but once: a flipped quadrilateral must not look worse the next sweep.
-  const geo::MercatorRect r = kTile.bounds();
+  const geo::MercatorRect r = kTieTile.bounds();
   const double h = r.width() / 64, x0 = r.min_x + 8 * h, y0 = r.min_y + 8 * h;
   std::mt19937 rng(20);
   std::uniform_real_distribution<double> unit(0.05, 0.95), height(100, 3000);

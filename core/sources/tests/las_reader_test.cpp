@@ -5,29 +5,19 @@
 #include <set>
 
 #include "las_writer.hpp"
+#include "read_all.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::sources {
 namespace {
 
+using testing::kData;
+using testing::read_all;
+
 using testing::build_las;
 using testing::LasSpec;
 using testing::TestPoint;
 using testing::TestVlr;
-
-const std::filesystem::path kData = TINSTREAM_SHARED_DATA;
-
-// Reads everything in batches of `batch` points.
-Result<std::vector<SourcePoint>> read_all(PointSource& src, std::size_t batch = 1000) {
-  std::vector<SourcePoint> all;
-  while (true) {
-    auto n = src.read(all, batch);
-    if (!n.ok()) return n.error();
-    if (*n == 0) break;
-    EXPECT_LE(*n, batch);
-  }
-  return all;
-}
 
 std::vector<TestPoint> sample_points() {
   // Classes 1, 2, 7, 18 and 6, with distinct coordinates.
@@ -103,7 +93,7 @@ TEST_F(LasFile, DefaultFilterKeepsOnlyGroundWhenTheFileHasGround) {
   s.points = sample_points();  // classes 1 2 7 18 6 2 1
   auto src = open_las(write(build_las(s)));
   ASSERT_TRUE(src.ok()) << src.error().message;
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 1000);
   ASSERT_TRUE(pts.ok());
   ASSERT_EQ(pts->size(), 2u);
   EXPECT_EQ((*pts)[0].record, 2u);
@@ -121,7 +111,7 @@ TEST_F(LasFile, DefaultFilterDropsNoiseWhenTheFileHasNoGround) {
   }  // classes 1 9 7 18 6 9 1
   auto src = open_las(write(build_las(s)));
   ASSERT_TRUE(src.ok()) << src.error().message;
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 1000);
   ASSERT_TRUE(pts.ok());
   std::multiset<int> classes;
   for (const auto& p : *pts) classes.insert(p.classification);
@@ -137,7 +127,7 @@ TEST_F(LasFile, ExplicitClassListOverridesTheDefault) {
   o.class_filter.classes = std::vector<std::uint8_t>{1, 7};
   auto src = open_las(write(build_las(s)), o);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 1000);
   ASSERT_TRUE(pts.ok());
   EXPECT_EQ(pts->size(), 3u);  // 1, 7, 1
 }
@@ -151,7 +141,7 @@ TEST_F(LasFile, WithheldPointsAreDropped) {
     s.points[1].withheld = true;  // a ground point
     auto src = open_las(write(build_las(s)));
     ASSERT_TRUE(src.ok());
-    auto pts = read_all(**src);
+    auto pts = read_all(**src, 1000);
     ASSERT_TRUE(pts.ok());
     ASSERT_EQ(pts->size(), 1u) << "format " << int(format);
     EXPECT_EQ((*pts)[0].record, 6u);
@@ -168,7 +158,7 @@ TEST_F(LasFile, Las14UsesThe64BitPointCount) {
   auto src = open_las(write(build_las(s)), all_classes());
   ASSERT_TRUE(src.ok()) << src.error().message;
   EXPECT_EQ((*src)->info().record_count, 7u);
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 1000);
   ASSERT_TRUE(pts.ok());
   EXPECT_EQ(pts->size(), 7u);
 }
@@ -394,7 +384,7 @@ TEST_F(LasFile, InfiniteCoordinateAfterScalingNamesTheRecord) {
   auto p = write(build_las(s));
   auto src = open_las(p);
   ASSERT_TRUE(src.ok()) << src.error().message;
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 1000);
   ASSERT_FALSE(pts.ok());
   EXPECT_NE(pts.error().message.find("point record 6"), std::string::npos) << pts.error().message;
   EXPECT_NE(pts.error().message.find(p.string()), std::string::npos);
@@ -406,7 +396,7 @@ TEST_F(LasFile, InfiniteCoordinateAfterScalingNamesTheRecord) {
   skip.invalid = InvalidPolicy::skip;
   auto src2 = open_las(p, skip);
   ASSERT_TRUE(src2.ok());
-  auto pts2 = read_all(**src2);
+  auto pts2 = read_all(**src2, 1000);
   ASSERT_TRUE(pts2.ok());
   EXPECT_EQ(pts2->size(), 1u);  // record 2 only
   EXPECT_EQ((*src2)->counters().rejected_invalid, 1u);

@@ -10,22 +10,15 @@
 #include <fstream>
 
 #include "las_writer.hpp"
+#include "read_all.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::sources {
 namespace {
 
-namespace fs = std::filesystem;
+using testing::read_all;
 
-Result<std::vector<SourcePoint>> read_all(PointSource& src) {
-  std::vector<SourcePoint> all;
-  while (true) {
-    auto n = src.read(all, 4096);
-    if (!n.ok()) return n.error();
-    if (*n == 0) break;
-  }
-  return all;
-}
+namespace fs = std::filesystem;
 
 // A w × h GeoTIFF in EPSG:4326 near Zürich, cell value = row * w + col, band type `type`, with
 // `nodata` set (unless NaN) and written into the cells listed in `nodata_cells`.
@@ -119,7 +112,7 @@ TEST_F(RasterPolicyTest, VrtSourceOutsideTheDataRootIsRefusedWhenConfined) {
   write_text(root_ / "fine.vrt", vrt_over("inside.tif", true));
   auto fine = open_source(root_ / "fine.vrt", confined());
   ASSERT_TRUE(fine.ok()) << fine.error().message;
-  auto pts = read_all(**fine);
+  auto pts = read_all(**fine, 4096);
   ASSERT_TRUE(pts.ok()) << pts.error().message;
   EXPECT_EQ(pts->size(), 12u);
   auto local = open_source(root_ / "escape.vrt");
@@ -270,7 +263,7 @@ TEST_F(RasterPolicyTest, GdalbuildvrtAndGdalTranslateVrtsAreAccepted) {
   write_text(root_ / "mosaic.vrt", vrt);
   auto src = open_source(root_ / "mosaic.vrt", confined());
   ASSERT_TRUE(src.ok()) << src.error().message;
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 4096);
   ASSERT_TRUE(pts.ok()) << pts.error().message;
   EXPECT_EQ(pts->size(), 24u);
 }
@@ -287,7 +280,7 @@ TEST_F(RasterPolicyTest, Float32NodataWrittenAsTextInAVrtStillRejectsItsCells) {
     SCOPED_TRACE(file);
     auto src = open_source(root_ / file);
     ASSERT_TRUE(src.ok()) << src.error().message;
-    auto pts = read_all(**src);
+    auto pts = read_all(**src, 4096);
     ASSERT_TRUE(pts.ok()) << pts.error().message;
     EXPECT_EQ(pts->size(), 9u);
     EXPECT_EQ((*src)->counters().rejected_nodata, 3u);
@@ -313,7 +306,7 @@ TEST_F(RasterPolicyTest, IntegerNodataOutsideTheTypeMatchesNoCell) {
     SCOPED_TRACE(file);
     auto src = open_source(root_ / file);
     ASSERT_TRUE(src.ok()) << src.error().message;
-    auto pts = read_all(**src);
+    auto pts = read_all(**src, 4096);
     ASSERT_TRUE(pts.ok()) << pts.error().message;
     EXPECT_EQ(pts->size(), expected);
   }

@@ -6,22 +6,14 @@
 #include <fstream>
 
 #include "las_writer.hpp"
+#include "read_all.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::sources {
 namespace {
 
-const std::filesystem::path kData = TINSTREAM_SHARED_DATA;
-
-Result<std::vector<SourcePoint>> read_all(PointSource& src, std::size_t batch = 4096) {
-  std::vector<SourcePoint> all;
-  while (true) {
-    auto n = src.read(all, batch);
-    if (!n.ok()) return n.error();
-    if (*n == 0) break;
-  }
-  return all;
-}
+using testing::kData;
+using testing::read_all;
 
 // A 4 × 3 Float32 GeoTIFF in UTM 33N: origin (500000, 4000300), 10 m × -100 m cells;
 // value = 10·row + col, NODATA -9999 at (0,1), NaN at (2,3).
@@ -93,7 +85,7 @@ TEST(RasterSource, BandScaleAndOffsetAreApplied) {
   GDALClose(ds);
   auto src = open_raster(path);
   ASSERT_TRUE(src.ok()) << src.error().message;
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 4096);
   ASSERT_TRUE(pts.ok());
   ASSERT_EQ(pts->size(), 1u);
   EXPECT_EQ((*pts)[0].z, 103.5);

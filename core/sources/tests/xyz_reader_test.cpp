@@ -3,10 +3,13 @@
 #include <fstream>
 
 #include "las_writer.hpp"
+#include "read_all.hpp"
 #include "tinstream/sources/point_source.hpp"
 
 namespace tinstream::sources {
 namespace {
+
+using testing::read_all;
 
 class XyzFile : public ::testing::Test {
  protected:
@@ -23,23 +26,13 @@ class XyzFile : public ::testing::Test {
   std::filesystem::path dir_;
 };
 
-Result<std::vector<SourcePoint>> read_all(PointSource& src, std::size_t batch = 2) {
-  std::vector<SourcePoint> all;
-  while (true) {
-    auto n = src.read(all, batch);
-    if (!n.ok()) return n.error();
-    if (*n == 0) break;
-  }
-  return all;
-}
-
 TEST_F(XyzFile, WhitespaceSeparatedWithCommentsAndBlankLines) {
   auto p = write("# a comment\n1 2 3\n\n  4\t5   6.5  \r\n# another\n-7e2 +8 9\n");
   auto src = open_source(p);
   ASSERT_TRUE(src.ok()) << src.error().message;
   EXPECT_EQ((*src)->info().format, "XYZ");
   EXPECT_TRUE((*src)->info().crs.empty());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok()) << pts.error().message;
   ASSERT_EQ(pts->size(), 3u);
   EXPECT_EQ((*pts)[0].x, 1);
@@ -60,7 +53,7 @@ TEST_F(XyzFile, CsvWithHeaderIsDetectedAndColumnsChosen) {
   o.text.z_column = 1;
   auto src = open_source(p, o);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok()) << pts.error().message;
   ASSERT_EQ(pts->size(), 2u);
   EXPECT_EQ((*pts)[1].x, 500001);
@@ -74,7 +67,7 @@ TEST_F(XyzFile, ExplicitHeaderLinesAreSkipped) {
   o.text.header_lines = 2;  // skips "title" and "0 0 0"
   auto src = open_xyz(p, o);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok());
   ASSERT_EQ(pts->size(), 1u);
   EXPECT_EQ((*pts)[0].x, 1);
@@ -84,7 +77,7 @@ TEST_F(XyzFile, MalformedNumberNamesFileAndLine) {
   auto p = write("1 2 3\n4 5 6\n7 8,5 9\n");
   auto src = open_xyz(p);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_FALSE(pts.ok());
   EXPECT_EQ(pts.error().code, ErrorCode::corrupt_data);
   EXPECT_NE(pts.error().message.find(p.string() + ": line 3"), std::string::npos)
@@ -97,7 +90,7 @@ TEST_F(XyzFile, NanAndInfAreRejected) {
     auto p = write("1 2 3\n4 5 " + bad + "\n");
     auto src = open_xyz(p);
     ASSERT_TRUE(src.ok());
-    auto pts = read_all(**src);
+    auto pts = read_all(**src, 2);
     ASSERT_FALSE(pts.ok()) << bad;
     EXPECT_NE(pts.error().message.find("line 2"), std::string::npos) << pts.error().message;
   }
@@ -107,7 +100,7 @@ TEST_F(XyzFile, TooFewFieldsNamesTheLine) {
   auto p = write("1 2 3\n4 5\n");
   auto src = open_xyz(p);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_FALSE(pts.ok());
   EXPECT_NE(pts.error().message.find("line 2: expected at least 3 fields, found 2"),
             std::string::npos)
@@ -121,7 +114,7 @@ TEST_F(XyzFile, SkipPolicyCountsBadLines) {
   o.text.header_lines = 0;
   auto src = open_xyz(p, o);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok());
   EXPECT_EQ(pts->size(), 2u);
   EXPECT_EQ((*src)->counters().rejected_invalid, 3u);
@@ -134,13 +127,13 @@ TEST_F(XyzFile, ClassColumnFilter) {
   o.text.class_column = 3;
   auto src = open_xyz(p, o);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok());
   EXPECT_EQ(pts->size(), 2u);  // noise 7 and 18 dropped
   o.class_filter.classes = std::vector<std::uint8_t>{2};
   auto src2 = open_xyz(p, o);
   ASSERT_TRUE(src2.ok());
-  auto pts2 = read_all(**src2);
+  auto pts2 = read_all(**src2, 2);
   ASSERT_TRUE(pts2.ok());
   ASSERT_EQ(pts2->size(), 1u);
   EXPECT_EQ((*pts2)[0].classification, 2);
@@ -150,13 +143,13 @@ TEST_F(XyzFile, LastLineWithoutNewlineAndEmptyFile) {
   auto p = write("1 2 3\n4 5 6");
   auto src = open_xyz(p);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   ASSERT_TRUE(pts.ok());
   EXPECT_EQ(pts->size(), 2u);
   auto e = write("", "empty.xyz");
   auto src2 = open_xyz(e);
   ASSERT_TRUE(src2.ok());
-  auto none = read_all(**src2);
+  auto none = read_all(**src2, 2);
   ASSERT_TRUE(none.ok());
   EXPECT_TRUE(none->empty());
 }
@@ -167,7 +160,7 @@ TEST_F(XyzFile, BinaryGarbageGivesAnErrorNotACrash) {
   auto p = write(garbage, "garbage.xyz");
   auto src = open_xyz(p);
   ASSERT_TRUE(src.ok());
-  auto pts = read_all(**src);
+  auto pts = read_all(**src, 2);
   EXPECT_FALSE(pts.ok());
 }
 

@@ -13,7 +13,7 @@
 namespace tinstream::transform {
 namespace {
 
-const std::filesystem::path kData = TINSTREAM_SHARED_DATA;
+const std::filesystem::path kPass1Data = TINSTREAM_SHARED_DATA;
 
 std::filesystem::path scratch(const std::string& name) {
   auto dir = std::filesystem::temp_directory_path() /
@@ -56,13 +56,13 @@ void expect_same_points(const std::vector<RunPoint>& a, const std::vector<RunPoi
 
 // ---- pass 1 -------------------------------------------------------------------------------
 
-bool have(const char* name) { return std::filesystem::exists(kData / name); }
+bool have(const char* name) { return std::filesystem::exists(kPass1Data / name); }
 
 TEST(Pass1, MixedInputsGiveCountsBoxesAndTheirPoints) {
   if (!have("autzen_trim.las") || !have("luxembourg_elev.tif")) GTEST_SKIP() << "missing data";
   std::vector<InputSpec> inputs(2);
-  inputs[0].path = kData / "autzen_trim.las";
-  inputs[1].path = kData / "luxembourg_elev.tif";
+  inputs[0].path = kPass1Data / "autzen_trim.las";
+  inputs[1].path = kPass1Data / "luxembourg_elev.tif";
   inputs[1].weight = 2.0f;
   TransformOptions opt;
   Collector handed;
@@ -138,7 +138,7 @@ TEST(Pass1, AFailingInputNamesTheLine) {
   const auto bad = dir / "bad.xyz";
   std::ofstream(bad) << "6.0 49.5 300\n6.1 49.6 oops\n";
   std::vector<InputSpec> inputs(2);
-  inputs[0].path = kData / "luxembourg_elev.tif";
+  inputs[0].path = kPass1Data / "luxembourg_elev.tif";
   inputs[1].path = bad;
   inputs[1].reproject.crs = "EPSG:4326";
   auto s = transform_sources(inputs, discarding());
@@ -151,7 +151,7 @@ TEST(Pass1, AFailingInputNamesTheLine) {
 TEST(Pass1, CancelStopsThePass) {
   if (!have("N00E010.hgt")) GTEST_SKIP() << "missing data";
   std::vector<InputSpec> inputs(1);
-  inputs[0].path = kData / "N00E010.hgt";
+  inputs[0].path = kPass1Data / "N00E010.hgt";
   TransformOptions opt;
   Collector handed;
   opt.on_points = handed.sink();
@@ -167,7 +167,7 @@ TEST(Pass1, CancelStopsThePass) {
 TEST(Pass1, EsriAsciiNeedsACrsAndWorksWithOne) {
   if (!have("boulder_srtmgl3.asc")) GTEST_SKIP() << "missing data";
   std::vector<InputSpec> inputs(1);
-  inputs[0].path = kData / "boulder_srtmgl3.asc";
+  inputs[0].path = kPass1Data / "boulder_srtmgl3.asc";
   const TransformOptions opt = discarding();
   auto s = transform_sources(inputs, opt);
   ASSERT_FALSE(s.ok());

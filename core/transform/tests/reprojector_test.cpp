@@ -13,7 +13,7 @@ namespace {
 using sources::SourceInfo;
 using sources::SourcePoint;
 
-const std::filesystem::path kData = TINSTREAM_SHARED_DATA;
+const std::filesystem::path kReprojectorData = TINSTREAM_SHARED_DATA;
 
 Result<std::vector<SourcePoint>> read_all(sources::PointSource& src) {
   std::vector<SourcePoint> all;
@@ -33,7 +33,7 @@ SourceInfo info_with(const std::string& crs, const std::string& path = "test-inp
 }
 
 TEST(Reprojector, AutzenLandsInEugeneWithFeetConvertedToMetres) {
-  const auto path = kData / "autzen_trim.las";
+  const auto path = kReprojectorData / "autzen_trim.las";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
   auto src = sources::open_source(path);
   ASSERT_TRUE(src.ok()) << src.error().message;
@@ -65,7 +65,7 @@ TEST(Reprojector, AutzenLandsInEugeneWithFeetConvertedToMetres) {
 
 TEST(Reprojector, AutzenWktMatchesEpsg2994) {
   // SOURCES.md: the WKT's parameters are those of EPSG:2994; both must give the same places.
-  const auto path = kData / "autzen_trim.las";
+  const auto path = kReprojectorData / "autzen_trim.las";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
   auto src = sources::open_source(path);
   ASSERT_TRUE(src.ok());
@@ -86,7 +86,7 @@ TEST(Reprojector, AutzenWktMatchesEpsg2994) {
 }
 
 TEST(Reprojector, NewMexicoUsSurveyFeet) {
-  const auto path = kData / "nm_4_6_crop.las";
+  const auto path = kReprojectorData / "nm_4_6_crop.las";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
   auto src = sources::open_source(path);
   ASSERT_TRUE(src.ok());
@@ -185,7 +185,7 @@ TEST(Reprojector, UnknownCrsIsAClearErrorNamingTheFile) {
 }
 
 TEST(Reprojector, MissingCrsAsksForCrsOption) {
-  const auto path = kData / "boulder_srtmgl3.asc";
+  const auto path = kReprojectorData / "boulder_srtmgl3.asc";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
   auto src = sources::open_source(path);
   ASSERT_TRUE(src.ok());
@@ -323,7 +323,7 @@ TEST(Reprojector, VerticalCrsModeNamesMissingGeoidGrids) {
 }
 
 TEST(Reprojector, VerticalCrsModeRejectsADatumCodeStoredAsVerticalCrs) {
-  const auto path = kData / "nm_4_6_crop.las";
+  const auto path = kReprojectorData / "nm_4_6_crop.las";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing " << path;
   auto src = sources::open_source(path);
   ASSERT_TRUE(src.ok());
