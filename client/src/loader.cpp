@@ -1,5 +1,7 @@
 #include "tinstream/client/loader.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <exception>
 
@@ -16,6 +18,19 @@ void add_micros_since(std::atomic<std::uint64_t>& micros,
                                                   std::chrono::steady_clock::now() - start)
                                                   .count()),
                    std::memory_order_relaxed);
+}
+
+// CPU time of the calling thread in microseconds: beside the wall time of a decode, it tells how
+// much of that wall time the thread waited for a core (decoding threads outnumbering free cores).
+std::uint64_t thread_cpu_micros() {
+  timespec t{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<std::uint64_t>(t.tv_sec) * 1000000u +
+         static_cast<std::uint64_t>(t.tv_nsec) / 1000u;
+}
+
+void add_cpu_micros_since(std::atomic<std::uint64_t>& micros, std::uint64_t start) {
+  micros.fetch_add(thread_cpu_micros() - start, std::memory_order_relaxed);
 }
 }  // namespace
 
@@ -89,6 +104,7 @@ LoaderCounters TileLoader::counters() const {
   c.decode_errors = get(counters_.decode_errors);
   c.dropped = get(counters_.dropped);
   c.decode_seconds = static_cast<double>(get(counters_.decode_micros)) * 1e-6;
+  c.decode_cpu_seconds = static_cast<double>(get(counters_.decode_cpu_micros)) * 1e-6;
   c.queued = queue_.queued();
   c.in_flight = queue_.in_flight();
   c.in_flight_levels = queue_.in_flight_per_level();
@@ -185,10 +201,12 @@ LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription
                                       std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                                       LoadOrigin origin) {
   const auto start = std::chrono::steady_clock::now();
+  const std::uint64_t start_cpu = thread_cpu_micros();
   if (key.kind == TileKind::imagery)
-    return finish_image(key, layer, bytes, encoding, origin, start);
+    return finish_image(key, layer, bytes, encoding, origin, start, start_cpu);
   auto mesh = decode_render_mesh(bytes, encoding, layer, key);
   add_micros_since(counters_.decode_micros, start);
+  add_cpu_micros_since(counters_.decode_cpu_micros, start_cpu);
   if (!mesh) {
     counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
     // A damaged copy must not come back from the disk cache.
@@ -204,9 +222,11 @@ LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription
 LoadResult TileLoader::finish_image(const TileKey& key, const LayerDescription& layer,
                                     const std::vector<std::uint8_t>& bytes,
                                     ContentEncoding encoding, LoadOrigin origin,
-                                    std::chrono::steady_clock::time_point start) {
+                                    std::chrono::steady_clock::time_point start,
+                                    std::uint64_t start_cpu) {
   auto image = decode_imagery_tile(bytes, encoding, layer, key);
   add_micros_since(counters_.decode_micros, start);
+  add_cpu_micros_since(counters_.decode_cpu_micros, start_cpu);
   LoadResult r{key, LoadStatus::failed, origin, nullptr, {}, bytes.size()};
   if (!image) {
     counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);

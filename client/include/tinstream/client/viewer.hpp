@@ -104,6 +104,10 @@ struct RunSummary {
   std::string renderer;
   RenderStats render;
   int centre_level = -1;  // level of the drawn tile under the image centre (−1: none)
+  // CPU seconds while streaming (a snapshot: from the start until complete or timed out, before
+  // the final draw; a flight: the whole flight): the render thread's, and the whole process's.
+  double render_thread_cpu_s = 0;
+  double process_cpu_s = 0;
 };
 
 // The level of the drawn tile (of the last frame) that holds the ground point under the image
@@ -114,5 +118,8 @@ std::string summary_json(const ViewerOptions& options, const Session& session,
 
 // Resident set size of this process in bytes (/proc/self/statm).
 std::uint64_t resident_bytes();
+// CPU time used so far by the calling thread, and by the whole process, in seconds.
+double thread_cpu_seconds();
+double process_cpu_seconds();
 
 }  // namespace tinstream::client
