@@ -98,8 +98,8 @@ Result<Session> open_session(const ViewerOptions& o) {
       s.legend.footer.append(" (not over ").append(l.name).append(": other projection)");
     }
   }
-  s.loader =
-      std::make_unique<TileLoader>(s.source, std::move(table), s.disk, LoaderOptions{o.threads});
+  s.loader = std::make_unique<TileLoader>(s.source, std::move(table), s.disk,
+                                          LoaderOptions{o.threads, o.decode_threads});
   StreamerOptions so;
   so.max_sse = o.max_sse;
   so.gpu_budget = o.gpu_mb << 20;

@@ -27,6 +27,7 @@ struct ViewerOptions {
   std::vector<std::string> layers;  // empty: every layer
   std::string imagery;              // an imagery layer draped over the terrain; empty: none
   int threads = 0;                  // download threads, 0: one per core (at most 8)
+  int decode_threads = 0;           // decodes at once (most urgent first), 0: one per core
   double max_sse = 2.0;             // pixels
   std::uint64_t gpu_mb = 512, cache_mb = 512, disk_mb = 2048;
   std::filesystem::path disk_cache;  // empty: no disk cache
