@@ -1,6 +1,8 @@
 #include "tinstream/client/request_queue.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <tuple>
 
 namespace tinstream::client {
@@ -107,6 +109,8 @@ std::array<std::uint32_t, 31> RequestQueue::in_flight_per_level() const {
 DecodeSlots::DecodeSlots(int slots) : free_(std::max(slots, 1)), slots_(std::max(slots, 1)) {}
 
 void DecodeSlots::acquire(double priority) {
+  // (A NaN would never be found again below: it waits behind every other priority.)
+  if (std::isnan(priority)) priority = -std::numeric_limits<double>::infinity();
   std::unique_lock lock(mutex_);
   waiting_.push_back(priority);
   freed_.wait(lock, [&] {

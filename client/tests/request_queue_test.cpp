@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -96,16 +97,20 @@ TEST(DecodeSlots, AFreedSlotGoesToTheMostUrgentWaiter) {
   std::mutex mutex;
   std::vector<double> order;
   std::vector<std::thread> workers;
-  for (const double priority : {1.0, 5.0, -2.0, 3.0})
+  for (const double priority : {1.0, 5.0, std::nan(""), -2.0, 3.0})
     workers.emplace_back([&, priority] {
       const DecodeSlot slot(slots, priority);
       const std::lock_guard lock(mutex);
       order.push_back(priority);
     });
-  while (slots.waiting() < 4) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  while (slots.waiting() < 5) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   slots.release();
   for (std::thread& w : workers) w.join();
-  EXPECT_EQ(order, (std::vector<double>{5.0, 3.0, 1.0, -2.0}));
+  // A NaN priority (never expected) counts as the least urgent.
+  ASSERT_EQ(order.size(), 5u);
+  EXPECT_EQ(std::vector<double>(order.begin(), order.begin() + 4),
+            (std::vector<double>{5.0, 3.0, 1.0, -2.0}));
+  EXPECT_TRUE(std::isnan(order[4]));
   EXPECT_EQ(slots.most_held(), 1);
   EXPECT_EQ(slots.waiting(), 0);
 }
