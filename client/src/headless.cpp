@@ -95,6 +95,8 @@ Status write_snapshot(Gl& gl, const ViewerOptions& o) {
 // One view: stream until complete or timed out, then draw it once.
 int run_snapshot(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOut& stats) {
   const auto start = Clock::now();
+  const double thread_cpu_start = thread_cpu_seconds();
+  const double process_cpu_start = process_cpu_seconds();
   RunSummary run;
   run.camera = to_string(camera.pose());
   run.renderer = gl.renderer->gl_description();
@@ -110,6 +112,9 @@ int run_snapshot(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, Sta
     // Nothing to upload: sleep until a worker hands in a tile (never longer than 20 ms).
     if (f.upload_pending == 0) s.loader->wait_for_results(std::chrono::milliseconds(20));
   }
+  // No frame is drawn while the view streams in: the CPU so far is the streaming's alone.
+  run.render_thread_cpu_s = thread_cpu_seconds() - thread_cpu_start;
+  run.process_cpu_s = process_cpu_seconds() - process_cpu_start;
   run.render = draw(gl, o, s, camera);
   run.centre_level = centre_level(s, camera);
   if (s.streamer->failures() > 0)
@@ -142,6 +147,8 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
   const double flight_s = path->duration();
   PathPlayer player(std::move(*path));
   const auto start = Clock::now();
+  const double thread_cpu_start = thread_cpu_seconds();
+  const double process_cpu_start = process_cpu_seconds();
   auto last = start;
   bool complete = false;
   std::uint64_t frame = 0;
@@ -195,6 +202,8 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
     if (seconds_since(start) > o.timeout_s + flight_s) break;
   }
   run.frames = frame;
+  run.render_thread_cpu_s = thread_cpu_seconds() - thread_cpu_start;
+  run.process_cpu_s = process_cpu_seconds() - process_cpu_start;
   run.complete = complete;
   run.elapsed_s = seconds_since(start);
   run.camera = to_string(camera.pose());

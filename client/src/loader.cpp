@@ -1,5 +1,7 @@
 #include "tinstream/client/loader.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <exception>
 
@@ -17,6 +19,19 @@ void add_micros_since(std::atomic<std::uint64_t>& micros,
                                                   .count()),
                    std::memory_order_relaxed);
 }
+
+// CPU time of the calling thread in microseconds: beside the wall time of a decode, it tells how
+// much of that wall time the thread waited for a core (decoding threads outnumbering free cores).
+std::uint64_t thread_cpu_micros() {
+  timespec t{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<std::uint64_t>(t.tv_sec) * 1000000u +
+         static_cast<std::uint64_t>(t.tv_nsec) / 1000u;
+}
+
+void add_cpu_micros_since(std::atomic<std::uint64_t>& micros, std::uint64_t start) {
+  micros.fetch_add(thread_cpu_micros() - start, std::memory_order_relaxed);
+}
 }  // namespace
 
 int TileLoader::default_threads() {
@@ -26,7 +41,10 @@ int TileLoader::default_threads() {
 
 TileLoader::TileLoader(std::shared_ptr<TileSource> source, std::vector<LayerDescription> layers,
                        std::shared_ptr<DiskCache> disk, LoaderOptions options)
-    : source_(std::move(source)), layers_(std::move(layers)), disk_(std::move(disk)) {
+    : source_(std::move(source)),
+      layers_(std::move(layers)),
+      disk_(std::move(disk)),
+      decode_slots_(options.decode_threads <= 0 ? default_threads() : options.decode_threads) {
   if (!source_->remote()) disk_.reset();
   set_threads(options.threads <= 0 ? default_threads() : options.threads);
 }
@@ -89,6 +107,9 @@ LoaderCounters TileLoader::counters() const {
   c.decode_errors = get(counters_.decode_errors);
   c.dropped = get(counters_.dropped);
   c.decode_seconds = static_cast<double>(get(counters_.decode_micros)) * 1e-6;
+  c.decode_cpu_seconds = static_cast<double>(get(counters_.decode_cpu_micros)) * 1e-6;
+  c.decode_wait_seconds = static_cast<double>(get(counters_.decode_wait_micros)) * 1e-6;
+  c.most_decoding = decode_slots_.most_held();
   c.queued = queue_.queued();
   c.in_flight = queue_.in_flight();
   c.in_flight_levels = queue_.in_flight_per_level();
@@ -156,7 +177,8 @@ LoadResult TileLoader::load(const TileRequest& request,
       counters_.ok.fetch_add(1, std::memory_order_relaxed);
       counters_.downloaded_bytes.fetch_add(response.body.size(), std::memory_order_relaxed);
       if (disk_) disk_->put(key, layer, DiskEntry{response.etag, response.encoding, response.body});
-      return finish_payload(key, layer, std::move(response.body), response.encoding, fetched);
+      return finish_payload(key, layer, std::move(response.body), response.encoding, fetched,
+                            request.priority);
     }
     case FetchResponse::Status::not_modified:
       counters_.not_modified.fetch_add(1, std::memory_order_relaxed);
@@ -166,7 +188,7 @@ LoadResult TileLoader::load(const TileRequest& request,
       }
       disk_->touch(key, layer);
       return finish_payload(key, layer, std::move(cached->bytes), cached->encoding,
-                            LoadOrigin::revalidated);
+                            LoadOrigin::revalidated, request.priority);
     case FetchResponse::Status::not_found:
       counters_.not_found.fetch_add(1, std::memory_order_relaxed);
       if (cached) disk_->erase(key, layer);
@@ -176,19 +198,25 @@ LoadResult TileLoader::load(const TileRequest& request,
   }
   // The source failed after its retries: a copy on disk is better than nothing (offline use).
   if (cached && response.error.code != ErrorCode::cancelled)
-    return finish_payload(key, layer, std::move(cached->bytes), cached->encoding, LoadOrigin::disk);
+    return finish_payload(key, layer, std::move(cached->bytes), cached->encoding, LoadOrigin::disk,
+                          request.priority);
   failed.error = response.error.message;
   return failed;
 }
 
 LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription& layer,
                                       std::vector<std::uint8_t> bytes, ContentEncoding encoding,
-                                      LoadOrigin origin) {
+                                      LoadOrigin origin, double priority) {
+  const auto queued = std::chrono::steady_clock::now();
+  const DecodeSlot slot(decode_slots_, priority);
+  add_micros_since(counters_.decode_wait_micros, queued);
   const auto start = std::chrono::steady_clock::now();
+  const std::uint64_t start_cpu = thread_cpu_micros();
   if (key.kind == TileKind::imagery)
-    return finish_image(key, layer, bytes, encoding, origin, start);
+    return finish_image(key, layer, bytes, encoding, origin, start, start_cpu);
   auto mesh = decode_render_mesh(bytes, encoding, layer, key);
   add_micros_since(counters_.decode_micros, start);
+  add_cpu_micros_since(counters_.decode_cpu_micros, start_cpu);
   if (!mesh) {
     counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
     // A damaged copy must not come back from the disk cache.
@@ -204,9 +232,11 @@ LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription
 LoadResult TileLoader::finish_image(const TileKey& key, const LayerDescription& layer,
                                     const std::vector<std::uint8_t>& bytes,
                                     ContentEncoding encoding, LoadOrigin origin,
-                                    std::chrono::steady_clock::time_point start) {
+                                    std::chrono::steady_clock::time_point start,
+                                    std::uint64_t start_cpu) {
   auto image = decode_imagery_tile(bytes, encoding, layer, key);
   add_micros_since(counters_.decode_micros, start);
+  add_cpu_micros_since(counters_.decode_cpu_micros, start_cpu);
   LoadResult r{key, LoadStatus::failed, origin, nullptr, {}, bytes.size()};
   if (!image) {
     counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);

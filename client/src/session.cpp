@@ -1,3 +1,4 @@
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -97,8 +98,8 @@ Result<Session> open_session(const ViewerOptions& o) {
       s.legend.footer.append(" (not over ").append(l.name).append(": other projection)");
     }
   }
-  s.loader =
-      std::make_unique<TileLoader>(s.source, std::move(table), s.disk, LoaderOptions{o.threads});
+  s.loader = std::make_unique<TileLoader>(s.source, std::move(table), s.disk,
+                                          LoaderOptions{o.threads, o.decode_threads});
   StreamerOptions so;
   so.max_sse = o.max_sse;
   so.gpu_budget = o.gpu_mb << 20;
@@ -118,5 +119,16 @@ std::uint64_t resident_bytes() {
   statm >> size >> resident;
   return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
+
+namespace {
+double cpu_seconds(clockid_t clock) {
+  timespec t{};
+  ::clock_gettime(clock, &t);
+  return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_nsec) * 1e-9;
+}
+}  // namespace
+
+double thread_cpu_seconds() { return cpu_seconds(CLOCK_THREAD_CPUTIME_ID); }
+double process_cpu_seconds() { return cpu_seconds(CLOCK_PROCESS_CPUTIME_ID); }
 
 }  // namespace tinstream::client

@@ -57,6 +57,10 @@ int main(int argc, char** argv) {
                  "triangles over the imagery)");
   app.add_option("--threads", o.threads, "download threads 1..8 (default: one per core, at most 8)")
       ->check(CLI::Range(1, 8));
+  app.add_option("--decode-threads", o.decode_threads,
+                 "tiles decoded at once, the most urgent first (default: one per core; more "
+                 "than the cores slows the tile the view waits for)")
+      ->check(CLI::Range(1, 64));
   app.add_option("--max-sse", o.max_sse,
                  "quality: largest screen-space error in pixels (default 2)")
       ->check(CLI::Range(0.05, 1000.0));

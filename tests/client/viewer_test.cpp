@@ -251,6 +251,45 @@ TEST_F(Viewer, ALowerCameraDrawsFinerLevels) {
   EXPECT_LE(coarse.stats["max_sse_drawn"].get<double>(), 64.0);
 }
 
+TEST_F(Viewer, StatisticsSayWhereTheCpuWentWhileStreaming) {
+  // The CPU of a cold snapshot: the workers' decoding (CPU time beside its wall time), the render
+  // thread's and the process's until the view is complete (the benchmark reads them to tell a
+  // CPU-bound run from a latency-bound one). No prefetch: every decoded tile was needed, so it
+  // was decoded before the view was complete. Four workers, one decode at a time.
+  TempDir dir("viewer_cpu");
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const ViewerRun r =
+      viewer(base_args(dir.path / "cpu.png", camera_above(l, l.max_z + 8000.0)) +
+             std::vector<std::string>{"--store", dem_.string(), "--threads", "4",
+                                      "--decode-threads", "1", "--prefetch-levels", "0"});
+  expect_clean(r);
+  const json& req = r.stats["requests"];
+  const json& cpu = r.stats["cpu"];
+  ASSERT_TRUE(req.contains("decode_cpu_seconds")) << r.stats.dump();
+  ASSERT_TRUE(cpu.is_object()) << r.stats.dump();
+  const double decode_cpu = req["decode_cpu_seconds"].get<double>();
+  const double decode_wall = req["decode_seconds"].get<double>();
+  const double render_cpu = cpu["render_thread_s"].get<double>();
+  const double process_cpu = cpu["process_s"].get<double>();
+  const double to_complete = r.stats["time_to_complete_s"].get<double>();
+  const int loaded = r.stats["tiles"]["loaded"].get<int>();
+  ASSERT_GT(loaded, 1);
+  // Each decode's CPU time is at most its wall time (the counters keep microseconds: one of
+  // slack per decode).
+  EXPECT_GT(decode_cpu, 0);
+  EXPECT_LE(decode_cpu, decode_wall + 2e-6 * loaded);
+  // The render thread is part of the process; the workers' decoding too (before complete).
+  EXPECT_GT(render_cpu, 0);
+  EXPECT_LE(render_cpu, process_cpu + 1e-6);
+  EXPECT_LE(decode_cpu + render_cpu, process_cpu + 1e-3);
+  // Four workers (one decoding) and the render thread cannot use more than five cores' time;
+  // the process's other threads (llvmpipe's, the heap trimmer) are idle until the final draw.
+  EXPECT_LE(process_cpu, 5.5 * to_complete + 0.05);
+  // --decode-threads 1: the workers took turns (waiting for the slot, not for a core).
+  EXPECT_EQ(req["most_decoding"].get<int>(), 1);
+  EXPECT_GE(req["decode_wait_seconds"].get<double>(), 0);
+}
+
 TEST_F(Viewer, StoreAndUrlDrawTheSameTilesAndPixelsFlushedOrNot) {
   TempDir dir("viewer_same");
   testing::Server server(lidar_);

@@ -61,11 +61,15 @@ struct LoaderCounters {
   std::uint64_t dropped = 0;  // queued requests dropped because the view moved on
   std::uint64_t queued = 0, in_flight = 0;
   std::array<std::uint32_t, 31> in_flight_levels{};
-  double decode_seconds = 0;  // worker time spent inflating, decoding and building meshes
+  double decode_seconds = 0;       // worker time spent inflating, decoding and building meshes
+  double decode_cpu_seconds = 0;   // the CPU time of it (less when workers wait for a core)
+  double decode_wait_seconds = 0;  // worker time waiting for a decode slot (DecodeSlots)
+  int most_decoding = 0;           // the most decodes that ran at once
 };
 
 struct LoaderOptions {
-  int threads = 0;  // 0: one per core, at most 8
+  int threads = 0;         // 0: one per core, at most 8
+  int decode_threads = 0;  // decodes at once, the most urgent first; 0: one per core
 };
 
 class TileLoader {
@@ -100,16 +104,18 @@ class TileLoader {
   LoadResult load(const TileRequest& request, std::unique_ptr<TileConnection>& connection);
   LoadResult finish_payload(const TileKey& key, const LayerDescription& layer,
                             std::vector<std::uint8_t> bytes, ContentEncoding encoding,
-                            LoadOrigin origin);
+                            LoadOrigin origin, double priority);
   // An imagery payload (imagery.hpp): decoded into an image instead of a mesh.
   LoadResult finish_image(const TileKey& key, const LayerDescription& layer,
                           const std::vector<std::uint8_t>& bytes, ContentEncoding encoding,
-                          LoadOrigin origin, std::chrono::steady_clock::time_point start);
+                          LoadOrigin origin, std::chrono::steady_clock::time_point start,
+                          std::uint64_t start_cpu_micros);
 
   std::shared_ptr<TileSource> source_;
   std::vector<LayerDescription> layers_;
   std::shared_ptr<DiskCache> disk_;
   RequestQueue queue_;
+  DecodeSlots decode_slots_;
   std::atomic<bool> cancel_{false};
   int threads_ = 1;
   std::vector<std::thread> workers_;  // grows up to 8, touched by the owner's thread only
@@ -121,7 +127,7 @@ class TileLoader {
   struct Atomics {
     std::atomic<std::uint64_t> requests{0}, retries{0}, connections{0}, ok{0}, not_modified{0},
         not_found{0}, failed{0}, wire_bytes{0}, downloaded_bytes{0}, decoded{0}, decode_errors{0},
-        dropped{0}, decode_micros{0};
+        dropped{0}, decode_micros{0}, decode_cpu_micros{0}, decode_wait_micros{0};
   };
   Atomics counters_;
 };

@@ -27,6 +27,7 @@ struct ViewerOptions {
   std::vector<std::string> layers;  // empty: every layer
   std::string imagery;              // an imagery layer draped over the terrain; empty: none
   int threads = 0;                  // download threads, 0: one per core (at most 8)
+  int decode_threads = 0;           // decodes at once (most urgent first), 0: one per core
   double max_sse = 2.0;             // pixels
   std::uint64_t gpu_mb = 512, cache_mb = 512, disk_mb = 2048;
   std::filesystem::path disk_cache;  // empty: no disk cache
@@ -104,6 +105,10 @@ struct RunSummary {
   std::string renderer;
   RenderStats render;
   int centre_level = -1;  // level of the drawn tile under the image centre (−1: none)
+  // CPU seconds while streaming (a snapshot: from the start until complete or timed out, before
+  // the final draw; a flight: the whole flight): the render thread's, and the whole process's.
+  double render_thread_cpu_s = 0;
+  double process_cpu_s = 0;
 };
 
 // The level of the drawn tile (of the last frame) that holds the ground point under the image
@@ -114,5 +119,8 @@ std::string summary_json(const ViewerOptions& options, const Session& session,
 
 // Resident set size of this process in bytes (/proc/self/statm).
 std::uint64_t resident_bytes();
+// CPU time used so far by the calling thread, and by the whole process, in seconds.
+double thread_cpu_seconds();
+double process_cpu_seconds();
 
 }  // namespace tinstream::client
