@@ -67,7 +67,7 @@ class MemorySink final : public TileSink {
   };
 };
 
-double hills(double x, double y) {
+double sink_hills(double x, double y) {
   return 100.0 + 50.0 * std::sin(3.0 * x) * std::cos(2.0 * y) + 20.0 * std::sin(17.0 * x * y);
 }
 
@@ -81,7 +81,7 @@ TEST(TileSink, PyramidInMemoryIsThePyramidThroughTheStore) {
   for (std::uint32_t y = 0; y < 4; ++y) {
     for (std::uint32_t x = 0; x < 4; ++x) {
       if ((x == 3 && y == 3) || (x == 0 && y == 2)) continue;
-      const TinTile t = testing::grid_tile({2, x, y}, 16, hills);
+      const TinTile t = testing::grid_tile({2, x, y}, 16, sink_hills);
       memory.tiles.emplace(t.id, t);
       ASSERT_TRUE(w->put(t).ok());
     }
