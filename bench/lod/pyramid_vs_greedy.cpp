@@ -293,6 +293,8 @@ int main(int argc, char** argv) {
       }
       tinstream::lod::LodOptions o;
       o.max_points = (**t).vertex_count();
+      if (const char* g = std::getenv("GREEDY_FACTOR")) o.greedy_factor = std::atof(g);
+      if (std::getenv("NO_NODATA")) in.corner_nodata = {false, false, false, false};
       tinstream::lod::ThinStats st;
       auto thinned = tinstream::lod::thin_tile(in, o, &st);
       if (thinned) {

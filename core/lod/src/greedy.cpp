@@ -440,6 +440,20 @@ class GreedyInserter {
       const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
       return !(std::abs(cross) <= tolerance);
     }
+    // The rank of a candidate of this fan with effective error `error` (greedy.hpp: coverage
+    // first). Covered: its error. Outside, beyond a data edge: kCoverageCost × (1 + its distance
+    // from the edge's line, normalised units), so the farthest point goes in first — a vertex of
+    // the hull of what the fan hides (quickhull's choice), which widens the footprint the most;
+    // until 2026-11-28 the largest vertical error against the fan's continued heights went first,
+    // which says little about the terrain: autzen's outline-floor levels (128 vertices) spent
+    // their budget on such points, 1.68× greedy insertion's max error (bench/lod/RESULTS.md).
+    // In a fan without a data edge (two or three NODATA vertices): before those, by error.
+    double rank(double x, double y, double error) const {
+      if (!outside(x, y)) return error;
+      if (!has_edge) return 4 * kCoverageCost + error;
+      const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
+      return kCoverageCost * (1 + std::abs(cross) / std::hypot(b.x - a.x, b.y - a.y));
+    }
   };
   FanEdge fan_edge(std::uint32_t t) const {
     FanEdge fe;
@@ -457,8 +471,7 @@ class GreedyInserter {
     return fe;
   }
 
-  // Fan t's best candidate from its bucket (filed path): effective error + kCoverageCost for a
-  // point outside the footprint.
+  // Fan t's best candidate from its bucket (filed path), ranked by FanEdge::rank.
   void rank_fan(std::uint32_t t) {
     const FanEdge fe = fan_edge(t);
     const Plane pl = plane(t);
@@ -467,8 +480,7 @@ class GreedyInserter {
     for (std::uint32_t k = begin_[t]; k < begin_[t] + count_[t]; ++k) {
       const Filed& f = pool_[k];
       if (f.kind != kCandidate) continue;
-      const double e =
-          effective_error(f, pl.at(f.x, f.y, &w)) + (fe.outside(f.x, f.y) ? kCoverageCost : 0.0);
+      const double e = fe.rank(f.x, f.y, effective_error(f, pl.at(f.x, f.y, &w)));
       if (e > best_e) best_e = e, best = k;
     }
     set_best(t, best, best_e);
@@ -527,7 +539,7 @@ class GreedyInserter {
         const std::size_t cell = j * w + i;
         double e = std::abs(candidate_z_[cell] - (base + g.gx * (l.xs[i] - g.ax)));
         if (!l.weight.empty()) e += l.weight[cell];
-        if (fe.outside(l.xs[i], l.ys[j])) e += kCoverageCost;
+        e = fe.rank(l.xs[i], l.ys[j], e);
         if (e > best_e) best_e = e, best = static_cast<std::uint32_t>(cell);
       }
     };

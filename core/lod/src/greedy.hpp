@@ -70,6 +70,9 @@ struct GreedyResult {
 // straight to within what a client can show (a UTM raster's row of cell centres, a little curved
 // in Mercator) needs a few vertices, not every cell (until 2026-11-28 every one: Big Tujunga's
 // ~3,700 outline cells took a coarse tile's whole budget at --max-points 1024).
+// Among the points outside the footprint, the greedy stage takes first the one farthest beyond
+// its fan's data edge (a hull vertex of what the fan hides), not the one of largest vertical
+// error against the fan's continued heights (greedy.cpp FanEdge::rank; until 2026-11-28).
 inline constexpr double kCoverageCost = 1e6;
 
 // Inserts candidates into `tri` (already holding the fixed points) until it has `max_vertices`
