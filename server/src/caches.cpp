@@ -9,14 +9,6 @@
 #include "tinstream/server/handler.hpp"
 
 namespace tinstream::server {
-namespace {
-
-// Heap bytes of a string beyond the object itself (short strings live inside it).
-std::size_t heap_bytes(const std::string& s) {
-  return s.capacity() > std::string().capacity() ? s.capacity() + 1 : 0;
-}
-
-}  // namespace
 
 struct TerrainCache::Impl {
   struct Entry {
@@ -64,7 +56,7 @@ struct TerrainCache::Impl {
 
 std::uint64_t TerrainCache::cost(std::string_view key, const CachedBody& value) {
   return Impl::kEntryOverhead + (key.size() + 1) + value.bytes.capacity() + 1 +
-         heap_bytes(value.etag) + (value.head ? value.head->memory_bytes() : 0);
+         string_heap_bytes(value.etag) + (value.head ? value.head->memory_bytes() : 0);
 }
 
 TerrainCache::TerrainCache(std::uint64_t max_bytes) : impl_(std::make_unique<Impl>(max_bytes)) {}

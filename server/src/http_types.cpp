@@ -17,12 +17,11 @@ void append_number(std::string& out, std::uint64_t v) {
   out.append(digits.data(), end);
 }
 
-// Heap bytes of a string beyond the object itself (short strings live inside it).
-std::size_t heap_bytes(const std::string& s) {
+}  // namespace
+
+std::size_t string_heap_bytes(const std::string& s) {
   return s.capacity() > std::string().capacity() ? s.capacity() + 1 : 0;
 }
-
-}  // namespace
 
 void format_response_head(std::string& out, int status, unsigned http_version,
                           const std::vector<std::pair<std::string, std::string>>& headers,
@@ -56,8 +55,8 @@ HeaderBlock::HeaderBlock(std::vector<std::pair<std::string, std::string>> f, std
 
 std::size_t HeaderBlock::memory_bytes() const {
   std::size_t n = sizeof(HeaderBlock) + fields.capacity() * sizeof(fields.front()) +
-                  heap_bytes(wire) + heap_bytes(keep_alive_head);
-  for (const auto& [k, v] : fields) n += heap_bytes(k) + heap_bytes(v);
+                  string_heap_bytes(wire) + string_heap_bytes(keep_alive_head);
+  for (const auto& [k, v] : fields) n += string_heap_bytes(k) + string_heap_bytes(v);
   return n;
 }
 

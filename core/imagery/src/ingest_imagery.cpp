@@ -23,10 +23,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-bool overlaps(const geo::MercatorRect& a, const geo::MercatorRect& b) {
-  return a.min_x < b.max_x && b.min_x < a.max_x && a.min_y < b.max_y && b.min_y < a.max_y;
-}
-
 // The tiles of one level that overlap a footprint, depth-first from the world tile, children in
 // quadkey digit order: i.e. in Morton order, produced one at a time without listing them.
 class FinestTiles {
@@ -53,7 +49,7 @@ class FinestTiles {
   bool covered(const geo::TileId& t) const {
     const geo::MercatorRect r = t.bounds();
     for (const auto& f : footprints_) {
-      if (overlaps(f, r)) return true;
+      if (f.overlaps(r)) return true;
     }
     return false;
   }

@@ -218,11 +218,6 @@ geo::MercatorRect clamp_to_map(geo::MercatorRect r) {
   return {c(r.min_x), c(r.min_y), c(r.max_x), c(r.max_y)};
 }
 
-// Open intervals overlap: a footprint that only touches a tile's border contributes nothing.
-bool overlaps(const geo::MercatorRect& a, const geo::MercatorRect& b) {
-  return a.min_x < b.max_x && b.min_x < a.max_x && a.min_y < b.max_y && b.min_y < a.max_y;
-}
-
 }  // namespace
 
 Status check_resampling(const std::string& name) {
@@ -366,7 +361,7 @@ Result<RgbaImage> TileRenderer::render(const geo::TileId& id) {
   std::vector<GDALDatasetH> sources;
   std::vector<std::string> names;
   for (std::size_t i = 0; i < impl_->plan->sources.size(); ++i) {
-    if (!overlaps(impl_->plan->sources[i].bounds, tile)) continue;
+    if (!impl_->plan->sources[i].bounds.overlaps(tile)) continue;
     auto ds = impl_->source(i);
     if (!ds) return ds.error();
     sources.push_back(*ds);

@@ -28,6 +28,10 @@ struct Request {
   bool admin_listener = false;  // received on the admin listener (config admin_address)
 };
 
+// Heap bytes of a string beyond the object itself (short strings live inside it): for the cache
+// budgets' memory accounting.
+std::size_t string_heap_bytes(const std::string& s);
+
 // Header fields shared by every identical answer (the 200 of a cached tile), built once, with the
 // length of the body they go with: the session sends `keep_alive_head` as it is on a keep-alive
 // HTTP/1.1 connection, and `wire` after a status line it formats in every other case. A plain

@@ -35,6 +35,10 @@ struct MercatorRect {
   }
   double width() const { return max_x - min_x; }
   double height() const { return max_y - min_y; }
+  // Open rectangles overlap: two that only touch along a side or at a corner do not.
+  bool overlaps(const MercatorRect& o) const {
+    return min_x < o.max_x && o.min_x < max_x && min_y < o.max_y && o.min_y < max_y;
+  }
 };
 
 // A rectangle in geodetic degrees (west/south/east/north).
