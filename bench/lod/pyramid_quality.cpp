@@ -13,7 +13,9 @@
 // scaled by the header's range). It also counts what issue #20 found: tile vertices below the
 // data's lowest height (walls), quantized-mesh height ranges that start below the data, pairs of
 // a tile's vertices closer than 1e-12, and zero-area triangles and repeated (u, v) positions in the
-// quantized-mesh encoding (decoded with the tests' independent decoder). --tiles adds one line per
+// quantized-mesh encoding (decoded with the tests' independent decoder), and the finest data points
+// that fall outside a tile's data footprint (under its NODATA fans: what a client drawing the
+// footprint only does not show). --tiles adds one line per
 // tile. Everything is evaluated by code of this file and the independent decoder, not by the
 // library's error bookkeeping.
 #include <algorithm>
@@ -146,14 +148,15 @@ int main(int argc, char** argv) {
       "| level | tiles | vertices/tile | recorded max (m) | measured max (m) | recorded / measured "
       "| "
       "per-tile ratio min–max | lowest vertex (m) | QM lowest height (m) | Cesium max (m) | "
-      "Cesium p99 (m) | tiles with pairs < 1e-12 | QM zero-area triangles | QM repeated (u,v) |\n");
-  std::printf("|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
+      "Cesium p99 (m) | tiles with pairs < 1e-12 | QM zero-area triangles | QM repeated (u,v) | "
+      "data points outside the footprint |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::uint32_t z = finest + 1; z-- > info->min_level;) {
     auto ids = store->tile_ids(argv[2], z);
     double recorded = 0, measured = 0, lowest = std::numeric_limits<double>::infinity();
     double qm_lowest = lowest, ratio_lo = lowest, ratio_hi = 0, cesium_max = 0;
     std::vector<double> cesium_errors;
-    std::size_t vertices = 0, pair_tiles = 0, zero_area = 0, repeated = 0;
+    std::size_t vertices = 0, pair_tiles = 0, zero_area = 0, repeated = 0, uncovered = 0;
     for (const auto& id : *ids) {
       const TinTile t = read(id);
       vertices += t.vertex_count();
@@ -161,6 +164,8 @@ int main(int argc, char** argv) {
       for (const auto& v : t.vertices()) lowest = std::min(lowest, v.z);
       if (close_pairs(t, 1e-12) > 0) ++pair_tiles;
       const Locator here = tile_locator(t);
+      const auto footprint = t.footprint_mask();
+      const std::vector<bool> data_triangle(footprint.begin(), footprint.end());
       std::optional<QmView> qm;
       if (spherical) {
         qm = qm_view(t, merc);
@@ -175,6 +180,7 @@ int main(int argc, char** argv) {
           double w;
           const double h = here.height(p.x, p.y, &w);
           tile_measured = std::max(tile_measured, std::abs(h - p.z));
+          if (!here.covered(p.x, p.y, data_triangle)) ++uncovered;
           if (qm) {
             const double e = std::abs(qm_height(*qm, merc, p.x, p.y) - p.z);
             cesium_errors.push_back(e);
@@ -198,11 +204,11 @@ int main(int argc, char** argv) {
     if (ratio_hi > 0) std::snprintf(ratios, sizeof ratios, "%.2f–%.2f", ratio_lo, ratio_hi);
     std::printf(
         "| %u | %zu | %.0f | %.4f | %.4f | %s | %s | %.3f | %.3f | %.4f | %.4f | %zu | %zu | %zu "
-        "|\n",
+        "| %zu |\n",
         z, ids->size(), double(vertices) / double(ids->size()), recorded, measured,
         z < finest && measured > 0 ? std::to_string(recorded / measured).substr(0, 5).c_str() : "—",
         ratios, lowest, qm_lowest, cesium_max, percentile(cesium_errors, 0.99), pair_tiles,
-        zero_area, repeated);
+        zero_area, repeated, uncovered);
     std::fflush(stdout);
   }
   return 0;

@@ -81,6 +81,20 @@ class Locator {
     *weight = best_w;
     return best_h;
   }
+  // Whether a triangle with data[i] set holds (x, y), its sides included up to rounding.
+  bool covered(double x, double y, const std::vector<bool>& data) const {
+    const int cx = cell(x, lo_x_, hi_x_), cy = cell(y, lo_y_, hi_y_);
+    for (std::uint32_t i : cells_[static_cast<std::size_t>(cy * g_ + cx)]) {
+      if (!data[i]) continue;
+      const Point3 &a = p_[t_[i][0]], &b = p_[t_[i][1]], &c = p_[t_[i][2]];
+      const double det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+      if (det == 0) continue;
+      const double wb = ((x - a.x) * (c.y - a.y) - (y - a.y) * (c.x - a.x)) / det;
+      const double wc = ((b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x)) / det;
+      if (std::min({1 - wb - wc, wb, wc}) >= -1e-9) return true;
+    }
+    return false;
+  }
 
  private:
   int cell(double v, double lo, double hi) const {
