@@ -210,7 +210,7 @@ class MeshBuilder {
   // Drawn triangles (their indices into drawn_, in order) that reach x = mid, y = mid: the only
   // ones a cut can cross.
   std::vector<std::uint32_t> reach_mid_x_, reach_mid_y_;
-  std::vector<bool> used_;            // a vertex of a drawn triangle
+  std::vector<std::uint8_t> used_;    // 1: a vertex of a drawn triangle (bytes, not bits: cheaper)
   std::vector<GeodeticTerms> terms_;  // per vertex
   std::vector<Vec3> ecef_, normal_;   // per vertex, double precision
   double deepest_ = 0;                // the lowest a skirt may hang (for the box)
@@ -239,7 +239,7 @@ MeshBuilder::MeshBuilder(const tile::TinTile& tile, const LayerDescription& laye
 // Drawn triangles (the data footprint) and the vertices they use; the quadrants they reach.
 void MeshBuilder::select_drawn() {
   drawn_.reserve(tile_.triangles.size());
-  used_.assign(vertices_.size(), false);
+  used_.assign(vertices_.size(), 0);
   const std::vector<std::uint8_t> footprint = tile_.footprint_mask();
   for (std::size_t i = 0; i < tile_.triangles.size(); ++i) {
     const tile::Triangle& t = tile_.triangles[i];
@@ -250,7 +250,7 @@ void MeshBuilder::select_drawn() {
     drawn_.push_back(t);
     double lo_x = vertices_[t[0]].x, hi_x = lo_x, lo_y = vertices_[t[0]].y, hi_y = lo_y;
     for (const std::uint32_t v : t) {
-      used_[v] = true;
+      used_[v] = 1;
       lo_x = std::min(lo_x, vertices_[v].x);
       hi_x = std::max(hi_x, vertices_[v].x);
       lo_y = std::min(lo_y, vertices_[v].y);
@@ -448,11 +448,12 @@ void MeshBuilder::write_indices() {
   const std::size_t total = drawn_.size() * 3 + skirt_triangles_.size();
   mesh_.surface_index_count = static_cast<std::uint32_t>(drawn_.size() * 3);
   const auto fill = [&](auto& out) {
-    out.reserve(total);
+    out.resize(total);
     using T = typename std::remove_reference_t<decltype(out)>::value_type;
+    T* next = out.data();
     for (const tile::Triangle& t : drawn_)
-      for (const std::uint32_t v : t) out.push_back(static_cast<T>(v));
-    for (const std::uint32_t v : skirt_triangles_) out.push_back(static_cast<T>(v));
+      for (const std::uint32_t v : t) *next++ = static_cast<T>(v);
+    for (const std::uint32_t v : skirt_triangles_) *next++ = static_cast<T>(v);
   };
   if (mesh_.vertices.size() <= 65536) {
     fill(mesh_.indices16);
