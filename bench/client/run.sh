@@ -10,12 +10,22 @@
 #                                            memory cesium; default all of them)
 #   FLIGHT_ARGS="--heap-trim-ms -1" MALLOC_ARENA_MAX=64 PARTS=memory bench/client/run.sh
 #                                            the flight with extra viewer options / environment
-#   DELAY_MS=100 COLD_CAMERA=near SSE=0.25 PARTS=cold bench/client/run.sh
+#   DELAY_MS=100 PARTS=cold bench/client/run.sh
 #                                            the cold part with 100 ms added to each request (the
 #                                            network latency knob: proxy.mjs holds every request
-#                                            DELAY_MS, default 30), from the close oblique camera
-#                                            (COLD_CAMERA far|near, default far); COLD_ARGS= adds
-#                                            viewer options to its runs (e.g. --prefetch-levels 0)
+#                                            DELAY_MS, default 30); COLD_ARGS= adds viewer options
+#                                            to its runs (e.g. --prefetch-levels 0)
+#   COLD_CAMERA=far SSE=2 PARTS=cold bench/client/run.sh
+#                                            the defaults before 2026-11-28: the framing camera at
+#                                            the viewer's default 2 px, which needs about one tile
+#
+# Defaults: COLD_CAMERA=near (the close oblique view over the layer, COLD_CAMERA far|near) and
+# SSE=0.25 (--max-sse, px, for every part, the memory flight and CesiumJS included), so that the
+# cold and stream parts measure many tiles: on the client tests' DEM store (Big Tujunga) at
+# 1280x720 the cold view loads ~59 tiles over 14 levels and the stream part's path streams 77
+# (2026-11-28) — under the issue's "≥ 100 tiles stream in" on that small store; SSE=0.125
+# streams 107 there. The far camera at 2 px needs one tile, which says
+# nothing about download threads.
 #
 # 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
 #    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
@@ -47,8 +57,8 @@ DELAY_MS=${DELAY_MS:-30}
 REPEAT=${REPEAT:-3}
 FLIGHT_S=${FLIGHT_S:-300}
 SIZE=${SIZE:-1280x720}
-SSE=${SSE:-2}
-COLD_CAMERA=${COLD_CAMERA:-far}
+SSE=${SSE:-0.25}
+COLD_CAMERA=${COLD_CAMERA:-near}
 CESIUM=${CESIUM:-auto}
 PARTS=${PARTS:-cold stream memory cesium}
 GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
