@@ -15,6 +15,10 @@
 #                                            network latency knob: proxy.mjs holds every request
 #                                            DELAY_MS, default 30); COLD_ARGS= adds viewer options
 #                                            to its runs (e.g. --prefetch-levels 0)
+#   PROXY=python bench/client/run.sh         the delaying proxy in Python 3 (proxy.py, standard
+#                                            library only; the default when node is missing)
+#                                            instead of proxy.mjs: same delay, counters, /__stats
+#                                            and /__reset
 #   COLD_CAMERA=far SSE=2 PARTS=cold bench/client/run.sh
 #                                            the defaults before 2026-11-28: the framing camera at
 #                                            the viewer's default 2 px, which needs about one tile
@@ -45,7 +49,7 @@
 #    CESIUM_TIMEOUT_S, default 600).
 # Store: STORE_IN + LAYER, else the client tests' DEM store ($BUILD/tests/client/stores/dem.sqlite,
 # Big Tujunga SRTM 30 m) when built, else `tinstream ingest` of ../shared/data's Big Tujunga DEM,
-# else `tinstream sample`. Needs node (proxy), python3 (tables), the built tinstream-viewer,
+# else `tinstream sample`. Needs node or python3 (proxy), python3 (tables), the built tinstream-viewer,
 # tinstream-server and tinstream in $BUILD/bin.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
@@ -60,6 +64,9 @@ SIZE=${SIZE:-1280x720}
 SSE=${SSE:-0.25}
 COLD_CAMERA=${COLD_CAMERA:-near}
 CESIUM=${CESIUM:-auto}
+if [[ -z ${PROXY:-} ]]; then  # the delaying proxy: proxy.mjs (node) or proxy.py (python3)
+  if command -v node > /dev/null; then PROXY=node; else PROXY=python; fi
+fi
 PARTS=${PARTS:-cold stream memory cesium}
 GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
 CACHE_MB=${CACHE_MB:-64}
@@ -95,13 +102,18 @@ wait_line() {  # FILE PATTERN: until FILE has a line matching PATTERN (30 s at m
 pids+=($!)
 wait_line "$OUT/server.out" "listening on"
 server_port=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$OUT/server.out" | head -1)
-node "$HERE/proxy.mjs" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
+case $PROXY in
+  node) proxy_cmd=(node "$HERE/proxy.mjs") ;;
+  python) proxy_cmd=(python3 "$HERE/proxy.py") ;;
+  *) echo "run.sh: PROXY is node or python, not '$PROXY'" >&2; exit 2 ;;
+esac
+"${proxy_cmd[@]}" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
   --static "$HERE" > "$OUT/proxy.out" 2> "$OUT/proxy.log" &
 pids+=($!)
 wait_line "$OUT/proxy.out" "listening"
 proxy=http://127.0.0.1:$(awk '/listening/ {print $2; exit}' "$OUT/proxy.out")
 curl -fsS "$proxy/layers/$layer" > "$OUT/layer.json"
-echo "server :$server_port, proxy $proxy (+$DELAY_MS ms per request)"
+echo "server :$server_port, proxy $proxy ($PROXY, +$DELAY_MS ms per request)"
 
 # Cameras from the layer's bounds: the framing view, a close oblique view, and a flight.
 eval "$(python3 "$HERE/analyze.py" cameras "$OUT/layer.json" "$OUT/flight.txt" "$FLIGHT_S" \
