@@ -10,12 +10,26 @@
 #                                            memory cesium; default all of them)
 #   FLIGHT_ARGS="--heap-trim-ms -1" MALLOC_ARENA_MAX=64 PARTS=memory bench/client/run.sh
 #                                            the flight with extra viewer options / environment
-#   DELAY_MS=100 COLD_CAMERA=near SSE=0.25 PARTS=cold bench/client/run.sh
+#   DELAY_MS=100 PARTS=cold bench/client/run.sh
 #                                            the cold part with 100 ms added to each request (the
 #                                            network latency knob: proxy.mjs holds every request
-#                                            DELAY_MS, default 30), from the close oblique camera
-#                                            (COLD_CAMERA far|near, default far); COLD_ARGS= adds
-#                                            viewer options to its runs (e.g. --prefetch-levels 0)
+#                                            DELAY_MS, default 30); COLD_ARGS= adds viewer options
+#                                            to its runs (e.g. --prefetch-levels 0)
+#   PROXY=python bench/client/run.sh         the delaying proxy in Python 3 (proxy.py, standard
+#                                            library only; the default when node is missing)
+#                                            instead of proxy.mjs: same delay, counters, /__stats
+#                                            and /__reset
+#   COLD_CAMERA=far SSE=2 PARTS=cold bench/client/run.sh
+#                                            the defaults before 2026-11-28: the framing camera at
+#                                            the viewer's default 2 px, which needs about one tile
+#
+# Defaults: COLD_CAMERA=near (the close oblique view over the layer, COLD_CAMERA far|near) and
+# SSE=0.25 (--max-sse, px, for every part, the memory flight and CesiumJS included), so that the
+# cold and stream parts measure many tiles: on the client tests' DEM store (Big Tujunga) at
+# 1280x720 the cold view loads ~59 tiles over 14 levels and the stream part's path streams 77
+# (2026-11-28) — under the issue's "≥ 100 tiles stream in" on that small store; SSE=0.125
+# streams 107 there. The far camera at 2 px needs one tile, which says
+# nothing about download threads.
 #
 # 1. cold time to a complete view, --threads 8 vs --threads 1, REPEAT times alternating (each run a
 #    fresh process: empty RAM and GPU tiers, no disk tier): time_to_complete_s from the viewer's
@@ -35,7 +49,7 @@
 #    CESIUM_TIMEOUT_S, default 600).
 # Store: STORE_IN + LAYER, else the client tests' DEM store ($BUILD/tests/client/stores/dem.sqlite,
 # Big Tujunga SRTM 30 m) when built, else `tinstream ingest` of ../shared/data's Big Tujunga DEM,
-# else `tinstream sample`. Needs node (proxy), python3 (tables), the built tinstream-viewer,
+# else `tinstream sample`. Needs node or python3 (proxy), python3 (tables), the built tinstream-viewer,
 # tinstream-server and tinstream in $BUILD/bin.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
@@ -47,9 +61,12 @@ DELAY_MS=${DELAY_MS:-30}
 REPEAT=${REPEAT:-3}
 FLIGHT_S=${FLIGHT_S:-300}
 SIZE=${SIZE:-1280x720}
-SSE=${SSE:-2}
-COLD_CAMERA=${COLD_CAMERA:-far}
+SSE=${SSE:-0.25}
+COLD_CAMERA=${COLD_CAMERA:-near}
 CESIUM=${CESIUM:-auto}
+if [[ -z ${PROXY:-} ]]; then  # the delaying proxy: proxy.mjs (node) or proxy.py (python3)
+  if command -v node > /dev/null; then PROXY=node; else PROXY=python; fi
+fi
 PARTS=${PARTS:-cold stream memory cesium}
 GPU_MB=${GPU_MB:-64}      # the flight's tier budgets
 CACHE_MB=${CACHE_MB:-64}
@@ -85,13 +102,18 @@ wait_line() {  # FILE PATTERN: until FILE has a line matching PATTERN (30 s at m
 pids+=($!)
 wait_line "$OUT/server.out" "listening on"
 server_port=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$OUT/server.out" | head -1)
-node "$HERE/proxy.mjs" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
+case $PROXY in
+  node) proxy_cmd=(node "$HERE/proxy.mjs") ;;
+  python) proxy_cmd=(python3 "$HERE/proxy.py") ;;
+  *) echo "run.sh: PROXY is node or python, not '$PROXY'" >&2; exit 2 ;;
+esac
+"${proxy_cmd[@]}" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
   --static "$HERE" > "$OUT/proxy.out" 2> "$OUT/proxy.log" &
 pids+=($!)
 wait_line "$OUT/proxy.out" "listening"
 proxy=http://127.0.0.1:$(awk '/listening/ {print $2; exit}' "$OUT/proxy.out")
 curl -fsS "$proxy/layers/$layer" > "$OUT/layer.json"
-echo "server :$server_port, proxy $proxy (+$DELAY_MS ms per request)"
+echo "server :$server_port, proxy $proxy ($PROXY, +$DELAY_MS ms per request)"
 
 # Cameras from the layer's bounds: the framing view, a close oblique view, and a flight.
 eval "$(python3 "$HERE/analyze.py" cameras "$OUT/layer.json" "$OUT/flight.txt" "$FLIGHT_S" \

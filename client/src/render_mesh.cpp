@@ -58,7 +58,7 @@ Result<std::vector<std::uint8_t>> gunzip(std::span<const std::uint8_t> bytes,
 
 // 10-bit signed normalised component of the 2_10_10_10 format.
 std::uint32_t snorm10(double v) {
-  const auto i = static_cast<std::int32_t>(std::lround(std::clamp(v, -1.0, 1.0) * 511.0));
+  const auto i = round_half_away(std::clamp(v, -1.0, 1.0) * 511.0);
   return static_cast<std::uint32_t>(i) & 0x3FFu;
 }
 
@@ -67,7 +67,7 @@ std::uint32_t pack_normal(Vec3 n, bool skirt) {
 }
 
 std::uint16_t unorm16(double t) {
-  return static_cast<std::uint16_t>(std::lround(std::clamp(t, 0.0, 1.0) * 65535.0));
+  return static_cast<std::uint16_t>(round_half_away(std::clamp(t, 0.0, 1.0) * 65535.0));
 }
 
 Vec3 to_vec(const geo::Ecef& e) { return {e.x, e.y, e.z}; }
@@ -109,6 +109,13 @@ Result<std::vector<std::uint8_t>> inflate_payload(std::span<const std::uint8_t> 
       return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
   }
   return unsupported("unknown content encoding");
+}
+
+std::int32_t round_half_away(double v) {
+  if (std::isnan(v)) return 0;                  // what std::lround gave here, truncated to 32 bits
+  const auto i = static_cast<std::int32_t>(v);  // towards zero
+  const double fraction = v - i;                // exact: the bits of v below the units
+  return i + (fraction >= 0.5 ? 1 : 0) - (fraction <= -0.5 ? 1 : 0);
 }
 
 std::size_t TileMesh::byte_size() const {
@@ -200,10 +207,13 @@ class MeshBuilder {
   TileMesh mesh_;
 
   std::vector<tile::Triangle> drawn_;  // inside the data footprint
-  std::vector<bool> used_;             // a vertex of a drawn triangle
-  std::vector<GeodeticTerms> terms_;   // per vertex
-  std::vector<Vec3> ecef_, normal_;    // per vertex, double precision
-  double deepest_ = 0;                 // the lowest a skirt may hang (for the box)
+  // Drawn triangles (their indices into drawn_, in order) that reach x = mid, y = mid: the only
+  // ones a cut can cross.
+  std::vector<std::uint32_t> reach_mid_x_, reach_mid_y_;
+  std::vector<std::uint8_t> used_;    // 1: a vertex of a drawn triangle (bytes, not bits: cheaper)
+  std::vector<GeodeticTerms> terms_;  // per vertex
+  std::vector<Vec3> ecef_, normal_;   // per vertex, double precision
+  double deepest_ = 0;                // the lowest a skirt may hang (for the box)
   std::vector<std::uint32_t> skirt_triangles_;
   std::unordered_map<std::uint32_t, std::uint32_t> skirt_of_;  // border vertex → skirt vertex
   std::vector<Vec3> skirt_points_;  // every skirt vertex at its deepest (for the box)
@@ -229,7 +239,7 @@ MeshBuilder::MeshBuilder(const tile::TinTile& tile, const LayerDescription& laye
 // Drawn triangles (the data footprint) and the vertices they use; the quadrants they reach.
 void MeshBuilder::select_drawn() {
   drawn_.reserve(tile_.triangles.size());
-  used_.assign(vertices_.size(), false);
+  used_.assign(vertices_.size(), 0);
   const std::vector<std::uint8_t> footprint = tile_.footprint_mask();
   for (std::size_t i = 0; i < tile_.triangles.size(); ++i) {
     const tile::Triangle& t = tile_.triangles[i];
@@ -240,7 +250,7 @@ void MeshBuilder::select_drawn() {
     drawn_.push_back(t);
     double lo_x = vertices_[t[0]].x, hi_x = lo_x, lo_y = vertices_[t[0]].y, hi_y = lo_y;
     for (const std::uint32_t v : t) {
-      used_[v] = true;
+      used_[v] = 1;
       lo_x = std::min(lo_x, vertices_[v].x);
       hi_x = std::max(hi_x, vertices_[v].x);
       lo_y = std::min(lo_y, vertices_[v].y);
@@ -249,6 +259,9 @@ void MeshBuilder::select_drawn() {
     // Quadkey digits: 0 NW, 1 NE, 2 SW, 3 SE.
     const bool west = lo_x<mid_x_, east = hi_x> mid_x_, north = hi_y > mid_y_,
                south = lo_y < mid_y_;
+    const auto index = static_cast<std::uint32_t>(drawn_.size() - 1);
+    if (lo_x <= mid_x_ && hi_x >= mid_x_) reach_mid_x_.push_back(index);
+    if (lo_y <= mid_y_ && hi_y >= mid_y_) reach_mid_y_.push_back(index);
     mesh_.quadrant_data |=
         static_cast<std::uint8_t>((north && west ? 1 : 0) | (north && east ? 2 : 0) |
                                   (south && west ? 4 : 0) | (south && east ? 8 : 0));
@@ -333,12 +346,12 @@ void MeshBuilder::add_side_skirts() {
   std::unordered_set<std::uint64_t> border_edges;
   const std::uint32_t border_end = static_cast<std::uint32_t>(
       4 + tile_.north.size() + tile_.east.size() + tile_.south.size() + tile_.west.size());
-  for (const tile::Triangle& t : drawn_)
-    for (int e = 0; e < 3; ++e) {
-      const std::uint32_t a = t[static_cast<std::size_t>(e)],
-                          b = t[static_cast<std::size_t>((e + 1) % 3)];
-      if (a < border_end && b < border_end) border_edges.insert(edge_key(a, b));
-    }
+  for (const tile::Triangle& t : drawn_) {
+    const bool b0 = t[0] < border_end, b1 = t[1] < border_end, b2 = t[2] < border_end;
+    if (b0 && b1) border_edges.insert(edge_key(t[0], t[1]));
+    if (b1 && b2) border_edges.insert(edge_key(t[1], t[2]));
+    if (b2 && b0) border_edges.insert(edge_key(t[2], t[0]));
+  }
   const auto sides = border_loops(tile_);
   for (std::size_t s = 0; s < sides.size(); ++s) {
     const std::size_t before = skirt_triangles_.size();
@@ -385,22 +398,24 @@ void MeshBuilder::cut_triangle(const tile::Triangle& t, bool vertical,
                                std::unordered_set<std::uint64_t>& cut_edges) {
   const double m = vertical ? mid_x_ : mid_y_, other = vertical ? mid_y_ : mid_x_;
   const auto c = [&](std::uint32_t v) { return vertical ? vertices_[v].x : vertices_[v].y; };
-  std::vector<CutPoint> points;
+  std::array<CutPoint, 3> points_at{};  // at most one per edge
+  std::size_t count = 0;
+  const auto push = [&](const CutPoint& p) { points_at[count++] = p; };
   std::uint32_t on_line[2]{}, on = 0;
   for (std::size_t e = 0; e < 3; ++e) {
     const std::uint32_t a = t[e], b = t[(e + 1) % 3];
     if (c(a) == m) {
       if (on < 2) on_line[on] = a;
       ++on;
-      points.push_back(along_edge(a, a, 0));
+      push(along_edge(a, a, 0));
     } else if ((c(a) < m) != (c(b) < m) && c(b) != m) {
-      points.push_back(along_edge(a, b, (m - c(a)) / (c(b) - c(a))));
+      push(along_edge(a, b, (m - c(a)) / (c(b) - c(a))));
     }
   }
-  if (points.size() != 2) return;  // touches the line at a vertex, or degenerate
+  if (count != 2) return;  // touches the line at a vertex, or degenerate
   if (on == 2 && !cut_edges.insert(edge_key(on_line[0], on_line[1])).second) return;
   const Vec3 n = normalize(cross(ecef_[t[1]] - ecef_[t[0]], ecef_[t[2]] - ecef_[t[0]]));
-  const CutPoint &p = points[0], &q = points[1];
+  const CutPoint &p = points_at[0], &q = points_at[1];
   const double ap = vertical ? p.y : p.x, aq = vertical ? q.y : q.x;
   if ((ap < other) != (aq < other) && ap != other && aq != other) {
     const CutPoint mid = between(p, q, (other - ap) / (aq - ap));
@@ -417,8 +432,9 @@ void MeshBuilder::cut_triangle(const tile::Triangle& t, bool vertical,
 // interpolating them along the edge gives the very line the fragment shader's mask cuts along.
 void MeshBuilder::add_cut_skirts() {
   std::unordered_set<std::uint64_t> cut_edges;  // an edge on a mid line is cut once
-  for (const bool vertical : {true, false})
-    for (const tile::Triangle& t : drawn_) cut_triangle(t, vertical, cut_edges);
+  // A triangle that does not reach a mid line has no cross-section with it.
+  for (const std::uint32_t i : reach_mid_x_) cut_triangle(drawn_[i], true, cut_edges);
+  for (const std::uint32_t i : reach_mid_y_) cut_triangle(drawn_[i], false, cut_edges);
   for (std::size_t g = 0; g < 4; ++g) {
     mesh_.cut_index_count[g] = static_cast<std::uint32_t>(cut_triangles_[g].size());
     skirt_triangles_.insert(skirt_triangles_.end(), cut_triangles_[g].begin(),
@@ -432,11 +448,12 @@ void MeshBuilder::write_indices() {
   const std::size_t total = drawn_.size() * 3 + skirt_triangles_.size();
   mesh_.surface_index_count = static_cast<std::uint32_t>(drawn_.size() * 3);
   const auto fill = [&](auto& out) {
-    out.reserve(total);
+    out.resize(total);
     using T = typename std::remove_reference_t<decltype(out)>::value_type;
+    T* next = out.data();
     for (const tile::Triangle& t : drawn_)
-      for (const std::uint32_t v : t) out.push_back(static_cast<T>(v));
-    for (const std::uint32_t v : skirt_triangles_) out.push_back(static_cast<T>(v));
+      for (const std::uint32_t v : t) *next++ = static_cast<T>(v);
+    for (const std::uint32_t v : skirt_triangles_) *next++ = static_cast<T>(v);
   };
   if (mesh_.vertices.size() <= 65536) {
     fill(mesh_.indices16);

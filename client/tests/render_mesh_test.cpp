@@ -110,6 +110,30 @@ TEST(RenderMesh, FastEcefAgreesWithGeographicLib) {
   EXPECT_GT(worst, 0.0);  // the paths differ (GeographicLib's was not called twice)
 }
 
+TEST(RenderMesh, RoundHalfAwayIsLround) {
+  // The packing's inline rounding against std::lround (what it replaced) over the whole range
+  // the packing uses (±511 for normals, 0..65535 for uv): every integer, every half, their
+  // neighbouring doubles (0.49999999999999994 must not round up, as v + 0.5 would), and a
+  // dense sweep of fractions; then NaN (0, as lround's LONG_MIN truncated to 10 or 16 bits).
+  std::size_t checked = 0;
+  const auto check = [&](double v) {
+    ASSERT_EQ(round_half_away(v), static_cast<std::int32_t>(std::lround(v))) << v;
+    ++checked;
+  };
+  for (int k = -2 * 65536; k <= 2 * 65536; ++k) {
+    const double half = k / 2.0;
+    check(half);
+    check(std::nextafter(half, -1e9));
+    check(std::nextafter(half, 1e9));
+  }
+  for (int k = -70000 * 64; k <= 70000 * 64; ++k) check(k / 64.0 + 1.0 / 3.0);
+  check(0.49999999999999994);
+  check(-0.49999999999999994);
+  check(-0.0);
+  EXPECT_EQ(round_half_away(std::nan("")), 0);
+  EXPECT_GT(checked, 9'000'000u);
+}
+
 TEST(RenderMesh, FineTileKeepsMillimetres) {
   const geo::TileId id{20, 549321, 355123};
   const tile::TinTile t =

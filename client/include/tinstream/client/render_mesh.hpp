@@ -47,6 +47,10 @@
 
 namespace tinstream::client {
 
+// std::lround for |v| < 2^31, inline (the normal and uv packing's rounding): halves away from
+// zero; NaN gives 0.
+std::int32_t round_half_away(double v);
+
 // 24 bytes, the vertex buffer's layout (renderer.cpp binds these offsets).
 struct MeshVertex {
   float position[3];     // metres, ECEF relative to TileMesh::centre
