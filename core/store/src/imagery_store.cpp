@@ -5,9 +5,7 @@
 // own: an imagery layer is visible iff imagery_layers has a row for it, that row names a 'ready'
 // imagery version, and publish switches it in one transaction. No statement here reads or writes
 // a terrain table, so imagery and terrain layers are replaced independently.
-#include <unistd.h>
 
-#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -238,71 +236,51 @@ Status TileStore::delete_imagery(std::string_view name) {
 // ---------------------------------------------------------------------------------------------
 // The writer
 
-struct ImageryWriter::Impl {
-  TileStore::Impl* store = nullptr;
-  std::string name;
-  std::int64_t version = 0;
-  enum class State { building, published, abandoned } state = State::building;
-  std::vector<StoredImage> pending;  // waiting for the next flush (LayerWriter's batching)
-  std::size_t pending_bytes = 0;
+const VersionKind kImageryKind{
+    "imagery layer",
+    "SELECT id, writer_pid, writer_host, writer_start FROM imagery_versions "
+    "WHERE name = ?1 AND status = 'building'",
+    "SELECT count(*) FROM imagery_tiles WHERE version = ?1",
+    "SELECT version FROM imagery_layers WHERE name = ?1",
+    "INSERT INTO imagery_layers (name, version) VALUES (?1, ?2) "
+    "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
+    &TileStore::Impl::drop_imagery_version};
 
-  std::string what() const {
-    return "imagery layer '" + name + "' version " + std::to_string(version);
+struct ImageryWriter::Impl : VersionBatch<StoredImage> {
+  Status flush() {
+    return write_pending(
+        "INSERT OR REPLACE INTO imagery_tiles (version, z, x, y, data, etag) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+        [](Query& q, const StoredImage& t) { q.bind_blob(5, t.data).bind(6, t.etag); });
   }
-  Status usable() const {
-    if (state == State::published) return invalid_argument(what() + " is already published");
-    if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
-    return {};
-  }
-  Status flush();
 };
 
 Result<std::unique_ptr<ImageryWriter>> TileStore::begin_imagery(const ImageryInfo& info) {
   if (Status s = impl_->require_writable(); !s) return s.error();
   if (Status s = validate_imagery_info(info); !s) return s.error();
   if (Status s = impl_->create_imagery_tables(); !s) return s.error();
-  const long pid = static_cast<long>(getpid());
-  std::int64_t version = 0;
-  Status s = impl_->transaction("starting an imagery version", [&]() -> Status {
-    auto stale = impl_->stale_versions(
-        "SELECT id, writer_pid, writer_host, writer_start FROM imagery_versions "
-        "WHERE name = ?1 AND status = 'building'",
-        info.name, "imagery layer");
-    if (!stale) return stale.error();
-    for (const std::int64_t id : *stale) {
-      if (Status d = impl_->drop_imagery_version(id); !d) return d;
-    }
-    auto insert = impl_->query(
-        "INSERT INTO imagery_versions (name, status, writer_pid, writer_host, writer_start, "
-        "projection, format, tile_size, min_x, min_y, max_x, max_y, west, south, east, north, "
-        "min_level, max_level, tile_count, options, attribution, started_unix) VALUES (?1, "
-        "'building', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, "
-        "?18, ?19, ?20)");
-    if (!insert) return insert.error();
-    insert->bind(1, info.name).bind(2, static_cast<std::int64_t>(pid)).bind(3, host_name());
-    if (const std::int64_t start = process_start(pid); start >= 0) {
-      insert->bind(4, start);
-    } else {
-      insert->bind_null(4);
-    }
-    insert->bind(5, geo::to_string(info.projection)).bind(6, info.format).bind(7, info.tile_size);
-    insert->bind(8, info.mercator_bounds.min_x).bind(9, info.mercator_bounds.min_y);
-    insert->bind(10, info.mercator_bounds.max_x).bind(11, info.mercator_bounds.max_y);
-    insert->bind(12, info.bounds.west).bind(13, info.bounds.south);
-    insert->bind(14, info.bounds.east).bind(15, info.bounds.north);
-    insert->bind(16, info.min_level).bind(17, info.max_level);
-    insert->bind(18, info.options_json).bind(19, info.attribution).bind(20, now_unix());
-    if (!Impl::done(*insert)) {
-      return impl_->sql_error("creating a version of imagery layer '" + info.name + "'");
-    }
-    version = sqlite3_last_insert_rowid(impl_->db.get());
-    return {};
-  });
-  if (!s) return s.error();
+  auto version = impl_->begin_version(
+      kImageryKind, info.name,
+      "INSERT INTO imagery_versions (name, status, writer_pid, writer_host, writer_start, "
+      "projection, format, tile_size, min_x, min_y, max_x, max_y, west, south, east, north, "
+      "min_level, max_level, tile_count, options, attribution, started_unix) VALUES (?1, "
+      "'building', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, "
+      "?18, ?19, ?20)",
+      [&](Query& q) {
+        q.bind(5, geo::to_string(info.projection)).bind(6, info.format).bind(7, info.tile_size);
+        q.bind(8, info.mercator_bounds.min_x).bind(9, info.mercator_bounds.min_y);
+        q.bind(10, info.mercator_bounds.max_x).bind(11, info.mercator_bounds.max_y);
+        q.bind(12, info.bounds.west).bind(13, info.bounds.south);
+        q.bind(14, info.bounds.east).bind(15, info.bounds.north);
+        q.bind(16, info.min_level).bind(17, info.max_level);
+        q.bind(18, info.options_json).bind(19, info.attribution).bind(20, now_unix());
+      });
+  if (!version) return version.error();
   auto writer = std::make_unique<ImageryWriter::Impl>();
+  writer->kind = &kImageryKind;
   writer->store = impl_.get();
   writer->name = info.name;
-  writer->version = version;
+  writer->version = *version;
   return std::make_unique<ImageryWriter>(std::move(writer));
 }
 
@@ -310,31 +288,6 @@ ImageryWriter::ImageryWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)
 
 ImageryWriter::~ImageryWriter() {
   if (impl_ && impl_->state == Impl::State::building) abandon();
-}
-
-Status ImageryWriter::Impl::flush() {
-  if (pending.empty()) return {};
-  TileStore::Impl& db = *store;
-  Status s = db.transaction("writing a batch of imagery tiles", [&]() -> Status {
-    auto q = db.query(
-        "INSERT OR REPLACE INTO imagery_tiles (version, z, x, y, data, etag) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
-    if (!q) return q.error();
-    for (const StoredImage& t : pending) {
-      q->bind(1, version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
-      q->bind_blob(5, t.data).bind(6, t.etag);
-      if (!TileStore::Impl::done(*q)) {
-        return db.sql_error("writing " + what() + " tile " + t.id.to_string());
-      }
-      q->reset();
-    }
-    return {};
-  });
-  if (s) {
-    pending.clear();
-    pending_bytes = 0;
-  }
-  return s;
 }
 
 Status ImageryWriter::put(StoredImage&& tile) {
@@ -346,12 +299,8 @@ Status ImageryWriter::put(StoredImage&& tile) {
     return invalid_argument(impl_->what() + ": empty image for tile " + tile.id.to_string());
   }
   tile.etag = make_etag(tile.data);
-  impl_->pending_bytes += tile.data.size();
-  impl_->pending.push_back(std::move(tile));
-  if (impl_->pending.size() >= kBatchTiles || impl_->pending_bytes >= kBatchBytes) {
-    return impl_->flush();  // on failure the tiles stay pending: a later put/flush retries
-  }
-  return {};
+  const std::size_t bytes = tile.data.size();
+  return impl_->add(std::move(tile), bytes, [&] { return impl_->flush(); });
 }
 
 Status ImageryWriter::flush() {
@@ -361,10 +310,7 @@ Status ImageryWriter::flush() {
 
 Result<std::optional<StoredImage>> ImageryWriter::get(const geo::TileId& id) {
   if (Status s = impl_->usable(); !s) return s.error();
-  // The latest put of the id wins: the pending batch is searched newest first.
-  const auto pending = std::find_if(impl_->pending.rbegin(), impl_->pending.rend(),
-                                    [&](const StoredImage& t) { return t.id == id; });
-  if (pending != impl_->pending.rend()) return std::optional<StoredImage>(*pending);
+  if (const StoredImage* p = impl_->find_pending(id)) return std::optional<StoredImage>(*p);
   auto q = impl_->store->query(
       "SELECT data, etag FROM imagery_tiles WHERE version = ?1 AND z = ?2 AND x = ?3 AND y = ?4");
   if (!q) return q.error();
@@ -389,59 +335,24 @@ Status ImageryWriter::publish(const ImageryInfo& info) {
   }
   if (Status s = validate_imagery_info(info); !s) return s;
   if (Status s = impl_->flush(); !s) return s;
-  TileStore::Impl& store = *impl_->store;
-  const std::int64_t version = impl_->version;
-  Status s = store.transaction("publishing an imagery layer", [&]() -> Status {
-    auto count = store.query("SELECT count(*) FROM imagery_tiles WHERE version = ?1");
-    if (!count) return count.error();
-    count->bind(1, version);
-    if (count->step() != SQLITE_ROW) {
-      return store.sql_error("counting the tiles of " + impl_->what());
-    }
-    const std::int64_t tiles = count->i64(0);
-    auto update = store.query(
-        "UPDATE imagery_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
-        "writer_start = NULL, projection = ?2, format = ?3, tile_size = ?4, min_x = ?5, "
-        "min_y = ?6, max_x = ?7, max_y = ?8, west = ?9, south = ?10, east = ?11, north = ?12, "
-        "min_level = ?13, max_level = ?14, tile_count = ?15, options = ?16, attribution = ?17, "
-        "created_unix = ?18 WHERE id = ?1 AND status = 'building'");
-    if (!update) return update.error();
-    update->bind(1, version).bind(2, geo::to_string(info.projection)).bind(3, info.format);
-    update->bind(4, info.tile_size);
-    update->bind(5, info.mercator_bounds.min_x).bind(6, info.mercator_bounds.min_y);
-    update->bind(7, info.mercator_bounds.max_x).bind(8, info.mercator_bounds.max_y);
-    update->bind(9, info.bounds.west).bind(10, info.bounds.south);
-    update->bind(11, info.bounds.east).bind(12, info.bounds.north);
-    update->bind(13, info.min_level).bind(14, info.max_level).bind(15, tiles);
-    update->bind(16, info.options_json).bind(17, info.attribution).bind(18, now_unix());
-    if (!TileStore::Impl::done(*update)) return store.sql_error("publishing " + impl_->what());
-    if (sqlite3_changes(store.db.get()) != 1) {
-      return Error(ErrorCode::internal, store.path.string() + ": " + impl_->what() +
-                                            " disappeared before it was published");
-    }
-    auto previous =
-        store.switch_published("SELECT version FROM imagery_layers WHERE name = ?1",
-                               "INSERT INTO imagery_layers (name, version) VALUES (?1, ?2) "
-                               "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
-                               impl_->name, version, impl_->what());
-    if (!previous) return previous.error();
-    if (*previous) return store.drop_imagery_version(**previous);
-    return {};
-  });
-  if (s) impl_->state = Impl::State::published;
-  return s;
+  return impl_->publish(
+      "UPDATE imagery_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
+      "writer_start = NULL, projection = ?2, format = ?3, tile_size = ?4, min_x = ?5, "
+      "min_y = ?6, max_x = ?7, max_y = ?8, west = ?9, south = ?10, east = ?11, north = ?12, "
+      "min_level = ?13, max_level = ?14, tile_count = ?15, options = ?16, attribution = ?17, "
+      "created_unix = ?18 WHERE id = ?1 AND status = 'building'",
+      [&](Query& q, std::int64_t tiles) {
+        q.bind(2, geo::to_string(info.projection)).bind(3, info.format);
+        q.bind(4, info.tile_size);
+        q.bind(5, info.mercator_bounds.min_x).bind(6, info.mercator_bounds.min_y);
+        q.bind(7, info.mercator_bounds.max_x).bind(8, info.mercator_bounds.max_y);
+        q.bind(9, info.bounds.west).bind(10, info.bounds.south);
+        q.bind(11, info.bounds.east).bind(12, info.bounds.north);
+        q.bind(13, info.min_level).bind(14, info.max_level).bind(15, tiles);
+        q.bind(16, info.options_json).bind(17, info.attribution).bind(18, now_unix());
+      });
 }
 
-void ImageryWriter::abandon() {
-  if (impl_->state != Impl::State::building) return;
-  impl_->state = Impl::State::abandoned;
-  impl_->pending.clear();
-  impl_->pending_bytes = 0;
-  TileStore::Impl& store = *impl_->store;
-  const std::int64_t version = impl_->version;
-  // Best effort: if this fails, the next begin_imagery of the name collects it.
-  (void)store.transaction("abandoning an imagery version",
-                          [&]() -> Status { return store.drop_imagery_version(version); });
-}
+void ImageryWriter::abandon() { impl_->abandon(); }
 
 }  // namespace tinstream::store

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <sqlite3.h>
+#include <unistd.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -113,6 +114,19 @@ std::string host_name();
 std::int64_t process_start(long pid);
 // True when the process recorded as (pid, start time) still runs and is not a zombie.
 bool process_alive(long pid, std::int64_t recorded_start);
+
+// The tables of one kind of layer (terrain: layers, layer_versions, tiles; imagery:
+// imagery_layers, imagery_versions, imagery_tiles), for what the kinds' writers share.
+struct VersionKind {
+  const char* noun;  // "layer", "imagery layer": how messages name it
+  // Columns id, writer_pid, writer_host, writer_start of the 'building' versions of ?1 (a name).
+  const char* select_building;
+  const char* count_tiles;       // the tiles of version ?1
+  const char* select_published;  // the published version of name ?1
+  const char* upsert_published;  // name ?1 now publishes version ?2
+  // Deletes a version's tiles and its row (inside a transaction).
+  Status (TileStore::Impl::*drop)(std::int64_t version);
+};
 
 struct TileStore::Impl {
   std::filesystem::path path;
@@ -256,6 +270,40 @@ struct TileStore::Impl {
                                                        std::int64_t version,
                                                        const std::string& what);
 
+  // Inside begin_layer/begin_imagery: collects the stale 'building' versions of `name`, inserts
+  // the new version's row with `insert` (?1 = name, ?2..?4 = the writer's pid, host and start
+  // time; `bind(query)` binds the rest) and returns its id.
+  template <typename Bind>
+  Result<std::int64_t> begin_version(const VersionKind& kind, const std::string& name,
+                                     const char* insert, Bind&& bind) {
+    const long pid = static_cast<long>(getpid());
+    std::int64_t version = 0;
+    const std::string doing = std::string("starting a version of ") + kind.noun;
+    Status s = transaction(doing.c_str(), [&]() -> Status {
+      auto stale = stale_versions(kind.select_building, name, kind.noun);
+      if (!stale) return stale.error();
+      for (const std::int64_t id : *stale) {
+        if (Status d = (this->*kind.drop)(id); !d) return d;
+      }
+      auto q = query(insert);
+      if (!q) return q.error();
+      q->bind(1, name).bind(2, static_cast<std::int64_t>(pid)).bind(3, host_name());
+      if (const std::int64_t start = process_start(pid); start >= 0) {
+        q->bind(4, start);
+      } else {
+        q->bind_null(4);
+      }
+      bind(*q);
+      if (!done(*q)) {
+        return sql_error("creating a version of " + std::string(kind.noun) + " '" + name + "'");
+      }
+      version = sqlite3_last_insert_rowid(db.get());
+      return {};
+    });
+    if (!s) return s.error();
+    return version;
+  }
+
   // The imagery tables (imagery_store.cpp). A file written before they existed has none until a
   // read-write open adds them; a read-only connection looks again on each use until it sees them
   // (another process may add them while this one serves).
@@ -264,6 +312,124 @@ struct TileStore::Impl {
   Status create_imagery_tables();  // read-write opens; idempotent
   // Deletes an imagery version's tiles and its row. Inside a transaction.
   Status drop_imagery_version(std::int64_t version);
+};
+
+// What LayerWriter::Impl and ImageryWriter::Impl share: one 'building' version of a named layer,
+// its state, and the rows batched in memory that write_pending() writes in one short transaction
+// (so the file's write lock is held only while rows are inserted, never across the caller's
+// computation between puts: other writers and publishes on the same file wait at most one flush).
+template <typename Row>
+struct VersionBatch {
+  const VersionKind* kind = nullptr;
+  TileStore::Impl* store = nullptr;
+  std::string name;
+  std::int64_t version = 0;
+  enum class State { building, published, abandoned } state = State::building;
+  std::vector<Row> pending;  // put, waiting for the next flush
+  std::size_t pending_bytes = 0;
+
+  std::string what() const {
+    return std::string(kind->noun) + " '" + name + "' version " + std::to_string(version);
+  }
+  Status usable() const {
+    if (state == State::published) return invalid_argument(what() + " is already published");
+    if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
+    return {};
+  }
+
+  // Queues a row of `bytes`; calls `flush` when the batch holds kBatchTiles rows or kBatchBytes.
+  template <typename Flush>
+  Status add(Row&& row, std::size_t bytes, Flush&& flush) {
+    pending_bytes += bytes;
+    pending.push_back(std::move(row));
+    if (pending.size() >= kBatchTiles || pending_bytes >= kBatchBytes) {
+      return flush();  // on failure the rows stay pending: a later put/flush retries
+    }
+    return {};
+  }
+
+  // The latest pending row of the id (the latest put wins), or null.
+  const Row* find_pending(const geo::TileId& id) const {
+    // Not std::views::reverse: clang-tidy 14 (clang 14) cannot parse libstdc++ 12's ranges.
+    // NOLINTNEXTLINE(modernize-loop-convert)
+    for (auto it = pending.rbegin(); it != pending.rend(); ++it) {
+      if (it->id == id) return &*it;
+    }
+    return nullptr;
+  }
+
+  // Writes the pending rows in one transaction with `insert` (?1 = version, ?2..?4 = z, x, y;
+  // `bind(query, row)` binds the rest). On failure they stay pending (a flush may be retried,
+  // e.g. after SQLITE_BUSY); on success the batch is durable.
+  template <typename Bind>
+  Status write_pending(const char* insert, Bind&& bind) {
+    if (pending.empty()) return {};
+    TileStore::Impl& db = *store;
+    const std::string doing = std::string("writing a batch of tiles of ") + kind->noun;
+    Status s = db.transaction(doing.c_str(), [&]() -> Status {
+      auto q = db.query(insert);
+      if (!q) return q.error();
+      for (const Row& r : pending) {
+        q->bind(1, version).bind(2, r.id.z).bind(3, r.id.x).bind(4, r.id.y);
+        bind(*q, r);
+        if (!TileStore::Impl::done(*q)) {
+          return db.sql_error("writing " + what() + " tile " + r.id.to_string());
+        }
+        q->reset();
+      }
+      return {};
+    });
+    if (s) {
+      pending.clear();
+      pending_bytes = 0;
+    }
+    return s;
+  }
+
+  // After the caller's flush: counts the version's tiles, sets its row 'ready' with `update`
+  // (?1 = version; `bind(query, tile_count)` binds the rest; the statement must match only a
+  // 'building' row), points the name at it and deletes the version it replaces, all in one
+  // transaction.
+  template <typename Bind>
+  Status publish(const char* update, Bind&& bind) {
+    TileStore::Impl& db = *store;
+    const std::string doing = std::string("publishing ") + kind->noun + " '" + name + "'";
+    Status s = db.transaction(doing.c_str(), [&]() -> Status {
+      auto count = db.query(kind->count_tiles);
+      if (!count) return count.error();
+      count->bind(1, version);
+      if (count->step() != SQLITE_ROW) return db.sql_error("counting the tiles of " + what());
+      const std::int64_t tiles = count->i64(0);
+      auto q = db.query(update);
+      if (!q) return q.error();
+      q->bind(1, version);
+      bind(*q, tiles);
+      if (!TileStore::Impl::done(*q)) return db.sql_error("publishing " + what());
+      if (sqlite3_changes(db.db.get()) != 1) {
+        return Error(ErrorCode::internal,
+                     db.path.string() + ": " + what() + " disappeared before it was published");
+      }
+      auto previous = db.switch_published(kind->select_published, kind->upsert_published, name,
+                                          version, what());
+      if (!previous) return previous.error();
+      if (*previous) return (db.*(kind->drop))(**previous);
+      return {};
+    });
+    if (s) state = State::published;
+    return s;
+  }
+
+  // Marks the version abandoned and deletes it. Best effort: if that fails (disk full, say),
+  // the next begin of the name collects it.
+  void abandon() {
+    if (state != State::building) return;
+    state = State::abandoned;
+    pending.clear();
+    pending_bytes = 0;
+    const std::string doing = std::string("abandoning a version of ") + kind->noun;
+    (void)store->transaction(doing.c_str(),
+                             [&]() -> Status { return (store->*(kind->drop))(version); });
+  }
 };
 
 }  // namespace tinstream::store

@@ -430,78 +430,61 @@ Status TileStore::delete_layer(std::string_view name) {
 
 // ---------------------------------------------------------------------------------------------
 
-struct LayerWriter::Impl {
-  TileStore::Impl* store = nullptr;
-  std::string name;
-  std::int64_t version = 0;
-  enum class State { building, published, abandoned } state = State::building;
-  // Tiles batched in memory and written in one short transaction by flush(), so the file's write
-  // lock is held only while rows are inserted, never across the caller's computation between
-  // puts (other writers and publishes on the same file wait at most one flush).
-  std::vector<StoredTile> pending;  // prepared by put(), waiting for the next flush
-  std::size_t pending_bytes = 0;
+const VersionKind kLayerKind{"layer",
+                             "SELECT id, writer_pid, writer_host, writer_start FROM layer_versions "
+                             "WHERE name = ?1 AND status = 'building'",
+                             "SELECT count(*) FROM tiles WHERE version = ?1",
+                             "SELECT version FROM layers WHERE name = ?1",
+                             "INSERT INTO layers (name, version) VALUES (?1, ?2) "
+                             "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
+                             &TileStore::Impl::drop_version};
 
-  std::string what() const { return "layer '" + name + "' version " + std::to_string(version); }
-  Status usable() const {
-    if (state == State::published) return invalid_argument(what() + " is already published");
-    if (state == State::abandoned) return invalid_argument(what() + " was abandoned");
-    return {};
+struct LayerWriter::Impl : VersionBatch<StoredTile> {
+  Status flush() {
+    if (pending.empty()) return {};
+    Status s = write_pending(
+        "INSERT OR REPLACE INTO tiles (version, z, x, y, data, etag, min_z, max_z, "
+        "geometric_error, vertex_count, triangle_count) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+        [](Query& q, const StoredTile& t) {
+          q.bind_blob(5, t.compressed).bind(6, t.etag);
+          q.bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
+          q.bind(10, t.vertex_count).bind(11, t.triangle_count);
+        });
+    if (s) fault::point("store.commit");  // a batch of the new version is committed (crash tests)
+    return s;
   }
-  // Writes the pending tiles in one transaction. On failure they stay pending (flush may be
-  // retried, e.g. after SQLITE_BUSY); on success the batch is durable.
-  Status flush();
 };
 
 Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& info) {
   if (Status s = impl_->require_writable(); !s) return s.error();
   if (Status s = validate_info(info); !s) return s.error();
-  const long pid = static_cast<long>(getpid());
-  const std::string host = host_name();
-  std::int64_t version = 0;
-  Status s = impl_->transaction("starting a layer version", [&]() -> Status {
-    // Versions of this name still being built: refuse if their writer lives, else collect them.
-    auto stale = impl_->stale_versions(
-        "SELECT id, writer_pid, writer_host, writer_start FROM layer_versions "
-        "WHERE name = ?1 AND status = 'building'",
-        info.name, "layer");
-    if (!stale) return stale.error();
-    for (const std::int64_t id : *stale) {
-      if (Status d = impl_->drop_version(id); !d) return d;
-    }
-    auto insert = impl_->query(
-        "INSERT INTO layer_versions (name, status, writer_pid, writer_host, writer_start, "
-        "projection, vertical_datum, min_x, min_y, max_x, max_y, west, south, east, north, "
-        "min_level, max_level, max_points, tile_count, point_count, source_points, min_z, max_z, "
-        "level_max_error, options, attribution, started_unix) VALUES (?1, 'building', ?2, ?3, ?4, "
-        "?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, ?18, ?19, ?20, ?21, ?22, "
-        "?23, ?24, ?25)");
-    if (!insert) return insert.error();
-    const std::string errors = nlohmann::json(info.level_max_error).dump();
-    insert->bind(1, info.name).bind(2, static_cast<std::int64_t>(pid)).bind(3, host);
-    if (const std::int64_t start = process_start(pid); start >= 0) {
-      insert->bind(4, start);
-    } else {
-      insert->bind_null(4);
-    }
-    insert->bind(5, geo::to_string(info.projection)).bind(6, info.vertical_datum);
-    insert->bind(7, info.mercator_bounds.min_x).bind(8, info.mercator_bounds.min_y);
-    insert->bind(9, info.mercator_bounds.max_x).bind(10, info.mercator_bounds.max_y);
-    insert->bind(11, info.bounds.west).bind(12, info.bounds.south);
-    insert->bind(13, info.bounds.east).bind(14, info.bounds.north);
-    insert->bind(15, info.min_level).bind(16, info.max_level).bind(17, info.max_points);
-    insert->bind(18, info.point_count).bind(19, info.source_points);
-    insert->bind(20, info.min_z).bind(21, info.max_z).bind(22, errors);
-    insert->bind(23, info.options_json).bind(24, info.attribution).bind(25, now_unix());
-    if (!Impl::done(*insert))
-      return impl_->sql_error("creating a version of layer '" + info.name + "'");
-    version = sqlite3_last_insert_rowid(impl_->db.get());
-    return {};
-  });
-  if (!s) return s.error();
+  const std::string errors = nlohmann::json(info.level_max_error).dump();
+  auto version = impl_->begin_version(
+      kLayerKind, info.name,
+      "INSERT INTO layer_versions (name, status, writer_pid, writer_host, writer_start, "
+      "projection, vertical_datum, min_x, min_y, max_x, max_y, west, south, east, north, "
+      "min_level, max_level, max_points, tile_count, point_count, source_points, min_z, max_z, "
+      "level_max_error, options, attribution, started_unix) VALUES (?1, 'building', ?2, ?3, ?4, "
+      "?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, 0, ?18, ?19, ?20, ?21, ?22, "
+      "?23, ?24, ?25)",
+      [&](Query& q) {
+        q.bind(5, geo::to_string(info.projection)).bind(6, info.vertical_datum);
+        q.bind(7, info.mercator_bounds.min_x).bind(8, info.mercator_bounds.min_y);
+        q.bind(9, info.mercator_bounds.max_x).bind(10, info.mercator_bounds.max_y);
+        q.bind(11, info.bounds.west).bind(12, info.bounds.south);
+        q.bind(13, info.bounds.east).bind(14, info.bounds.north);
+        q.bind(15, info.min_level).bind(16, info.max_level).bind(17, info.max_points);
+        q.bind(18, info.point_count).bind(19, info.source_points);
+        q.bind(20, info.min_z).bind(21, info.max_z).bind(22, errors);
+        q.bind(23, info.options_json).bind(24, info.attribution).bind(25, now_unix());
+      });
+  if (!version) return version.error();
   auto writer = std::make_unique<LayerWriter::Impl>();
+  writer->kind = &kLayerKind;
   writer->store = impl_.get();
   writer->name = info.name;
-  writer->version = version;
+  writer->version = *version;
   return std::make_unique<LayerWriter>(std::move(writer));
 }
 
@@ -509,34 +492,6 @@ LayerWriter::LayerWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 LayerWriter::~LayerWriter() {
   if (impl_ && impl_->state == Impl::State::building) abandon();
-}
-
-Status LayerWriter::Impl::flush() {
-  if (pending.empty()) return {};
-  TileStore::Impl& db = *store;
-  Status s = db.transaction("writing a batch of tiles", [&]() -> Status {
-    auto q = db.query(
-        "INSERT OR REPLACE INTO tiles (version, z, x, y, data, etag, min_z, max_z, "
-        "geometric_error, vertex_count, triangle_count) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
-    if (!q) return q.error();
-    for (const StoredTile& t : pending) {
-      q->bind(1, version).bind(2, t.id.z).bind(3, t.id.x).bind(4, t.id.y);
-      q->bind_blob(5, t.compressed).bind(6, t.etag);
-      q->bind(7, t.min_z).bind(8, t.max_z).bind(9, t.geometric_error);
-      q->bind(10, t.vertex_count).bind(11, t.triangle_count);
-      if (!TileStore::Impl::done(*q))
-        return db.sql_error("writing " + what() + " tile " + t.id.to_string());
-      q->reset();
-    }
-    return {};
-  });
-  if (s) {
-    pending.clear();
-    pending_bytes = 0;
-    fault::point("store.commit");  // a batch of the new version is committed (crash tests)
-  }
-  return s;
 }
 
 Result<StoredTile> prepare_tile(const tile::TinTile& t) {
@@ -584,12 +539,8 @@ Status LayerWriter::put(StoredTile&& t) {
   if (Status s = impl_->usable(); !s) return s;
   if (!t.id.valid())
     return invalid_argument(impl_->what() + ": invalid tile id " + t.id.to_string());
-  impl_->pending_bytes += t.compressed.size();
-  impl_->pending.push_back(std::move(t));
-  if (impl_->pending.size() >= kBatchTiles || impl_->pending_bytes >= kBatchBytes) {
-    return impl_->flush();  // on failure the tiles stay pending: a later put/flush retries
-  }
-  return {};
+  const std::size_t bytes = t.compressed.size();
+  return impl_->add(std::move(t), bytes, [&] { return impl_->flush(); });
 }
 
 Status LayerWriter::flush() {
@@ -612,12 +563,7 @@ Result<std::optional<tile::TinTile>> LayerWriter::get(const geo::TileId& id) {
 Result<std::optional<StoredTile>> LayerWriter::get_stored(const geo::TileId& id) {
   if (Status s = impl_->usable(); !s) return s.error();
   if (!id.valid()) return invalid_argument(impl_->what() + ": invalid tile id " + id.to_string());
-  // The latest put of the id wins: look at the pending batch first, newest first.
-  // Not std::views::reverse: clang-tidy 14 (clang 14) cannot parse libstdc++ 12's ranges.
-  // NOLINTNEXTLINE(modernize-loop-convert)
-  for (auto it = impl_->pending.rbegin(); it != impl_->pending.rend(); ++it) {
-    if (it->id == id) return std::optional<StoredTile>(*it);
-  }
+  if (const StoredTile* p = impl_->find_pending(id)) return std::optional<StoredTile>(*p);
   return impl_->store->stored_tile(impl_->version, id, impl_->what() + " tile " + id.to_string());
 }
 
@@ -635,65 +581,28 @@ Status LayerWriter::publish(const LayerInfo& info) {
   }
   if (Status s = validate_info(info); !s) return s;
   if (Status s = impl_->flush(); !s) return s;
-  TileStore::Impl& store = *impl_->store;
-  const std::int64_t version = impl_->version;
-  Status s = store.transaction("publishing a layer", [&]() -> Status {
-    auto count = store.query("SELECT count(*) FROM tiles WHERE version = ?1");
-    if (!count) return count.error();
-    count->bind(1, version);
-    if (count->step() != SQLITE_ROW)
-      return store.sql_error("counting the tiles of " + impl_->what());
-    const std::int64_t tiles = count->i64(0);
-
-    auto update = store.query(
-        "UPDATE layer_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
-        "writer_start = NULL, projection = ?2, vertical_datum = ?3, min_x = ?4, min_y = ?5, "
-        "max_x = ?6, max_y = ?7, west = ?8, south = ?9, east = ?10, north = ?11, min_level = ?12, "
-        "max_level = ?13, max_points = ?14, tile_count = ?15, point_count = ?16, "
-        "source_points = ?17, min_z = ?18, max_z = ?19, level_max_error = ?20, options = ?21, "
-        "attribution = ?22, created_unix = ?23 WHERE id = ?1 AND status = 'building'");
-    if (!update) return update.error();
-    update->bind(1, version);
-    update->bind(2, geo::to_string(info.projection)).bind(3, info.vertical_datum);
-    update->bind(4, info.mercator_bounds.min_x).bind(5, info.mercator_bounds.min_y);
-    update->bind(6, info.mercator_bounds.max_x).bind(7, info.mercator_bounds.max_y);
-    update->bind(8, info.bounds.west).bind(9, info.bounds.south);
-    update->bind(10, info.bounds.east).bind(11, info.bounds.north);
-    update->bind(12, info.min_level).bind(13, info.max_level).bind(14, info.max_points);
-    update->bind(15, tiles).bind(16, info.point_count).bind(17, info.source_points);
-    update->bind(18, info.min_z).bind(19, info.max_z);
-    update->bind(20, nlohmann::json(info.level_max_error).dump());
-    update->bind(21, info.options_json).bind(22, info.attribution).bind(23, now_unix());
-    if (!TileStore::Impl::done(*update)) return store.sql_error("publishing " + impl_->what());
-    if (sqlite3_changes(store.db.get()) != 1) {
-      return Error(ErrorCode::internal, store.path.string() + ": " + impl_->what() +
-                                            " disappeared before it was published");
-    }
-
-    auto previous =
-        store.switch_published("SELECT version FROM layers WHERE name = ?1",
-                               "INSERT INTO layers (name, version) VALUES (?1, ?2) "
-                               "ON CONFLICT (name) DO UPDATE SET version = excluded.version",
-                               impl_->name, version, impl_->what());
-    if (!previous) return previous.error();
-    if (*previous) return store.drop_version(**previous);
-    return {};
-  });
-  if (s) impl_->state = Impl::State::published;
-  return s;
+  const std::string errors = nlohmann::json(info.level_max_error).dump();
+  return impl_->publish(
+      "UPDATE layer_versions SET status = 'ready', writer_pid = NULL, writer_host = NULL, "
+      "writer_start = NULL, projection = ?2, vertical_datum = ?3, min_x = ?4, min_y = ?5, "
+      "max_x = ?6, max_y = ?7, west = ?8, south = ?9, east = ?10, north = ?11, min_level = ?12, "
+      "max_level = ?13, max_points = ?14, tile_count = ?15, point_count = ?16, "
+      "source_points = ?17, min_z = ?18, max_z = ?19, level_max_error = ?20, options = ?21, "
+      "attribution = ?22, created_unix = ?23 WHERE id = ?1 AND status = 'building'",
+      [&](Query& q, std::int64_t tiles) {
+        q.bind(2, geo::to_string(info.projection)).bind(3, info.vertical_datum);
+        q.bind(4, info.mercator_bounds.min_x).bind(5, info.mercator_bounds.min_y);
+        q.bind(6, info.mercator_bounds.max_x).bind(7, info.mercator_bounds.max_y);
+        q.bind(8, info.bounds.west).bind(9, info.bounds.south);
+        q.bind(10, info.bounds.east).bind(11, info.bounds.north);
+        q.bind(12, info.min_level).bind(13, info.max_level).bind(14, info.max_points);
+        q.bind(15, tiles).bind(16, info.point_count).bind(17, info.source_points);
+        q.bind(18, info.min_z).bind(19, info.max_z).bind(20, errors);
+        q.bind(21, info.options_json).bind(22, info.attribution).bind(23, now_unix());
+      });
 }
 
-void LayerWriter::abandon() {
-  if (impl_->state != Impl::State::building) return;
-  impl_->state = Impl::State::abandoned;
-  impl_->pending.clear();
-  impl_->pending_bytes = 0;
-  TileStore::Impl& store = *impl_->store;
-  const std::int64_t version = impl_->version;
-  // Best effort: if this fails (disk full, say), the next begin_layer of the name collects it.
-  (void)store.transaction("abandoning a layer version",
-                          [&]() -> Status { return store.drop_version(version); });
-}
+void LayerWriter::abandon() { impl_->abandon(); }
 
 Status validate_layer_name(std::string_view name) {
   const auto shown = [&] {
