@@ -301,6 +301,28 @@ TEST_F(DamagedLaz, FlippedByteInAPointwiseChunkNamesTheChunk) {
   }
 }
 
+// On one thread lone_star's chunks are decoded two at a time in lock step (1 with 2, 3 with 4,
+// ...): damage in either of a pair is reported in its own chunk, after the records before it.
+TEST_F(DamagedLaz, FlippedByteInEitherOfTwoChunksDecodedInLockStepNamesIt) {
+  SKIP_WITHOUT_DATA("lone_star_tls.laz");
+  const auto src = kData / "lone_star_tls.laz";
+  const auto chunks = chunks_of(src);
+  ASSERT_EQ(chunks.size(), 11u);
+  for (const std::size_t damaged : {std::size_t{2}, std::size_t{3}}) {
+    auto bytes = slurp(src);
+    bytes[chunks[damaged].offset + chunks[damaged].bytes / 2] ^= 0x5A;
+    const auto p = write(bytes, "flipped_" + std::to_string(damaged) + ".laz");
+    for (unsigned threads : {1u, 2u}) {
+      auto e = read_error(p, threads);
+      ASSERT_TRUE(e.has_value());
+      EXPECT_EQ(e->code, ErrorCode::corrupt_data);
+      const std::string first = std::to_string(damaged * 50000 + 1);
+      expect_mentions(*e, {p.string(), "chunk " + std::to_string(damaged + 1) + " of 11",
+                           "points " + first + "-" + std::to_string(damaged * 50000 + 50000)});
+    }
+  }
+}
+
 TEST_F(DamagedLaz, FlippedByteInALayerNamesTheChunk) {
   SKIP_WITHOUT_DATA("laz_las_with_several_extra_byte_bloc.laz");
   const auto src = kData / "laz_las_with_several_extra_byte_bloc.laz";
