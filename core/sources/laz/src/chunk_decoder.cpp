@@ -225,10 +225,11 @@ Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
   return stream_health();
 }
 
+bool ChunkDecoder::pairable() const { return !layered_ && pairs_pointwise(pointwise_); }
+
 bool ChunkDecoder::pairs_with(const ChunkDecoder& other) const {
-  return !layered_ && !other.layered_ && record_length_ == other.record_length_ &&
-         offsets_ == other.offsets_ && pairs_pointwise(pointwise_) &&
-         pairs_pointwise(other.pointwise_);
+  return pairable() && other.pairable() && record_length_ == other.record_length_ &&
+         offsets_ == other.offsets_;
 }
 
 std::pair<Status, Status> ChunkDecoder::decode_pair(ChunkDecoder& other, std::uint8_t* out,

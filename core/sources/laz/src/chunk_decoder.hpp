@@ -70,9 +70,10 @@ class ChunkDecoder {
   Status begin(const ChunkExtent& chunk);
   // Decodes the next n records (n <= records left in the chunk).
   Status decode(std::uint8_t* out, std::uint64_t n);
-  // Whether this decoder and `other`, both begun on a chunk and neither decoded from yet, can
-  // decode in lock step (decode_pair): pointwise chunks of an item list that
-  // decode_pointwise_pair() takes.
+  // Whether chunks of this file can decode in lock step (decode_pair): pointwise chunks of an
+  // item list that decode_pointwise_pair() takes. Known from the construction on.
+  bool pairable() const;
+  // Whether this decoder and `other` can decode in lock step: both pairable, same records.
   bool pairs_with(const ChunkDecoder& other) const;
   // Decodes the next n records of this chunk into `out` and of other's into `other_out`, the
   // two streams interleaved on this thread; the records are those decode() gives. Returns

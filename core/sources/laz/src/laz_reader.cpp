@@ -100,7 +100,7 @@ struct LazReader::State {
   // again, alone, when the reader reaches it, and fails there.
   void begin_partner() {
     partnered = false;
-    if (chunks.discover || chunk + 1 >= chunks.chunks.size()) return;
+    if (!decoder->pairable() || chunks.discover || chunk + 1 >= chunks.chunks.size()) return;
     const ChunkInfo& next = chunks.chunks[chunk + 1];
     if (next.points == 0 || next.points * layout.record_length > kMaxParallelChunkBytes) return;
     if (!partner)
