@@ -117,6 +117,31 @@ INSTANTIATE_TEST_SUITE_P(SharedData, LazReference, ::testing::ValuesIn(kReferenc
                            return n;
                          });
 
+// A rewind while the reader hands out the second chunk of a lock-step pair (lone_star on one
+// thread: records 50001-100000 come from that buffer) starts again from the first record.
+TEST(LazDecode, RewindInsideAPairedChunkStartsAgain) {
+  SKIP_WITHOUT_DATA("lone_star_tls.laz");
+  RecordOptions o;
+  o.threads = 1;
+  auto reader = LasRecordReader::open(kData / "lone_star_tls.laz", o);
+  ASSERT_TRUE(reader.ok());
+  const std::size_t rl = (*reader)->summary().record_length;
+  std::vector<std::uint8_t> first(rl), again(rl), buf(75000 * rl);
+  ASSERT_EQ((*reader)->read(first.data(), 1).value(), 1u);
+  ASSERT_EQ((*reader)->read(buf.data(), 75000).value(), 75000u);
+  ASSERT_TRUE((*reader)->rewind().ok());
+  ASSERT_EQ((*reader)->read(again.data(), 1).value(), 1u);
+  EXPECT_TRUE(first == again);
+  std::uint64_t records = 1;
+  for (;;) {
+    auto n = (*reader)->read(buf.data(), 75000);
+    ASSERT_TRUE(n.ok()) << n.error().message;
+    if (*n == 0) break;
+    records += *n;
+  }
+  EXPECT_EQ(records, 518862u);
+}
+
 // Layered files read with only the layers a terrain needs give the same coordinates, returns,
 // flags and classes as a full decode (what the ingest reads; the skipped fields may differ).
 TEST(LazDecode, GeometryAndClassLayersMatchAFullDecode) {
