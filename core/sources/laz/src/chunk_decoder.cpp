@@ -225,6 +225,37 @@ Status ChunkDecoder::decode(std::uint8_t* out, std::uint64_t n) {
   return stream_health();
 }
 
+bool ChunkDecoder::pairable() const { return !layered_ && pairs_pointwise(pointwise_); }
+
+bool ChunkDecoder::pairs_with(const ChunkDecoder& other) const {
+  return pairable() && other.pairable() && record_length_ == other.record_length_ &&
+         offsets_ == other.offsets_;
+}
+
+std::pair<Status, Status> ChunkDecoder::decode_pair(ChunkDecoder& other, std::uint8_t* out,
+                                                    std::uint8_t* other_out, std::uint64_t n) {
+  if (n > left_ || n > other.left_ || first_pending_ != other.first_pending_) {
+    const Status wrong(Error(ErrorCode::internal, "chunks decoded in lock step out of step"));
+    return {wrong, wrong};
+  }
+  if (n == 0) return {Status{}, Status{}};
+  if (first_pending_) {
+    std::memcpy(out, first_.data(), record_length_);
+    std::memcpy(other_out, other.first_.data(), record_length_);
+    out += record_length_;
+    other_out += record_length_;
+    --n;
+    --left_;
+    --other.left_;
+    first_pending_ = other.first_pending_ = false;
+  }
+  decode_pointwise_pair(pointwise_, dec_, out, other.pointwise_, other.dec_, other_out,
+                        offsets_.data(), record_length_, n);
+  left_ -= n;
+  other.left_ -= n;
+  return {stream_health(), other.stream_health()};
+}
+
 Status ChunkDecoder::stream_health() const {
   auto check = [](const ArithmeticDecoder& d, const char* what) -> Status {
     if (d.io_failed()) {

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -69,6 +70,17 @@ class ChunkDecoder {
   Status begin(const ChunkExtent& chunk);
   // Decodes the next n records (n <= records left in the chunk).
   Status decode(std::uint8_t* out, std::uint64_t n);
+  // Whether chunks of this file can decode in lock step (decode_pair): pointwise chunks of an
+  // item list that decode_pointwise_pair() takes. Known from the construction on.
+  bool pairable() const;
+  // Whether this decoder and `other` can decode in lock step: both pairable, same records.
+  bool pairs_with(const ChunkDecoder& other) const;
+  // Decodes the next n records of this chunk into `out` and of other's into `other_out`, the
+  // two streams interleaved on this thread; the records are those decode() gives. Returns
+  // each chunk's stream health, this one's first. Requires: pairs_with(other) when begun,
+  // n <= left() and n <= other.left(), and both decoders at the same record of their chunks.
+  std::pair<Status, Status> decode_pair(ChunkDecoder& other, std::uint8_t* out,
+                                        std::uint8_t* other_out, std::uint64_t n);
   // After the chunk's last record: checks that every stream ended where the chunk says.
   Status finish();
   // Bytes of the chunk the decoder has taken (header + streams); with a pointwise chunk of

@@ -325,10 +325,27 @@ class IntegerDecoder {
   // The magnitude class of the last correction: item decoders use it to pick later contexts.
   std::uint32_t last_k() const { return k_; }
 
+  // decode() in its two steps, one symbol each (for loops that alternate two streams symbol by
+  // symbol): the correction's magnitude class, then the value from that class.
+  // decode(dec, p, ctx) == decode_in_class(dec, p, decode_class(dec, ctx)).
+  TINSTREAM_LAZ_INLINE std::uint32_t decode_class(ArithmeticDecoder& dec, std::uint32_t context) {
+    assert(context < magnitude_.size());
+    return k_ = dec.decode_symbol(magnitude_[context]);
+  }
+  TINSTREAM_LAZ_INLINE std::int32_t decode_in_class(ArithmeticDecoder& dec, std::int32_t predicted,
+                                                    std::uint32_t k) {
+    const std::int32_t correction = correction_in_class(dec, k);
+    return static_cast<std::int32_t>(
+        (static_cast<std::uint32_t>(predicted) + static_cast<std::uint32_t>(correction)) & mask_);
+  }
+
  private:
   TINSTREAM_LAZ_INLINE std::int32_t decode_correction(ArithmeticDecoder& dec,
                                                       SymbolModel& magnitude) {
     const std::uint32_t k = k_ = dec.decode_symbol(magnitude);
+    return correction_in_class(dec, k);
+  }
+  TINSTREAM_LAZ_INLINE std::int32_t correction_in_class(ArithmeticDecoder& dec, std::uint32_t k) {
     if (k == 0) return static_cast<std::int32_t>(dec.decode_bit(zero_or_one_));  // 0 or 1
     if (k >= 32) [[unlikely]]
       return min_correction_;

@@ -60,11 +60,28 @@ TINSTREAM_LAZ_INLINE std::int32_t GpsTimeSequences::decode_scaled_step(Arithmeti
   return diff;
 }
 
-TINSTREAM_LAZ_INLINE std::uint64_t GpsTimeSequences::decode(ArithmeticDecoder& dec) {
+TINSTREAM_LAZ_INLINE std::uint32_t GpsTimeSequences::first_symbol(ArithmeticDecoder& dec) {
+  return dec.decode_symbol(step_[last_] == 0 ? zero_step_ : multi_);
+}
+
+TINSTREAM_LAZ_INLINE std::uint32_t GpsTimeSequences::step_class(ArithmeticDecoder& dec,
+                                                                std::uint32_t sym) {
+  if (step_[last_] == 0 || sym != 1) return kNoClass;
+  return ic_.decode_class(dec, 1);
+}
+
+TINSTREAM_LAZ_INLINE std::uint64_t GpsTimeSequences::finish(ArithmeticDecoder& dec,
+                                                            std::uint32_t sym, std::uint32_t k) {
+  if (k != kNoClass) {  // multiplier 1: the step again, corrected
+    const std::int32_t diff = ic_.decode_in_class(dec, step_[last_], k);
+    time_[last_] += static_cast<std::uint64_t>(static_cast<std::int64_t>(diff));
+    extreme_[last_] = 0;
+    return time_[last_];
+  }
   // A valid stream switches sequence at most once per point; the bound stops damaged ones.
   for (int hops = 0; hops < 8; ++hops) {
+    if (hops > 0) sym = first_symbol(dec);
     if (step_[last_] == 0) {
-      std::uint32_t sym = dec.decode_symbol(zero_step_);
       if (!layered_) {
         if (sym == 0) return time_[last_];  // unchanged
         --sym;
@@ -81,7 +98,7 @@ TINSTREAM_LAZ_INLINE std::uint64_t GpsTimeSequences::decode(ArithmeticDecoder& d
       }
       return time_[last_];
     }
-    const std::uint32_t multi = dec.decode_symbol(multi_);
+    const std::uint32_t multi = sym;
     if (multi == 1) {
       const std::int32_t diff = ic_.decode(dec, step_[last_], 1);
       time_[last_] += static_cast<std::uint64_t>(static_cast<std::int64_t>(diff));
@@ -100,6 +117,11 @@ TINSTREAM_LAZ_INLINE std::uint64_t GpsTimeSequences::decode(ArithmeticDecoder& d
   }
   dec.mark_corrupt();
   return time_[last_];
+}
+
+TINSTREAM_LAZ_INLINE std::uint64_t GpsTimeSequences::decode(ArithmeticDecoder& dec) {
+  const std::uint32_t sym = first_symbol(dec);
+  return finish(dec, sym, step_class(dec, sym));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -109,6 +109,15 @@ class GpsTimeSequences {
   TINSTREAM_LAZ_INLINE std::uint64_t decode(ArithmeticDecoder& dec);
   std::uint64_t current() const { return time_[last_]; }
 
+  // decode() in steps of one symbol for the usual time (the step repeated: a multiplier of 1),
+  // for loops that alternate two streams symbol by symbol:
+  // decode(dec) == finish(dec, sym, step_class(dec, sym)) with sym = first_symbol(dec).
+  static constexpr std::uint32_t kNoClass = ~0u;  // step_class(): not the usual time
+  TINSTREAM_LAZ_INLINE std::uint32_t first_symbol(ArithmeticDecoder& dec);
+  TINSTREAM_LAZ_INLINE std::uint32_t step_class(ArithmeticDecoder& dec, std::uint32_t sym);
+  TINSTREAM_LAZ_INLINE std::uint64_t finish(ArithmeticDecoder& dec, std::uint32_t sym,
+                                            std::uint32_t k);
+
  private:
   TINSTREAM_LAZ_INLINE void start_new_sequence(ArithmeticDecoder& dec);
   TINSTREAM_LAZ_INLINE std::int32_t decode_scaled_step(ArithmeticDecoder& dec, std::uint32_t multi);
@@ -174,6 +183,31 @@ class Point10V2 {
   void start(const std::uint8_t* raw);
   TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
 
+  // decode() as steps of at most one symbol each (other_fields(): the rarely changed fields),
+  // so that a loop decoding two chunks can alternate between them symbol by symbol
+  // (decode_pointwise_pair). In decode()'s order: changed_fields, returns, intensity_class,
+  // intensity, other_fields, x_class, x, y_class, y, z_class, z, store; `Steps` carries the
+  // point's state from one step to the next.
+  struct Steps {
+    std::uint32_t changed = 0;  // which attributes changed (a 6-bit mask)
+    std::uint32_t m = 0;        // 3-bit return map
+    std::uint32_t l = 0;        // return level
+    std::uint32_t single = 0;   // 1 when the point is a single return
+    std::uint32_t k = 0;        // the magnitude class of the field being decoded
+  };
+  TINSTREAM_LAZ_INLINE void changed_fields(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void returns(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void intensity_class(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void intensity(ArithmeticDecoder& dec, const Steps& s);
+  TINSTREAM_LAZ_INLINE void other_fields(ArithmeticDecoder& dec, const Steps& s);
+  TINSTREAM_LAZ_INLINE void x_class(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void x(ArithmeticDecoder& dec, const Steps& s);
+  TINSTREAM_LAZ_INLINE void y_class(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void y(ArithmeticDecoder& dec, const Steps& s);
+  TINSTREAM_LAZ_INLINE void z_class(ArithmeticDecoder& dec, Steps& s);
+  TINSTREAM_LAZ_INLINE void z(ArithmeticDecoder& dec, const Steps& s);
+  void store(std::uint8_t* out) const { last_.store(out); }
+
  private:
   Point10Fields last_;
   std::array<std::uint16_t, 16> last_intensity_{};
@@ -206,6 +240,7 @@ class GpsTime11V2 {
   GpsTime11V2() : seq_(false) {}
   void start(const std::uint8_t* raw) { seq_.reset(get64(raw)); }
   TINSTREAM_LAZ_INLINE void decode(ArithmeticDecoder& dec, std::uint8_t* out);
+  GpsTimeSequences& sequences() { return seq_; }  // for decode_pointwise_pair's steps
 
  private:
   GpsTimeSequences seq_;
@@ -303,6 +338,18 @@ using PointwiseItem = std::variant<Point10V1, Point10V2, GpsTime11V1, GpsTime11V
 void decode_pointwise(std::span<PointwiseItem> items, const std::uint16_t* offsets,
                       std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,
                       std::uint64_t n);
+
+// Two chunks' streams decoded on one thread, n records of each. A symbol decode is a chain of
+// dependent steps (division, table load, multiply, renormalise) that one stream cannot overlap
+// with its next symbol; two streams' steps interleaved at the field level give the processor two
+// independent chains in its out-of-order window. Only for the item lists that
+// pairs_pointwise() accepts; each chunk's records come out as decode_pointwise() gives them.
+bool pairs_pointwise(std::span<const PointwiseItem> items);
+void decode_pointwise_pair(std::span<PointwiseItem> items_a, ArithmeticDecoder& dec_a,
+                           std::uint8_t* out_a, std::span<PointwiseItem> items_b,
+                           ArithmeticDecoder& dec_b, std::uint8_t* out_b,
+                           const std::uint16_t* offsets, std::uint16_t record_length,
+                           std::uint64_t n);
 
 // ---------------------------------------------------------------------------------------------
 // Layered items (compressor 3, versions 3 and 4)

@@ -208,51 +208,98 @@ void Point10V2::start(const std::uint8_t* raw) {
   ic_z_.reset();
 }
 
-TINSTREAM_LAZ_INLINE void Point10V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
-  const std::uint32_t changed = dec.decode_symbol(changed_);
-  if (changed & 32) {
+TINSTREAM_LAZ_INLINE void Point10V2::changed_fields(ArithmeticDecoder& dec, Steps& s) {
+  s.changed = dec.decode_symbol(changed_);
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::returns(ArithmeticDecoder& dec, Steps& s) {
+  if (s.changed & 32) {
     last_.returns = static_cast<std::uint8_t>(dec.decode_symbol(returns_.at(last_.returns)));
   }
   const std::uint32_t r = last_.returns & 7u;
   const std::uint32_t n = (last_.returns >> 3) & 7u;
-  const std::uint32_t m = return_map_3bit(n, r);
-  const std::uint32_t l = return_level(n, r, 7);
-  if (changed != 0) {
-    if (changed & 16) {
-      last_.intensity = static_cast<std::uint16_t>(
-          ic_intensity_.decode(dec, last_intensity_[m], std::min<std::uint32_t>(m, 3)));
-      last_intensity_[m] = last_.intensity;
-    } else {
-      last_.intensity = last_intensity_[m];
-    }
-    if (changed & 8) {
-      last_.classification =
-          static_cast<std::uint8_t>(dec.decode_symbol(classification_.at(last_.classification)));
-    }
-    if (changed & 4) {
-      const std::uint32_t scan_direction = (last_.returns >> 6) & 1u;
-      const auto d = static_cast<std::int32_t>(dec.decode_symbol(scan_angle_[scan_direction]));
-      last_.scan_angle = fold_byte(d + last_.scan_angle);
-    }
-    if (changed & 2) {
-      last_.user_data =
-          static_cast<std::uint8_t>(dec.decode_symbol(user_data_.at(last_.user_data)));
-    }
-    if (changed & 1) {
-      last_.source_id = static_cast<std::uint16_t>(ic_source_id_.decode(dec, last_.source_id, 0));
-    }
+  s.m = return_map_3bit(n, r);
+  s.l = return_level(n, r, 7);
+  s.single = n == 1 ? 1 : 0;
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::intensity_class(ArithmeticDecoder& dec, Steps& s) {
+  if (s.changed & 16) s.k = ic_intensity_.decode_class(dec, std::min<std::uint32_t>(s.m, 3));
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::intensity(ArithmeticDecoder& dec, const Steps& s) {
+  if (s.changed & 16) {
+    last_.intensity =
+        static_cast<std::uint16_t>(ic_intensity_.decode_in_class(dec, last_intensity_[s.m], s.k));
+    last_intensity_[s.m] = last_.intensity;
+  } else if (s.changed != 0) {
+    last_.intensity = last_intensity_[s.m];
   }
-  const std::uint32_t single = n == 1 ? 1 : 0;
-  std::int32_t diff = ic_dx_.decode(dec, dx_median_[m].get(), single);
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::other_fields(ArithmeticDecoder& dec, const Steps& s) {
+  if ((s.changed & 15) == 0) return;
+  if (s.changed & 8) {
+    last_.classification =
+        static_cast<std::uint8_t>(dec.decode_symbol(classification_.at(last_.classification)));
+  }
+  if (s.changed & 4) {
+    const std::uint32_t scan_direction = (last_.returns >> 6) & 1u;
+    const auto d = static_cast<std::int32_t>(dec.decode_symbol(scan_angle_[scan_direction]));
+    last_.scan_angle = fold_byte(d + last_.scan_angle);
+  }
+  if (s.changed & 2) {
+    last_.user_data = static_cast<std::uint8_t>(dec.decode_symbol(user_data_.at(last_.user_data)));
+  }
+  if (s.changed & 1) {
+    last_.source_id = static_cast<std::uint16_t>(ic_source_id_.decode(dec, last_.source_id, 0));
+  }
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::x_class(ArithmeticDecoder& dec, Steps& s) {
+  s.k = ic_dx_.decode_class(dec, s.single);
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::x(ArithmeticDecoder& dec, const Steps& s) {
+  const std::int32_t diff = ic_dx_.decode_in_class(dec, dx_median_[s.m].get(), s.k);
   last_.x = wrap_add(last_.x, diff);
-  dx_median_[m].push(diff);
-  std::uint32_t k = ic_dx_.last_k();
-  diff = ic_dy_.decode(dec, dy_median_[m].get(), single + (k < 20 ? k & ~1u : 20));
+  dx_median_[s.m].push(diff);
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::y_class(ArithmeticDecoder& dec, Steps& s) {
+  const std::uint32_t k = ic_dx_.last_k();
+  s.k = ic_dy_.decode_class(dec, s.single + (k < 20 ? k & ~1u : 20));
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::y(ArithmeticDecoder& dec, const Steps& s) {
+  const std::int32_t diff = ic_dy_.decode_in_class(dec, dy_median_[s.m].get(), s.k);
   last_.y = wrap_add(last_.y, diff);
-  dy_median_[m].push(diff);
-  k = (ic_dx_.last_k() + ic_dy_.last_k()) / 2;
-  last_.z = ic_z_.decode(dec, last_height_[l], single + (k < 18 ? k & ~1u : 18));
-  last_height_[l] = last_.z;
+  dy_median_[s.m].push(diff);
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::z_class(ArithmeticDecoder& dec, Steps& s) {
+  const std::uint32_t k = (ic_dx_.last_k() + ic_dy_.last_k()) / 2;
+  s.k = ic_z_.decode_class(dec, s.single + (k < 18 ? k & ~1u : 18));
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::z(ArithmeticDecoder& dec, const Steps& s) {
+  last_.z = ic_z_.decode_in_class(dec, last_height_[s.l], s.k);
+  last_height_[s.l] = last_.z;
+}
+
+TINSTREAM_LAZ_INLINE void Point10V2::decode(ArithmeticDecoder& dec, std::uint8_t* out) {
+  Steps s;
+  changed_fields(dec, s);
+  returns(dec, s);
+  intensity_class(dec, s);
+  intensity(dec, s);
+  other_fields(dec, s);
+  x_class(dec, s);
+  x(dec, s);
+  y_class(dec, s);
+  y(dec, s);
+  z_class(dec, s);
+  z(dec, s);
   last_.store(out);
 }
 
@@ -473,6 +520,67 @@ void decode_any(std::span<PointwiseItem> items, const std::uint16_t* offsets,
 }
 
 }  // namespace
+
+bool pairs_pointwise(std::span<const PointwiseItem> items) {
+  return items.size() == 2 && std::holds_alternative<Point10V2>(items[0]) &&
+         std::holds_alternative<GpsTime11V2>(items[1]);
+}
+
+// The steps alternate between the chunks field by field (attributes, x, y, z, GPS time): each
+// is a few symbols long, short enough that the two chains overlap in the out-of-order window
+// (whole records alternated overlapped only at their seams: 3 %, bench/laz/RESULTS.md).
+void decode_pointwise_pair(std::span<PointwiseItem> items_a, ArithmeticDecoder& dec_a,
+                           std::uint8_t* out_a, std::span<PointwiseItem> items_b,
+                           ArithmeticDecoder& dec_b, std::uint8_t* out_b,
+                           const std::uint16_t* offsets, std::uint16_t record_length,
+                           std::uint64_t n) {
+  assert(pairs_pointwise(items_a) && pairs_pointwise(items_b));
+  Point10V2& point_a = *std::get_if<Point10V2>(&items_a[0]);
+  Point10V2& point_b = *std::get_if<Point10V2>(&items_b[0]);
+  GpsTime11V2& time_a = *std::get_if<GpsTime11V2>(&items_a[1]);
+  GpsTime11V2& time_b = *std::get_if<GpsTime11V2>(&items_b[1]);
+  const std::uint16_t time_at = offsets[1];
+  ArithmeticDecoder a = dec_a;
+  ArithmeticDecoder b = dec_b;
+  for (std::uint64_t i = 0; i < n; ++i, out_a += record_length, out_b += record_length) {
+    Point10V2::Steps sa;
+    Point10V2::Steps sb;
+    point_a.changed_fields(a, sa);
+    point_b.changed_fields(b, sb);
+    point_a.returns(a, sa);
+    point_b.returns(b, sb);
+    point_a.intensity_class(a, sa);
+    point_b.intensity_class(b, sb);
+    point_a.intensity(a, sa);
+    point_b.intensity(b, sb);
+    point_a.other_fields(a, sa);
+    point_b.other_fields(b, sb);
+    point_a.x_class(a, sa);
+    point_b.x_class(b, sb);
+    point_a.x(a, sa);
+    point_b.x(b, sb);
+    point_a.y_class(a, sa);
+    point_b.y_class(b, sb);
+    point_a.y(a, sa);
+    point_b.y(b, sb);
+    point_a.z_class(a, sa);
+    point_b.z_class(b, sb);
+    point_a.z(a, sa);
+    point_b.z(b, sb);
+    point_a.store(out_a);
+    point_b.store(out_b);
+    GpsTimeSequences& seq_a = time_a.sequences();
+    GpsTimeSequences& seq_b = time_b.sequences();
+    const std::uint32_t sym_a = seq_a.first_symbol(a);
+    const std::uint32_t sym_b = seq_b.first_symbol(b);
+    const std::uint32_t k_a = seq_a.step_class(a, sym_a);
+    const std::uint32_t k_b = seq_b.step_class(b, sym_b);
+    put64(out_a + time_at, seq_a.finish(a, sym_a, k_a));
+    put64(out_b + time_at, seq_b.finish(b, sym_b, k_b));
+  }
+  dec_a = a;
+  dec_b = b;
+}
 
 void decode_pointwise(std::span<PointwiseItem> items, const std::uint16_t* offsets,
                       std::uint16_t record_length, ArithmeticDecoder& dec, std::uint8_t* out,

@@ -30,9 +30,19 @@ struct LazReader::State {
   std::uint64_t expected_chunks = 0;  // for messages ("chunk 3 of 14")
   unsigned threads = 1;
 
-  // Sequential decoding.
+  // Sequential decoding. For item lists that decode in lock step (ChunkDecoder::pairs_with),
+  // `partner` decodes the next chunk beside `decoder`, record for record, into `ahead`; when
+  // `decoder`'s chunk is done the reader hands out `ahead` (as `slot`) and then begins the chunk
+  // after it. Error semantics stay those of one chunk at a time: a failure of the partner's
+  // chunk is reported when the reader reaches that chunk.
   std::unique_ptr<ChunkDecoder> decoder;
   bool in_chunk = false;
+  std::unique_ptr<ChunkDecoder> partner;
+  bool partnered = false;           // partner is decoding chunk + 1 beside decoder
+  std::vector<std::uint8_t> ahead;  // chunk + 1's records, partner's output
+  std::uint64_t ahead_records = 0;  // of them decoded so far
+  Status ahead_status;              // the partner's first error, reported at chunk + 1
+  bool serving_ahead = false;       // slot is `ahead`: chunk's records already decoded
   // Parallel decoding.
   std::unique_ptr<detail::ChunkPipeline> pipeline;
   std::span<const std::uint8_t> slot;  // the current chunk's decoded records
@@ -84,10 +94,67 @@ struct LazReader::State {
     return e;
   }
 
+  // Begins `partner` on the chunk after `chunk` when the two can decode in lock step: the
+  // chunk table is known (not being rebuilt) and the next chunk's records fit the bound the
+  // parallel path keeps to. A partner that cannot begin is dropped: its chunk is then begun
+  // again, alone, when the reader reaches it, and fails there.
+  void begin_partner() {
+    partnered = false;
+    if (!decoder->pairable() || chunks.discover || chunk + 1 >= chunks.chunks.size()) return;
+    const ChunkInfo& next = chunks.chunks[chunk + 1];
+    if (next.points == 0 || next.points * layout.record_length > kMaxParallelChunkBytes) return;
+    if (!partner)
+      partner = std::make_unique<ChunkDecoder>(vlr, layout.record_length, options.layers, fd);
+    if (!partner->begin(extent(chunk + 1)).ok() || !decoder->pairs_with(*partner)) return;
+    ahead.resize(static_cast<std::size_t>(next.points) * layout.record_length);
+    ahead_records = 0;
+    ahead_status = Status{};
+    partnered = true;
+  }
+
+  // decoder's next n records into out; the partner's as many into ahead, in lock step while
+  // both streams are healthy.
+  Status decode_next(std::uint8_t* out, std::size_t n) {
+    const std::uint16_t rl = layout.record_length;
+    std::size_t paired = 0;
+    if (partnered && ahead_status.ok()) {
+      paired = static_cast<std::size_t>(std::min<std::uint64_t>(n, partner->left()));
+      auto [mine, theirs] =
+          decoder->decode_pair(*partner, out, ahead.data() + ahead_records * rl, paired);
+      ahead_records += paired;
+      if (!theirs.ok()) ahead_status = theirs;
+      if (!mine.ok()) return mine;
+    }
+    return decoder->decode(out + paired * rl, n - paired);
+  }
+
+  // After decoder's chunk: the rest of the partner's chunk, alone, then its end checks.
+  void finish_partner() {
+    const std::uint16_t rl = layout.record_length;
+    if (ahead_status.ok()) {
+      const std::uint64_t rest = partner->left();
+      ahead_status = partner->decode(ahead.data() + ahead_records * rl, rest);
+      ahead_records += rest;
+    }
+    if (ahead_status.ok()) ahead_status = partner->finish();
+    partnered = false;
+    serving_ahead = true;
+    slot = std::span<const std::uint8_t>(ahead.data(), ahead_records * rl);
+    slot_pos = 0;
+  }
+
   Result<std::size_t> read_sequential(std::uint8_t* out, std::size_t max) {
     const std::uint16_t rl = layout.record_length;
     std::size_t produced = 0;
     while (produced < max) {
+      if (serving_ahead) {
+        if (!ahead_status.ok()) return fail(chunk, ahead_status.error());
+        if (take_from_slot(out, produced, max)) {
+          serving_ahead = false;
+          ++chunk;
+        }
+        continue;
+      }
       if (!in_chunk) {
         if (points_done >= layout.point_count) break;
         if (chunks.discover && chunk >= kMaxChunks) {
@@ -97,26 +164,46 @@ struct LazReader::State {
         if (!decoder) decoder = std::make_unique<ChunkDecoder>(vlr, rl, options.layers, fd);
         if (Status st = decoder->begin(extent(chunk)); !st.ok()) return fail(chunk, st.error());
         in_chunk = true;
+        begin_partner();
       }
       const auto n =
           static_cast<std::size_t>(std::min<std::uint64_t>(max - produced, decoder->left()));
-      if (Status st = decoder->decode(out + produced * rl, n); !st.ok()) {
+      if (Status st = decode_next(out + produced * rl, n); !st.ok()) {
+        partnered = false;
         return fail(chunk, st.error());
       }
       produced += n;
       points_done += n;
       if (decoder->left() == 0) {
-        if (Status st = decoder->finish(); !st.ok()) return fail(chunk, st.error());
+        if (Status st = decoder->finish(); !st.ok()) {
+          partnered = false;
+          return fail(chunk, st.error());
+        }
         if (chunks.chunks[chunk].bytes == 0) chunks.chunks[chunk].bytes = decoder->consumed();
         in_chunk = false;
         ++chunk;
+        if (partnered) finish_partner();
       }
     }
     return produced;
   }
 
-  Result<std::size_t> read_parallel(std::uint8_t* out, std::size_t max) {
+  // Copies records from `slot` to out[produced..max); true when the slot is used up (then
+  // cleared: the caller moves on to the next chunk).
+  bool take_from_slot(std::uint8_t* out, std::size_t& produced, std::size_t max) {
     const std::uint16_t rl = layout.record_length;
+    const std::size_t n = std::min(max - produced, (slot.size() - slot_pos) / rl);
+    std::memcpy(out + produced * rl, slot.data() + slot_pos, n * rl);
+    slot_pos += n * rl;
+    produced += n;
+    points_done += n;
+    if (slot_pos != slot.size()) return false;
+    slot = {};
+    slot_pos = 0;
+    return true;
+  }
+
+  Result<std::size_t> read_parallel(std::uint8_t* out, std::size_t max) {
     std::size_t produced = 0;
     while (produced < max) {
       if (slot_pos == slot.size()) {
@@ -126,15 +213,8 @@ struct LazReader::State {
         slot = *records;
         slot_pos = 0;
       }
-      const std::size_t n = std::min(max - produced, (slot.size() - slot_pos) / rl);
-      std::memcpy(out + produced * rl, slot.data() + slot_pos, n * rl);
-      slot_pos += n * rl;
-      produced += n;
-      points_done += n;
-      if (slot_pos == slot.size()) {
+      if (take_from_slot(out, produced, max)) {
         pipeline->release(chunk);
-        slot = {};
-        slot_pos = 0;
         ++chunk;
       }
     }
@@ -222,6 +302,8 @@ Status LazReader::rewind() {
   s_->chunk = 0;
   s_->points_done = 0;
   s_->in_chunk = false;
+  s_->partnered = false;
+  s_->serving_ahead = false;
   s_->slot = {};
   s_->slot_pos = 0;
   s_->pipeline.reset();  // joins the workers; the next read() starts them again

@@ -117,6 +117,31 @@ INSTANTIATE_TEST_SUITE_P(SharedData, LazReference, ::testing::ValuesIn(kReferenc
                            return n;
                          });
 
+// A rewind while the reader hands out the second chunk of a lock-step pair (lone_star on one
+// thread: records 50001-100000 come from that buffer) starts again from the first record.
+TEST(LazDecode, RewindInsideAPairedChunkStartsAgain) {
+  SKIP_WITHOUT_DATA("lone_star_tls.laz");
+  RecordOptions o;
+  o.threads = 1;
+  auto reader = LasRecordReader::open(kData / "lone_star_tls.laz", o);
+  ASSERT_TRUE(reader.ok());
+  const std::size_t rl = (*reader)->summary().record_length;
+  std::vector<std::uint8_t> first(rl), again(rl), buf(75000 * rl);
+  ASSERT_EQ((*reader)->read(first.data(), 1).value(), 1u);
+  ASSERT_EQ((*reader)->read(buf.data(), 75000).value(), 75000u);
+  ASSERT_TRUE((*reader)->rewind().ok());
+  ASSERT_EQ((*reader)->read(again.data(), 1).value(), 1u);
+  EXPECT_TRUE(first == again);
+  std::uint64_t records = 1;
+  for (;;) {
+    auto n = (*reader)->read(buf.data(), 75000);
+    ASSERT_TRUE(n.ok()) << n.error().message;
+    if (*n == 0) break;
+    records += *n;
+  }
+  EXPECT_EQ(records, 518862u);
+}
+
 // Layered files read with only the layers a terrain needs give the same coordinates, returns,
 // flags and classes as a full decode (what the ingest reads; the skipped fields may differ).
 TEST(LazDecode, GeometryAndClassLayersMatchAFullDecode) {
@@ -298,6 +323,28 @@ TEST_F(DamagedLaz, FlippedByteInAPointwiseChunkNamesTheChunk) {
     ASSERT_TRUE(e.has_value());
     EXPECT_EQ(e->code, ErrorCode::corrupt_data);
     expect_mentions(*e, {p.string(), "chunk 2 of 3", "points 50001-100000"});
+  }
+}
+
+// On one thread lone_star's chunks are decoded two at a time in lock step (1 with 2, 3 with 4,
+// ...): damage in either of a pair is reported in its own chunk, after the records before it.
+TEST_F(DamagedLaz, FlippedByteInEitherOfTwoChunksDecodedInLockStepNamesIt) {
+  SKIP_WITHOUT_DATA("lone_star_tls.laz");
+  const auto src = kData / "lone_star_tls.laz";
+  const auto chunks = chunks_of(src);
+  ASSERT_EQ(chunks.size(), 11u);
+  for (const std::size_t damaged : {std::size_t{2}, std::size_t{3}}) {
+    auto bytes = slurp(src);
+    bytes[chunks[damaged].offset + chunks[damaged].bytes / 2] ^= 0x5A;
+    const auto p = write(bytes, "flipped_" + std::to_string(damaged) + ".laz");
+    for (unsigned threads : {1u, 2u}) {
+      auto e = read_error(p, threads);
+      ASSERT_TRUE(e.has_value());
+      EXPECT_EQ(e->code, ErrorCode::corrupt_data);
+      const std::string first = std::to_string(damaged * 50000 + 1);
+      expect_mentions(*e, {p.string(), "chunk " + std::to_string(damaged + 1) + " of 11",
+                           "points " + first + "-" + std::to_string(damaged * 50000 + 50000)});
+    }
   }
 }
 

@@ -13,7 +13,9 @@
 // - read() hands out records in file order. With ReaderOptions::threads > 1 whole chunks are
 //   decoded ahead on worker threads, at most 2 per thread in flight, each at most
 //   kMaxParallelChunkBytes of records; files whose chunks are bigger decode on the calling
-//   thread, window by window, in bounded memory.
+//   thread, window by window, in bounded memory. On one thread, POINT10 v2 + GPSTIME11 v2
+//   chunks (point format 1) are decoded two at a time, their streams interleaved: the second
+//   chunk's records (at most kMaxParallelChunkBytes) wait in a buffer for their turn.
 // - Bad input never crashes and never allocates beyond those bounds: every Error names the file,
 //   the chunk (1-based, "of N") and the point numbers it holds, and says what was wrong. A read()
 //   after an Error returns the same Error.
