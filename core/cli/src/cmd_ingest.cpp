@@ -3,7 +3,11 @@
 #include <atomic>
 #include <csignal>
 #include <iostream>
+#include <limits>
 #include <nlohmann/json.hpp>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <sstream>
 
 #include "command.hpp"
@@ -172,7 +176,25 @@ class StopOnSignals {
   }, old_term_{};
 };
 
+// An ingest is a batch job whose passes allocate and free the same large buffers tile after tile
+// (pass 4's parents: candidate lists, the greedy stage's pool, the chained error's known points,
+// tens of MB each on a 770k-point DEM). glibc's defaults give every block above its mmap
+// threshold (at most 32 MB) fresh pages, return freed heap tops to the system, and serve each
+// worker thread from its own arena of 64 MB heaps, so those buffers were faulted in again for
+// every parent: ~700k page faults and ~15 % of pass 4's CPU on Big Tujunga (bench/lod/RESULTS.md,
+// #20 CPU). Here: one arena, no mmap for large blocks, no trimming — freed memory is reused by
+// the next tile (peak memory within a few % of before; it is returned when the process exits).
+// Outputs are unchanged (allocation never decides a result).
+void keep_heap_for_batch() {
+#if defined(__GLIBC__)
+  (void)mallopt(M_ARENA_MAX, 1);
+  (void)mallopt(M_MMAP_MAX, 0);
+  (void)mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
+#endif
+}
+
 int run(const IngestArgs& args) {
+  keep_heap_for_batch();
   auto options = to_options(args);
   if (!options) {
     std::cerr << "tinstream ingest: " << options.error().message << "\n";

@@ -330,6 +330,9 @@ struct KnownPoint {
   tile::Vertex v;
   double deviation;
   std::uint32_t triangle;
+  // `triangle` alone holds v (strictly inside it): the residual bounds need no search for the
+  // other triangles holding it (WalkMesh::for_each_containing), done once when v was located.
+  bool alone = false;
 };
 
 // Walks one finer tile through the coarse mesh (error.hpp, "Chaining"): every finer vertex with
@@ -386,7 +389,7 @@ class FinerTileWalk {
     const kernel::XY& q = f_.p[v];
     dv_[v] = c_.plane[i].at(q.x, q.y) - f_.z[v];
     bool coarse_vertex = false;
-    c_.for_each_containing(i, q, [&](std::uint32_t j) {
+    auto visit = [&](std::uint32_t j) {
       for (int k = 0; k < 3; ++k) {
         if (c_.corner(j, k).x == q.x && c_.corner(j, k).y == q.y) {
           matched_[c_.t[j][k]] = 1;
@@ -394,11 +397,18 @@ class FinerTileWalk {
         }
       }
       if (f_.near_walked(v)) out_.add(j, q, dv_[v], f_.above[v], f_.below[v]);
-    });
+    };
+    // (for_each_containing's own first test, kept for the known point)
+    const bool alone = c_.strictly_inside(i, q);
+    if (alone) {
+      visit(i);
+    } else {
+      c_.for_each_containing(i, q, visit);
+    }
     if (f_.near_walked(v)) d_.max_abs = std::max(d_.max_abs, std::abs(dv_[v]));
     if (f_.data[v] && !coarse_vertex) {
       const tile::Vertex& fv = fine_.vertex(v);
-      known_.push_back({fv, dv_[v], i});
+      known_.push_back({fv, dv_[v], i, alone});
     }
   }
 
@@ -665,6 +675,11 @@ ChainedError chain_error(const tile::TinTile& coarse, std::span<const ChainInput
   const WalkMesh c(coarse);
   CoarseBounds acc(c, coarse);
   std::vector<KnownPoint> known;
+  {
+    std::size_t most = 0;  // (every finer vertex and witness at most: no regrowth by doubling)
+    for (const ChainInput& in : finer) most += in.tile->vertex_count() + in.witnesses.size();
+    known.reserve(most);
+  }
   std::uint32_t hint = 0;
   double child_sq_area = 0;
   SurfaceDifference total;
@@ -728,6 +743,10 @@ ChainedError chain_error(const tile::TinTile& coarse, std::span<const ChainInput
     const KnownPoint& p = known[k];
     e.max_known = std::max(e.max_known, std::abs(p.deviation));
     if (is_witness[k]) continue;
+    if (p.alone) {
+      acc.add(p.triangle, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
+      continue;
+    }
     c.for_each_containing(p.triangle, {p.v.x, p.v.y}, [&](std::uint32_t j) {
       acc.add(j, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
     });

@@ -433,6 +433,7 @@ class GreedyInserter {
   struct FanEdge {
     bool has_edge = false;
     XY a, b;
+    double length = 0;     // |b − a| (once per fan, not per point)
     double tolerance = 0;  // times |b − a|: compared with the cross product
     bool outside(double x, double y) const {
       if (!has_edge) return true;
@@ -452,7 +453,7 @@ class GreedyInserter {
       if (!outside(x, y)) return error;
       if (!has_edge) return 4 * kCoverageCost + error;
       const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
-      return kCoverageCost * (1 + std::abs(cross) / std::hypot(b.x - a.x, b.y - a.y));
+      return kCoverageCost * (1 + std::abs(cross) / length);
     }
   };
   FanEdge fan_edge(std::uint32_t t) const {
@@ -466,7 +467,8 @@ class GreedyInserter {
       fe.has_edge = true;
       fe.a = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 1) % 3)]];
       fe.b = xy_[tris_[t].v[static_cast<std::size_t>((k_nodata + 2) % 3)]];
-      fe.tolerance = tolerance_ * std::hypot(fe.b.x - fe.a.x, fe.b.y - fe.a.y);
+      fe.length = std::hypot(fe.b.x - fe.a.x, fe.b.y - fe.a.y);
+      fe.tolerance = tolerance_ * fe.length;
     }
     return fe;
   }

@@ -110,6 +110,19 @@ class InteriorThinner {
     }
   }
 
+  // Whether run(max_points, epsilon) can remove anything: above budget, or when a key could be
+  // below epsilon. Every key is an error (≥ 0) plus cost_of(v) ≥ v's weight, so with no more than
+  // max_points vertices and every candidate's weight ≥ epsilon the first key on top stops run():
+  // then seed_queue() (a ring bound for every vertex) is skipped: a parent whose candidates fit
+  // its budget (the one-child levels above the data, the smaller tiles of a level) removes nothing.
+  bool may_remove(std::size_t max_points, double epsilon) const {
+    if (tri_.num_vertices() > max_points) return true;
+    for (VertexId v = 1; v < candidate_.size(); ++v) {
+      if (candidate_[v] && tri_.is_vertex(v) && !(tri_.weight(v) >= epsilon)) return true;
+    }
+    return false;
+  }
+
   // Removes while above budget or below epsilon. Returns the number removed.
   Result<std::size_t> run(std::size_t max_points, double epsilon, double* last_error) {
     std::size_t removed = 0;
@@ -701,12 +714,14 @@ class TileThinner {
         for (const auto& o : in_.orphans) thinner.add_orphan(o);
         for (const auto& o : dropped_) thinner.add_orphan(o);
       }
-      thinner.seed_queue();
-      auto removed = thinner.run(options_.max_points, options_.epsilon, &st_.last_error);
-      if (!removed.ok())
-        return Error(ErrorCode::internal,
-                     "lod: " + tile_name(in_.id) + ": " + removed.error().message);
-      removed_last_ = thinner.removed_last();
+      if (thinner.may_remove(options_.max_points, options_.epsilon)) {
+        thinner.seed_queue();
+        auto removed = thinner.run(options_.max_points, options_.epsilon, &st_.last_error);
+        if (!removed.ok())
+          return Error(ErrorCode::internal,
+                       "lod: " + tile_name(in_.id) + ": " + removed.error().message);
+        removed_last_ = thinner.removed_last();
+      }
     }
     if (removed_last_ != kNone) {  // the last interior vertex went (evaluate_last)
       border_only_.emplace(kernel::Rect{r_.min_x, r_.min_y, r_.max_x, r_.max_y});
