@@ -435,11 +435,13 @@ class GreedyInserter {
     XY a, b;
     double length = 0;     // |b − a| (once per fan, not per point)
     double tolerance = 0;  // times |b − a|: compared with the cross product
-    bool outside(double x, double y) const {
-      if (!has_edge) return true;
-      if (kernel::orient2d(a, b, XY{x, y}) == 0) return false;
-      const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
-      return !(std::abs(cross) <= tolerance);
+    // (b − a) × (p − a): twice the signed area, |b − a| times the distance from the edge's line.
+    double cross(double x, double y) const {
+      return (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
+    }
+    // Beyond the data edge by more than the tolerance (on its line, exactly: never).
+    bool beyond(double x, double y, double c) const {
+      return kernel::orient2d(a, b, XY{x, y}) != 0 && !(std::abs(c) <= tolerance);
     }
     // The rank of a candidate of this fan with effective error `error` (greedy.hpp: coverage
     // first). Covered: its error. Outside, beyond a data edge: kCoverageCost × (1 + its distance
@@ -450,10 +452,10 @@ class GreedyInserter {
     // their budget on such points, 1.68× greedy insertion's max error (bench/lod/RESULTS.md).
     // In a fan without a data edge (two or three NODATA vertices): before those, by error.
     double rank(double x, double y, double error) const {
-      if (!outside(x, y)) return error;
       if (!has_edge) return 4 * kCoverageCost + error;
-      const double cross = (b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x);
-      return kCoverageCost * (1 + std::abs(cross) / length);
+      const double c = cross(x, y);
+      if (!beyond(x, y, c)) return error;
+      return kCoverageCost * (1 + std::abs(c) / length);
     }
   };
   FanEdge fan_edge(std::uint32_t t) const {
