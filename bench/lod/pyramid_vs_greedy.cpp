@@ -9,6 +9,9 @@
 // choice of candidates). REBUILD_DEPTH=d (with MAXP=the store's --max-points) also rebuilds the
 // tile with build_from_sources from the stored children and the stored tiles d levels below (no
 // witnesses or bounds) and says whether it is identical to the stored one.
+// In that thin_tile run, GREEDY_FACTOR=k sets LodOptions::greedy_factor (the greedy stage's size,
+// 0 = drop from all points) and NO_NODATA (any value) treats the tile's NODATA corners as data,
+// to see what the corners cost the tile.
 //
 // For every level whose single tile holds all the data: that stored tile's vertex count V and its
 // maximum vertical error over the finest level's data points (the input points, and the edge
