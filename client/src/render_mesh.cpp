@@ -125,10 +125,22 @@ std::size_t TileMesh::byte_size() const {
 GeodeticTerms GeodeticTerms::from_mercator(const geo::NormalisedMercator& projection, double x,
                                            double y) {
   constexpr double kE2 = geo::kWgs84F * (2 - geo::kWgs84F);
-  const double taup = std::sinh(y * std::numbers::pi);
   const double e = projection.eccentricity();
-  const double tau = e == 0 ? taup : GeographicLib::Math::tauf(taup, e);
-  const double cos_lat = 1 / std::hypot(1.0, tau), sin_lat = tau * cos_lat;
+  double cos_lat = 0, sin_lat = 0;
+  if (e == 0) {
+    // Spherical Mercator: φ is the Gudermannian of πy, cos φ = sech πy and sin φ = tanh πy.
+    // With t = e^(2π|y|) − 1 ≥ 0 (expm1): tanh = t / (t + 2), sech = 2 √(t + 1) / (t + 2) — one
+    // expm1, one sqrt and one division instead of sinh and hypot. |y| keeps t + 1 ≥ 1 (no
+    // cancellation towards the south pole); the sign goes back on sin φ.
+    const double t = std::expm1(2 * std::numbers::pi * std::abs(y));
+    const double inverse = 1 / (t + 2);
+    cos_lat = 2 * std::sqrt(t + 1) * inverse;
+    sin_lat = std::copysign(t * inverse, y);
+  } else {
+    const double tau = GeographicLib::Math::tauf(std::sinh(y * std::numbers::pi), e);
+    cos_lat = 1 / std::hypot(1.0, tau);
+    sin_lat = tau * cos_lat;
+  }
   const double lon = x * std::numbers::pi;
   const double cos_lon = std::cos(lon), sin_lon = std::sin(lon);
   return {cos_lat * cos_lon, cos_lat * sin_lon, sin_lat,
