@@ -134,6 +134,31 @@ TEST(RenderMesh, SphericalLatitudeTermsAgreeWithSinhAndHypotWithinFourUlps) {
   EXPECT_LE(worst, 4 * std::numeric_limits<double>::epsilon());
 }
 
+TEST(RenderMesh, LongitudeNearAgreesWithCosAndSinWithinFourUlps) {
+  // LongitudeNear (angle addition from a tile's centre, Taylor series of the difference) against
+  // std::cos / std::sin of πx: tiles of levels 0 to 24 across the map, 257 x over each and a
+  // margin around it, both sides of the antimeridian. Measured 2 ulps of 1. A series one term
+  // short (no d⁷) is ~1.5e-13 off at |d| = 0.05; a reach of 0.2 without more terms ~3e-12.
+  double worst = 0;
+  int near_used = 0;
+  for (std::uint32_t z = 0; z <= 24; ++z) {
+    const double width = 2.0 / static_cast<double>(1u << z);
+    for (const double centre : {-1 + width / 2, -0.6543210987 + width / 2, width / 2,
+                                0.123456789 + width / 2, 1 - width / 2}) {
+      const LongitudeNear near(centre);
+      for (int k = -160; k <= 160; ++k) {
+        const double x = centre + width * k / 256.0;
+        const auto [c, s] = near.cos_sin(x);
+        const double lon = x * std::numbers::pi;
+        worst = std::max({worst, std::abs(c - std::cos(lon)), std::abs(s - std::sin(lon))});
+        near_used += std::abs((x - centre) * std::numbers::pi) <= LongitudeNear::kReach;
+      }
+    }
+  }
+  EXPECT_LE(worst, 4 * std::numeric_limits<double>::epsilon());
+  EXPECT_GE(near_used, 18 * 5 * 321);
+}
+
 TEST(RenderMesh, RoundHalfAwayIsLround) {
   // The packing's inline rounding against std::lround (what it replaced) over the whole range
   // the packing uses (±511 for normals, 0..65535 for uv): every integer, every half, their
