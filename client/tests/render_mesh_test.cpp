@@ -117,9 +117,9 @@ TEST(RenderMesh, SphericalLatitudeTermsAgreeWithSinhAndHypotWithinFourUlps) {
   // of 2π|y| (no sinh, no hypot). Against the sinh/hypot formulation it replaced (written out
   // here), over 2²⁰ + 1 rows from pole to pole: within 4 ulps of 1 (8.9e-16; 6e-9 m of ECEF at
   // most). Taking expm1 of 2πy with its sign (no |y|) cancels in t + 1 towards the south pole
-  // and is ~6 ulps off there; the render meshes of the test stores keep every normal, height,
-  // uv and index and all but 465 of 7.5 M position floats, each of those one float step away
-  // (bench/client/RESULTS.md, 2026-11-28 11:20).
+  // and is ~6 ulps off there. With it, the render meshes of the test stores kept every normal,
+  // height, uv and index and all but 465 of 7.5 M position floats, each of those at most one
+  // float step or 1e-8 m away (bench/client/RESULTS.md, 2026-11-28 11:20).
   const geo::NormalisedMercator projection(geo::Projection::spherical);
   double worst = 0;
   for (int j = 0; j <= 1 << 20; ++j) {
