@@ -84,6 +84,11 @@ std::vector<LoadResult> TileLoader::take_results() {
   return out;
 }
 
+void TileLoader::set_result_callback(std::function<void()> callback) {
+  std::lock_guard lock(callback_mutex_);
+  result_callback_ = std::move(callback);
+}
+
 bool TileLoader::wait_for_results(std::chrono::milliseconds timeout) {
   std::unique_lock lock(results_mutex_);
   return results_ready_.wait_for(lock, timeout, [&] { return !results_.empty(); });
@@ -144,6 +149,8 @@ void TileLoader::run_worker(std::size_t index) {
       results_.push_back(std::move(result));
     }
     results_ready_.notify_all();
+    std::lock_guard lock(callback_mutex_);
+    if (result_callback_) result_callback_();
   }
 }
 

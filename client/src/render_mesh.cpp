@@ -122,17 +122,63 @@ std::size_t TileMesh::byte_size() const {
   return vertices.size() * sizeof(MeshVertex) + indices16.size() * 2 + indices32.size() * 4;
 }
 
-GeodeticTerms GeodeticTerms::from_mercator(const geo::NormalisedMercator& projection, double x,
-                                           double y) {
-  constexpr double kE2 = geo::kWgs84F * (2 - geo::kWgs84F);
-  const double taup = std::sinh(y * std::numbers::pi);
+namespace {
+
+// cos φ and sin φ of normalised Mercator y (GeodeticTerms' header comment).
+std::pair<double, double> latitude_terms(const geo::NormalisedMercator& projection, double y) {
   const double e = projection.eccentricity();
-  const double tau = e == 0 ? taup : GeographicLib::Math::tauf(taup, e);
-  const double cos_lat = 1 / std::hypot(1.0, tau), sin_lat = tau * cos_lat;
-  const double lon = x * std::numbers::pi;
-  const double cos_lon = std::cos(lon), sin_lon = std::sin(lon);
+  if (e == 0) {
+    // Spherical Mercator: φ is the Gudermannian of πy, cos φ = sech πy and sin φ = tanh πy.
+    // With t = e^(2π|y|) − 1 ≥ 0 (expm1): tanh = t / (t + 2), sech = 2 √(t + 1) / (t + 2) — one
+    // expm1, one sqrt and one division instead of sinh and hypot. |y| keeps t + 1 ≥ 1 (no
+    // cancellation towards the south pole); the sign goes back on sin φ.
+    const double t = std::expm1(2 * std::numbers::pi * std::abs(y));
+    const double inverse = 1 / (t + 2);
+    return {2 * std::sqrt(t + 1) * inverse, std::copysign(t * inverse, y)};
+  }
+  const double tau = GeographicLib::Math::tauf(std::sinh(y * std::numbers::pi), e);
+  const double cos_lat = 1 / std::hypot(1.0, tau);
+  return {cos_lat, tau * cos_lat};
+}
+
+GeodeticTerms terms_from(std::pair<double, double> lat, double cos_lon, double sin_lon) {
+  constexpr double kE2 = geo::kWgs84F * (2 - geo::kWgs84F);
+  const auto [cos_lat, sin_lat] = lat;
   return {cos_lat * cos_lon, cos_lat * sin_lon, sin_lat,
           geo::kWgs84A / std::sqrt(1 - kE2 * sin_lat * sin_lat)};
+}
+
+}  // namespace
+
+LongitudeNear::LongitudeNear(double centre)
+    : centre_x(centre),
+      cos_centre(std::cos(centre * std::numbers::pi)),
+      sin_centre(std::sin(centre * std::numbers::pi)) {}
+
+std::pair<double, double> LongitudeNear::cos_sin(double x) const {
+  const double d = (x - centre_x) * std::numbers::pi;
+  if (!(std::abs(d) <= kReach)) {
+    const double lon = x * std::numbers::pi;
+    return {std::cos(lon), std::sin(lon)};
+  }
+  // Taylor series of cos d and sin d to d⁸ and d⁷ (Horner); |d| ≤ 0.05 leaves out d¹⁰/10! and
+  // d⁹/9!, both below 6e-18.
+  const double d2 = d * d;
+  const double cos_d = 1 + d2 * (-1.0 / 2 + d2 * (1.0 / 24 + d2 * (-1.0 / 720 + d2 / 40320)));
+  const double sin_d = d * (1 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 - d2 / 5040)));
+  return {cos_centre * cos_d - sin_centre * sin_d, sin_centre * cos_d + cos_centre * sin_d};
+}
+
+GeodeticTerms GeodeticTerms::from_mercator(const geo::NormalisedMercator& projection, double x,
+                                           double y) {
+  const double lon = x * std::numbers::pi;
+  return terms_from(latitude_terms(projection, y), std::cos(lon), std::sin(lon));
+}
+
+GeodeticTerms GeodeticTerms::from_mercator(const geo::NormalisedMercator& projection,
+                                           const LongitudeNear& near, double x, double y) {
+  const auto [cos_lon, sin_lon] = near.cos_sin(x);
+  return terms_from(latitude_terms(projection, y), cos_lon, sin_lon);
 }
 
 Vec3 GeodeticTerms::ecef(double height) const {
@@ -204,6 +250,7 @@ class MeshBuilder {
   const geo::MercatorRect rect_;
   const double mid_x_, mid_y_;
   const double inv_w_, inv_h_;
+  const LongitudeNear longitude_{mid_x_};  // cos, sin of the longitudes of this tile
   TileMesh mesh_;
 
   std::vector<tile::Triangle> drawn_;  // inside the data footprint
@@ -285,7 +332,8 @@ void MeshBuilder::place_vertices() {
   terms_.resize(vertices_.size());
   double min_z = std::numeric_limits<double>::infinity(), max_z = -min_z;
   for (std::size_t i = 0; i < vertices_.size(); ++i) {
-    terms_[i] = GeodeticTerms::from_mercator(projection_, vertices_[i].x, vertices_[i].y);
+    terms_[i] =
+        GeodeticTerms::from_mercator(projection_, longitude_, vertices_[i].x, vertices_[i].y);
     ecef_[i] = terms_[i].ecef(vertices_[i].z);
     if (used_[i]) {
       min_z = std::min(min_z, vertices_[i].z);
@@ -386,8 +434,8 @@ void MeshBuilder::emit_cut(const CutPoint& p, const CutPoint& q, Vec3 n, bool ve
     const tile::Vertex v{c->x, c->y, c->z, 0};
     emit(c->ecef, c->z, n, false, v);
     emit(c->ecef, c->z, n, true, v);
-    skirt_points_.push_back(
-        GeodeticTerms::from_mercator(projection_, c->x, c->y).ecef(std::min(c->z, deepest_)));
+    skirt_points_.push_back(GeodeticTerms::from_mercator(projection_, longitude_, c->x, c->y)
+                                .ecef(std::min(c->z, deepest_)));
   }
   cut_triangles_[group].insert(cut_triangles_[group].end(),
                                {first, first + 1, first + 3, first, first + 3, first + 2});

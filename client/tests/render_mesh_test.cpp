@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <numbers>
 
 #include "grid_tile.hpp"
@@ -85,13 +87,13 @@ TEST(RenderMesh, SpecWorldTileDecodes) {
 }
 
 TEST(RenderMesh, FastEcefAgreesWithGeographicLib) {
-  // GeodeticTerms (no degrees, one sinh/hypot/sincos) against geo::to_ecef(projection.inverse)
-  // (GeographicLib's degree functions and Geocentric) on a 129 × 129 grid over the whole map,
-  // both projections, heights from the Dead Sea to above Everest, and the map's corners and
-  // axes exactly. Measured: 2.8e-9 m at worst (rounding of ~6.4e6 m coordinates); bound 1e-8 m,
-  // far below what the mesh keeps (floats relative to a level-20 tile's centre: ~4 µm). An error in
-  // the formulas (e² or the sign of the eccentricity, degrees for radians, N(φ) without the 1 − e²
-  // on z) is metres to kilometres off.
+  // GeodeticTerms (no degrees; expm1/sqrt or sinh/tauf/hypot, one sincos) against
+  // geo::to_ecef(projection.inverse) (GeographicLib's degree functions and Geocentric) on a 129 ×
+  // 129 grid over the whole map, both projections, heights from the Dead Sea to above Everest, and
+  // the map's corners and axes exactly. Measured: 2.8e-9 m at worst (rounding of ~6.4e6 m
+  // coordinates); bound 1e-8 m, far below what the mesh keeps (floats relative to a level-20 tile's
+  // centre: ~4 µm). An error in the formulas (e² or the sign of the eccentricity, degrees for
+  // radians, N(φ) without the 1 − e² on z) is metres to kilometres off.
   double worst = 0;
   for (const geo::Projection p : {geo::Projection::spherical, geo::Projection::ellipsoidal}) {
     const geo::NormalisedMercator projection(p);
@@ -108,6 +110,53 @@ TEST(RenderMesh, FastEcefAgreesWithGeographicLib) {
   }
   EXPECT_LT(worst, 1e-8) << "metres";
   EXPECT_GT(worst, 0.0);  // the paths differ (GeographicLib's was not called twice)
+}
+
+TEST(RenderMesh, SphericalLatitudeTermsAgreeWithSinhAndHypotWithinFourUlps) {
+  // On a spherical layer GeodeticTerms takes cos φ = sech πy and sin φ = tanh πy from one expm1
+  // of 2π|y| (no sinh, no hypot). Against the sinh/hypot formulation it replaced (written out
+  // here), over 2²⁰ + 1 rows from pole to pole: within 4 ulps of 1 (8.9e-16; 6e-9 m of ECEF at
+  // most). Taking expm1 of 2πy with its sign (no |y|) cancels in t + 1 towards the south pole
+  // and is ~6 ulps off there. With it, the render meshes of the test stores kept every normal,
+  // height, uv and index and all but 465 of 7.5 M position floats, each of those at most one
+  // float step or 1e-8 m away (bench/client/RESULTS.md, 2026-11-28 11:20).
+  const geo::NormalisedMercator projection(geo::Projection::spherical);
+  double worst = 0;
+  for (int j = 0; j <= 1 << 20; ++j) {
+    const double y = -1 + j / double(1 << 19);
+    const GeodeticTerms terms = GeodeticTerms::from_mercator(projection, 0, y);
+    const double tau = std::sinh(y * std::numbers::pi);
+    const double cos_lat = 1 / std::hypot(1.0, tau), sin_lat = tau * cos_lat;
+    worst = std::max(
+        {worst, std::abs(terms.cos_lat_cos_lon - cos_lat), std::abs(terms.sin_lat - sin_lat)});
+    ASSERT_EQ(terms.cos_lat_sin_lon, 0.0);
+  }
+  EXPECT_LE(worst, 4 * std::numeric_limits<double>::epsilon());
+}
+
+TEST(RenderMesh, LongitudeNearAgreesWithCosAndSinWithinFourUlps) {
+  // LongitudeNear (angle addition from a tile's centre, Taylor series of the difference) against
+  // std::cos / std::sin of πx: tiles of levels 0 to 24 across the map, 257 x over each and a
+  // margin around it, both sides of the antimeridian. Measured 2 ulps of 1. A series one term
+  // short (no d⁷) is ~1.5e-13 off at |d| = 0.05; a reach of 0.2 without more terms ~3e-12.
+  double worst = 0;
+  int near_used = 0;
+  for (std::uint32_t z = 0; z <= 24; ++z) {
+    const double width = 2.0 / static_cast<double>(1u << z);
+    for (const double centre : {-1 + width / 2, -0.6543210987 + width / 2, width / 2,
+                                0.123456789 + width / 2, 1 - width / 2}) {
+      const LongitudeNear near(centre);
+      for (int k = -160; k <= 160; ++k) {
+        const double x = centre + width * k / 256.0;
+        const auto [c, s] = near.cos_sin(x);
+        const double lon = x * std::numbers::pi;
+        worst = std::max({worst, std::abs(c - std::cos(lon)), std::abs(s - std::sin(lon))});
+        near_used += std::abs((x - centre) * std::numbers::pi) <= LongitudeNear::kReach;
+      }
+    }
+  }
+  EXPECT_LE(worst, 4 * std::numeric_limits<double>::epsilon());
+  EXPECT_GE(near_used, 18 * 5 * 321);
 }
 
 TEST(RenderMesh, RoundHalfAwayIsLround) {

@@ -114,6 +114,10 @@ int main(int argc, char** argv) {
   app.add_option("--timeout", o.timeout_s,
                  "with --out: seconds to wait for a complete view (default 120)")
       ->check(CLI::Range(0.0, 86400.0));
+  app.add_option("--close-after", o.close_after_s,
+                 "window mode: close after this many seconds and print one JSON line: frames "
+                 "drawn, seconds since the last one, whether the view was complete")
+      ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--wireframe", o.wireframe, "draw the triangle edges over the terrain");
   app.add_option("--msaa", o.msaa, "multisampling samples, 0 for none (default 4)")
       ->check(CLI::Range(0, 16));

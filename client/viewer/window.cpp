@@ -33,6 +33,7 @@
 #include "tinstream/client/camera_path.hpp"
 #include "tinstream/client/navigation.hpp"
 #include "tinstream/client/png.hpp"
+#include "tinstream/client/redraw.hpp"
 #include "tinstream/geo/ecef.hpp"
 
 namespace tinstream::client {
@@ -279,6 +280,26 @@ void print_layout(const PanelLayout& p, const std::optional<OverlayRect>& legend
   std::fflush(stdout);
 }
 
+// Every window event owes frames (RedrawScheduler). Installed before ImGui's callbacks, which
+// chain to these; ImGui 1.86 installs no cursor-position, size or refresh callback of its own.
+void wake_on_event(GLFWwindow* window) {
+  static_cast<RedrawScheduler*>(glfwGetWindowUserPointer(window))->wake(Wake::input);
+}
+
+void install_wake_callbacks(GLFWwindow* window, RedrawScheduler& redraw) {
+  glfwSetWindowUserPointer(window, &redraw);
+  glfwSetCursorPosCallback(window, [](GLFWwindow* w, double, double) { wake_on_event(w); });
+  glfwSetMouseButtonCallback(window, [](GLFWwindow* w, int, int, int) { wake_on_event(w); });
+  glfwSetScrollCallback(window, [](GLFWwindow* w, double, double) { wake_on_event(w); });
+  glfwSetKeyCallback(window, [](GLFWwindow* w, int, int, int, int) { wake_on_event(w); });
+  glfwSetCharCallback(window, [](GLFWwindow* w, unsigned int) { wake_on_event(w); });
+  glfwSetWindowFocusCallback(window, [](GLFWwindow* w, int) { wake_on_event(w); });
+  glfwSetCursorEnterCallback(window, [](GLFWwindow* w, int) { wake_on_event(w); });
+  glfwSetFramebufferSizeCallback(window, [](GLFWwindow* w, int, int) { wake_on_event(w); });
+  glfwSetWindowSizeCallback(window, [](GLFWwindow* w, int, int) { wake_on_event(w); });
+  glfwSetWindowRefreshCallback(window, [](GLFWwindow* w) { wake_on_event(w); });
+}
+
 // Opens the window with an OpenGL 3.3 core context and makes it current. Returns 0, or the exit
 // status after saying what was missing.
 int open_window(GlfwSession& glfw, const ViewerOptions& o) {
@@ -419,6 +440,35 @@ std::optional<int> snapshot_when_settled(const ViewerOptions& o, int complete_fr
   return 3;
 }
 
+// Blocks until an event arrives (a tile landing posts an empty one), at most wait_s (< 0: no
+// limit) and never past --close-after.
+void wait_for_events(double wait_s, double close_after_s, Clock::duration open) {
+  if (close_after_s > 0) {
+    const double left = close_after_s - std::chrono::duration<double>(open).count();
+    wait_s = wait_s < 0 ? left : std::min(wait_s, left);
+  }
+  if (wait_s < 0)
+    glfwWaitEvents();
+  else
+    glfwWaitEventsTimeout(std::max(wait_s, 1e-3));
+}
+
+bool same_pose(const CameraPose& a, const CameraPose& b) {
+  return a.lon == b.lon && a.lat == b.lat && a.height == b.height && a.heading == b.heading &&
+         a.pitch == b.pitch;
+}
+
+// --close-after: one JSON line on stdout with the frames the window drew.
+void print_window_run(const RedrawScheduler& redraw, bool complete, double open_s,
+                      double since_last_frame_s) {
+  std::printf(
+      "{\"window\":{\"seconds\":%.3f,\"frames\":%llu,\"since_last_frame_s\":%.3f,"
+      "\"complete\":%s}}\n",
+      open_s, static_cast<unsigned long long>(redraw.frames_drawn()), since_last_frame_s,
+      complete ? "true" : "false");
+  std::fflush(stdout);
+}
+
 }  // namespace
 
 int run_window(const ViewerOptions& o) {
@@ -439,6 +489,8 @@ int run_window(const ViewerOptions& o) {
     return 1;
   }
   GlobeRenderer& renderer = *graphics->renderer;
+  RedrawScheduler redraw;
+  install_wake_callbacks(glfw.window, redraw);
   ImGui_ImplGlfw_InitForOpenGL(glfw.window, true);
 
   Camera camera(fb_w, fb_h, o.fov);
@@ -455,13 +507,35 @@ int run_window(const ViewerOptions& o) {
   DragState drag;
   const auto start = Clock::now();
   auto last = start;
+  auto last_drawn = start;
   double frame_ms = 0;
   bool complete = false;
   int complete_frames = 0;  // frames in a row with a complete view (the panel needs two to lay out)
   int status = 0;
+  // A tile landed (a download worker's thread): the next frame takes it. Cleared after the loop,
+  // before the window and `redraw` go away.
+  s.loader->set_result_callback([&redraw] {
+    redraw.wake(Wake::content);
+    glfwPostEmptyEvent();
+  });
 
   while (!glfwWindowShouldClose(glfw.window)) {
     glfwPollEvents();
+    const auto woke = Clock::now();
+    if (o.close_after_s > 0 &&
+        std::chrono::duration<double>(woke - start).count() >= o.close_after_s) {
+      print_window_run(redraw, complete, std::chrono::duration<double>(woke - start).count(),
+                       std::chrono::duration<double>(woke - last_drawn).count());
+      break;
+    }
+    const RedrawScheduler::Decision decision = redraw.next(woke);
+    if (!decision.draw) {
+      wait_for_events(decision.wait_s, o.close_after_s, woke - start);
+      // The time asleep is no frame time: a key pressed after a long wait moves the camera
+      // by one frame's step, not by the whole wait's.
+      last = Clock::now();
+      continue;
+    }
     const auto now = Clock::now();
     const double dt = std::chrono::duration<double>(now - last).count();
     last = now;
@@ -472,10 +546,12 @@ int run_window(const ViewerOptions& o) {
     }
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
+    const CameraPose before = camera.pose();
     steer_camera(glfw.window, s, renderer, camera, *pilot, drag, ps, dt, *scale, complete);
     ps.cursor = ground_under_cursor(glfw.window, renderer, camera, *scale);
 
     const auto t0 = Clock::now();
+    const std::uint64_t evictions_before = tier_evictions(*s.streamer);
     const FrameResult& f = s.streamer->update(camera, renderer);
     renderer.render(camera, f.draws, s.render_settings(ps.wireframe));
     renderer.present(fb_w, fb_h);
@@ -494,8 +570,15 @@ int run_window(const ViewerOptions& o) {
       }
     }
     glfwSwapBuffers(glfw.window);
-    frame_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    last_drawn = Clock::now();
+    frame_ms = std::chrono::duration<double, std::milli>(last_drawn - t0).count();
+    FrameActivity activity = streamer_activity(*s.streamer, evictions_before);
+    activity.camera_moved = !same_pose(before, camera.pose());
+    // --out waits for frames in a row with a complete view: a scripted run draws every frame.
+    activity.animating = pilot->flight.active() || pilot->scripted() || !o.out.empty();
+    redraw.frame_drawn(activity, last_drawn);
   }
+  s.loader->set_result_callback(nullptr);
   s.streamer->release_all(renderer);
   ImGui_ImplGlfw_Shutdown();
   graphics->renderer.reset();

@@ -705,6 +705,41 @@ TEST_F(Viewer, WindowModeOutWritesTheWindowPanelIncludedUnderXvfb) {
   EXPECT_GT(panel_differs, panel / 2);
 }
 
+TEST_F(Viewer, WindowModeDrawsNothingWhileNothingChangesUnderXvfb) {
+  // Window mode redraws on demand (client/include/tinstream/client/redraw.hpp): once the view is
+  // complete and nothing moves, the window blocks in glfwWaitEvents and draws no frame. Under a
+  // virtual X server, with no input at all, the view streams in (tiles landing wake the loop)
+  // and then the window stays idle until --close-after; it reports the frames it drew and the
+  // time since the last one. Drawing every frame (as before #17's fourth session) leaves no
+  // time since the last frame.
+  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
+  if (!std::filesystem::exists(xvfb))
+    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  const store::LayerInfo l = layer_info(dem_, "dem");
+  const double open_s = 12;
+  testing::Child window(
+      xvfb.string(),
+      std::vector<std::string>{"-a", "-s", "-screen 0 1280x720x24",
+                               testing::binary("tinstream-viewer"), "--size", "640x360", "--msaa",
+                               "0", "--camera", camera_above(l, 30000), "--store", dem_.string(),
+                               "--close-after", std::to_string(open_s)},
+      /*capture_stderr=*/true);
+  ASSERT_EQ(window.wait(std::chrono::minutes(5)), 0) << window.err();
+  json run;
+  std::istringstream lines(window.out());
+  for (std::string line; std::getline(lines, line);) {
+    const json j = json::parse(line, nullptr, false);
+    if (!j.is_discarded() && j.contains("window")) run = j["window"];
+  }
+  ASSERT_TRUE(run.is_object()) << "no window line in: " << window.out() << window.err();
+  EXPECT_TRUE(run["complete"].get<bool>()) << run.dump();
+  EXPECT_GE(run["seconds"].get<double>(), open_s) << run.dump();
+  EXPECT_GE(run["frames"].get<std::uint64_t>(), 2u) << run.dump();
+  // The view of this store completes in well under a second headless; the window then drew
+  // nothing for at least the last third of its time.
+  EXPECT_GE(run["since_last_frame_s"].get<double>(), open_s / 3) << run.dump();
+}
+
 // A rectangle of window mode's layout line: x, y, width, height in window units.
 struct Rect {
   double x = 0, y = 0, w = 0, h = 0;

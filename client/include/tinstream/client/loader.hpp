@@ -16,6 +16,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -91,6 +92,10 @@ class TileLoader {
   void submit(std::vector<TileRequest> wanted);
   // Render thread: results finished since the last call (never blocks on a worker).
   std::vector<LoadResult> take_results();
+  // Called on a worker's thread after each result it made ready, outside every loader lock (the
+  // window: wakes the render thread from its wait for events). Must not call into the loader.
+  // Set or cleared (nullptr) from any thread; returns once no worker runs the old one any more.
+  void set_result_callback(std::function<void()> callback);
   // Blocks until a result is ready or `timeout` passed (headless driver only).
   bool wait_for_results(std::chrono::milliseconds timeout);
 
@@ -122,7 +127,9 @@ class TileLoader {
 
   std::mutex results_mutex_;
   std::condition_variable results_ready_;
-  std::vector<LoadResult> results_;  // guarded by results_mutex_
+  std::vector<LoadResult> results_;        // guarded by results_mutex_
+  std::mutex callback_mutex_;              // held while the callback runs (one at a time)
+  std::function<void()> result_callback_;  // guarded by callback_mutex_
 
   struct Atomics {
     std::atomic<std::uint64_t> requests{0}, retries{0}, connections{0}, ok{0}, not_modified{0},

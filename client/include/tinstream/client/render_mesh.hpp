@@ -35,6 +35,7 @@
 #include <cstdint>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "tinstream/base/result.hpp"
@@ -111,19 +112,36 @@ struct TileMesh {
   std::size_t byte_size() const;
 };
 
+// cos λ and sin λ (λ = πx) of the x near one longitude, a tile's centre: by the angle-addition
+// formulas from the centre's cos and sin (computed once) and Taylor series of the difference d
+// (to d⁸; what is left out is below 6e-18) — a few multiplications instead of a sincos per
+// vertex. Within 4 ulps of 1 of std::cos / std::sin (RenderMesh.LongitudeNear…). Farther than
+// kReach radians from the centre (only in tiles of level < 6) it calls std::cos and std::sin.
+struct LongitudeNear {
+  static constexpr double kReach = 0.05;
+  explicit LongitudeNear(double centre_x);
+  std::pair<double, double> cos_sin(double x) const;
+  double centre_x, cos_centre, sin_centre;
+};
+
 // A vertex's place on the WGS84 ellipsoid from normalised Mercator, without degrees: the decode's
 // hot loop. geo::to_ecef(projection.inverse(p)) goes through latitude and longitude in degrees
-// (GeographicLib's atand, then sincosd with its exact degree reduction, per vertex); here τ = tan φ
-// comes from sinh(πy) (GeographicLib's Math::tauf on an ellipsoidal layer, none on a spherical
-// one), cos φ and sin φ from τ by one hypot, λ = πx by one sincos. The terms give the ECEF point
-// at any height by a few multiplications (a skirt vertex reuses its border vertex's). Agrees with
-// the GeographicLib path within 1e-8 m anywhere on the map (RenderMesh.FastEcefAgreesWith…;
-// 2.8e-9 m measured), far below what the mesh's float positions keep at any level it draws.
+// (GeographicLib's atand, then sincosd with its exact degree reduction, per vertex); here, on a
+// spherical layer, cos φ = sech πy and sin φ = tanh πy come from one expm1 and one sqrt; on an
+// ellipsoidal one τ = tan φ from sinh(πy) and GeographicLib's Math::tauf, cos φ and sin φ from τ by
+// one hypot; λ = πx by one sincos, or near a tile's centre by LongitudeNear. The terms give the
+// ECEF point at any height by a few multiplications (a skirt vertex reuses its border vertex's).
+// Agrees with the GeographicLib path within 1e-8 m anywhere on the map
+// (RenderMesh.FastEcefAgreesWith…; 2.8e-9 m measured), far below what the mesh's float positions
+// keep at any level it draws.
 struct GeodeticTerms {
   double cos_lat_cos_lon = 0, cos_lat_sin_lon = 0, sin_lat = 0;
   double prime_vertical = 0;  // N(φ) = a / sqrt(1 − e² sin² φ), metres
 
   static GeodeticTerms from_mercator(const geo::NormalisedMercator& projection, double x, double y);
+  // The same with λ's terms from `near` (the decode's loop: near its tile's centre).
+  static GeodeticTerms from_mercator(const geo::NormalisedMercator& projection,
+                                     const LongitudeNear& near, double x, double y);
   Vec3 ecef(double height) const;
 };
 

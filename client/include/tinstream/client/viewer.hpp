@@ -45,7 +45,8 @@ struct ViewerOptions {
   std::filesystem::path camera_path;  // headless scripted flight
   std::filesystem::path stats;        // statistics file (default: stdout)
   double timeout_s = 120;
-  double fps = 0;  // camera paths: 0 = real time, else a fixed step of 1/fps per frame
+  double close_after_s = 0;  // window mode: close after this long and print its frame counts; 0: no
+  double fps = 0;            // camera paths: 0 = real time, else a fixed step of 1/fps per frame
   bool wireframe = false;
   int msaa = 4;
   std::int64_t flush_triangles = -1;  // RendererOptions'
