@@ -31,18 +31,36 @@ RedrawScheduler::Decision RedrawScheduler::next(Clock::time_point now) {
     --owed_;
     return {true, 0};
   }
-  if (!streaming_) return {false, -1};
-  const double since = std::chrono::duration<double>(now - last_frame_).count();
-  if (since >= options_.streaming_poll_s) return {true, 0};
-  return {false, options_.streaming_poll_s - since};
+  const auto seconds = [&](Clock::time_point since) {
+    return std::chrono::duration<double>(now - since).count();
+  };
+  double wait = -1;
+  if (streaming_) {
+    const double since = seconds(last_frame_);
+    if (since >= options_.streaming_poll_s) return {true, 0};
+    wait = options_.streaming_poll_s - since;
+  }
+  if (trailing_) {
+    const double since = seconds(changed_);
+    if (since >= options_.trailing_frame_s) {
+      trailing_ = false;
+      return {true, 0};
+    }
+    const double left = options_.trailing_frame_s - since;
+    wait = wait < 0 ? left : std::min(wait, left);
+  }
+  return {false, wait};
 }
 
 void RedrawScheduler::frame_drawn(const FrameActivity& activity, Clock::time_point now) {
   ++frames_drawn_;
   last_frame_ = now;
   streaming_ = !activity.complete;
-  if (activity.camera_moved || activity.animating || activity.tiles_changed)
+  if (activity.camera_moved || activity.animating || activity.tiles_changed) {
     owed_ = std::max(owed_, 1);
+    trailing_ = options_.trailing_frame_s >= 0;
+    changed_ = now;
+  }
 }
 
 }  // namespace tinstream::client

@@ -58,7 +58,7 @@ TEST(RedrawScheduler, ATileLandingDrawsExactlyOneFrame) {
 }
 
 TEST(RedrawScheduler, AFrameThatUploadedTilesOwesTheNextWhichDrawsThem) {
-  RedrawScheduler r;
+  RedrawScheduler r(RedrawOptions{2, 0.25, -1});  // no trailing frame (the next test)
   Clock::time_point now{};
   frames_over(r, now, 10, milliseconds(16));
   r.wake(Wake::content);
@@ -67,6 +67,35 @@ TEST(RedrawScheduler, AFrameThatUploadedTilesOwesTheNextWhichDrawsThem) {
   uploaded.tiles_changed = true;
   r.frame_drawn(uploaded, now);
   EXPECT_EQ(frames_over(r, now, 1000, milliseconds(16)), 1);
+}
+
+TEST(RedrawScheduler, OneTrailingFrameFollowsTheLastChangeForTheHeapTrim) {
+  RedrawScheduler r(RedrawOptions{2, 0.25, 1.5});
+  Clock::time_point now{};
+  frames_over(r, now, 10, milliseconds(16));
+  r.wake(Wake::content);
+  ASSERT_TRUE(r.next(now).draw);
+  FrameActivity uploaded;
+  uploaded.tiles_changed = true;
+  r.frame_drawn(uploaded, now);
+  const Clock::time_point changed = now;
+  ASSERT_TRUE(r.next(now).draw);  // the frame the upload owes, which changes nothing
+  r.frame_drawn({}, now);
+  const RedrawScheduler::Decision d = r.next(now + milliseconds(500));
+  EXPECT_FALSE(d.draw);
+  EXPECT_NEAR(d.wait_s, 1.0, 1e-9);  // until the trailing frame, not without end
+  // An hour of 1 ms iterations: the trailing frame at 1.5 s after the change, then nothing.
+  Clock::time_point drawn_at{};
+  int drawn = 0;
+  for (int i = 0; i < 3'600'000; ++i, now += milliseconds(1)) {
+    if (!r.next(now).draw) continue;
+    ++drawn;
+    drawn_at = now;
+    r.frame_drawn({}, now);
+  }
+  EXPECT_EQ(drawn, 1);
+  EXPECT_EQ(drawn_at - changed, milliseconds(1500));
+  EXPECT_LT(r.next(now).wait_s, 0);
 }
 
 TEST(RedrawScheduler, AnInputEventOwesItsFrameAndTheSettlingFrames) {
@@ -78,7 +107,7 @@ TEST(RedrawScheduler, AnInputEventOwesItsFrameAndTheSettlingFrames) {
 }
 
 TEST(RedrawScheduler, ACameraInMotionDrawsEveryIterationUntilItStops) {
-  RedrawScheduler r;
+  RedrawScheduler r(RedrawOptions{2, 0.25, -1});  // no trailing frame
   Clock::time_point now{};
   frames_over(r, now, 10, milliseconds(16));
   r.wake(Wake::input);
@@ -163,8 +192,9 @@ TEST(RedrawLoop, TilesLandingWakeTheLoopUntilTheViewIsCompleteThenItDrawsNothing
   Camera camera(1280, 720, 60);
   camera.set_pose({c.lon, c.lat, 60000, 0, -90});
 
-  // No streaming poll within the test's time: only tiles landing may wake the loop.
-  RedrawScheduler redraw(RedrawOptions{2, 1e6});
+  // No streaming poll within the test's time and no trailing frame (whose timer would end a wait
+  // on a slow machine): only tiles landing may wake the loop.
+  RedrawScheduler redraw(RedrawOptions{2, 1e6, -1});
   EventQueue events;
   loader.set_result_callback([&] {
     redraw.wake(Wake::content);

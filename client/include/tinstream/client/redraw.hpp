@@ -14,8 +14,11 @@
 //     animated (a fly-to, a camera path, held keys), tiles were uploaded or wait for the upload
 //     budget (a tile uploaded in a frame is selected only by the next one), a tier evicted.
 // While the view is not complete (requests in flight, failed tiles waiting for their retry) the
-// wait is at most streaming_poll_s, so a retry is asked for without a tile landing; once the view
-// is complete and nothing moves the wait has no end (wait_s < 0).
+// wait is at most streaming_poll_s, so a retry is asked for without a tile landing. One trailing
+// frame follows trailing_frame_s after the last frame that changed something (tiles, camera):
+// its streamer update() runs the heap trim (StreamerOptions::heap_trim_interval) on what that last
+// activity freed, which would otherwise stay with the process until the next input. Then, with
+// the view complete and nothing moving, the wait has no end (wait_s < 0).
 //
 // Threads: wake() from any thread; everything else on the render thread.
 #pragma once
@@ -48,6 +51,9 @@ enum class Wake { input, content };
 struct RedrawOptions {
   int settle_frames = 2;           // frames after the one an input event owes
   double streaming_poll_s = 0.25;  // longest wait while the view is not complete
+  // The trailing frame, this long after the last frame that changed something (longer than
+  // StreamerOptions::heap_trim_interval's default 1 s); < 0: none.
+  double trailing_frame_s = 1.5;
 };
 
 class RedrawScheduler {
@@ -75,6 +81,8 @@ class RedrawScheduler {
   std::atomic<bool> input_{false}, content_{false};
   int owed_ = 1;                  // frames to draw before waiting
   bool streaming_ = false;        // the last frame's view was not complete
+  bool trailing_ = false;         // the trailing frame is owed at changed_ + trailing_frame_s
+  Clock::time_point changed_;     // when the last frame that changed something was drawn
   Clock::time_point last_frame_;  // when the last frame was drawn
   std::uint64_t frames_drawn_ = 0;
 };
