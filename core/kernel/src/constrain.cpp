@@ -115,6 +115,13 @@ IntersectionChoice choose_intersection(const XY& pa, const XY& pb, const XY& p1,
   auto score = [&](const XY& p) {
     return std::max({distance_to_segment(p, pa, pb), distance_to_segment(p, p1, p2), floor});
   };
+  // An end of c1-c2 on a-b as far as rounding can tell: a-b goes through that vertex. A point
+  // computed along a-b instead would be a new vertex an ulp or two beside it, splitting c1-c2 next
+  // to its end (kernel_fuzzer: a constraint rounded through an earlier intersection point passes
+  // ulps beside another constraint's end; the near-duplicate vertex later let the end's removal
+  // merge two constraints into a segment that was no chain).
+  if (score(p1) == floor) return {p1, 0.0, 1};
+  if (score(p2) == floor) return {p2, 0.0, 2};
   IntersectionChoice best{on_ab, s, 0};
   double best_score = score(on_ab);
   if (best_score == floor) return best;
