@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # clang-tidy over our C++ sources with the curated .clang-tidy (bug finders, performance, a few
 # modernisations); every finding is an error: the run fails (exit 1) on any. `make tidy`; CI runs it.
-#   scripts/tidy.sh [BUILD_DIR [file...]]     default: build, every core/server/client .cpp
+#   scripts/tidy.sh [BUILD_DIR [file...]]     default: build, every core/server/client/tests .cpp
 # Needs the build's compile_commands.json (any configured build directory; gcc's flags that clang
 # does not know are ignored). Files whose result is known are skipped: a clean result is cached
 # under ~/.cache/tinstream-tidy, keyed by clang-tidy's version, .clang-tidy, the compile command,
@@ -17,7 +17,7 @@ if grep -q '/Unity/unity_' "$build/compile_commands.json"; then
   echo "tidy.sh: $build is a unity build (TINSTREAM_UNITY=ON); use a build configured without it" >&2
   exit 2
 fi
-if (($#)); then files=("$@"); else mapfile -t files < <(git ls-files 'core/*.cpp' 'server/*.cpp' 'client/*.cpp' | grep -v '/fuzz/'); fi
+if (($#)); then files=("$@"); else mapfile -t files < <(git ls-files 'core/*.cpp' 'server/*.cpp' 'client/*.cpp' 'tests/*.cpp' | grep -v '/fuzz/'); fi
 cache=${XDG_CACHE_HOME:-$HOME/.cache}/tinstream-tidy
 mkdir -p "$cache"
 # The compile commands are GCC's: clang reads GCC's -Wconversion as also -Wsign-conversion (GCC's
