@@ -101,6 +101,22 @@ while IFS=$'\t' read -r name _; do
   names+=("$name")
 done <"$tsv"
 ((${#names[@]})) || { echo "fuzz.sh: no target selected" >&2; exit 2; }
+if [[ -n $bin_dir ]]; then  # every selected binary copied? (the tsv lists every configured one)
+  missing=()
+  for name in "${names[@]}"; do [[ -x $bin_dir/$name ]] || missing+=("$name"); done
+  if ((${#missing[@]})); then
+    echo "fuzz.sh: not in $bin_dir: ${missing[*]} (copy build-fuzz/bin/NAME, or choose with --targets)" >&2
+    exit 2
+  fi
+  # Built elsewhere: the shared libraries they link (GDAL, PROJ, SQLite: ~110 for most targets)
+  # must be installed here too, or every run fails at once.
+  if command -v ldd >/dev/null; then
+    for name in "${names[@]}"; do
+      unresolved=$(ldd "$bin_dir/$name" 2>/dev/null | awk '/not found/ {print $1}' | tr '\n' ' ')
+      [[ -z $unresolved ]] || { echo "fuzz.sh: $name needs $unresolved(install them)" >&2; exit 2; }
+    done
+  fi
+fi
 
 run_one() {
   local name=$1 line bin max_len timeout dict regressions
