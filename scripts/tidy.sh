@@ -68,8 +68,9 @@ while read -r tu checked; do
   read -r -a list <<<"$checked"
   nfiles=$((nfiles + ${#list[@]}))
   command=$(grep -F "\"file\": \"$tu\"" -B 3 "$build/compile_commands.json" | grep '"command"' || true)
-  # the batch, the files it includes, and the command that compiles it
-  key=$( { echo "$common"; echo "$command"; cat "$tu"; if [[ $tu == */Unity/* ]]; then sed -n 's/^#include "\(.*\)"$/\1/p' "$tu" | xargs cat; fi; } | sha256sum | cut -c1-32)
+  # the files checked (a batch checked for some of its files is not clean for the others), the
+  # batch, the files it includes, and the command that compiles it
+  key=$( { echo "$common"; echo "$checked"; echo "$command"; cat "$tu"; if [[ $tu == */Unity/* ]]; then sed -n 's/^#include "\(.*\)"$/\1/p' "$tu" | xargs cat; fi; } | sha256sum | cut -c1-32)
   [[ -f $cache/$key ]] && continue
   units+=("$tu")
   key_of[$tu]=$key
