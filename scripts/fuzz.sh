@@ -15,6 +15,8 @@
 #                                         build-fuzz/bin/*_fuzzer and build-fuzz/fuzzers.tsv); the
 #                                         tsv's source paths (corpora, dictionaries, regressions)
 #                                         are found again in this checkout. Implies --no-build.
+#                                         Exits 2 when a selected binary is not in DIR or needs
+#                                         a shared library that is not installed.
 #   scripts/fuzz.sh --seed 1              libFuzzer's random seed (default: a new one each run).
 #                                         CI passes --seed 1 and a fresh corpus: the same inputs in
 #                                         the same order every time, so its result does not depend
@@ -54,7 +56,7 @@ while (($#)); do
     --build) build=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --no-build) do_build=0; shift ;;
-    -h|--help) sed -n '2,30p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,32p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown option $1 (--help)" >&2; exit 2 ;;
   esac
 done
