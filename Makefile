@@ -11,7 +11,8 @@ CMAKE_FLAGS ?=
 # CI's trees unity-build the test executables (TINSTREAM_UNITY: test files compiled 8 to a TU;
 # the product stays one object per file but in the ASan tree): test objects 346 -> ~219 CPU s in
 # the Release tree, 658 -> 368 in the ASan tree, 182 -> 106 in the TSan tree (2026-11-28,
-# docs/SECURITY.md "CI"). Tidy reads a tree configured without it (.ci/pipeline.sh).
+# docs/SECURITY.md "CI"). Tidy reads a configured-only tree batched the same way, the product
+# too (.ci/pipeline.sh; scripts/tidy.sh checks each batch once).
 UNITY_FLAGS = -DTINSTREAM_UNITY=ON
 # Sanitizer builds: optimised (-O1) with line tables (-g1: file:line in every report, less to
 # compile than full debug info) and the asserts on (no NDEBUG).

@@ -8,7 +8,15 @@
 #                                         the long run on a many-core machine: 16 processes per
 #                                         target sharing its corpus (-reload=1), the runs split
 #                                         between them (docs/SECURITY.md, "The long run")
-#   scripts/fuzz.sh --only kernel_fuzzer,qmesh_fuzzer --jobs 1
+#   scripts/fuzz.sh --only kernel_fuzzer,qmesh_fuzzer --jobs 1   (--targets is the same option)
+#   scripts/fuzz.sh --bin-dir DIR --procs 16 --seconds 600 --targets laz_fuzzer,kernel_fuzzer
+#                                         prebuilt binaries on a machine without cmake: DIR holds
+#                                         the *_fuzzer binaries and the build's fuzzers.tsv (copy
+#                                         build-fuzz/bin/*_fuzzer and build-fuzz/fuzzers.tsv); the
+#                                         tsv's source paths (corpora, dictionaries, regressions)
+#                                         are found again in this checkout. Implies --no-build.
+#                                         Exits 2 when a selected binary is not in DIR or needs
+#                                         a shared library that is not installed.
 #   scripts/fuzz.sh --seed 1              libFuzzer's random seed (default: a new one each run).
 #                                         CI passes --seed 1 and a fresh corpus: the same inputs in
 #                                         the same order every time, so its result does not depend
@@ -34,6 +42,7 @@ jobs=$(nproc)
 procs=1
 only=
 do_build=1
+bin_dir=
 while (($#)); do
   case $1 in
     --seconds) seconds=$2; shift 2 ;;
@@ -42,15 +51,34 @@ while (($#)); do
     --seed) seed=$2; shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
     --procs) procs=$2; shift 2 ;;
-    --only) only=$2; shift 2 ;;
+    --only|--targets) only=$2; shift 2 ;;
+    --bin-dir) bin_dir=$2; do_build=0; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --no-build) do_build=0; shift ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,32p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown option $1 (--help)" >&2; exit 2 ;;
   esac
 done
+if [[ -n $bin_dir ]]; then
+  [[ $bin_dir == /* ]] || bin_dir=$OLDPWD/$bin_dir  # given from the caller's directory
+  [[ -f $bin_dir/fuzzers.tsv ]] || { echo "fuzz.sh: no $bin_dir/fuzzers.tsv (copy build-fuzz/fuzzers.tsv there)" >&2; exit 2; }
+  out=${out:-$bin_dir/fuzz-out}
+fi
 out=${out:-$build/fuzz-out}
+tsv=${bin_dir:-$build}/fuzzers.tsv
+# A source path of the machine that configured the build, found again in this checkout: the
+# longest tail of it that exists here (unchanged when it exists as it is).
+local_path() {
+  local p=$1 rest
+  if [[ $p == - || -e $p ]]; then echo "$p"; return; fi
+  rest=${p#/}
+  while [[ $rest == */* ]]; do
+    rest=${rest#*/}
+    [[ -e $rest ]] && { echo "$PWD/$rest"; return; }
+  done
+  echo "$p"
+}
 
 if ((do_build)); then
   if [[ ! -f $build/build.ninja ]]; then
@@ -65,7 +93,7 @@ if ((do_build)); then
   fi
   cmake --build "$build" --target fuzzers -j "$(nproc)"
 fi
-[[ -f $build/fuzzers.tsv ]] || { echo "fuzz.sh: no $build/fuzzers.tsv (configure with TINSTREAM_FUZZ=ON)" >&2; exit 2; }
+[[ -f $tsv ]] || { echo "fuzz.sh: no $tsv (configure with TINSTREAM_FUZZ=ON)" >&2; exit 2; }
 
 mkdir -p "$out"
 declare -a names=()
@@ -73,13 +101,34 @@ while IFS=$'\t' read -r name _; do
   [[ -z $name ]] && continue
   if [[ -n $only && ",$only," != *",$name,"* ]]; then continue; fi
   names+=("$name")
-done <"$build/fuzzers.tsv"
+done <"$tsv"
 ((${#names[@]})) || { echo "fuzz.sh: no target selected" >&2; exit 2; }
+if [[ -n $bin_dir ]]; then  # every selected binary copied? (the tsv lists every configured one)
+  missing=()
+  for name in "${names[@]}"; do [[ -x $bin_dir/$name ]] || missing+=("$name"); done
+  if ((${#missing[@]})); then
+    echo "fuzz.sh: not in $bin_dir: ${missing[*]} (copy build-fuzz/bin/NAME, or choose with --targets)" >&2
+    exit 2
+  fi
+  # Built elsewhere: the shared libraries they link (GDAL, PROJ, SQLite: ~110 for most targets)
+  # must be installed here too, or every run fails at once.
+  if command -v ldd >/dev/null; then
+    for name in "${names[@]}"; do
+      unresolved=$(ldd "$bin_dir/$name" 2>/dev/null | awk '/not found/ {print $1}' | tr '\n' ' ')
+      [[ -z $unresolved ]] || { echo "fuzz.sh: $name needs $unresolved(install them)" >&2; exit 2; }
+    done
+  fi
+fi
 
 run_one() {
   local name=$1 line bin max_len timeout dict regressions
-  line=$(grep -P "^$name\t" "$build/fuzzers.tsv")
+  line=$(grep -P "^$name\t" "$tsv")
   IFS=$'\t' read -r -a f <<<"$line"
+  if [[ -n $bin_dir ]]; then
+    f[1]=$bin_dir/$name
+    local k
+    for ((k = 4; k < ${#f[@]}; k++)); do f[k]=$(local_path "${f[k]}"); done
+  fi
   bin=${f[1]} max_len=${f[2]} timeout=${f[3]} dict=${f[4]} regressions=${f[5]}
   local seeds=("${f[@]:6}")
   [[ -d $regressions ]] && seeds+=("$regressions")

@@ -32,6 +32,7 @@ Outcome run(const std::vector<std::string>& args, const fs::path& dir) {
     std::freopen(out_file.c_str(), "w", stdout);
     std::freopen(err_file.c_str(), "w", stderr);
     std::vector<char*> argv;
+    argv.reserve(args.size() + 1);
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     ::execv(argv[0], argv.data());

@@ -93,7 +93,8 @@ void write_test_layer(const std::filesystem::path& path, const std::string& name
     if (!s) throw std::runtime_error("put: " + s.error().message);
   }
   info.tile_count = ids.size();
-  info.point_count = static_cast<std::uint64_t>(16 * grid * grid);
+  info.point_count =
+      std::uint64_t{16} * static_cast<std::uint64_t>(grid) * static_cast<std::uint64_t>(grid);
   info.min_z = min_z;
   info.max_z = max_z;
   Status s = (*writer)->publish(info);
@@ -220,7 +221,12 @@ HttpResponse HttpConnection::request(const std::string& method, const std::strin
                                      const std::map<std::string, std::string>& headers,
                                      const std::string& body) {
   std::string req = method + " " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n";
-  for (const auto& [k, v] : headers) req += k + ": " + v + "\r\n";
+  for (const auto& [k, v] : headers) {
+    req += k;
+    req += ": ";
+    req += v;
+    req += "\r\n";
+  }
   if (!body.empty() || method == "POST")
     req += "Content-Length: " + std::to_string(body.size()) + "\r\n";
   req += "\r\n" + body;

@@ -87,20 +87,58 @@ std::vector<VertexId> Triangulation::adjacent_vertices(VertexId v, bool include_
 }
 
 // A live triangle having the directed edge a->b (a at v[next3(i)], b at v[prev3(i)]), or kNone.
+// The first such triangle in the order of incident_triangles(a, false), found by walking a's fan
+// without collecting it (no allocation: the constraint code and the checker call this per edge).
 TriangleId Triangulation::find_edge(VertexId a, VertexId b, int* index) const {
-  for (TriangleId t : incident_triangles(a, false)) {
+  if (a >= mesh_.vertex_slots()) return kNone;
+  const TriangleId t0 = mesh_.vertex_triangle(a);
+  if (t0 == kNone || t0 == kPendingTriangle) return kNone;
+  // Whether t holds a->b, or b->a only on this side of a cut; sets *found and its edge.
+  auto holds = [&](TriangleId t, int* found) {
     const int k = mesh_.index_of(t, a);
     if (mesh_.tri(t).v[next3(k)] == b) {
-      *index = prev3(k);
-      return t;
+      *found = prev3(k);
+      return true;
     }
     if (mesh_.tri(t).v[prev3(k)] == b && mesh_.tri(t).n[next3(k)] == kNone) {
-      // b->a exists only on this side of a cut
-      *index = next3(k);
-      return t;
+      *found = next3(k);
+      return true;
+    }
+    return false;
+  };
+  // Counter-clockwise from t0: the whole fan, or (cut mesh) its part from t0 to the cut.
+  TriangleId ccw_match = kNone;
+  int ccw_index = 0;
+  TriangleId t = t0;
+  bool open = false;
+  do {
+    if (ccw_match == kNone && holds(t, &ccw_index)) ccw_match = t;
+    t = mesh_.tri(t).n[next3(mesh_.index_of(t, a))];
+    if (t == kNone) {
+      open = true;
+      break;
+    }
+  } while (t != t0);
+  if (open) {
+    // The clockwise part comes first in the fan's order, the farthest triangle first: the last
+    // match met walking away from t0 wins.
+    TriangleId cw_match = kNone;
+    int cw_index = 0;
+    for (t = mesh_.tri(t0).n[prev3(mesh_.index_of(t0, a))]; t != kNone;
+         t = mesh_.tri(t).n[prev3(mesh_.index_of(t, a))]) {
+      int i = 0;
+      if (holds(t, &i)) {
+        cw_match = t;
+        cw_index = i;
+      }
+    }
+    if (cw_match != kNone) {
+      *index = cw_index;
+      return cw_match;
     }
   }
-  return kNone;
+  if (ccw_match != kNone) *index = ccw_index;
+  return ccw_match;
 }
 
 bool Triangulation::is_edge(VertexId a, VertexId b) const {
@@ -207,18 +245,34 @@ bool Triangulation::segment_chain_present(VertexId a, VertexId b) const {
     stack.pop_back();
     if (cur == b) return true;
     const double t_cur = along(mesh_.xy(cur));
-    for (VertexId w : adjacent_vertices(cur)) {
-      if (!is_constrained_edge(cur, w) || std::find(seen.begin(), seen.end(), w) != seen.end()) {
-        continue;
-      }
+    auto follow = [&](VertexId w) {
+      if (std::find(seen.begin(), seen.end(), w) != seen.end()) return;
       const XY& q = mesh_.xy(w);
       // Not backwards beyond rounding: two intersection vertices a few ulps apart can come in
       // either order along the segment (the visited list stops any cycle).
       const double t = along(q);
       const double slack = tolerance / std::sqrt(len2);  // the tolerance along a-b, in t
-      if (w != b && (off(q) > tolerance || !(t > t_cur - slack) || t > 1.0 + slack)) continue;
+      if (w != b && (off(q) > tolerance || !(t > t_cur - slack) || t > 1.0 + slack)) return;
       seen.push_back(w);
       stack.push_back(w);
+    };
+    // The constrained edges at cur, read off its fan in the order of adjacent_vertices(cur):
+    // cur -> w is the edge prev3(k) of the triangle holding cur at k and w at next3(k); an open
+    // fan's (cut mesh) closing vertex is at prev3(k) of its last triangle, edge next3(k). The
+    // same flags as is_constrained_edge(cur, w), without a fan walk per neighbour (that made
+    // this check quadratic in the vertex degree: most of kernel_fuzzer's time).
+    const std::vector<TriangleId> ring = incident_triangles(cur, false);
+    for (TriangleId t : ring) {
+      const int k = mesh_.index_of(t, cur);
+      const VertexId w = mesh_.tri(t).v[next3(k)];
+      if (w != kInfiniteVertex && mesh_.constrained(t, prev3(k))) follow(w);
+    }
+    if (!ring.empty()) {
+      const TriangleId last = ring.back();
+      const int k = mesh_.index_of(last, cur);
+      if (mesh_.tri(last).n[next3(k)] == kNone && mesh_.constrained(last, next3(k))) {
+        follow(mesh_.tri(last).v[prev3(k)]);
+      }
     }
   }
   return false;
