@@ -47,6 +47,30 @@ TEST(Constraint, VerticesOnTheSegmentSplitIt) {
   expect_valid(t);
 }
 
+TEST(Constraint, ACrossingOnTheEndOfAnotherConstraintGoesThroughThatVertex) {
+  // kernel_fuzzer's vertex_on_a_new_constraint_doubled_then_removed (core/kernel/fuzz/regressions):
+  // c-e passes exactly through a, the end of constraint a-d, but first crosses b-d at the rounded
+  // point (4/3, 1/6); from there on it passed an ulp beside a and got a second intersection vertex
+  // there, splitting a-d next to its end. Removing a then merged two constraints into a segment
+  // that is no chain.
+  Triangulation t(Rect{-1, -1, 17, 17});
+  const auto a = t.insert({3, 1, 0}).vertex, d = t.insert({0, 0, 0}).vertex;
+  const auto c = t.insert({1, 0, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(a, d).ok());
+  const auto b = t.insert({8, 1, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(b, d).ok());
+  const auto e = t.insert({15, 7, 0}).vertex;
+  t.insert({4, 0, 0});
+  t.insert({11, 8, 0});
+  const std::size_t before = t.num_vertices();
+  ASSERT_TRUE(t.insert_constraint(c, e).ok());
+  EXPECT_EQ(t.num_vertices(), before + 1) << "one crossing (with b-d), no vertex beside a";
+  EXPECT_TRUE(t.is_constrained_edge(a, e)) << "c-e goes through a";
+  expect_valid(t);
+  (void)t.remove_vertex(a);  // refused or done, the constraints stay chains
+  expect_valid(t);
+}
+
 TEST(Constraint, CrossingConstraintsMeetAtANewInterpolatedVertex) {
   Triangulation t;
   const auto a = t.insert({0, 0, 0}).vertex, c = t.insert({2, 2, 10}).vertex;
