@@ -16,6 +16,34 @@ std::string tri_name(const Mesh& m, TriangleId t) {
   return "triangle " + std::to_string(t) + " (" + std::to_string(T.v[0]) + ", " +
          std::to_string(T.v[1]) + ", " + std::to_string(T.v[2]) + ")";
 }
+
+// Walks v's fan in the order of incident_triangles(v, false) without collecting it: counter-
+// clockwise from the vertex's triangle, or, on an open fan (`may_be_open`: only a cut mesh has
+// one), from its clockwise end to its counter-clockwise end. Stops at the first triangle `stop`
+// accepts and returns it; kNone when none does (or v has no triangle).
+template <class Stop>
+TriangleId walk_fan(const Mesh& m, VertexId v, bool may_be_open, Stop&& stop) {
+  if (v >= m.vertex_slots()) return kNone;
+  const TriangleId t0 = m.vertex_triangle(v);
+  if (t0 == kNone || t0 == kPendingTriangle) return kNone;
+  auto ccw = [&](TriangleId t) { return m.tri(t).n[next3(m.index_of(t, v))]; };
+  auto cw = [&](TriangleId t) { return m.tri(t).n[prev3(m.index_of(t, v))]; };
+  TriangleId start = t0;
+  if (may_be_open) {
+    TriangleId t = cw(t0);
+    while (t != kNone && t != t0) {
+      start = t;
+      t = cw(t);
+    }
+    if (t == t0) start = t0;  // closed after all
+  }
+  TriangleId t = start;
+  do {
+    if (stop(t)) return t;
+    t = ccw(t);
+  } while (t != kNone && t != start);
+  return kNone;
+}
 }  // namespace
 
 bool Triangulation::is_vertex(VertexId v) const {
@@ -41,104 +69,45 @@ std::vector<VertexTriple> Triangulation::finite_triangles() const {
 
 std::vector<TriangleId> Triangulation::incident_triangles(VertexId v, bool finite_only) const {
   std::vector<TriangleId> ring;
-  if (v >= mesh_.vertex_slots()) return ring;
-  const TriangleId t0 = mesh_.vertex_triangle(v);
-  if (t0 == kNone || t0 == kPendingTriangle) return ring;
-  TriangleId t = t0;
-  bool open = false;
-  do {
-    ring.push_back(t);
-    const int k = mesh_.index_of(t, v);
-    t = mesh_.tri(t).n[next3(k)];
-    if (t == kNone) {
-      open = true;
-      break;
-    }
-  } while (t != t0);
-  if (open) {  // cut mesh: collect the clockwise side too, then restore counter-clockwise order
-    std::vector<TriangleId> before;
-    t = t0;
-    for (;;) {
-      const int k = mesh_.index_of(t, v);
-      t = mesh_.tri(t).n[prev3(k)];
-      if (t == kNone) break;
-      before.push_back(t);
-    }
-    ring.insert(ring.begin(), before.rbegin(), before.rend());
-  }
-  if (finite_only) std::erase_if(ring, [&](TriangleId s) { return mesh_.is_ghost(s); });
+  walk_fan(mesh_, v, cut_, [&](TriangleId t) {
+    if (!finite_only || !mesh_.is_ghost(t)) ring.push_back(t);
+    return false;
+  });
   return ring;
 }
 
 std::vector<VertexId> Triangulation::adjacent_vertices(VertexId v, bool include_infinite) const {
   std::vector<VertexId> out;
-  const std::vector<TriangleId> ring = incident_triangles(v, false);
-  for (TriangleId t : ring) {
-    const int k = mesh_.index_of(t, v);
-    const VertexId a = mesh_.tri(t).v[next3(k)];
+  TriangleId last = kNone;
+  walk_fan(mesh_, v, cut_, [&](TriangleId t) {
+    const VertexId a = mesh_.tri(t).v[next3(mesh_.index_of(t, v))];
     if (a != kInfiniteVertex || include_infinite) out.push_back(a);
-  }
-  if (!ring.empty()) {  // open fan (cut mesh): the last triangle's far vertex closes the list
-    const TriangleId last = ring.back();
+    last = t;
+    return false;
+  });
+  if (last != kNone) {  // open fan (cut mesh): the last triangle's far vertex closes the list
     const int k = mesh_.index_of(last, v);
     if (mesh_.tri(last).n[next3(k)] == kNone) out.push_back(mesh_.tri(last).v[prev3(k)]);
   }
   return out;
 }
 
-// A live triangle having the directed edge a->b (a at v[next3(i)], b at v[prev3(i)]), or kNone.
-// The first such triangle in the order of incident_triangles(a, false), found by walking a's fan
-// without collecting it (no allocation: the constraint code and the checker call this per edge).
+// A live triangle having the directed edge a->b (a at v[next3(i)], b at v[prev3(i)]), or kNone:
+// the first such triangle in a's fan (walk_fan: no allocation, the constraint code and the checker
+// call this per edge). On an open fan's clockwise end the edge may be b->a only.
 TriangleId Triangulation::find_edge(VertexId a, VertexId b, int* index) const {
-  if (a >= mesh_.vertex_slots()) return kNone;
-  const TriangleId t0 = mesh_.vertex_triangle(a);
-  if (t0 == kNone || t0 == kPendingTriangle) return kNone;
-  // Whether t holds a->b, or b->a only on this side of a cut; sets *found and its edge.
-  auto holds = [&](TriangleId t, int* found) {
+  return walk_fan(mesh_, a, cut_, [&](TriangleId t) {
     const int k = mesh_.index_of(t, a);
     if (mesh_.tri(t).v[next3(k)] == b) {
-      *found = prev3(k);
+      *index = prev3(k);
       return true;
     }
     if (mesh_.tri(t).v[prev3(k)] == b && mesh_.tri(t).n[next3(k)] == kNone) {
-      *found = next3(k);
+      *index = next3(k);
       return true;
     }
     return false;
-  };
-  // Counter-clockwise from t0: the whole fan, or (cut mesh) its part from t0 to the cut.
-  TriangleId ccw_match = kNone;
-  int ccw_index = 0;
-  TriangleId t = t0;
-  bool open = false;
-  do {
-    if (ccw_match == kNone && holds(t, &ccw_index)) ccw_match = t;
-    t = mesh_.tri(t).n[next3(mesh_.index_of(t, a))];
-    if (t == kNone) {
-      open = true;
-      break;
-    }
-  } while (t != t0);
-  if (open) {
-    // The clockwise part comes first in the fan's order, the farthest triangle first: the last
-    // match met walking away from t0 wins.
-    TriangleId cw_match = kNone;
-    int cw_index = 0;
-    for (t = mesh_.tri(t0).n[prev3(mesh_.index_of(t0, a))]; t != kNone;
-         t = mesh_.tri(t).n[prev3(mesh_.index_of(t, a))]) {
-      int i = 0;
-      if (holds(t, &i)) {
-        cw_match = t;
-        cw_index = i;
-      }
-    }
-    if (cw_match != kNone) {
-      *index = cw_index;
-      return cw_match;
-    }
-  }
-  if (ccw_match != kNone) *index = ccw_index;
-  return ccw_match;
+  });
 }
 
 bool Triangulation::is_edge(VertexId a, VertexId b) const {
@@ -261,14 +230,15 @@ bool Triangulation::segment_chain_present(VertexId a, VertexId b) const {
     // fan's (cut mesh) closing vertex is at prev3(k) of its last triangle, edge next3(k). The
     // same flags as is_constrained_edge(cur, w), without a fan walk per neighbour (that made
     // this check quadratic in the vertex degree: most of kernel_fuzzer's time).
-    const std::vector<TriangleId> ring = incident_triangles(cur, false);
-    for (TriangleId t : ring) {
+    TriangleId last = kNone;
+    walk_fan(mesh_, cur, cut_, [&](TriangleId t) {
       const int k = mesh_.index_of(t, cur);
       const VertexId w = mesh_.tri(t).v[next3(k)];
       if (w != kInfiniteVertex && mesh_.constrained(t, prev3(k))) follow(w);
-    }
-    if (!ring.empty()) {
-      const TriangleId last = ring.back();
+      last = t;
+      return false;
+    });
+    if (last != kNone) {
       const int k = mesh_.index_of(last, cur);
       if (mesh_.tri(last).n[next3(k)] == kNone && mesh_.constrained(last, next3(k))) {
         follow(mesh_.tri(last).v[prev3(k)]);
