@@ -80,8 +80,8 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
         print('### Cold time to a complete view (fresh process, no disk tier)\n')
         print('| threads | run | complete | time to complete (s) | tiles loaded | requests | bytes '
               '(proxy) | most in flight | CPU until complete: process / render thread (s) | '
-              'decoding: CPU / wall (s) |')
-        print('|---|---|---|---|---|---|---|---|---|---|')
+              'decoding: CPU / wall (s) | server / proxy CPU (s) | load |')
+        print('|---|---|---|---|---|---|---|---|---|---|---|---|')
     by_t = {}
     for c in cold:
         v, p = c['viewer'], c['proxy']
@@ -89,11 +89,13 @@ def report(out, layer, store, delay_ms, size, sse, flight_s):
         # (viewers before the "cpu" statistics: n/a)
         cpu, req = v.get('cpu'), v['requests']
         cpu_s = f"{cpu['process_s']:.3f} / {cpu['render_thread_s']:.3f}" if cpu else 'n/a'
+        o = c.get('cpu_others')  # (run.sh before 2026-11-28 14:00: n/a)
+        others = f"{o['server_s']:.2f} / {o['proxy_s']:.2f}" if o else 'n/a'
         dec_s = (f"{req['decode_cpu_seconds']:.3f} / {req['decode_seconds']:.3f}"
                  if 'decode_cpu_seconds' in req else f"n/a / {req['decode_seconds']:.3f}")
         print(f"| {c['threads']} | {c['run']} | {v['complete']} | {v['time_to_complete_s']:.2f} | "
               f"{v['tiles']['loaded']} | {p['requests']} | {p['bytes']} | {p['max_in_flight']} | "
-              f"{cpu_s} | {dec_s} |")
+              f"{cpu_s} | {dec_s} | {others} | {c.get('load', 'n/a')} |")
     if 1 in by_t and 8 in by_t:
         m1, m8 = statistics.median(by_t[1]), statistics.median(by_t[8])
         pairs = [a / b for a, b in zip(by_t[1], by_t[8]) if b]

@@ -129,16 +129,27 @@ viewer() { "$BIN/tinstream-viewer" --headless --url "$proxy" --layer "$layer" --
   --max-sse "$SSE" --timeout 900 "$@"; }
 proxy_stats() { curl -fsS "$proxy/__stats"; }
 
+# CPU seconds (user + system) a process has used so far, from /proc/PID/stat (Linux).
+cpu_s() { awk -v hz="$(getconf CLK_TCK)" '{ sub(/^.*\) /, ""); printf "%.3f", ($12 + $13) / hz }' \
+  "/proc/$1/stat" 2>/dev/null || echo -1; }
+
 # --- 1. cold time to a complete view ---
+# TIMELINE=1: each cold run also writes its request timeline (--timeline, cold_tT_R.timeline).
 if part cold; then
 : > "$OUT/cold.jsonl"
 for r in $(seq "$REPEAT"); do
   for t in 8 1; do
     curl -fsS "$proxy/__reset" > /dev/null
+    timeline_args=()
+    [[ ${TIMELINE:-0} == 1 ]] && timeline_args=(--timeline "$OUT/cold_t${t}_$r.timeline")
+    server_cpu0=$(cpu_s "${pids[0]}") proxy_cpu0=$(cpu_s "${pids[1]}")
     viewer --threads "$t" --camera "$CAM_COLD" --out "$OUT/cold_t${t}_$r.png" \
-      --stats "$OUT/cold_t${t}_$r.json" "${cold_args[@]}"
-    python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); p=json.loads(sys.argv[2]); print(json.dumps({"threads": int(sys.argv[3]), "run": int(sys.argv[4]), "viewer": v, "proxy": p}))' \
-      "$OUT/cold_t${t}_$r.json" "$(proxy_stats)" "$t" "$r" >> "$OUT/cold.jsonl"
+      --stats "$OUT/cold_t${t}_$r.json" "${timeline_args[@]}" "${cold_args[@]}"
+    # The server's and the proxy's CPU over the run (the final draw and PNG included).
+    others=$(python3 -c 'import json,sys; a=[float(x) for x in sys.argv[1:]]; print(json.dumps({"server_s": round(a[1] - a[0], 3), "proxy_s": round(a[3] - a[2], 3)}))' \
+      "$server_cpu0" "$(cpu_s "${pids[0]}")" "$proxy_cpu0" "$(cpu_s "${pids[1]}")")
+    python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); p=json.loads(sys.argv[2]); print(json.dumps({"threads": int(sys.argv[3]), "run": int(sys.argv[4]), "viewer": v, "proxy": p, "cpu_others": json.loads(sys.argv[5]), "load": open("/proc/loadavg").read().split()[0]}))' \
+      "$OUT/cold_t${t}_$r.json" "$(proxy_stats)" "$t" "$r" "$others" >> "$OUT/cold.jsonl"
     echo "cold, $t threads, run $r: $(python3 -c 'import json,sys; v=json.load(open(sys.argv[1])); print(v["time_to_complete_s"], "s,", v["tiles"]["loaded"], "tiles")' "$OUT/cold_t${t}_$r.json")"
   done
 done

@@ -109,8 +109,9 @@ int run_snapshot(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, Sta
       break;
     }
     if (seconds_since(start) > o.timeout_s) break;
-    // Nothing to upload: sleep until a worker hands in a tile (never longer than 20 ms).
-    if (f.upload_pending == 0) s.loader->wait_for_results(std::chrono::milliseconds(20));
+    // Settled (nothing uploaded or left to upload): sleep until a worker hands in a tile (never
+    // longer than 20 ms). After an upload the next frame may already draw more or be complete.
+    if (f.settled()) s.loader->wait_for_results(std::chrono::milliseconds(20));
   }
   // No frame is drawn while the view streams in: the CPU so far is the streaming's alone.
   run.render_thread_cpu_s = thread_cpu_seconds() - thread_cpu_start;
@@ -197,7 +198,7 @@ int run_path(const ViewerOptions& o, Session& s, Gl& gl, Camera& camera, StatsOu
                    .dump());
     ++frame;
     run.render = rs;
-    if (player.waiting() && !f.complete && f.upload_pending == 0)
+    if (player.waiting() && !f.complete && f.settled())
       s.loader->wait_for_results(std::chrono::milliseconds(5));
     if (seconds_since(start) > o.timeout_s + flight_s) break;
   }
@@ -243,6 +244,14 @@ int run_headless(const ViewerOptions& o) {
   const int status = o.camera_path.empty() ? run_snapshot(o, *session, *gl, camera, stats)
                                            : run_path(o, *session, *gl, camera, stats);
   session->streamer->release_all(*gl->renderer);
+  if (session->timeline) {
+    std::ofstream out(o.timeline, std::ios::trunc);
+    session->timeline->write(out);
+    if (!out) {
+      std::cerr << "tinstream-viewer: cannot write " << o.timeline.string() << '\n';
+      return status == 0 ? 2 : status;
+    }
+  }
   return status;
 }
 

@@ -74,6 +74,7 @@ struct Answer {
   std::string etag, content_encoding;
   bool keep_alive = true;
   std::uint64_t wire_bytes = 0;
+  std::chrono::steady_clock::time_point headers_at{};
 };
 
 enum class Transport { ok, failed, stale };  // stale: a reused connection the peer had closed
@@ -112,10 +113,20 @@ class Client {
         done = true;
         return;
       }
-      http::async_read(stream_, buffer_, parser, [&](beast::error_code e2, std::size_t n) {
-        ec = e2;
+      // Headers first, then the body: the time between them is the transfer (timeline.hpp).
+      http::async_read_header(stream_, buffer_, parser, [&](beast::error_code e2, std::size_t n) {
         read_bytes = n;
-        done = true;
+        if (e2) {
+          ec = e2;
+          done = true;
+          return;
+        }
+        out.headers_at = std::chrono::steady_clock::now();
+        http::async_read(stream_, buffer_, parser, [&](beast::error_code e3, std::size_t m) {
+          ec = e3;
+          read_bytes += m;
+          done = true;
+        });
       });
     });
     run_until(done, cancel);
@@ -265,6 +276,7 @@ class HttpConnectionImpl final : public TileConnection {
                              r.reconnects);
       }
       r.wire_bytes += a.wire_bytes;
+      r.headers_at = a.headers_at;
       if (cancel.load()) {
         error = "cancelled";
         break;

@@ -3,7 +3,9 @@
 #include <time.h>
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
+#include <limits>
 
 #include "tinstream/client/imagery.hpp"
 
@@ -44,15 +46,25 @@ TileLoader::TileLoader(std::shared_ptr<TileSource> source, std::vector<LayerDesc
     : source_(std::move(source)),
       layers_(std::move(layers)),
       disk_(std::move(disk)),
-      decode_slots_(options.decode_threads <= 0 ? default_threads() : options.decode_threads) {
+      timeline_(std::move(options.timeline)) {
   if (!source_->remote()) disk_.reset();
+  const int decoders = options.decode_threads <= 0 ? default_threads() : options.decode_threads;
+  for (int i = 0; i < decoders; ++i) decoders_.emplace_back([this] { run_decoder(); });
   set_threads(options.threads <= 0 ? default_threads() : options.threads);
 }
 
 TileLoader::~TileLoader() {
   cancel_.store(true);
+  {
+    std::lock_guard lock(decode_mutex_);
+    decode_closed_ = true;  // payloads still queued are dropped
+  }
+  decode_ready_.notify_all();
+  decode_room_.notify_all();
   queue_.close();
   for (std::thread& t : workers_)
+    if (t.joinable()) t.join();
+  for (std::thread& t : decoders_)
     if (t.joinable()) t.join();
 }
 
@@ -114,7 +126,10 @@ LoaderCounters TileLoader::counters() const {
   c.decode_seconds = static_cast<double>(get(counters_.decode_micros)) * 1e-6;
   c.decode_cpu_seconds = static_cast<double>(get(counters_.decode_cpu_micros)) * 1e-6;
   c.decode_wait_seconds = static_cast<double>(get(counters_.decode_wait_micros)) * 1e-6;
-  c.most_decoding = decode_slots_.most_held();
+  {
+    std::lock_guard lock(decode_mutex_);
+    c.most_decoding = most_decoding_;
+  }
   c.queued = queue_.queued();
   c.in_flight = queue_.in_flight();
   c.in_flight_levels = queue_.in_flight_per_level();
@@ -124,7 +139,11 @@ LoaderCounters TileLoader::counters() const {
 void TileLoader::run_worker(std::size_t index) {
   std::unique_ptr<TileConnection> connection;
   while (auto request = queue_.pop(index)) {
-    LoadResult result;
+    if (timeline_) {
+      timeline_->record(request->key, TileEvent::sent);
+      timeline_->record_priority(request->key, request->priority);
+    }
+    std::optional<LoadResult> result;
     try {
       result = load(*request, connection);
     } catch (const std::exception& e) {  // the barrier: nothing escapes a worker
@@ -140,22 +159,79 @@ void TileLoader::run_worker(std::size_t index) {
                           nullptr,      "internal error",   0};
       connection.reset();
     }
-    if (result.status == LoadStatus::failed)
-      counters_.failed.fetch_add(1, std::memory_order_relaxed);
-    // The key stays in flight until the render thread takes the result (take_results), so a
-    // frame that looked for it before it was ready cannot queue it again.
-    {
-      std::lock_guard lock(results_mutex_);
-      results_.push_back(std::move(result));
-    }
-    results_ready_.notify_all();
-    std::lock_guard lock(callback_mutex_);
-    if (result_callback_) result_callback_();
+    if (result) publish(std::move(*result));  // else a decoder publishes it
   }
 }
 
-LoadResult TileLoader::load(const TileRequest& request,
-                            std::unique_ptr<TileConnection>& connection) {
+void TileLoader::run_decoder() {
+  for (;;) {
+    DecodeJob job;
+    {
+      std::unique_lock lock(decode_mutex_);
+      decode_ready_.wait(lock, [&] { return decode_closed_ || !decode_jobs_.empty(); });
+      if (decode_closed_) return;
+      // The most urgent job; among equal priorities the one queued first.
+      const auto next =
+          std::ranges::max_element(decode_jobs_, [](const DecodeJob& a, const DecodeJob& b) {
+            return a.priority < b.priority || (a.priority == b.priority && a.queued > b.queued);
+          });
+      job = std::move(*next);
+      decode_jobs_.erase(next);
+      ++decoding_;
+      most_decoding_ = std::max(most_decoding_, decoding_);
+    }
+    decode_room_.notify_one();
+    LoadResult result;
+    try {
+      result = finish_payload(job);
+    } catch (const std::exception& e) {  // the barrier: nothing escapes a decoder
+      result = LoadResult{job.key,
+                          LoadStatus::failed,
+                          job.origin,
+                          nullptr,
+                          std::string("internal error: ") + e.what(),
+                          0};
+    } catch (...) {
+      result = LoadResult{job.key, LoadStatus::failed, job.origin, nullptr, "internal error", 0};
+    }
+    {
+      std::lock_guard lock(decode_mutex_);
+      --decoding_;
+    }
+    publish(std::move(result));
+  }
+}
+
+void TileLoader::publish(LoadResult result) {
+  if (result.status == LoadStatus::failed) counters_.failed.fetch_add(1, std::memory_order_relaxed);
+  // The key stays in flight until the render thread takes the result (take_results), so a
+  // frame that looked for it before it was ready cannot queue it again.
+  {
+    std::lock_guard lock(results_mutex_);
+    results_.push_back(std::move(result));
+  }
+  results_ready_.notify_all();
+  std::lock_guard lock(callback_mutex_);
+  if (result_callback_) result_callback_();
+}
+
+void TileLoader::queue_decode(const TileKey& key, std::vector<std::uint8_t> bytes,
+                              ContentEncoding encoding, LoadOrigin origin, double priority) {
+  // (A NaN would not order against the others: it waits behind every other priority.)
+  if (std::isnan(priority)) priority = -std::numeric_limits<double>::infinity();
+  {
+    std::unique_lock lock(decode_mutex_);
+    decode_room_.wait(lock,
+                      [&] { return decode_closed_ || decode_jobs_.size() < kMaxDecodeBacklog; });
+    if (decode_closed_) return;  // shutting down: nobody takes results any more
+    decode_jobs_.push_back(DecodeJob{key, priority, std::move(bytes), encoding, origin,
+                                     std::chrono::steady_clock::now()});
+  }
+  decode_ready_.notify_one();
+}
+
+std::optional<LoadResult> TileLoader::load(const TileRequest& request,
+                                           std::unique_ptr<TileConnection>& connection) {
   const TileKey& key = request.key;
   const LayerDescription& layer = layers_.at(key.layer);
   LoadResult failed{key, LoadStatus::failed, LoadOrigin::network, nullptr, {}, 0};
@@ -172,6 +248,12 @@ LoadResult TileLoader::load(const TileRequest& request,
 
   FetchRequest fetch{key, &layer, cached ? std::optional<std::string>(cached->etag) : std::nullopt};
   FetchResponse response = connection->fetch(fetch, cancel_);
+  if (timeline_) {
+    const auto now = std::chrono::steady_clock::now();
+    const bool has_headers = response.headers_at != std::chrono::steady_clock::time_point{};
+    timeline_->record(key, TileEvent::headers, has_headers ? response.headers_at : now);
+    timeline_->record(key, TileEvent::body, now);
+  }
   counters_.requests.fetch_add(response.attempts, std::memory_order_relaxed);
   counters_.retries.fetch_add(response.attempts > 0 ? response.attempts - 1 : 0,
                               std::memory_order_relaxed);
@@ -184,8 +266,8 @@ LoadResult TileLoader::load(const TileRequest& request,
       counters_.ok.fetch_add(1, std::memory_order_relaxed);
       counters_.downloaded_bytes.fetch_add(response.body.size(), std::memory_order_relaxed);
       if (disk_) disk_->put(key, layer, DiskEntry{response.etag, response.encoding, response.body});
-      return finish_payload(key, layer, std::move(response.body), response.encoding, fetched,
-                            request.priority);
+      queue_decode(key, std::move(response.body), response.encoding, fetched, request.priority);
+      return std::nullopt;
     }
     case FetchResponse::Status::not_modified:
       counters_.not_modified.fetch_add(1, std::memory_order_relaxed);
@@ -194,8 +276,9 @@ LoadResult TileLoader::load(const TileRequest& request,
         return failed;
       }
       disk_->touch(key, layer);
-      return finish_payload(key, layer, std::move(cached->bytes), cached->encoding,
-                            LoadOrigin::revalidated, request.priority);
+      queue_decode(key, std::move(cached->bytes), cached->encoding, LoadOrigin::revalidated,
+                   request.priority);
+      return std::nullopt;
     case FetchResponse::Status::not_found:
       counters_.not_found.fetch_add(1, std::memory_order_relaxed);
       if (cached) disk_->erase(key, layer);
@@ -204,24 +287,29 @@ LoadResult TileLoader::load(const TileRequest& request,
       break;
   }
   // The source failed after its retries: a copy on disk is better than nothing (offline use).
-  if (cached && response.error.code != ErrorCode::cancelled)
-    return finish_payload(key, layer, std::move(cached->bytes), cached->encoding, LoadOrigin::disk,
-                          request.priority);
+  if (cached && response.error.code != ErrorCode::cancelled) {
+    queue_decode(key, std::move(cached->bytes), cached->encoding, LoadOrigin::disk,
+                 request.priority);
+    return std::nullopt;
+  }
   failed.error = response.error.message;
   return failed;
 }
 
-LoadResult TileLoader::finish_payload(const TileKey& key, const LayerDescription& layer,
-                                      std::vector<std::uint8_t> bytes, ContentEncoding encoding,
-                                      LoadOrigin origin, double priority) {
-  const auto queued = std::chrono::steady_clock::now();
-  const DecodeSlot slot(decode_slots_, priority);
-  add_micros_since(counters_.decode_wait_micros, queued);
+LoadResult TileLoader::finish_payload(DecodeJob& job) {
+  const TileKey& key = job.key;
+  const LayerDescription& layer = layers_.at(key.layer);
+  const std::vector<std::uint8_t>& bytes = job.bytes;
+  const ContentEncoding encoding = job.encoding;
+  const LoadOrigin origin = job.origin;
+  add_micros_since(counters_.decode_wait_micros, job.queued);
   const auto start = std::chrono::steady_clock::now();
+  if (timeline_) timeline_->record(key, TileEvent::decode_start, start);
   const std::uint64_t start_cpu = thread_cpu_micros();
   if (key.kind == TileKind::imagery)
     return finish_image(key, layer, bytes, encoding, origin, start, start_cpu);
   auto mesh = decode_render_mesh(bytes, encoding, layer, key);
+  if (timeline_) timeline_->record(key, TileEvent::decoded);
   add_micros_since(counters_.decode_micros, start);
   add_cpu_micros_since(counters_.decode_cpu_micros, start_cpu);
   if (!mesh) {

@@ -1,8 +1,6 @@
 #include "tinstream/client/request_queue.hpp"
 
 #include <algorithm>
-#include <cmath>
-#include <limits>
 #include <tuple>
 
 namespace tinstream::client {
@@ -104,41 +102,6 @@ std::array<std::uint32_t, 31> RequestQueue::in_flight_per_level() const {
   std::lock_guard lock(mutex_);
   for (const TileKey& k : in_flight_) ++levels[k.tile.z];
   return levels;
-}
-
-DecodeSlots::DecodeSlots(int slots) : free_(std::max(slots, 1)), slots_(std::max(slots, 1)) {}
-
-void DecodeSlots::acquire(double priority) {
-  // (A NaN would never be found again below: it waits behind every other priority.)
-  if (std::isnan(priority)) priority = -std::numeric_limits<double>::infinity();
-  std::unique_lock lock(mutex_);
-  waiting_.push_back(priority);
-  freed_.wait(lock, [&] {
-    return free_ > 0 && std::ranges::none_of(waiting_, [&](double p) { return p > priority; });
-  });
-  waiting_.erase(std::ranges::find(waiting_, priority));
-  --free_;
-  most_held_ = std::max(most_held_, slots_ - free_);
-  // Another slot may be free for the next waiter in line.
-  if (free_ > 0 && !waiting_.empty()) freed_.notify_all();
-}
-
-void DecodeSlots::release() {
-  {
-    std::lock_guard lock(mutex_);
-    ++free_;
-  }
-  freed_.notify_all();
-}
-
-int DecodeSlots::waiting() const {
-  std::lock_guard lock(mutex_);
-  return static_cast<int>(waiting_.size());
-}
-
-int DecodeSlots::most_held() const {
-  std::lock_guard lock(mutex_);
-  return most_held_;
 }
 
 }  // namespace tinstream::client

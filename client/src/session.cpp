@@ -98,8 +98,9 @@ Result<Session> open_session(const ViewerOptions& o) {
       s.legend.footer.append(" (not over ").append(l.name).append(": other projection)");
     }
   }
+  if (!o.timeline.empty()) s.timeline = std::make_shared<RequestTimeline>();
   s.loader = std::make_unique<TileLoader>(s.source, std::move(table), s.disk,
-                                          LoaderOptions{o.threads, o.decode_threads});
+                                          LoaderOptions{o.threads, o.decode_threads, s.timeline});
   StreamerOptions so;
   so.max_sse = o.max_sse;
   so.gpu_budget = o.gpu_mb << 20;

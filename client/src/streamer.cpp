@@ -117,6 +117,7 @@ void TileStreamer::take_results() {
       take_image(r);
       continue;
     }
+    if (RequestTimeline* t = loader_.timeline()) t->record(r.key, TileEvent::taken);
     LevelCounters& level = levels_[r.key.tile.z];
     switch (r.status) {
       case LoadStatus::loaded: {
@@ -157,7 +158,9 @@ TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
     return {State::ready, resident, distance};
   }
   gpu_.find(key);  // a miss
-  if (!needed) {   // prefetch: asked for, unless already decoded; never uploaded for it
+  RequestTimeline* timeline = loader_.timeline();
+  if (timeline) timeline->record(key, needed ? TileEvent::needed : TileEvent::prefetched);
+  if (!needed) {  // prefetch: asked for, unless already decoded; never uploaded for it
     if (ram_.peek(key)) return {State::not_ready, nullptr, distance};
     wanted_.push_back({key, priority, distance});
     ++frame_result_.prefetched;
@@ -165,13 +168,13 @@ TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
     return {State::not_ready, nullptr, distance};
   }
   ++frame_result_.pending_per_level[id.z];
-  if (ram_.peek(key)) {
+  if (const std::shared_ptr<const TileMesh>* mesh = ram_.peek(key)) {
     ram_.pin(key, frame_);
     uploads_.push_back({key, priority, distance});
-  } else {
-    wanted_.push_back({key, priority, distance});
-    if (requested_ever_.insert(key).second) ++levels_[id.z].requested;
+    return {State::not_ready, nullptr, distance, mesh->get()};
   }
+  wanted_.push_back({key, priority, distance});
+  if (requested_ever_.insert(key).second) ++levels_[id.z].requested;
   return {State::not_ready, nullptr, distance};
 }
 
@@ -198,6 +201,44 @@ void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::Ti
   }
 }
 
+TileStreamer::Refinement TileStreamer::refinement(const View& view, std::uint16_t layer,
+                                                  const geo::TileId& id, double error,
+                                                  double distance) const {
+  Refinement r;
+  r.sse = view.camera.screen_space_error(error, distance);
+  r.texel_sse = view.camera.screen_space_error(imagery_texel_error(layer, id), distance);
+  const bool terrain_refines = r.sse > options_.max_sse && error > 0;
+  const bool imagery_refines = r.texel_sse > options_.max_sse;
+  r.refines = (terrain_refines || imagery_refines) && id.z < layers_[layer].max_level &&
+              id.z < static_cast<std::uint32_t>(geo::kMaxLevel);
+  return r;
+}
+
+void TileStreamer::look_ahead(const View& view, std::uint16_t layer, const geo::TileId& id,
+                              const Probe& p) {
+  if (p.state == State::not_ready && !p.decoded) {
+    prefetch(view, layer, id, options_.prefetch_levels);
+    return;
+  }
+  double error = 0, distance = 0;
+  if (p.state == State::ready) {
+    error = p.tile->geometric_error;
+    distance = p.distance;
+  } else if (p.state == State::not_ready) {
+    // Decoded: judged on its own box, as probe() will once it is resident.
+    const Obb& box = p.decoded->bounds;
+    if (!view.frustum.intersects(box) || occluder_.hides_all(view.eye, box.corners())) return;
+    error = p.decoded->geometric_error;
+    distance = box.distance_to(view.eye);
+  } else {
+    return;
+  }
+  const Refinement r = refinement(view, layer, id, error, distance);
+  if (!r.refines) return;
+  for (const geo::TileId& child : id.children())
+    look_ahead(view, layer, child, probe(view, layer, child, std::max(r.sse, r.texel_sse)));
+}
+
 void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask,
                         bool stand_in) {
   frame_result_.draws.push_back({key, p.tile, mask, stand_in, sse, p.distance});
@@ -208,14 +249,9 @@ void TileStreamer::draw(const TileKey& key, const Probe& p, double sse, std::uin
 void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::TileId& id,
                            const Probe& self) {
   const TileKey key{TileKind::terrain, layer, id};
-  const double error = self.tile->geometric_error;
-  const double sse = view.camera.screen_space_error(error, self.distance);
-  const double texel_sse =
-      view.camera.screen_space_error(imagery_texel_error(layer, id), self.distance);
-  const bool terrain_refines = sse > options_.max_sse && error > 0;
-  const bool imagery_refines = texel_sse > options_.max_sse;
-  if ((!terrain_refines && !imagery_refines) || id.z >= layers_[layer].max_level ||
-      id.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) {
+  const Refinement r = refinement(view, layer, id, self.tile->geometric_error, self.distance);
+  const double sse = r.sse;
+  if (!r.refines) {
     draw(key, self, sse, 0xF);
     return;
   }
@@ -223,14 +259,13 @@ void TileStreamer::descend(const View& view, std::uint16_t layer, const geo::Til
   std::array<Probe, 4> child;
   bool waiting = false;
   for (std::size_t i = 0; i < 4; ++i) {
-    child[i] = probe(view, layer, children[i], std::max(sse, texel_sse));
+    child[i] = probe(view, layer, children[i], std::max(sse, r.texel_sse));
     waiting |= child[i].state == State::not_ready;
   }
   if (waiting) {  // no holes: the parent stays until every visible child is resident
     draw(key, self, sse, 0xF, /*stand_in=*/true);
-    for (std::size_t i = 0; i < 4; ++i)
-      if (child[i].state == State::not_ready)
-        prefetch(view, layer, children[i], options_.prefetch_levels);
+    // Meanwhile, what the view will need below each child (the header's "Look-ahead").
+    for (std::size_t i = 0; i < 4; ++i) look_ahead(view, layer, children[i], child[i]);
     return;
   }
   std::uint8_t mask = 0;
@@ -280,6 +315,7 @@ void TileStreamer::upload(GpuUploader& gpu) {
                    m.skirt_margin,    m.skirt_lowest, m.skirt_spans};
     const std::uint64_t gpu_bytes = t.gpu.bytes;
     if (!gpu_.insert(r.key, t, gpu_bytes, frame_, frame_, release)) break;
+    if (RequestTimeline* tl = loader_.timeline()) tl->record(r.key, TileEvent::uploaded);
     used += bytes;
     ++frame_result_.uploaded;
   }
@@ -300,7 +336,7 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
     for (const geo::TileId& root : roots_[l]) {
       const Probe p = probe(view, layer, root, kRootPriority);
       if (p.state == State::ready) descend(view, layer, root, p);
-      if (p.state == State::not_ready) prefetch(view, layer, root, options_.prefetch_levels);
+      if (p.state == State::not_ready) look_ahead(view, layer, root, p);
     }
   }
   std::sort(frame_result_.draws.begin(), frame_result_.draws.end(),

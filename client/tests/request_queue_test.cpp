@@ -91,52 +91,5 @@ TEST(RequestQueue, PausedAndParkedWorkersWaitAndCloseReleasesThem) {
   EXPECT_EQ(got.load(), 2);
 }
 
-TEST(DecodeSlots, AFreedSlotGoesToTheMostUrgentWaiter) {
-  DecodeSlots slots(1);
-  slots.acquire(0);  // the one slot, held until every worker waits
-  std::mutex mutex;
-  std::vector<double> order;
-  std::vector<std::thread> workers;
-  for (const double priority : {1.0, 5.0, std::nan(""), -2.0, 3.0})
-    workers.emplace_back([&, priority] {
-      const DecodeSlot slot(slots, priority);
-      const std::lock_guard lock(mutex);
-      order.push_back(priority);
-    });
-  while (slots.waiting() < 5) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  slots.release();
-  for (std::thread& w : workers) w.join();
-  // A NaN priority (never expected) counts as the least urgent.
-  ASSERT_EQ(order.size(), 5u);
-  EXPECT_EQ(std::vector<double>(order.begin(), order.begin() + 4),
-            (std::vector<double>{5.0, 3.0, 1.0, -2.0}));
-  EXPECT_TRUE(std::isnan(order[4]));
-  EXPECT_EQ(slots.most_held(), 1);
-  EXPECT_EQ(slots.waiting(), 0);
-}
-
-TEST(DecodeSlots, NoMoreThanTheSlotsDecodeAtOnce) {
-  DecodeSlots slots(2);
-  std::atomic<int> now{0}, most{0};
-  std::vector<std::thread> workers;
-  workers.reserve(8);
-  for (int i = 0; i < 8; ++i)
-    workers.emplace_back([&, i] {
-      for (int k = 0; k < 20; ++k) {
-        const DecodeSlot slot(slots, static_cast<double>((i * 7 + k) % 5));
-        const int n = ++now;
-        int m = most.load();
-        while (n > m && !most.compare_exchange_weak(m, n)) {
-        }
-        std::this_thread::sleep_for(std::chrono::microseconds(200));
-        --now;
-      }
-    });
-  for (std::thread& w : workers) w.join();
-  EXPECT_LE(most.load(), 2);
-  EXPECT_LE(slots.most_held(), 2);
-  EXPECT_GE(slots.most_held(), 1);
-}
-
 }  // namespace
 }  // namespace tinstream::client

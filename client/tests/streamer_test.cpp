@@ -312,6 +312,97 @@ TEST(TileStreamer, PrefetchAsksForTheLevelsBelowAMissingTileAtOnceWithoutWaiting
   }
 }
 
+// Waits (60 s at most) until a worker has a result ready.
+bool wait_for_a_result(TileLoader& loader) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < until)
+    if (loader.wait_for_results(std::chrono::milliseconds(50))) return true;
+  return false;
+}
+
+geo::LonLat tile_centre(const geo::TileId& id) {
+  const geo::MercatorRect r = id.bounds();
+  return geo::NormalisedMercator().inverse({(r.min_x + r.max_x) / 2, (r.min_y + r.max_y) / 2});
+}
+
+TEST(TileStreamer, ADecodedTilesChildrenAreAskedForInTheFrameItArrivesNotAfterItsUpload) {
+  const geo::LonLat c = block_centre();
+  const Camera close = above(c.lon, c.lat, 1500);  // needs level 12 under the root
+  Fixture fx("streamer_look_ahead");
+  StreamerOptions options;
+  options.prefetch_levels = 0;  // nothing is asked for below a missing tile
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  ASSERT_EQ(s.update(close, gpu).wanted, 1u);  // the root
+  ASSERT_TRUE(wait_for_a_result(*fx.loader));
+  fx.loader->set_paused(true);  // what this frame asks for stays queued
+  const FrameResult& f = s.update(close, gpu);
+  // The frame took the root and uploads it at its end; it draws nothing yet.
+  EXPECT_EQ(f.uploaded, 1u);
+  EXPECT_TRUE(f.draws.empty());
+  // From the root's own stored error and box, its four children are asked for now, as tiles
+  // the view needs (positive priorities, counted as pending), not one frame later.
+  EXPECT_EQ(s.level_counters()[11].requested, 4u);
+  EXPECT_EQ(f.pending_per_level[11], 4u);
+  EXPECT_EQ(f.prefetched, 0u);
+  ASSERT_EQ(s.requests().size(), 4u);
+  for (const TileRequest& r : s.requests()) {
+    EXPECT_EQ(r.key.tile.z, 11u);
+    EXPECT_GT(r.priority, 0.0);
+  }
+  // A frame that uploaded is not settled: without any new result, the next one draws the root.
+  EXPECT_FALSE(f.settled());
+  const FrameResult& next = s.update(close, gpu);
+  ASSERT_EQ(next.draws.size(), 1u);
+  EXPECT_EQ(next.draws[0].key.tile, (geo::TileId{10, 530, 350}));
+  EXPECT_TRUE(next.settled());
+  EXPECT_EQ(s.update(close, gpu).draws.size(), 1u);  // settled: the same again
+  fx.loader->set_paused(false);
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, close, gpu));
+  EXPECT_EQ(s.last_frame().drawn_per_level[12], s.last_frame().draws.size());
+  EXPECT_EQ(fx.loader->counters().failed, 0u);
+  s.release_all(gpu);
+}
+
+TEST(TileStreamer, AResidentTilesChildrenAreAskedForWhileItsSiblingsAreMissing) {
+  // Camera A, low over the north-west level-12 tile of the root's north-west child, loads the
+  // root, that child and that grandchild only. Camera B, over the root's centre, sees all four
+  // children: three are missing, so the root stays drawn; the resident child's own children
+  // that B needs are asked for at once, not after its slowest sibling arrived.
+  const geo::TileId root{10, 530, 350};
+  const geo::TileId nw = root.children()[0];
+  const geo::LonLat a = tile_centre(nw.children()[0]);
+  const geo::LonLat b = block_centre();
+  Fixture fx("streamer_look_ahead_siblings");
+  StreamerOptions options;
+  options.prefetch_levels = 0;
+  TileStreamer s(*fx.loader, options);
+  CountingUploader gpu;
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, above(a.lon, a.lat, 1500), gpu));
+  ASSERT_EQ(s.level_counters()[11].loaded, 1u);
+  ASSERT_EQ(s.level_counters()[12].loaded, 1u);
+  fx.loader->set_paused(true);
+  const FrameResult& f = s.update(above(b.lon, b.lat, 1500), gpu);
+  ASSERT_EQ(f.draws.size(), 1u);
+  EXPECT_EQ(f.draws[0].key.tile, root);
+  EXPECT_TRUE(f.draws[0].stand_in);
+  std::size_t below_nw = 0;
+  for (const TileRequest& r : s.requests()) {
+    EXPECT_GT(r.priority, 0.0) << r.key.tile.to_string();
+    if (r.key.tile.z == 12) {
+      EXPECT_EQ(r.key.tile.parent(), nw) << r.key.tile.to_string();
+      ++below_nw;
+    }
+  }
+  EXPECT_EQ(f.pending_per_level[11], 3u);
+  EXPECT_GE(below_nw, 1u);  // at least the grandchild at the root's centre
+  EXPECT_EQ(f.pending_per_level[12], below_nw);
+  fx.loader->set_paused(false);
+  ASSERT_TRUE(run_until_complete(s, *fx.loader, above(b.lon, b.lat, 1500), gpu));
+  EXPECT_EQ(s.last_frame().drawn_per_level[12], s.last_frame().draws.size());
+  s.release_all(gpu);
+}
+
 TEST(TileStreamer, MovingTheCameraDropsTheOldViewsQueuedRequests) {
   Fixture fx("streamer_drop");
   TileStreamer s(*fx.loader, StreamerOptions{});
@@ -358,6 +449,81 @@ TEST(TileLoader, AResultNotYetTakenIsNotRequestedAgain) {
   EXPECT_EQ(results[0].status, LoadStatus::loaded);
   EXPECT_EQ(fx.loader->counters().in_flight, 0u);
   EXPECT_EQ(fx.loader->counters().requests, 1u);
+}
+
+// A store source whose connections count the fetches they were asked for.
+class CountingSource final : public TileSource {
+ public:
+  explicit CountingSource(std::shared_ptr<TileSource> inner) : inner_(std::move(inner)) {}
+  std::string describe() const override { return inner_->describe(); }
+  Result<std::vector<LayerDescription>> layers(const std::vector<std::string>& names) override {
+    return inner_->layers(names);
+  }
+  Result<LayerDescription> imagery_layer(const std::string& name) override {
+    return inner_->imagery_layer(name);
+  }
+  Result<std::unique_ptr<TileConnection>> connect() override {
+    auto c = inner_->connect();
+    if (!c) return c.error();
+    return std::unique_ptr<TileConnection>(std::make_unique<Counted>(std::move(*c), fetches));
+  }
+  bool remote() const override { return false; }
+  std::atomic<int> fetches{0};
+
+ private:
+  class Counted final : public TileConnection {
+   public:
+    Counted(std::unique_ptr<TileConnection> inner, std::atomic<int>& fetches)
+        : inner_(std::move(inner)), fetches_(fetches) {}
+    FetchResponse fetch(const FetchRequest& request, const std::atomic<bool>& cancel) override {
+      ++fetches_;
+      return inner_->fetch(request, cancel);
+    }
+
+   private:
+    std::unique_ptr<TileConnection> inner_;
+    std::atomic<int>& fetches_;
+  };
+  std::shared_ptr<TileSource> inner_;
+};
+
+TEST(TileLoader, ADownloadWorkerFetchesTheNextTileWhileThePreviousOneDecodes) {
+  // One download thread, one decoder. The result callback runs on the thread that made the
+  // result ready; for the first result it waits (5 s at most) until the download worker has
+  // fetched the second tile. A worker that decoded its own tiles ran that callback itself and
+  // could fetch nothing meanwhile: its connection sat idle through every decode.
+  TempDir dir("loader_decoders");
+  testing::write_layer(dir.path / "s.db", testing::default_layer());
+  auto store = open_store_source(dir.path / "s.db");
+  ASSERT_TRUE(store) << store.error().message;
+  auto source = std::make_shared<CountingSource>(*store);
+  auto layers = source->layers({});
+  ASSERT_TRUE(layers) << layers.error().message;
+  TileLoader loader(source, *layers, nullptr, LoaderOptions{1, 1});
+  std::atomic<int> callbacks{0};
+  std::atomic<bool> fetched_while_held{false};
+  loader.set_result_callback([&] {
+    if (callbacks++ > 0) return;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (source->fetches.load() < 2 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    fetched_while_held = source->fetches.load() >= 2;
+  });
+  const geo::TileId root{10, 530, 350};
+  loader.submit(
+      {{{TileKind::terrain, 0, root}, 2, 1}, {{TileKind::terrain, 0, root.children()[0]}, 1, 1}});
+  std::vector<LoadResult> results;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (results.size() < 2 && std::chrono::steady_clock::now() < until) {
+    loader.wait_for_results(std::chrono::milliseconds(50));
+    for (LoadResult& r : loader.take_results()) results.push_back(std::move(r));
+  }
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[0].key.tile, root);  // the more urgent request first
+  for (const LoadResult& r : results) EXPECT_EQ(r.status, LoadStatus::loaded) << r.error;
+  EXPECT_TRUE(fetched_while_held);
+  EXPECT_EQ(loader.counters().most_decoding, 1);
+  loader.set_result_callback(nullptr);
 }
 
 TEST(TileStreamer, AbsentChildrenAreCoveredByTheirParentsQuadrant) {

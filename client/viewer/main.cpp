@@ -111,6 +111,9 @@ int main(int argc, char** argv) {
                  "camera path: advance 1/fps seconds per frame instead of real time")
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--stats", o.stats, "headless: write the JSON statistics here instead of stdout");
+  app.add_option("--timeline", o.timeline,
+                 "headless (debugging): write when each tile was asked for, sent, answered, "
+                 "decoded, taken and uploaded here, one JSON line a tile (seconds since start)");
   app.add_option("--timeout", o.timeout_s,
                  "with --out: seconds to wait for a complete view (default 120)")
       ->check(CLI::Range(0.0, 86400.0));

@@ -1,14 +1,23 @@
-// tinstream/client/loader.hpp — the download pool: up to eight workers that fetch, revalidate,
-// cache on disk and decode tiles, and hand finished meshes to the render thread.
+// tinstream/client/loader.hpp — the download pool: up to eight download workers that fetch,
+// revalidate and cache tiles on disk, and decoder threads that turn the payloads into meshes
+// and hand them to the render thread.
 //
-//   render thread ──submit(wanted)──▶ RequestQueue ──pop──▶ worker k (own TileConnection)
-//        ▲                                                   │ disk cache get / put / touch
-//        └──────────────take_results() (swap)◀── ready list ◀┘ fetch → inflate → decode → mesh
+//   render thread ──submit(wanted)──▶ RequestQueue ──pop──▶ download worker k (own TileConnection)
+//        ▲                                                   │ disk cache get / put / touch, fetch
+//        │                                                   ▼
+//        └──take_results() (swap)◀── ready list ◀── decoder ◀── decode jobs (most urgent first)
+//                                   (404s, failures        inflate → decode → mesh
+//                                    straight from workers)
 //
+// A download worker hands the payload to the decoders and asks for its next tile at once: its
+// connection is not idle while a tile decodes (with 30 ms per request, ~12 ms a tile of wall time
+// on a busy 2-core machine; bench/client). At most LoaderOptions::decode_threads decode at once,
+// the most urgent job first; at most kMaxDecodeBacklog payloads wait (a worker waits for room).
 // Neither submit() nor take_results() waits on a worker: both hold a lock only for a swap (or,
 // in submit, one hash lookup per request). Workers never touch the RAM or GPU tiers.
-// Every worker runs its jobs inside an exception barrier; a failure becomes a `failed` result.
-// The thread count can change at run time (set_threads): extra workers are parked, not joined.
+// Every worker and decoder runs its jobs inside an exception barrier; a failure becomes a
+// `failed` result. The download thread count can change at run time (set_threads): extra
+// workers are parked, not joined.
 #pragma once
 
 #include <array>
@@ -19,6 +28,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,6 +38,7 @@
 #include "tinstream/client/render_mesh.hpp"
 #include "tinstream/client/request_queue.hpp"
 #include "tinstream/client/tile_source.hpp"
+#include "tinstream/client/timeline.hpp"
 
 namespace tinstream::imagery {
 struct RgbaImage;
@@ -64,13 +75,16 @@ struct LoaderCounters {
   std::array<std::uint32_t, 31> in_flight_levels{};
   double decode_seconds = 0;       // worker time spent inflating, decoding and building meshes
   double decode_cpu_seconds = 0;   // the CPU time of it (less when workers wait for a core)
-  double decode_wait_seconds = 0;  // worker time waiting for a decode slot (DecodeSlots)
+  double decode_wait_seconds = 0;  // time payloads waited for a decoder
   int most_decoding = 0;           // the most decodes that ran at once
 };
 
 struct LoaderOptions {
-  int threads = 0;         // 0: one per core, at most 8
-  int decode_threads = 0;  // decodes at once, the most urgent first; 0: one per core
+  int threads = 0;         // download threads; 0: one per core, at most 8
+  int decode_threads = 0;  // decoder threads (decodes at once, most urgent first); 0: one per core
+  // Where workers record when each request was sent, answered and decoded (timeline.hpp); null:
+  // nowhere (the default).
+  std::shared_ptr<RequestTimeline> timeline = nullptr;
 };
 
 class TileLoader {
@@ -92,7 +106,8 @@ class TileLoader {
   void submit(std::vector<TileRequest> wanted);
   // Render thread: results finished since the last call (never blocks on a worker).
   std::vector<LoadResult> take_results();
-  // Called on a worker's thread after each result it made ready, outside every loader lock (the
+  // Called on a worker's or decoder's thread after each result it made ready, outside every
+  // loader lock (the
   // window: wakes the render thread from its wait for events). Must not call into the loader.
   // Set or cleared (nullptr) from any thread; returns once no worker runs the old one any more.
   void set_result_callback(std::function<void()> callback);
@@ -103,13 +118,32 @@ class TileLoader {
   const std::vector<LayerDescription>& layers() const { return layers_; }
   const TileSource& source() const { return *source_; }
   const DiskCache* disk() const { return disk_.get(); }
+  // LoaderOptions::timeline (null: none); the streamer records the render thread's steps in it.
+  RequestTimeline* timeline() const { return timeline_.get(); }
 
  private:
+  // A payload on its way from a download worker to a decoder.
+  struct DecodeJob {
+    TileKey key;
+    double priority = 0;  // the request's: larger first
+    std::vector<std::uint8_t> bytes;
+    ContentEncoding encoding = ContentEncoding::identity;
+    LoadOrigin origin = LoadOrigin::network;
+    std::chrono::steady_clock::time_point queued{};
+  };
+  static constexpr std::size_t kMaxDecodeBacklog = 16;
+
   void run_worker(std::size_t index);
-  LoadResult load(const TileRequest& request, std::unique_ptr<TileConnection>& connection);
-  LoadResult finish_payload(const TileKey& key, const LayerDescription& layer,
-                            std::vector<std::uint8_t> bytes, ContentEncoding encoding,
-                            LoadOrigin origin, double priority);
+  void run_decoder();
+  // A finished result: to the ready list, then the callback.
+  void publish(LoadResult result);
+  // Fetches the tile; a payload to decode goes to the decoders (nullopt), anything else (404,
+  // failure) is the result.
+  std::optional<LoadResult> load(const TileRequest& request,
+                                 std::unique_ptr<TileConnection>& connection);
+  void queue_decode(const TileKey& key, std::vector<std::uint8_t> bytes, ContentEncoding encoding,
+                    LoadOrigin origin, double priority);
+  LoadResult finish_payload(DecodeJob& job);
   // An imagery payload (imagery.hpp): decoded into an image instead of a mesh.
   LoadResult finish_image(const TileKey& key, const LayerDescription& layer,
                           const std::vector<std::uint8_t>& bytes, ContentEncoding encoding,
@@ -120,10 +154,18 @@ class TileLoader {
   std::vector<LayerDescription> layers_;
   std::shared_ptr<DiskCache> disk_;
   RequestQueue queue_;
-  DecodeSlots decode_slots_;
+  std::shared_ptr<RequestTimeline> timeline_;
   std::atomic<bool> cancel_{false};
   int threads_ = 1;
   std::vector<std::thread> workers_;  // grows up to 8, touched by the owner's thread only
+
+  mutable std::mutex decode_mutex_;
+  std::condition_variable decode_ready_;  // a job was queued, or closing
+  std::condition_variable decode_room_;   // a job was taken, or closing
+  std::vector<DecodeJob> decode_jobs_;    // guarded by decode_mutex_
+  bool decode_closed_ = false;            // guarded by decode_mutex_
+  int decoding_ = 0, most_decoding_ = 0;  // guarded by decode_mutex_
+  std::vector<std::thread> decoders_;     // made in the constructor, joined in the destructor
 
   std::mutex results_mutex_;
   std::condition_variable results_ready_;

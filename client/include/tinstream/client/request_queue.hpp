@@ -65,39 +65,4 @@ class RequestQueue {
   bool paused_ = false, closed_ = false;                // guarded by mutex_
 };
 
-// At most N decodes at once, the most urgent first. Eight workers that decode at the same time
-// on fewer cores share them: the tile the view waits for decodes as slowly as the prefetched
-// ones beside it. Workers still download in parallel; past this gate they decode in the order of
-// their requests' priorities (larger first; equal ones in any order).
-class DecodeSlots {
- public:
-  explicit DecodeSlots(int slots);
-  // Blocks until a slot is free and no waiting worker has a larger priority.
-  void acquire(double priority);
-  void release();
-  int waiting() const;
-  // The most decodes that held a slot at once since construction.
-  int most_held() const;
-
- private:
-  mutable std::mutex mutex_;
-  std::condition_variable freed_;
-  int free_;                     // guarded by mutex_
-  int slots_;                    // guarded by mutex_
-  int most_held_ = 0;            // guarded by mutex_
-  std::vector<double> waiting_;  // guarded by mutex_: the priorities of waiting workers
-};
-
-// Releases its slot when it leaves scope.
-class DecodeSlot {
- public:
-  DecodeSlot(DecodeSlots& slots, double priority) : slots_(slots) { slots_.acquire(priority); }
-  ~DecodeSlot() { slots_.release(); }
-  DecodeSlot(const DecodeSlot&) = delete;
-  DecodeSlot& operator=(const DecodeSlot&) = delete;
-
- private:
-  DecodeSlots& slots_;
-};
-
 }  // namespace tinstream::client

@@ -124,6 +124,13 @@ struct FrameResult {
   double max_sse_drawn = 0;
   std::array<std::uint32_t, kLevels> drawn_per_level{};
   std::array<std::uint32_t, kLevels> pending_per_level{};
+
+  // Whether the next update() selects the same as this one unless a new result arrives: nothing
+  // was uploaded (a tile uploaded now is drawn, refined or replaces its parent only in the next
+  // frame) and nothing waits for the upload budget. A driver that waits for results may wait
+  // only after a settled frame (headless.cpp: it slept up to 20 ms after every upload, one per
+  // level of the view's last tiles).
+  bool settled() const { return uploaded == 0 && upload_pending == 0; }
 };
 
 struct LevelCounters {
@@ -198,13 +205,30 @@ class TileStreamer {
     State state = State::absent;
     ResidentTile* tile = nullptr;
     double distance = 0;
+    // not_ready but decoded (in the RAM tier, queued for upload this frame): its mesh.
+    const TileMesh* decoded = nullptr;
   };
   struct View;
+  // Whether a tile of this stored error, its box this far from the eye, is replaced by its
+  // children, and the screen-space errors that decide it (descend and look_ahead decide alike).
+  struct Refinement {
+    double sse = 0, texel_sse = 0;
+    bool refines = false;
+  };
 
   void take_results();
   Probe probe(const View& view, std::uint16_t layer, const geo::TileId& id, double priority,
               bool needed = true);
   void prefetch(const View& view, std::uint16_t layer, const geo::TileId& id, int levels);
+  Refinement refinement(const View& view, std::uint16_t layer, const geo::TileId& id, double error,
+                        double distance) const;
+  // Below a tile the view needs that is not drawn this frame (resident but waiting for a sibling,
+  // or decoded and waiting for its upload), from its own stored error and box: asks for the
+  // children the view will need once it is drawn, as descend() will, recursing through the ones
+  // already resident or decoded; prefetches below the missing ones. Draws nothing. Without it,
+  // each level of tiles already at hand cost a frame (and a tile's whole subtree waited for its
+  // slowest sibling) before anything below it was asked for (bench/client, the timeline).
+  void look_ahead(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& p);
   void descend(const View& view, std::uint16_t layer, const geo::TileId& id, const Probe& self);
   void draw(const TileKey& key, const Probe& p, double sse, std::uint8_t mask,
             bool stand_in = false);

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -48,6 +49,9 @@ struct FetchResponse {
   std::uint32_t attempts = 0;    // requests sent (retries = attempts − 1)
   std::uint32_t reconnects = 0;  // connections opened
   Error error;                   // when failed: what went wrong, naming the tile
+  // When the last attempt's answer headers were read (HTTP only; default: unknown). For the
+  // request timeline (timeline.hpp).
+  std::chrono::steady_clock::time_point headers_at{};
 };
 
 class TileConnection {

@@ -44,6 +44,7 @@ struct ViewerOptions {
   std::filesystem::path out;          // headless PNG
   std::filesystem::path camera_path;  // headless scripted flight
   std::filesystem::path stats;        // statistics file (default: stdout)
+  std::filesystem::path timeline;     // headless: the request timeline's JSON lines; empty: none
   double timeout_s = 120;
   double close_after_s = 0;  // window mode: close after this long and print its frame counts; 0: no
   double fps = 0;            // camera paths: 0 = real time, else a fixed step of 1/fps per frame
@@ -62,6 +63,7 @@ struct Session {
   std::shared_ptr<DiskCache> disk;
   std::unique_ptr<TileLoader> loader;
   std::unique_ptr<TileStreamer> streamer;
+  std::shared_ptr<RequestTimeline> timeline;  // --timeline; null: none
   double ramp_min = 0, ramp_max = 1;
   geo::LonLatRect extent{};  // of all layers
   LegendInfo legend;
