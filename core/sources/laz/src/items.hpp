@@ -420,16 +420,21 @@ class Point14Layered {
   // layer by layer, and keeps the points' contexts for the other items (contexts()).
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n);
   const Point14Context* contexts() const { return batch_.data(); }
+  // Whether the last batch stayed on one scanner channel (no switch at any of its points).
+  bool one_channel() const { return one_channel_; }
   std::uint32_t channel() const { return current_; }  // scanner channel: the other items' context
 
  private:
   struct Context;
   Context& open_context(std::uint32_t channel, const Point14Fields& from);
-  void decode_xy(std::uint8_t* out, std::uint16_t record_length, std::size_t n);
+  template <typename... Passes>
+  void decode_xy(std::uint8_t* records, std::uint16_t record_length, std::size_t n,
+                 Passes&... passes);
   template <typename... Passes>
   void layer_loop(std::size_t n, Passes&... passes);
 
   std::array<Point14Context, kLayeredBatch> batch_{};
+  bool one_channel_ = true;
   std::array<Layer, kPoint14Layers> layers_;
   std::array<bool, kPoint14Layers> wanted_{};
   std::array<std::unique_ptr<Context>, 4> contexts_;
@@ -473,7 +478,7 @@ class Rgb14Layered {
   void start(const std::uint8_t* raw, std::uint32_t channel);
   // The next n records' item bytes at `out` (record_length apart), point i in context[i].
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context);
+                    const Point14Context* context, bool one_channel);
 
  private:
   struct Context {
@@ -500,7 +505,7 @@ class Byte14Layered {
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context);
+                    const Point14Context* context, bool one_channel);
 
  private:
   struct Context {
@@ -510,6 +515,9 @@ class Byte14Layered {
   Context& create(std::uint32_t channel);
   // Opens `channel` from channel `from`'s last byte `byte` (its layer).
   void open(std::uint32_t channel, std::uint32_t from, std::size_t byte);
+  template <bool kOneChannel>
+  void decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                   const Point14Context* context, std::size_t b);
 
   std::size_t count_;
   bool version4_, wanted_;
@@ -527,7 +535,7 @@ class WavePacket14Layered {
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context);
+                    const Point14Context* context, bool one_channel);
 
  private:
   void decode(std::uint8_t* out, std::uint32_t channel);

@@ -170,13 +170,32 @@ std::int32_t scan_angle_from(std::int32_t decoded) { return static_cast<std::int
 
 }  // namespace
 
+namespace {
+
+// One layer's part of a loop over the batch: open(new channel's context, previous channel's
+// context) where a channel opens, then step(context of the point's channel, point context, i).
+template <typename Open, typename Step>
+struct LayerPass {
+  Open open;
+  Step step;
+};
+template <typename Open, typename Step>
+LayerPass(Open, Step) -> LayerPass<Open, Step>;
+
+}  // namespace
+
 // The XY/returns layer of n points: x, y and the return byte of each record, and each point's
 // context for the other layers (batch_). The channel switches happen here; a channel new to the
 // chunk gets its XY part opened here and the other layers' parts in their own loops.
-void Point14Layered::decode_xy(std::uint8_t* out, std::uint16_t record_length, std::size_t n) {
+template <typename... Passes>
+TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
+                                                    std::uint16_t record_length, std::size_t n,
+                                                    Passes&... passes) {
   ArithmeticDecoder xy = layers_[kLayerXY].dec;  // in registers for the loop
   std::uint32_t current = current_;
   Context* c = contexts_[current].get();
+  std::uint8_t* out = records;
+  bool switched = false;
   for (std::size_t i = 0; i < n; ++i, out += record_length) {
     Point14Context& pc = batch_[i];
     pc.from = static_cast<std::uint8_t>(current);
@@ -187,11 +206,13 @@ void Point14Layered::decode_xy(std::uint8_t* out, std::uint16_t record_length, s
                               (c->last.gps_time_changed ? 4u : 0u);
     const std::uint32_t changed = xy.decode_symbol(c->changed[lpr]);
     if (changed & (1u << 6)) [[unlikely]] {  // another scanner channel: current + 1..3 (mod 4)
+      switched = true;
       const std::uint32_t step = xy.decode_symbol(c->scanner_step);
       const std::uint32_t channel = (current + step + 1) & 3;
       if (!in_use_[channel]) {
         if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
         contexts_[channel]->reset_xy(c->last);
+        (passes.open(*contexts_[channel], static_cast<const Context&>(*c)), ...);
         in_use_[channel] = true;
         opens = Point14Context::kOpens;
       }
@@ -254,24 +275,12 @@ void Point14Layered::decode_xy(std::uint8_t* out, std::uint16_t record_length, s
                                            (changed & (1u << 5)) >> 1 | (l << 5));
     pc.z_context = static_cast<std::uint8_t>(single + (k < 18 ? k & ~1u : 18));
     p.gps_time_changed = time_changed;
+    (passes.step(*c, static_cast<const Point14Context&>(pc), i), ...);
   }
   layers_[kLayerXY].dec = xy;
   current_ = current;
+  one_channel_ = !switched;
 }
-
-namespace {
-
-// One layer's part of a loop over the batch: open(new channel's context, previous channel's
-// context) where a channel opens, then step(context of the point's channel, point context, i).
-template <typename Open, typename Step>
-struct LayerPass {
-  Open open;
-  Step step;
-};
-template <typename Open, typename Step>
-LayerPass(Open, Step) -> LayerPass<Open, Step>;
-
-}  // namespace
 
 // One loop over the batch for the given layers (each its own stream: their symbol chains
 // overlap in the processor).
@@ -289,7 +298,6 @@ TINSTREAM_LAZ_INLINE void Point14Layered::layer_loop(std::size_t n, Passes&... p
 }
 
 void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n) {
-  decode_xy(out, record_length, n);
   const std::size_t rl = record_length;
   // Each layer's decoder in a local (registers while its loop runs), written back at the end.
   ArithmeticDecoder z_dec = layers_[kLayerZ].dec;
@@ -388,8 +396,9 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
                 }};
   // Two or three layers per loop: enough independent chains to fill the processor, few enough
   // decoders to stay in registers.
-  layer_loop(n, z, intensity);
-  layer_loop(n, classification, flags, user_data);
+  decode_xy(out, record_length, n, z);
+  layer_loop(n, intensity, classification);
+  layer_loop(n, flags, user_data);
   layer_loop(n, angle, source, gps);
   layers_[kLayerZ].dec = z_dec;
   layers_[kLayerClassification].dec = class_dec;
@@ -438,7 +447,7 @@ void Rgb14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 }
 
 void Rgb14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                const Point14Context* context) {
+                                const Point14Context* context, bool /*one_channel*/) {
   // RGB and NIR in one loop: two streams, each decoder in a local (registers).
   ArithmeticDecoder rgb_dec = layers_[0].dec, nir_dec = layers_[1].dec;
   const bool rgb_active = layers_[0].active, nir_active = nir_ && layers_[1].active;
@@ -508,39 +517,65 @@ void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 }
 
 void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                 const Point14Context* context) {
+                                 const Point14Context* context, bool one_channel) {
   // Two bytes' layers per loop (the last alone when the count is odd): two streams, each
   // decoder in a local. Each loop follows the channel switches on its own copy of the switch
   // state; all copies end in the same state.
   const ChannelSwitch at_start = channels_;
   for (std::size_t b = 0; b < count_; b += 2) {
-    const bool pair = b + 1 < count_;
-    const std::size_t b2 = pair ? b + 1 : b;
-    ChannelSwitch sw = at_start;
-    ArithmeticDecoder dec = layers_[b].dec, dec2 = layers_[b2].dec;
-    const bool active = layers_[b].active, active2 = pair && layers_[b2].active;
-    std::uint8_t* o = out + b;
-    for (std::size_t i = 0; i < n; ++i, o += record_length) {
+    channels_ = at_start;
+    if (one_channel) {
+      decode_pair<true>(out, record_length, n, context, b);
+    } else {
+      decode_pair<false>(out, record_length, n, context, b);
+    }
+  }
+}
+
+// Byte layers b and b + 1 (b alone when it is the last). kOneChannel: no point of the batch
+// switches channel, so the models and the last bytes stay those of the current channel, the
+// bytes kept in locals for the loop.
+template <bool kOneChannel>
+void Byte14Layered::decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                const Point14Context* context, std::size_t b) {
+  const bool pair = b + 1 < count_;
+  const std::size_t b2 = pair ? b + 1 : b;
+  ChannelSwitch& sw = channels_;
+  ArithmeticDecoder dec = layers_[b].dec, dec2 = layers_[b2].dec;
+  const bool active = layers_[b].active, active2 = pair && layers_[b2].active;
+  Context& first = *contexts_[sw.current];
+  SymbolModel* model = &first.diff[b];
+  SymbolModel* model2 = &first.diff[b2];
+  std::uint8_t own[2] = {first.last[b], first.last[b2]};
+  std::uint8_t* o = out + b;
+  for (std::size_t i = 0; i < n; ++i, o += record_length) {
+    std::uint8_t* last = own;
+    if constexpr (!kOneChannel) {
       const std::uint32_t source = sw.follow(context[i].channel & 3u, version4_,
                                              [this, b, b2](std::uint32_t ch, std::uint32_t from) {
                                                open(ch, from, b);
                                                open(ch, from, b2);
                                              });
       Context& models = *contexts_[sw.current];
-      std::uint8_t* last = contexts_[source]->last.data() + b;
-      if (active) {
-        last[0] = static_cast<std::uint8_t>((dec.decode_symbol(models.diff[b]) + last[0]) & 0xFF);
-      }
-      if (active2) {
-        last[1] = static_cast<std::uint8_t>((dec2.decode_symbol(models.diff[b2]) + last[1]) & 0xFF);
-      }
-      o[0] = last[0];
-      if (pair) o[1] = last[1];
+      model = &models.diff[b];
+      model2 = &models.diff[b2];
+      last = contexts_[source]->last.data() + b;
     }
-    layers_[b].dec = dec;
-    if (pair) layers_[b2].dec = dec2;
-    channels_ = sw;
+    if (active) {
+      last[0] = static_cast<std::uint8_t>((dec.decode_symbol(*model) + last[0]) & 0xFF);
+    }
+    if (active2) {
+      last[1] = static_cast<std::uint8_t>((dec2.decode_symbol(*model2) + last[1]) & 0xFF);
+    }
+    o[0] = last[0];
+    if (pair) o[1] = last[1];
   }
+  if constexpr (kOneChannel) {
+    first.last[b] = own[0];
+    if (pair) first.last[b2] = own[1];
+  }
+  layers_[b].dec = dec;
+  if (pair) layers_[b2].dec = dec2;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -558,7 +593,8 @@ void WavePacket14Layered::start(const std::uint8_t* raw, std::uint32_t channel) 
 }
 
 void WavePacket14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length,
-                                       std::size_t n, const Point14Context* context) {
+                                       std::size_t n, const Point14Context* context,
+                                       bool /*one_channel*/) {
   for (std::size_t i = 0; i < n; ++i, out += record_length) decode(out, context[i].channel & 3u);
 }
 
@@ -600,7 +636,8 @@ void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
     for (std::size_t i = 0; i < items.size(); ++i) {
       std::visit(
           [&](auto& item) {
-            item.decode_batch(out + offsets[i + 1], record_length, batch, context);
+            item.decode_batch(out + offsets[i + 1], record_length, batch, context,
+                              point14.one_channel());
           },
           items[i]);
     }
