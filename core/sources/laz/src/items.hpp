@@ -6,9 +6,10 @@
 //   start(raw)        the chunk's first record is stored raw: take the item's bytes as the state
 //   decode(..., out)  decode the next item into `out` (its bytes in LAS layout)
 // Pointwise items (versions 1 and 2, compressors 1 and 2) share one ArithmeticDecoder per chunk.
-// Layered items (versions 3 and 4, compressor 3) own one decoder per layer; a layer not asked
-// for (LayerSelection) or empty in this chunk is never decoded, and its fields keep the value of
-// the chunk's first point, as LASzip's selective decompression does.
+// Layered items (versions 3 and 4, compressor 3) own one decoder per layer and decode a batch of
+// points at a time, layer by layer (decode_batch; see Point14Context); a layer not asked for
+// (LayerSelection) or empty in this chunk is never decoded, and its fields keep the value of the
+// chunk's first point, as LASzip's selective decompression does.
 //
 // The prediction rules, contexts and model sizes follow the LAZ specification and LASzip's
 // lasreaditemcompressed_v1/v2/v3/v4.cpp; the code is organised our own way.
