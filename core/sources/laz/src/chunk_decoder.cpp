@@ -177,6 +177,13 @@ Status ChunkDecoder::begin(const ChunkExtent& chunk) {
     return corrupt_data("its layers add up to " + std::to_string(total) +
                         " bytes, the chunk table gives it " + std::to_string(chunk.bytes));
   }
+  // Every point after the raw first one starts with a symbol of the XY/returns layer (whose
+  // contexts every other layer takes): that layer cannot be empty. (Decoding an empty stream
+  // would divide by its zero interval.)
+  if (chunk.points > 1 && layer_sizes_[kLayerXY] == 0) {
+    return corrupt_data("its XY/returns layer is empty, yet it holds " +
+                        std::to_string(chunk.points) + " points");
+  }
   chunk_.bytes = total;
   chunk_.exact_length = true;
 

@@ -26,6 +26,8 @@
 // The decoding steps are forced inline into the item loops that call them: a call that is not
 // inlined would take the address of the loop's local decoder and move its state to memory.
 #define TINSTREAM_LAZ_INLINE [[gnu::always_inline]] inline
+// The same for a lambda (after its parameter list).
+#define TINSTREAM_LAZ_LAMBDA __attribute__((always_inline))
 
 namespace tinstream::laz::detail {
 

@@ -6,9 +6,10 @@
 //   start(raw)        the chunk's first record is stored raw: take the item's bytes as the state
 //   decode(..., out)  decode the next item into `out` (its bytes in LAS layout)
 // Pointwise items (versions 1 and 2, compressors 1 and 2) share one ArithmeticDecoder per chunk.
-// Layered items (versions 3 and 4, compressor 3) own one decoder per layer; a layer not asked
-// for (LayerSelection) or empty in this chunk is never decoded, and its fields keep the value of
-// the chunk's first point, as LASzip's selective decompression does.
+// Layered items (versions 3 and 4, compressor 3) own one decoder per layer and decode a batch of
+// points at a time, layer by layer (decode_batch; see Point14Context); a layer not asked for
+// (LayerSelection) or empty in this chunk is never decoded, and its fields keep the value of the
+// chunk's first point, as LASzip's selective decompression does.
 //
 // The prediction rules, contexts and model sizes follow the LAZ specification and LASzip's
 // lasreaditemcompressed_v1/v2/v3/v4.cpp; the code is organised our own way.
@@ -390,6 +391,23 @@ enum Point14Layer : std::size_t {
   kPoint14Layers
 };
 
+// What the XY/returns layer decodes for one point that the other layers' contexts need. A
+// layered chunk is decoded a batch of points at a time, layer by layer: the XY/returns layer for
+// the whole batch first (it records these), then each other layer in its own loop over the
+// batch, taking point i's context from here and its own history from its channel's state.
+struct Point14Context {
+  static constexpr std::uint8_t kOpens = 4;  // in `channel`: the channel is new to the chunk here
+  std::uint8_t channel;                      // scanner channel (bits 0-1), kOpens
+  std::uint8_t from;       // the previous point's channel (a channel opening here starts from it)
+  std::uint8_t returns;    // GPS time changed (bit 0), cpr (bits 1-2), scan angle changed (3),
+                           // point source changed (4), return level (bits 5-7)
+  std::uint8_t z_context;  // the Z integer decoder's context
+};
+
+// Points per batch: the contexts take 4 bytes a point (4 KiB), and a batch of records of up to
+// ~60 bytes stays in the L2 cache while each layer's loop passes over it.
+inline constexpr std::size_t kLayeredBatch = 1024;
+
 class Point14Layered {
  public:
   Point14Layered(const LayerSelection& selection);
@@ -399,14 +417,25 @@ class Point14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t i) const { return wanted_[i]; }
   void start(const std::uint8_t* raw);
-  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out);  // (only decode_layered calls it)
-  std::uint32_t channel() const { return current_; }    // scanner channel: the other items' context
+  // Decodes the next n (<= kLayeredBatch) records' POINT14 bytes (0..29 of each record),
+  // layer by layer, and keeps the points' contexts for the other items (contexts()).
+  void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n);
+  const Point14Context* contexts() const { return batch_.data(); }
+  // Whether the last batch stayed on one scanner channel (no switch at any of its points).
+  bool one_channel() const { return one_channel_; }
+  std::uint32_t channel() const { return current_; }  // scanner channel: the other items' context
 
  private:
   struct Context;
   Context& open_context(std::uint32_t channel, const Point14Fields& from);
-  void decode_gps(Context& c);
+  template <typename... Passes>
+  void decode_xy(std::uint8_t* records, std::uint16_t record_length, std::size_t n,
+                 Passes&... passes);
+  template <typename... Passes>
+  void layer_loop(std::size_t n, Passes&... passes);
 
+  std::array<Point14Context, kLayeredBatch> batch_{};
+  bool one_channel_ = true;
   std::array<Layer, kPoint14Layers> layers_;
   std::array<bool, kPoint14Layers> wanted_{};
   std::array<std::unique_ptr<Context>, 4> contexts_;
@@ -448,7 +477,9 @@ class Rgb14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t i) const { return i == 0 ? want_rgb_ : want_nir_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
-  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out, std::uint32_t channel);
+  // The next n records' item bytes at `out` (record_length apart), point i in context[i].
+  void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                    const Point14Context* context, bool one_channel);
 
  private:
   struct Context {
@@ -457,7 +488,8 @@ class Rgb14Layered {
     SymbolModel nir_changed{4};
     SymbolModel nir_diff_low{256}, nir_diff_high{256};
   };
-  Context& open(std::uint32_t channel, const std::uint16_t* from);
+  // Opens `channel` from channel `from`'s last item for layer `layer` (0 RGB, 1 NIR).
+  void open(std::uint32_t channel, std::uint32_t from, std::size_t layer);
 
   bool nir_, version4_, want_rgb_, want_nir_;
   std::array<Layer, 2> layers_;
@@ -473,14 +505,20 @@ class Byte14Layered {
   const Layer& layer(std::size_t i) const { return layers_[i]; }
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
-  TINSTREAM_LAZ_INLINE void decode(std::uint8_t* out, std::uint32_t channel);
+  void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                    const Point14Context* context, bool one_channel);
 
  private:
   struct Context {
     std::vector<std::uint8_t> last;
     std::vector<SymbolModel> diff;
   };
-  Context& open(std::uint32_t channel, const std::uint8_t* from);
+  Context& create(std::uint32_t channel);
+  // Opens `channel` from channel `from`'s last byte `byte` (its layer).
+  void open(std::uint32_t channel, std::uint32_t from, std::size_t byte);
+  template <bool kOneChannel>
+  void decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                   const Point14Context* context, std::size_t b);
 
   std::size_t count_;
   bool version4_, wanted_;
@@ -497,9 +535,12 @@ class WavePacket14Layered {
   const Layer& layer(std::size_t) const { return layer_; }
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
-  void decode(std::uint8_t* out, std::uint32_t channel);
+  void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                    const Point14Context* context, bool one_channel);
 
  private:
+  void decode(std::uint8_t* out, std::uint32_t channel);
+
   bool version4_, wanted_;
   Layer layer_;
   std::array<std::unique_ptr<WavePacketCoder>, 4> contexts_;
@@ -509,8 +550,8 @@ class WavePacket14Layered {
 using LayeredItem = std::variant<Rgb14Layered, Byte14Layered, WavePacket14Layered>;
 
 // Decodes the next n records of a layered chunk: POINT14 at byte 0 of each record, items[i] at
-// byte offsets[i + 1]. One loop in the items' source, so that their decode steps inline into it
-// (a call per item and record before).
+// byte offsets[i + 1]. Batch by batch (kLayeredBatch points), and in a batch layer by layer:
+// each layer's loop keeps its one decoder in registers and its models in cache.
 void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
                     const std::uint16_t* offsets, std::uint16_t record_length, std::uint8_t* out,
                     std::uint64_t n);

@@ -71,13 +71,28 @@ struct Point14Layered::Context {
   IntegerDecoder ic_source_id{16, 1};
   GpsTimeSequences gps{true};
 
+  // A channel opens (at the chunk's first point, or where the chunk first switches to it) from
+  // a point's fields: each layer's part separately, as the layer's loop reaches that point.
   void reset(const Point14Fields& from) {
-    last = from;
+    reset_xy(from);
+    reset_z(from.z);
+    reset_classification(from.classification);
+    reset_flags(from);
+    reset_intensity(from.intensity);
+    reset_scan_angle(from.scan_angle);
+    reset_user_data(from.user_data);
+    reset_source_id(from.source_id);
+    reset_gps_time(from.gps_time);
+  }
+  void reset_xy(const Point14Fields& from) {
+    last.x = from.x;
+    last.y = from.y;
+    last.return_number = from.return_number;
+    last.number_of_returns = from.number_of_returns;
+    last.scanner_channel = from.scanner_channel;
     last.gps_time_changed = false;
-    last_intensity.fill(from.intensity);
     for (auto& m : dx_median) m.reset();
     for (auto& m : dy_median) m.reset();
-    last_z.fill(from.z);
     for (auto& m : changed) m.reset();
     scanner_step.reset();
     number_of_returns.next_chunk();
@@ -85,14 +100,42 @@ struct Point14Layered::Context {
     return_step_same_time.reset();
     ic_dx.reset();
     ic_dy.reset();
+  }
+  void reset_z(std::int32_t z) {
+    last.z = z;
+    last_z.fill(z);
     ic_z.reset();
+  }
+  void reset_classification(std::uint8_t v) {
+    last.classification = v;
     classification.next_chunk();
+  }
+  void reset_flags(const Point14Fields& from) {
+    last.class_flags = from.class_flags;
+    last.scan_direction = from.scan_direction;
+    last.edge_of_line = from.edge_of_line;
     flags.next_chunk();
-    user_data.next_chunk();
+  }
+  void reset_intensity(std::uint16_t v) {
+    last.intensity = v;
+    last_intensity.fill(v);
     ic_intensity.reset();
+  }
+  void reset_scan_angle(std::int16_t v) {
+    last.scan_angle = v;
     ic_scan_angle.reset();
+  }
+  void reset_user_data(std::uint8_t v) {
+    last.user_data = v;
+    user_data.next_chunk();
+  }
+  void reset_source_id(std::uint16_t v) {
+    last.source_id = v;
     ic_source_id.reset();
-    gps.reset(from.gps_time);
+  }
+  void reset_gps_time(std::uint64_t v) {
+    last.gps_time = v;
+    gps.reset(v);
   }
 };
 
@@ -127,112 +170,244 @@ std::int32_t scan_angle_from(std::int32_t decoded) { return static_cast<std::int
 
 }  // namespace
 
-TINSTREAM_LAZ_INLINE void Point14Layered::decode(std::uint8_t* out) {
-  Context* c = contexts_[current_].get();
-  ArithmeticDecoder& xy = layers_[kLayerXY].dec;
+namespace {
 
-  // Which fields changed, in the context of the previous point's return and time change.
-  std::uint32_t lpr = (c->last.return_number == 1 ? 1u : 0u) +
-                      (c->last.return_number >= c->last.number_of_returns ? 2u : 0u) +
-                      (c->last.gps_time_changed ? 4u : 0u);
-  const std::uint32_t changed = xy.decode_symbol(c->changed[lpr]);
-  if (changed & (1u << 6)) {  // another scanner channel: current + 1..3 (mod 4)
-    const std::uint32_t step = xy.decode_symbol(c->scanner_step);
-    const std::uint32_t channel = (current_ + step + 1) & 3;
-    if (!in_use_[channel]) open_context(channel, c->last);
-    current_ = channel;
-    c = contexts_[channel].get();
-    c->last.scanner_channel = static_cast<std::uint8_t>(channel);
-  }
-  Point14Fields& p = c->last;
-  const bool source_changed = (changed & (1u << 5)) != 0;
-  const bool time_changed = (changed & (1u << 4)) != 0;
-  const bool angle_changed = (changed & (1u << 3)) != 0;
+// One layer's part of a loop over the batch: open(new channel's context, previous channel's
+// context) where a channel opens, then step(context of the point's channel, point context, i).
+template <typename Open, typename Step>
+struct LayerPass {
+  Open open;
+  Step step;
+};
+template <typename Open, typename Step>
+LayerPass(Open, Step) -> LayerPass<Open, Step>;
 
-  const std::uint32_t last_n = p.number_of_returns;
-  const std::uint32_t last_r = p.return_number;
-  std::uint32_t n = last_n;
-  if (changed & (1u << 2)) {
-    n = xy.decode_symbol(c->number_of_returns.at(last_n));
-    p.number_of_returns = static_cast<std::uint8_t>(n);
-  }
-  std::uint32_t r = last_r;
-  switch (changed & 3) {
-    case 0:
-      break;
-    case 1:
-      r = (last_r + 1) & 15;
-      break;
-    case 2:
-      r = (last_r + 15) & 15;
-      break;
-    default:
-      if (time_changed) {
-        r = xy.decode_symbol(c->return_number.at(last_r));
-      } else {
-        r = (last_r + xy.decode_symbol(c->return_step_same_time) + 2) & 15;
+}  // namespace
+
+// The XY/returns layer of n points: x, y and the return byte of each record, and each point's
+// context for the other layers (batch_). The channel switches happen here; a channel new to the
+// chunk gets its XY part opened here and the other layers' parts in their own loops.
+template <typename... Passes>
+TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
+                                                    std::uint16_t record_length, std::size_t n,
+                                                    Passes&... passes) {
+  ArithmeticDecoder xy = layers_[kLayerXY].dec;  // in registers for the loop
+  std::uint32_t current = current_;
+  Context* c = contexts_[current].get();
+  std::uint8_t* out = records;
+  bool switched = false;
+  for (std::size_t i = 0; i < n; ++i, out += record_length) {
+    Point14Context& pc = batch_[i];
+    pc.from = static_cast<std::uint8_t>(current);
+    std::uint32_t opens = 0;
+    // Which fields changed, in the context of the previous point's return and time change.
+    const std::uint32_t lpr = (c->last.return_number == 1 ? 1u : 0u) +
+                              (c->last.return_number >= c->last.number_of_returns ? 2u : 0u) +
+                              (c->last.gps_time_changed ? 4u : 0u);
+    const std::uint32_t changed = xy.decode_symbol(c->changed[lpr]);
+    if (changed & (1u << 6)) [[unlikely]] {  // another scanner channel: current + 1..3 (mod 4)
+      switched = true;
+      const std::uint32_t step = xy.decode_symbol(c->scanner_step);
+      const std::uint32_t channel = (current + step + 1) & 3;
+      if (!in_use_[channel]) {
+        if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
+        contexts_[channel]->reset_xy(c->last);
+        (passes.open(*contexts_[channel], static_cast<const Context&>(*c)), ...);
+        in_use_[channel] = true;
+        opens = Point14Context::kOpens;
       }
-      break;
-  }
-  p.return_number = static_cast<std::uint8_t>(r);
+      current = channel;
+      c = contexts_[channel].get();
+      c->last.scanner_channel = static_cast<std::uint8_t>(channel);
+    }
+    Point14Fields& p = c->last;
+    const bool time_changed = (changed & (1u << 4)) != 0;
 
-  const std::uint32_t m = return_map_6ctx(n, r);
-  const std::uint32_t l = return_level(n, r, 7);
-  const std::uint32_t cpr = (r == 1 ? 2u : 0u) + (r >= n ? 1u : 0u);
-  const std::uint32_t g = time_changed ? 1 : 0;
-  const std::uint32_t single = n == 1 ? 1 : 0;
+    const std::uint32_t last_n = p.number_of_returns;
+    const std::uint32_t last_r = p.return_number;
+    std::uint32_t nr = last_n;
+    if (changed & (1u << 2)) {
+      nr = xy.decode_symbol(c->number_of_returns.at(last_n));
+      p.number_of_returns = static_cast<std::uint8_t>(nr);
+    }
+    std::uint32_t r = last_r;
+    switch (changed & 3) {
+      case 0:
+        break;
+      case 1:
+        r = (last_r + 1) & 15;
+        break;
+      case 2:
+        r = (last_r + 15) & 15;
+        break;
+      default:
+        if (time_changed) {
+          r = xy.decode_symbol(c->return_number.at(last_r));
+        } else {
+          r = (last_r + xy.decode_symbol(c->return_step_same_time) + 2) & 15;
+        }
+        break;
+    }
+    p.return_number = static_cast<std::uint8_t>(r);
 
-  StreamingMedian5& mx = c->dx_median[(m << 1) | g];
-  std::int32_t diff = c->ic_dx.decode(xy, mx.get(), single);
-  p.x = wrap_add(p.x, diff);
-  mx.push(diff);
-  StreamingMedian5& my = c->dy_median[(m << 1) | g];
-  std::uint32_t k = c->ic_dx.last_k();
-  diff = c->ic_dy.decode(xy, my.get(), single + (k < 20 ? k & ~1u : 20));
-  p.y = wrap_add(p.y, diff);
-  my.push(diff);
+    const std::uint32_t m = return_map_6ctx(nr, r);
+    const std::uint32_t l = return_level(nr, r, 7);
+    const std::uint32_t cpr = (r == 1 ? 2u : 0u) + (r >= nr ? 1u : 0u);
+    const std::uint32_t g = time_changed ? 1 : 0;
+    const std::uint32_t single = nr == 1 ? 1 : 0;
 
-  if (layers_[kLayerZ].active) {
+    StreamingMedian5& mx = c->dx_median[(m << 1) | g];
+    std::int32_t diff = c->ic_dx.decode(xy, mx.get(), single);
+    p.x = wrap_add(p.x, diff);
+    mx.push(diff);
+    StreamingMedian5& my = c->dy_median[(m << 1) | g];
+    std::uint32_t k = c->ic_dx.last_k();
+    diff = c->ic_dy.decode(xy, my.get(), single + (k < 20 ? k & ~1u : 20));
+    p.y = wrap_add(p.y, diff);
+    my.push(diff);
     k = (c->ic_dx.last_k() + c->ic_dy.last_k()) / 2;
-    p.z = c->ic_z.decode(layers_[kLayerZ].dec, c->last_z[l], single + (k < 18 ? k & ~1u : 18));
-    c->last_z[l] = p.z;
+
+    put32(out, static_cast<std::uint32_t>(p.x));
+    put32(out + 4, static_cast<std::uint32_t>(p.y));
+    out[14] = static_cast<std::uint8_t>(r | (nr << 4));
+    pc.channel = static_cast<std::uint8_t>(current | opens);
+    pc.returns = static_cast<std::uint8_t>(g | (cpr << 1) | (changed & (1u << 3)) |
+                                           (changed & (1u << 5)) >> 1 | (l << 5));
+    pc.z_context = static_cast<std::uint8_t>(single + (k < 18 ? k & ~1u : 18));
+    p.gps_time_changed = time_changed;
+    (passes.step(*c, static_cast<const Point14Context&>(pc), i), ...);
   }
-  if (layers_[kLayerClassification].active) {
-    const std::uint32_t ctx = ((p.classification & 0x1Fu) << 1) + (cpr == 3 ? 1u : 0u);
-    p.classification = static_cast<std::uint8_t>(
-        layers_[kLayerClassification].dec.decode_symbol(c->classification.at(ctx)));
+  layers_[kLayerXY].dec = xy;
+  current_ = current;
+  one_channel_ = !switched;
+}
+
+// One loop over the batch for the given layers (each its own stream: their symbol chains
+// overlap in the processor).
+template <typename... Passes>
+TINSTREAM_LAZ_INLINE void Point14Layered::layer_loop(std::size_t n, Passes&... passes) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const Point14Context pc = batch_[i];
+    Context& c = *contexts_[pc.channel & 3];
+    if (pc.channel & Point14Context::kOpens) [[unlikely]] {
+      const Context& from = *contexts_[pc.from];
+      (passes.open(c, from), ...);
+    }
+    (passes.step(c, pc, i), ...);
   }
-  if (layers_[kLayerFlags].active) {
-    const std::uint32_t ctx = (static_cast<std::uint32_t>(p.edge_of_line) << 5) |
-                              (static_cast<std::uint32_t>(p.scan_direction) << 4) | p.class_flags;
-    const std::uint32_t flags = layers_[kLayerFlags].dec.decode_symbol(c->flags.at(ctx));
-    p.edge_of_line = static_cast<std::uint8_t>((flags >> 5) & 1);
-    p.scan_direction = static_cast<std::uint8_t>((flags >> 4) & 1);
-    p.class_flags = static_cast<std::uint8_t>(flags & 0x0F);
-  }
-  if (layers_[kLayerIntensity].active) {
-    std::uint16_t& predicted = c->last_intensity[(cpr << 1) | g];
-    p.intensity = static_cast<std::uint16_t>(
-        c->ic_intensity.decode(layers_[kLayerIntensity].dec, predicted, cpr));
-    predicted = p.intensity;
-  }
-  if (layers_[kLayerScanAngle].active && angle_changed) {
-    p.scan_angle = static_cast<std::int16_t>(
-        scan_angle_from(c->ic_scan_angle.decode(layers_[kLayerScanAngle].dec, p.scan_angle, g)));
-  }
-  if (layers_[kLayerUserData].active) {
-    p.user_data = static_cast<std::uint8_t>(
-        layers_[kLayerUserData].dec.decode_symbol(c->user_data.at(p.user_data / 4u)));
-  }
-  if (layers_[kLayerPointSource].active && source_changed) {
-    p.source_id = static_cast<std::uint16_t>(
-        c->ic_source_id.decode(layers_[kLayerPointSource].dec, p.source_id, 0));
-  }
-  if (layers_[kLayerGpsTime].active && time_changed) {
-    p.gps_time = c->gps.decode(layers_[kLayerGpsTime].dec);
-  }
-  p.store(out);
-  p.gps_time_changed = time_changed;
+}
+
+void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n) {
+  const std::size_t rl = record_length;
+  // Each layer's decoder in a local (registers while its loop runs), written back at the end.
+  ArithmeticDecoder z_dec = layers_[kLayerZ].dec;
+  const bool z_active = layers_[kLayerZ].active;
+  LayerPass z{[](Context& c, const Context& from) { c.reset_z(from.last.z); },
+              [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                if (z_active) {
+                  std::int32_t& predicted = c.last_z[pc.returns >> 5];
+                  predicted = c.ic_z.decode(z_dec, predicted, pc.z_context);
+                  c.last.z = predicted;
+                }
+                put32(out + i * rl + 8, static_cast<std::uint32_t>(c.last.z));
+              }};
+  ArithmeticDecoder class_dec = layers_[kLayerClassification].dec;
+  const bool class_active = layers_[kLayerClassification].active;
+  LayerPass classification{
+      [](Context& c, const Context& from) { c.reset_classification(from.last.classification); },
+      [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+        if (class_active) {
+          const std::uint32_t ctx =
+              ((c.last.classification & 0x1Fu) << 1) + ((pc.returns & 6) == 6 ? 1u : 0u);
+          c.last.classification =
+              static_cast<std::uint8_t>(class_dec.decode_symbol(c.classification.at(ctx)));
+        }
+        out[i * rl + 16] = c.last.classification;
+      }};
+  ArithmeticDecoder flags_dec = layers_[kLayerFlags].dec;
+  const bool flags_active = layers_[kLayerFlags].active;
+  LayerPass flags{[](Context& c, const Context& from) { c.reset_flags(from.last); },
+                  [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                    Point14Fields& p = c.last;
+                    if (flags_active) {
+                      const std::uint32_t ctx =
+                          (static_cast<std::uint32_t>(p.edge_of_line) << 5) |
+                          (static_cast<std::uint32_t>(p.scan_direction) << 4) | p.class_flags;
+                      const std::uint32_t f = flags_dec.decode_symbol(c.flags.at(ctx));
+                      p.edge_of_line = static_cast<std::uint8_t>((f >> 5) & 1);
+                      p.scan_direction = static_cast<std::uint8_t>((f >> 4) & 1);
+                      p.class_flags = static_cast<std::uint8_t>(f & 0x0F);
+                    }
+                    out[i * rl + 15] =
+                        static_cast<std::uint8_t>(p.class_flags | ((pc.channel & 3) << 4) |
+                                                  (p.scan_direction << 6) | (p.edge_of_line << 7));
+                  }};
+  ArithmeticDecoder intensity_dec = layers_[kLayerIntensity].dec;
+  const bool intensity_active = layers_[kLayerIntensity].active;
+  LayerPass intensity{
+      [](Context& c, const Context& from) { c.reset_intensity(from.last.intensity); },
+      [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+        if (intensity_active) {
+          const std::uint32_t cpr = (pc.returns >> 1) & 3;
+          std::uint16_t& predicted = c.last_intensity[pc.returns & 7];  // cpr * 2 + g
+          c.last.intensity =
+              static_cast<std::uint16_t>(c.ic_intensity.decode(intensity_dec, predicted, cpr));
+          predicted = c.last.intensity;
+        }
+        put16(out + i * rl + 12, c.last.intensity);
+      }};
+  ArithmeticDecoder angle_dec = layers_[kLayerScanAngle].dec;
+  const bool angle_active = layers_[kLayerScanAngle].active;
+  LayerPass angle{[](Context& c, const Context& from) { c.reset_scan_angle(from.last.scan_angle); },
+                  [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                    if (angle_active && (pc.returns & (1u << 3))) {
+                      c.last.scan_angle = static_cast<std::int16_t>(scan_angle_from(
+                          c.ic_scan_angle.decode(angle_dec, c.last.scan_angle, pc.returns & 1)));
+                    }
+                    put16(out + i * rl + 18, static_cast<std::uint16_t>(c.last.scan_angle));
+                  }};
+  ArithmeticDecoder user_dec = layers_[kLayerUserData].dec;
+  const bool user_active = layers_[kLayerUserData].active;
+  LayerPass user_data{
+      [](Context& c, const Context& from) { c.reset_user_data(from.last.user_data); },
+      [&](Context& c, Point14Context, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+        if (user_active) {
+          c.last.user_data = static_cast<std::uint8_t>(
+              user_dec.decode_symbol(c.user_data.at(c.last.user_data / 4u)));
+        }
+        out[i * rl + 17] = c.last.user_data;
+      }};
+  ArithmeticDecoder source_dec = layers_[kLayerPointSource].dec;
+  const bool source_active = layers_[kLayerPointSource].active;
+  LayerPass source{[](Context& c, const Context& from) { c.reset_source_id(from.last.source_id); },
+                   [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                     if (source_active && (pc.returns & (1u << 4))) {
+                       c.last.source_id = static_cast<std::uint16_t>(
+                           c.ic_source_id.decode(source_dec, c.last.source_id, 0));
+                     }
+                     put16(out + i * rl + 20, c.last.source_id);
+                   }};
+  ArithmeticDecoder gps_dec = layers_[kLayerGpsTime].dec;
+  const bool gps_active = layers_[kLayerGpsTime].active;
+  LayerPass gps{[](Context& c, const Context& from) { c.reset_gps_time(from.last.gps_time); },
+                [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                  if (gps_active && (pc.returns & 1)) c.last.gps_time = c.gps.decode(gps_dec);
+                  put64(out + i * rl + 22, c.last.gps_time);
+                }};
+  // Two or three layers per loop: enough independent chains to fill the processor, few enough
+  // decoders to stay in registers.
+  decode_xy(out, record_length, n, z);
+  layer_loop(n, intensity, classification);
+  layer_loop(n, flags, user_data);
+  layer_loop(n, angle, source, gps);
+  layers_[kLayerZ].dec = z_dec;
+  layers_[kLayerClassification].dec = class_dec;
+  layers_[kLayerFlags].dec = flags_dec;
+  layers_[kLayerIntensity].dec = intensity_dec;
+  layers_[kLayerScanAngle].dec = angle_dec;
+  layers_[kLayerUserData].dec = user_dec;
+  layers_[kLayerPointSource].dec = source_dec;
+  layers_[kLayerGpsTime].dec = gps_dec;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -241,15 +416,19 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode(std::uint8_t* out) {
 Rgb14Layered::Rgb14Layered(bool nir, bool version4, const LayerSelection& s)
     : nir_(nir), version4_(version4), want_rgb_(s.rgb), want_nir_(nir && s.nir) {}
 
-Rgb14Layered::Context& Rgb14Layered::open(std::uint32_t channel, const std::uint16_t* from) {
+void Rgb14Layered::open(std::uint32_t channel, std::uint32_t from, std::size_t layer) {
   if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
   Context& c = *contexts_[channel];
-  std::copy(from, from + 4, c.last);
-  c.rgb.reset();
-  c.nir_changed.reset();
-  c.nir_diff_low.reset();
-  c.nir_diff_high.reset();
-  return c;
+  const std::uint16_t* source = contexts_[from]->last;  // distinct contexts: no aliasing
+  if (layer == 0) {
+    std::copy(source, source + 3, c.last);
+    c.rgb.reset();
+  } else {
+    c.last[3] = source[3];
+    c.nir_changed.reset();
+    c.nir_diff_low.reset();
+    c.nir_diff_high.reset();
+  }
 }
 
 void Rgb14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
@@ -258,31 +437,48 @@ void Rgb14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
   channels_ = {};
   channels_.current = channel;
   channels_.in_use[channel] = true;
-  open(channel, first);
+  if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
+  Context& c = *contexts_[channel];
+  std::copy(first, first + 4, c.last);
+  c.rgb.reset();
+  c.nir_changed.reset();
+  c.nir_diff_low.reset();
+  c.nir_diff_high.reset();
 }
 
-TINSTREAM_LAZ_INLINE void Rgb14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
-  const std::uint32_t source = channels_.follow(
-      channel, version4_,
-      [this](std::uint32_t ch, std::uint32_t from) { open(ch, contexts_[from]->last); });
-  Context& models = *contexts_[channels_.current];
-  std::uint16_t* last = contexts_[source]->last;
-  if (layers_[0].active) {
-    std::uint16_t now[3];
-    decode_rgb(layers_[0].dec, models.rgb, last, now);
-    std::copy(now, now + 3, last);
+void Rgb14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                const Point14Context* context, bool /*one_channel*/) {
+  // RGB and NIR in one loop: two streams, each decoder in a local (registers).
+  ArithmeticDecoder rgb_dec = layers_[0].dec, nir_dec = layers_[1].dec;
+  const bool rgb_active = layers_[0].active, nir_active = nir_ && layers_[1].active;
+  ChannelSwitch sw = channels_;
+  for (std::size_t i = 0; i < n; ++i, out += record_length) {
+    const std::uint32_t source =
+        sw.follow(context[i].channel & 3u, version4_, [this](std::uint32_t ch, std::uint32_t from) {
+          open(ch, from, 0);
+          open(ch, from, 1);
+        });
+    Context& models = *contexts_[sw.current];
+    std::uint16_t* last = contexts_[source]->last;
+    if (rgb_active) {
+      std::uint16_t now[3];
+      decode_rgb(rgb_dec, models.rgb, last, now);
+      std::copy(now, now + 3, last);
+    }
+    for (std::size_t k = 0; k < 3; ++k) put16(out + 2 * k, last[k]);
+    if (!nir_) continue;
+    if (nir_active) {
+      const std::uint32_t sym = nir_dec.decode_symbol(models.nir_changed);
+      std::uint32_t low = last[3] & 0xFFu, high = last[3] >> 8;
+      if (sym & 1) low = (nir_dec.decode_symbol(models.nir_diff_low) + low) & 0xFF;
+      if (sym & 2) high = (nir_dec.decode_symbol(models.nir_diff_high) + high) & 0xFF;
+      last[3] = static_cast<std::uint16_t>(low | (high << 8));
+    }
+    put16(out + 6, last[3]);
   }
-  for (std::size_t i = 0; i < 3; ++i) put16(out + 2 * i, last[i]);
-  if (!nir_) return;
-  if (layers_[1].active) {
-    ArithmeticDecoder& dec = layers_[1].dec;
-    const std::uint32_t sym = dec.decode_symbol(models.nir_changed);
-    std::uint32_t low = last[3] & 0xFFu, high = last[3] >> 8;
-    if (sym & 1) low = (dec.decode_symbol(models.nir_diff_low) + low) & 0xFF;
-    if (sym & 2) high = (dec.decode_symbol(models.nir_diff_high) + high) & 0xFF;
-    last[3] = static_cast<std::uint16_t>(low | (high << 8));
-  }
-  put16(out + 6, last[3]);
+  channels_ = sw;
+  layers_[0].dec = rgb_dec;
+  layers_[1].dec = nir_dec;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -291,7 +487,7 @@ TINSTREAM_LAZ_INLINE void Rgb14Layered::decode(std::uint8_t* out, std::uint32_t 
 Byte14Layered::Byte14Layered(std::size_t count, bool version4, const LayerSelection& s)
     : count_(count), version4_(version4), wanted_(s.extra_bytes), layers_(count) {}
 
-Byte14Layered::Context& Byte14Layered::open(std::uint32_t channel, const std::uint8_t* from) {
+Byte14Layered::Context& Byte14Layered::create(std::uint32_t channel) {
   if (!contexts_[channel]) {
     contexts_[channel] = std::make_unique<Context>();
     Context& c = *contexts_[channel];
@@ -299,36 +495,87 @@ Byte14Layered::Context& Byte14Layered::open(std::uint32_t channel, const std::ui
     c.diff.reserve(count_);
     for (std::size_t i = 0; i < count_; ++i) c.diff.emplace_back(256);
   }
-  Context& c = *contexts_[channel];
-  std::copy(from, from + count_, c.last.begin());
+  return *contexts_[channel];
+}
+
+void Byte14Layered::open(std::uint32_t channel, std::uint32_t from, std::size_t byte) {
+  Context& c = create(channel);
+  c.last[byte] = contexts_[from]->last[byte];  // distinct contexts: no aliasing
   // Models of layers that are not decoded are never used: leave them as they are.
-  for (std::size_t i = 0; i < count_; ++i) {
-    if (layers_[i].active) c.diff[i].reset();
-  }
-  return c;
+  if (layers_[byte].active) c.diff[byte].reset();
 }
 
 void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
   channels_ = {};
   channels_.current = channel;
   channels_.in_use[channel] = true;
-  open(channel, raw);
+  Context& c = create(channel);
+  std::copy(raw, raw + count_, c.last.begin());
+  for (std::size_t i = 0; i < count_; ++i) {
+    if (layers_[i].active) c.diff[i].reset();
+  }
 }
 
-TINSTREAM_LAZ_INLINE void Byte14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
-  const std::uint32_t source =
-      channels_.follow(channel, version4_, [this](std::uint32_t ch, std::uint32_t from) {
-        open(ch, contexts_[from]->last.data());  // distinct contexts: no aliasing
-      });
-  Context& models = *contexts_[channels_.current];
-  std::uint8_t* last = contexts_[source]->last.data();
-  for (std::size_t i = 0; i < count_; ++i) {
-    if (layers_[i].active) {
-      last[i] = static_cast<std::uint8_t>((layers_[i].dec.decode_symbol(models.diff[i]) + last[i]) &
-                                          0xFF);
+void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                 const Point14Context* context, bool one_channel) {
+  // Two bytes' layers per loop (the last alone when the count is odd): two streams, each
+  // decoder in a local. Each loop follows the channel switches on its own copy of the switch
+  // state; all copies end in the same state.
+  const ChannelSwitch at_start = channels_;
+  for (std::size_t b = 0; b < count_; b += 2) {
+    channels_ = at_start;
+    if (one_channel) {
+      decode_pair<true>(out, record_length, n, context, b);
+    } else {
+      decode_pair<false>(out, record_length, n, context, b);
     }
-    out[i] = last[i];
   }
+}
+
+// Byte layers b and b + 1 (b alone when it is the last). kOneChannel: no point of the batch
+// switches channel, so the models and the last bytes stay those of the current channel, the
+// bytes kept in locals for the loop.
+template <bool kOneChannel>
+void Byte14Layered::decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                const Point14Context* context, std::size_t b) {
+  const bool pair = b + 1 < count_;
+  const std::size_t b2 = pair ? b + 1 : b;
+  ChannelSwitch& sw = channels_;
+  ArithmeticDecoder dec = layers_[b].dec, dec2 = layers_[b2].dec;
+  const bool active = layers_[b].active, active2 = pair && layers_[b2].active;
+  Context& first = *contexts_[sw.current];
+  SymbolModel* model = &first.diff[b];
+  SymbolModel* model2 = &first.diff[b2];
+  std::uint8_t own[2] = {first.last[b], first.last[b2]};
+  std::uint8_t* o = out + b;
+  for (std::size_t i = 0; i < n; ++i, o += record_length) {
+    std::uint8_t* last = own;
+    if constexpr (!kOneChannel) {
+      const std::uint32_t source = sw.follow(context[i].channel & 3u, version4_,
+                                             [this, b, b2](std::uint32_t ch, std::uint32_t from) {
+                                               open(ch, from, b);
+                                               open(ch, from, b2);
+                                             });
+      Context& models = *contexts_[sw.current];
+      model = &models.diff[b];
+      model2 = &models.diff[b2];
+      last = contexts_[source]->last.data() + b;
+    }
+    if (active) {
+      last[0] = static_cast<std::uint8_t>((dec.decode_symbol(*model) + last[0]) & 0xFF);
+    }
+    if (active2) {
+      last[1] = static_cast<std::uint8_t>((dec2.decode_symbol(*model2) + last[1]) & 0xFF);
+    }
+    o[0] = last[0];
+    if (pair) o[1] = last[1];
+  }
+  if constexpr (kOneChannel) {
+    first.last[b] = own[0];
+    if (pair) first.last[b2] = own[1];
+  }
+  layers_[b].dec = dec;
+  if (pair) layers_[b2].dec = dec2;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -343,6 +590,12 @@ void WavePacket14Layered::start(const std::uint8_t* raw, std::uint32_t channel) 
   channels_.in_use[channel] = true;
   if (!contexts_[channel]) contexts_[channel] = std::make_unique<WavePacketCoder>();
   contexts_[channel]->reset(raw);
+}
+
+void WavePacket14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length,
+                                       std::size_t n, const Point14Context* context,
+                                       bool /*one_channel*/) {
+  for (std::size_t i = 0; i < n; ++i, out += record_length) decode(out, context[i].channel & 3u);
 }
 
 void WavePacket14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
@@ -376,25 +629,20 @@ void WavePacket14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
 void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
                     const std::uint16_t* offsets, std::uint16_t record_length, std::uint8_t* out,
                     std::uint64_t n) {
-  for (std::uint64_t r = 0; r < n; ++r, out += record_length) {
-    point14.decode(out);
-    const std::uint32_t channel = point14.channel();
+  while (n > 0) {
+    const auto batch = static_cast<std::size_t>(std::min<std::uint64_t>(n, kLayeredBatch));
+    point14.decode_batch(out, record_length, batch);
+    const Point14Context* context = point14.contexts();
     for (std::size_t i = 0; i < items.size(); ++i) {
-      std::uint8_t* dst = out + offsets[i + 1];
-      LayeredItem& item = items[i];
-      // An explicit switch (not std::visit) so that the items inline into this loop.
-      switch (item.index()) {
-        case 0:
-          std::get_if<Rgb14Layered>(&item)->decode(dst, channel);
-          break;
-        case 1:
-          std::get_if<Byte14Layered>(&item)->decode(dst, channel);
-          break;
-        default:
-          std::get_if<WavePacket14Layered>(&item)->decode(dst, channel);
-          break;
-      }
+      std::visit(
+          [&](auto& item) {
+            item.decode_batch(out + offsets[i + 1], record_length, batch, context,
+                              point14.one_channel());
+          },
+          items[i]);
     }
+    out += batch * record_length;
+    n -= batch;
   }
 }
 

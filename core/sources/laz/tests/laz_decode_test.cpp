@@ -348,6 +348,34 @@ TEST_F(DamagedLaz, FlippedByteInEitherOfTwoChunksDecodedInLockStepNamesIt) {
   }
 }
 
+// A layer table whose XY/returns layer is empty, its bytes counted in the Z layer instead (the
+// sizes still add up to the chunk): a clear error for that chunk. Before, the first chunk a
+// decoder met like that divided by zero (SIGFPE), a later one read on in the previous chunk's
+// XY stream.
+TEST_F(DamagedLaz, EmptyXyLayerInALayerTableNamesTheChunk) {
+  SKIP_WITHOUT_DATA("laz_las_with_several_extra_byte_bloc.laz");
+  const auto src = kData / "laz_las_with_several_extra_byte_bloc.laz";
+  const std::vector<std::uint8_t> original = slurp(src);
+  const auto chunks = chunks_of(src);
+  ASSERT_EQ(chunks.size(), 14u);
+  for (const std::size_t chunk : {std::size_t{0}, std::size_t{2}}) {
+    std::vector<std::uint8_t> bytes = original;
+    const std::size_t table = chunks[chunk].offset + 41 + 4;  // after the raw point and count
+    const std::uint64_t xy = le(bytes, table, 4);
+    ASSERT_GT(xy, 0u);
+    put_le(bytes, table + 4, le(bytes, table + 4, 4) + xy, 4);
+    put_le(bytes, table, 0, 4);
+    const auto p = write(bytes, "empty_xy_layer_" + std::to_string(chunk) + ".laz");
+    for (unsigned threads : {1u, 2u}) {
+      auto e = read_error(p, threads);
+      ASSERT_TRUE(e.has_value());
+      EXPECT_EQ(e->code, ErrorCode::corrupt_data);
+      expect_mentions(*e, {p.string(), "chunk " + std::to_string(chunk + 1) + " of 14",
+                           "XY/returns layer is empty"});
+    }
+  }
+}
+
 TEST_F(DamagedLaz, FlippedByteInALayerNamesTheChunk) {
   SKIP_WITHOUT_DATA("laz_las_with_several_extra_byte_bloc.laz");
   const auto src = kData / "laz_las_with_several_extra_byte_bloc.laz";
