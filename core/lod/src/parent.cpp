@@ -355,6 +355,13 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
   }
   thin_options.max_points =
       std::min(options.max_points, coverage_budget(covered, options) + border);
+  // At the outline floor (the budget no longer follows the area), exchange steps after the drop
+  // stage, as many as the floor has vertices: there the greedy stage's last error is the tile's
+  // (bench/lod/RESULTS.md 2026-11-28, "exchange steps at the outline floor").
+  const std::size_t floor_points = std::min(options.max_points, outline_budget(options));
+  if (coverage_budget(covered, options) <= floor_points && floor_points < options.max_points) {
+    thin_options.exchange_steps = floor_points;
+  }
   // A parent that takes its one child's vertices as candidates (Sources::candidates_from_children)
   // but keeps fewer than they are is thinned from its sources instead: dropping a thinned child's
   // vertices judges each removal at the known points only (measured: Terrain-RGB's level 13, 15

@@ -20,6 +20,7 @@
 #include <queue>
 #include <string>
 
+#include "exchange.hpp"
 #include "greedy.hpp"
 #include "indexed_heap.hpp"
 #include "lattice.hpp"
@@ -544,6 +545,7 @@ class TileThinner {
     if (Status s = triangulate_fixed(); !s) return s.error();
     if (Status s = constrain_border(); !s) return s.error();
     if (Status s = thin_interior(); !s) return s.error();
+    if (Status s = exchange(); !s) return s.error();
     auto out = to_tile();
     if (!out) return out;
     // Cocircular quadrilaterals (a grid's cells) take the diagonal the known points favour, else
@@ -734,6 +736,23 @@ class TileThinner {
         }
       }
     }
+    return {};
+  }
+
+  // 3. (continued) Exchange steps (LodOptions::exchange_steps) on the surface the drop stage left.
+  Status exchange() {
+    if (options_.exchange_steps == 0 || removed_last_ != kNone) return {};
+    detail::ExchangeInput ex;
+    ex.candidates = in_.interior;
+    ex.candidate_vertex = &interior_vertex_;
+    ex.others = {in_.orphans, dropped_};
+    ex.nodata_corners = nodata_corners_;
+    ex.outline_tolerance = std::max(r_.width(), r_.height()) / kOutlineSteps;
+    auto e = detail::exchange_steps(tri_, ex, options_.exchange_steps);
+    if (!e.ok()) {
+      return Error(e.error().code, "lod: " + tile_name(in_.id) + ": " + e.error().message);
+    }
+    st_.exchanged = e->steps;
     return {};
   }
 

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -60,12 +61,11 @@ double max_error(const tile::TinTile& t, const std::vector<GreedyPoint>& pts) {
   return e;
 }
 
-// autzen_trim.las at --max-points 2048 (levels 0–20; one tile holds the data from level 16 up).
-// Until 2026-11-28 the finest tiles' edge points weighed 0 beside inputs of weight 1, and coverage
-// first took the points of largest error against the fans' continued heights: level 16 measured
-// 3.1×, level 15 2.5×, levels 14–0 1.7–1.8× greedy insertion's error (bench/lod/RESULTS.md); now
-// 0.45–0.88×. The bound, 1.25×, leaves room for the thinning's own choices.
-TEST(PyramidQuality, LidarOneTileLevelsAreNotFarBehindGreedyInsertion) {
+// autzen_trim.las ingested at `max_points`: every level whose one tile holds the data, its
+// stored tile's max error over the finest data points at most `bound` × greedy insertion's with as
+// many vertices. Levels with more than `most_vertices` vertices are left out.
+void one_tile_levels_against_greedy(std::uint32_t max_points, double bound,
+                                    std::size_t most_vertices) {
   const std::filesystem::path las =
       std::filesystem::path(TINSTREAM_SHARED_DATA) / "autzen_trim.las";
   if (!std::filesystem::exists(las)) GTEST_SKIP() << las << " not found";
@@ -76,7 +76,7 @@ TEST(PyramidQuality, LidarOneTileLevelsAreNotFarBehindGreedyInsertion) {
   transform::InputSpec in;
   in.path = las;
   o.inputs.push_back(in);
-  o.max_points = 2048;
+  o.max_points = max_points;
   o.threads = 2;
   o.tmp_dir = ts.dir;
   auto summary = ingest::run_ingest(o);
@@ -114,6 +114,7 @@ TEST(PyramidQuality, LidarOneTileLevelsAreNotFarBehindGreedyInsertion) {
     ASSERT_TRUE(ids.ok());
     if (ids->size() != 1) continue;
     const tile::TinTile t = **store->read_tile("a", ids->front());
+    if (t.vertex_count() > most_vertices) continue;
     levels.push_back({z, t.vertex_count(), max_error(t, pts)});
   }
   ASSERT_GE(levels.size(), 5u);
@@ -124,9 +125,27 @@ TEST(PyramidQuality, LidarOneTileLevelsAreNotFarBehindGreedyInsertion) {
     while (greedy.vertices() < l.vertices && greedy.step()) {
     }
     const double peer = greedy.max_error();
-    EXPECT_LE(l.ours, 1.25 * peer) << "level " << l.z << " (" << l.vertices << " vertices): stored "
-                                   << l.ours << " m, greedy " << peer << " m";
+    EXPECT_LE(l.ours, bound * peer)
+        << "level " << l.z << " (" << l.vertices << " vertices): stored " << l.ours << " m, greedy "
+        << peer << " m";
   }
+}
+
+// autzen_trim.las at --max-points 2048 (levels 0–20; one tile holds the data from level 16 up).
+// Until 2026-11-28 the finest tiles' edge points weighed 0 beside inputs of weight 1, and coverage
+// first took the points of largest error against the fans' continued heights: level 16 measured
+// 3.1×, level 15 2.5×, levels 14–0 1.7–1.8× greedy insertion's error (bench/lod/RESULTS.md); now
+// 0.45–0.88×. The bound, 1.25×, leaves room for the thinning's own choices.
+TEST(PyramidQuality, LidarOneTileLevelsAreNotFarBehindGreedyInsertion) {
+  one_tile_levels_against_greedy(2048, 1.25, std::numeric_limits<std::size_t>::max());
+}
+
+// autzen_trim.las at the default --max-points (16,384): levels 12–0 keep the outline floor, 128
+// vertices, thinned with exchange steps (parent.hpp, "Budget"). Until 2026-11-28 (no exchange
+// steps) they measured 0.851 m against greedy insertion's 0.896 m, 0.95×; now 0.724 m, 0.81×
+// (bench/lod/RESULTS.md, "exchange steps at the outline floor"). #20's target is 0.9×.
+TEST(PyramidQuality, LidarOutlineFloorLevelsMeetTheTargetAgainstGreedyInsertion) {
+  one_tile_levels_against_greedy(16384, 0.9, 128);
 }
 
 }  // namespace

@@ -46,7 +46,13 @@
 // over the data, let it stop there. The border keeps the per-side budget of max_points
 // (thinning.hpp side_budget), which the tile across computes too, so same-level tiles stay
 // watertight; a tile holds more than its budget only where its corners and kept border points alone
-// exceed it. A parent that would take its one child's vertices as candidates
+// exceed it. A parent whose budget is the outline floor (the area share asks for no more) is
+// thinned with exchange steps (thinning.hpp LodOptions::exchange_steps, as many as the floor):
+// there the greedy stage's last error was the tile's (N00E010's and Jacksboro's one-tile levels at
+// 64 vertices 1.02× and 1.06× Delatin's max error, autzen's at 128 0.95× greedy insertion's; with
+// them 0.84×, 0.78×, 0.81×, bench/lod/RESULTS.md 2026-11-28). Larger budgets keep the greedy and
+// drop stages alone (their error is already below the peers', and the steps cost CPU per point).
+// A parent that would take its one child's vertices as candidates
 // (Sources::candidates_from_children) but keeps fewer than those is thinned from its sources
 // instead. The error is chained and recorded as before, so a smaller budget records the larger
 // error it makes.

@@ -76,6 +76,13 @@ struct LodOptions {
   // Error witnesses carried to the next coarser level (lod_tile.hpp): at most this many per
   // tile. 0 = none; SIZE_MAX (the default) = max_points / 8.
   std::size_t witnesses = std::numeric_limits<std::size_t>::max();
+  // Exchange steps after the drop stage (0 = none): at most this many times, the k points of
+  // largest vertical error go in and the k vertices whose removal then leaves the smallest largest
+  // error go out (k = 1 … 8, the first that lowers the largest error; src/exchange.hpp); a vertex
+  // next to a NODATA corner may go when the footprint still covers every point (coverage first).
+  // The vertex count stays. build_from_sources sets it for a parent at the outline floor
+  // (parent.hpp, "Budget").
+  std::size_t exchange_steps = 0;
 };
 
 // The witness count that `options` implies (LodOptions::witnesses).
@@ -128,8 +135,9 @@ struct ThinStats {
   // When it ran: the largest effective error of an interior point it left out, against the
   // surface it handed to the drop stage (before any removal).
   double greedy_error = 0;
-  double last_error = 0;  // effective error of the last removal (0 when none)
-  bool lattice = false;   // the greedy and drop stages scanned the interior as a lattice
+  double last_error = 0;      // effective error of the last removal (0 when none)
+  bool lattice = false;       // the greedy and drop stages scanned the interior as a lattice
+  std::size_t exchanged = 0;  // exchange steps made (LodOptions::exchange_steps)
 };
 
 // Triangulates the input with the border constrained and thins it (border first, then
