@@ -750,12 +750,18 @@ class GreedyInserter {
       return;
     }
     prepare_star(entries);
-    const std::uint32_t moved = assign_to_star();
+    const std::uint32_t moved = fans_.empty() ? assign_to_star<false>() : assign_to_star<true>();
     const std::uint32_t end = place_star_buckets();
     move_into_star_buckets(end);
     live_ += moved;
     for (std::size_t k = 0; k < star_.size(); ++k) {
-      publish_best(star_[k], star_best_[k], star_error_[k]);
+      // (A fan's best was ranked by FanEdge::rank while its points were assigned, in the order
+      // of its new bucket, as rank_fan would rank them: no second scan.)
+      if (!lattice_ && star_fan_[k]) {
+        set_best(star_[k], star_best_[k], star_error_[k]);
+      } else {
+        publish_best(star_[k], star_best_[k], star_error_[k]);
+      }
     }
   }
 
@@ -764,6 +770,18 @@ class GreedyInserter {
     const std::size_t n = star_.size();
     planes_.clear();
     for (std::uint32_t s : star_) planes_.push_back(plane(s));
+    // The fans among them (is_fan) and their data edges: assign_to_star ranks their points by
+    // FanEdge::rank (not on a lattice, where the candidates are scanned by cell).
+    star_fan_.assign(n, 0);
+    fans_.clear();
+    if (!lattice_ && !nodata_kernel_.empty()) {
+      for (std::size_t k = 0; k < n; ++k) {
+        if (!is_fan(star_[k])) continue;
+        star_fan_[k] = 1;
+        if (fans_.empty()) fans_.resize(n);
+        fans_[k] = fan_edge(star_[k]);
+      }
+    }
     star_best_.assign(n, kNone);  // the index in its new bucket, then in the pool
     star_error_.assign(n, -1.0);
     star_count_.assign(n, 0);
@@ -775,7 +793,9 @@ class GreedyInserter {
   // point that left), its place in that triangle's new bucket (in gather order), and each
   // bucket's best candidate (star_best_, star_error_). Returns the number of points that stay.
   // (The hot loop of the stage. It works on raw pointers: through the vectors, every store made
-  // the compiler reload their bounds.)
+  // the compiler reload their bounds.) kFans: some star triangle is a fan (star_fan_), whose
+  // candidates rank by FanEdge::rank (fans_), as rank_fan ranks them.
+  template <bool kFans>
   std::uint32_t assign_to_star() {
     const std::size_t n = star_.size();
     const bool by_angle = n > kSmallStar;
@@ -784,6 +804,8 @@ class GreedyInserter {
     std::uint32_t* const star_best = star_best_.data();
     double* const star_error = star_error_.data();
     const Plane* const planes = planes_.data();
+    const std::uint8_t* const fan = star_fan_.data();
+    const FanEdge* const fans = fans_.data();
     std::uint32_t moved = 0, m = 0;
     for (const auto& [b, cnt] : taken_) {
       const Filed* const bucket = pool_.data() + b;
@@ -805,7 +827,10 @@ class GreedyInserter {
         const std::uint32_t place = star_count[k]++;
         ++moved;
         if (f.kind != kCandidate) continue;
-        const double err = effective_error(f, surface);
+        double err = effective_error(f, surface);
+        if constexpr (kFans) {
+          if (fan[k]) err = fans[k].rank(f.x, f.y, err);
+        }
         if (err > star_error[k]) star_error[k] = err, star_best[k] = place;
       }
     }
@@ -999,6 +1024,8 @@ class GreedyInserter {
   std::vector<std::uint32_t> sector_guess_;  // by cell of the pseudo-angle (sort_star_by_angle)
   double sector_cells_per_unit_ = 0;
   std::vector<Plane> planes_;
+  std::vector<std::uint8_t> star_fan_;  // by star index: a fan (is_fan), not on a lattice
+  std::vector<FanEdge> fans_;           // by star index, when some star triangle is a fan
   // The distinct weights of the filed points (Filed::weight), and weight_index()'s last answer.
   std::vector<double> weights_;
   std::uint64_t last_weight_bits_ = 0;
