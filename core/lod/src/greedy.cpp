@@ -903,10 +903,11 @@ class GreedyInserter {
     std::uint32_t k = 0;
     for (std::size_t d : {std::size_t{0}, std::size_t{1}, n - 1}) {
       const std::uint32_t s = sector_[(at + d) % n];
-      w = planes_[s].min_weight(x, y);
+      // (at(): min_weight's arithmetic, and the height from the same weights; k is s on return)
+      const double z = planes_[s].at(x, y, &w);
       if (w > best_w) best_w = w, k = s;
       if (w >= 0) {
-        *surface = planes_[k].at(x, y, &w);
+        *surface = z;
         return k;
       }
     }
