@@ -753,6 +753,11 @@ class GreedyInserter {
     const std::uint32_t moved = fans_.empty() ? assign_to_star<false>() : assign_to_star<true>();
     const std::uint32_t end = place_star_buckets();
     move_into_star_buckets(end);
+    // The taken buckets are garbage now, never read again: the next re-filings' buckets may go
+    // there (place_star_buckets), and into the room left in up to 64 older ones.
+    std::erase_if(free_, [](const auto& seg) { return seg.second == 0; });
+    if (free_.size() > 64) free_.erase(free_.begin(), free_.end() - 64);
+    free_.insert(free_.end(), taken_.begin(), taken_.end());
     live_ += moved;
     for (std::size_t k = 0; k < star_.size(); ++k) {
       // (A fan's best was ranked by FanEdge::rank while its points were assigned, in the order
@@ -837,25 +842,37 @@ class GreedyInserter {
     return moved;
   }
 
-  // refile(), step 2: the new buckets' places, after everything in the pool (the taken buckets
-  // included), in star order; star_best_ becomes a pool index, star_count_ the next free entry of
-  // each bucket. Returns the pool's new end. Positions are indices, valid across the pool's
-  // growth (which compact_if_due() keeps within its capacity).
+  // refile(), step 2: the new buckets' places, in star order: each in the first of the earlier
+  // re-filings' taken buckets (free_: garbage since, so neither live nor taken now) with room
+  // left for it, else after everything in the pool (the taken buckets included). The places
+  // change nothing but memory traffic: a bucket's points and their order are the same anywhere.
+  // star_best_ becomes a pool index, star_count_ the next free entry of each bucket. Returns the
+  // pool's new end. Positions are indices, valid across the pool's growth (which compact_if_due()
+  // keeps within its capacity). (Until 2026-11-28 every bucket went to the end: the pool filled
+  // twice as fast, and the compactions moved 1.6 × the re-filed points on Big Tujunga.)
   std::uint32_t place_star_buckets() {
-    auto at = static_cast<std::uint32_t>(pool_.size());
+    auto end = static_cast<std::uint32_t>(pool_.size());
     for (std::size_t k = 0; k < star_.size(); ++k) {
       const std::uint32_t t = star_[k];
+      const std::uint32_t n = star_count_[k];
+      std::uint32_t at = end;
+      for (auto& [b, room] : free_) {
+        if (room >= n && n != 0) {
+          at = b, b += n, room -= n;
+          break;
+        }
+      }
+      if (at == end) end += n;
       begin_[t] = at;
-      count_[t] = star_count_[k];
+      count_[t] = n;
       if (star_best_[k] != kNone) star_best_[k] += at;
       star_count_[k] = at;  // from here: where the bucket's next point goes
-      at += count_[t];
     }
-    return at;
+    return end;
   }
 
   // refile(), step 3: the points into their buckets, straight from the taken ones (no scratch
-  // copy: the new buckets lie after every taken one).
+  // copy: the new buckets overlap no taken one).
   void move_into_star_buckets(std::uint32_t end) {
     pool_.resize(end);
     Filed* const pool = pool_.data();
@@ -970,6 +987,7 @@ class GreedyInserter {
   // and each keeps its points' order. (No second buffer: for a parent thinned from 64 sources
   // the pool holds about a million points.)
   void compact() {
+    free_.clear();  // (moved over)
     order_.clear();
     const auto triangles = static_cast<std::uint32_t>(tris_.size());
     for (std::uint32_t t = 0; t < triangles; ++t) {
@@ -1010,6 +1028,9 @@ class GreedyInserter {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> order_;  // compact(): (begin, triangle)
   std::vector<std::uint32_t> begin_, count_;                    // by triangle
   std::size_t live_ = 0;                                        // points in buckets
+  // Garbage the next re-filing may fill (begin, room left): the last one's taken buckets and
+  // what is left of up to 64 earlier ones; emptied by compact().
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> free_;
   // By triangle: its candidate of largest effective error, as a pool index (or on a lattice a
   // cell: Pick), kNone when it has none (then it is not in heap_).
   std::vector<std::uint32_t> best_;
