@@ -156,20 +156,27 @@ struct WalkMesh {
 
   // A triangle containing q (closed), walking from `from` by exact visibility tests; the edge
   // tested first rotates, so the walk cannot cycle. -1 when the walk leaves the mesh or exceeds its
-  // step budget (not on a valid triangulation that covers q).
-  std::int64_t locate(std::uint32_t from, const kernel::XY& q) const {
+  // step budget (not on a valid triangulation that covers q). With `strict`: whether q lies
+  // strictly inside the triangle found (strictly_inside, from the same three exact tests).
+  std::int64_t locate(std::uint32_t from, const kernel::XY& q, bool* strict = nullptr) const {
     std::uint32_t i = from;
     int r = 0;
     for (std::size_t steps = 0; steps <= 4 * t.size() + 8; ++steps) {
       int out = -1;
+      bool inside = true;
       for (int j = 0; j < 3; ++j) {
         const int k = (r + j) % 3;
-        if (kernel::orient2d(corner(i, (k + 1) % 3), corner(i, (k + 2) % 3), q) < 0) {
+        const double o = kernel::orient2d(corner(i, (k + 1) % 3), corner(i, (k + 2) % 3), q);
+        if (o < 0) {
           out = k;
           break;
         }
+        inside = inside && o > 0;
       }
-      if (out < 0) return i;
+      if (out < 0) {
+        if (strict) *strict = inside;
+        return i;
+      }
       if (cell[i].n[out] < 0) return -1;
       i = static_cast<std::uint32_t>(cell[i].n[out]);
       r = (r + 1) % 3;
@@ -335,6 +342,71 @@ struct KnownPoint {
   bool alone = false;
 };
 
+// The known points of one chain (chain_error), as they are found: the `capacity` worst of those
+// strictly inside the coarse tile's rectangle (by `worse`: deviation, then position) are kept as
+// its witnesses; every other feeds the residual bounds of the coarse triangles holding it at once
+// (the bounds are maxima: the order of the additions does not matter). The same witnesses as
+// ranking every known point and keeping the worst (until 2026-11-28: stored, then nth_element),
+// without storing the ~860k finest vertices that a coarse level chains against. Null `acc`: the
+// points are only counted (surface_difference).
+class KnownPoints {
+ public:
+  KnownPoints(const WalkMesh& c, CoarseBounds* acc, const geo::MercatorRect& r,
+              std::size_t capacity)
+      : c_(c), acc_(acc), r_(r), capacity_(capacity) {
+    kept_.reserve(capacity);
+  }
+
+  // Ranks a's deviation above b's (ties by position: a strict order on distinct points).
+  static bool worse(const KnownPoint& a, const KnownPoint& b) {
+    const double da = std::abs(a.deviation), db = std::abs(b.deviation);
+    if (da != db) return da > db;
+    if (a.v.x != b.v.x) return a.v.x < b.v.x;
+    return a.v.y < b.v.y;
+  }
+
+  void add(const KnownPoint& p) {
+    if (!acc_) return;
+    max_known_ = std::max(max_known_, std::abs(p.deviation));
+    const bool inside =
+        p.v.x > r_.min_x && p.v.x < r_.max_x && p.v.y > r_.min_y && p.v.y < r_.max_y;
+    if (!inside || capacity_ == 0) return bound(p);
+    if (kept_.size() < capacity_) {
+      kept_.push_back(p);
+      std::push_heap(kept_.begin(), kept_.end(), worse);  // front: the least bad kept
+      return;
+    }
+    if (!worse(p, kept_.front())) return bound(p);
+    std::pop_heap(kept_.begin(), kept_.end(), worse);
+    bound(kept_.back());
+    kept_.back() = p;
+    std::push_heap(kept_.begin(), kept_.end(), worse);
+  }
+
+  // The witnesses (the kept points, in no particular order) and max |deviation| of every point.
+  std::vector<KnownPoint>& kept() { return kept_; }
+  double max_known() const { return max_known_; }
+
+ private:
+  // A point that is no witness: the residual bounds of the coarse triangles holding it.
+  void bound(const KnownPoint& p) {
+    if (p.alone) {
+      acc_->add(p.triangle, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
+      return;
+    }
+    c_.for_each_containing(p.triangle, {p.v.x, p.v.y}, [&](std::uint32_t j) {
+      acc_->add(j, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
+    });
+  }
+
+  const WalkMesh& c_;
+  CoarseBounds* acc_;
+  geo::MercatorRect r_;
+  std::size_t capacity_;
+  std::vector<KnownPoint> kept_;  // a heap by worse()
+  double max_known_ = 0;
+};
+
 // Walks one finer tile through the coarse mesh (error.hpp, "Chaining"): every finer vertex with
 // data is located and becomes a known point (unless it is a coarse vertex); every edge of a
 // triangle holding residual data is walked, and every cell vertex of such a triangle feeds the
@@ -343,8 +415,8 @@ struct KnownPoint {
 class FinerTileWalk {
  public:
   FinerTileWalk(const WalkMesh& c, const tile::TinTile& fine, const DeviationBounds& bounds,
-                std::span<const ResidualReach> reaches, CoarseBounds& out,
-                std::vector<KnownPoint>& known, SurfaceDifference& d, std::uint32_t& hint,
+                std::span<const ResidualReach> reaches, CoarseBounds& out, KnownPoints& known,
+                SurfaceDifference& d, std::uint32_t& hint,
                 std::vector<std::uint8_t>& coarse_matched)
       : c_(c),
         fine_(fine),
@@ -374,16 +446,18 @@ class FinerTileWalk {
       // (NODATA corners too: a coarse vertex there is a finer vertex, not a cell vertex inside a
       // finer triangle, coarse_vertices_over_finer)
       if (!f_.data[v] && !f_.near_walked(v) && v >= 4) continue;
-      const std::int64_t i = c_.locate(hint_, f_.p[v]);
+      bool strict = false;
+      const std::int64_t i = c_.locate(hint_, f_.p[v], &strict);
       if (i < 0) return false;
-      settle(v, static_cast<std::uint32_t>(i));
+      settle(v, static_cast<std::uint32_t>(i), strict);
     }
     return true;
   }
 
-  // Vertex v lies in coarse triangle i: the difference there (for a data vertex, a finest data
-  // point that the finer surface interpolates, exact), fed to every coarse triangle holding it.
-  void settle(std::uint32_t v, std::uint32_t i) {
+  // Vertex v lies in coarse triangle i (strictly inside it: `alone`, as c_.strictly_inside(i, …)
+  // says): the difference there (for a data vertex, a finest data point that the finer surface
+  // interpolates, exact), fed to every coarse triangle holding it.
+  void settle(std::uint32_t v, std::uint32_t i, bool alone) {
     hint_ = i;
     where_[v] = i;
     const kernel::XY& q = f_.p[v];
@@ -398,9 +472,7 @@ class FinerTileWalk {
       }
       if (f_.near_walked(v)) out_.add(j, q, dv_[v], f_.above[v], f_.below[v]);
     };
-    // (for_each_containing's own first test, kept for the known point)
-    const bool alone = c_.strictly_inside(i, q);
-    if (alone) {
+    if (alone) {  // (for_each_containing's own first test, known from the locate)
       visit(i);
     } else {
       c_.for_each_containing(i, q, visit);
@@ -408,7 +480,7 @@ class FinerTileWalk {
     if (f_.near_walked(v)) d_.max_abs = std::max(d_.max_abs, std::abs(dv_[v]));
     if (f_.data[v] && !coarse_vertex) {
       const tile::Vertex& fv = fine_.vertex(v);
-      known_.push_back({fv, dv_[v], i, alone});
+      known_.add({fv, dv_[v], i, alone});
     }
   }
 
@@ -545,23 +617,27 @@ class FinerTileWalk {
     for (std::uint32_t v = 0; v < f_.p.size(); ++v) {
       if ((!f_.data[v] && !f_.near_walked(v)) || where_[v] >= 0) continue;
       if (const std::int64_t i = brute_locate(f_.p[v]); i >= 0) {
-        settle(v, static_cast<std::uint32_t>(i));
+        const auto t = static_cast<std::uint32_t>(i);
+        settle(v, t, c_.strictly_inside(t, f_.p[v]));
       }
     }
     walk_edges([&](std::uint32_t u) { return brute_locate(f_.p[u]); });
   }
 
   // The RMS: each finer data vertex weighted by a third of the area of its triangles.
+  // (Summed in locals, in the same order: d_ stays in memory across the loop otherwise.)
   void add_rms() {
+    double sum_sq_area = d_.sum_sq_area, area = d_.area;
     for (const auto& tr : fine_.triangles) {
       const kernel::XY &a = f_.p[tr[0]], &b = f_.p[tr[1]], &q = f_.p[tr[2]];
       const double third = std::abs((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x)) / 6.0;
       for (auto v : tr) {
         if (where_[v] < 0 || !f_.data[v]) continue;
-        d_.sum_sq_area += third * dv_[v] * dv_[v];
-        d_.area += third;
+        sum_sq_area += third * dv_[v] * dv_[v];
+        area += third;
       }
     }
+    d_.sum_sq_area = sum_sq_area, d_.area = area;
   }
 
   const WalkMesh& c_;
@@ -569,7 +645,7 @@ class FinerTileWalk {
   const DeviationBounds& bounds_;
   const FineSide f_;
   CoarseBounds& out_;
-  std::vector<KnownPoint>& known_;
+  KnownPoints& known_;
   SurfaceDifference& d_;
   std::uint32_t& hint_;
   std::vector<std::uint8_t>& matched_;
@@ -634,7 +710,7 @@ void coarse_vertices_over_finer(const WalkMesh& c, const tile::TinTile& fine,
 // Witnesses of a finer tile (finest data points inside it that are not its vertices): located in
 // the coarse mesh, they are known points like its vertices.
 void locate_witnesses(const WalkMesh& c, std::span<const tile::Vertex> witnesses,
-                      std::vector<KnownPoint>& known, std::uint32_t& hint) {
+                      KnownPoints& known, std::uint32_t& hint) {
   for (const tile::Vertex& w : witnesses) {
     const kernel::XY q{w.x, w.y};
     std::int64_t i = c.locate(hint, q);
@@ -649,7 +725,7 @@ void locate_witnesses(const WalkMesh& c, std::span<const tile::Vertex> witnesses
     for (int k = 0; k < 3; ++k)
       coarse_vertex = coarse_vertex || (c.corner(hint, k).x == q.x && c.corner(hint, k).y == q.y);
     if (coarse_vertex) continue;  // the coarse tile took it as a vertex: no deviation there
-    known.push_back({w, c.plane[hint].at(q.x, q.y) - w.z, hint});
+    known.add({w, c.plane[hint].at(q.x, q.y) - w.z, hint});
   }
 }
 
@@ -674,12 +750,10 @@ ChainedError chain_error(const tile::TinTile& coarse, std::span<const ChainInput
   if (coarse.triangles.empty()) return e;
   const WalkMesh c(coarse);
   CoarseBounds acc(c, coarse);
-  std::vector<KnownPoint> known;
-  {
-    std::size_t most = 0;  // (every finer vertex and witness at most: no regrowth by doubling)
-    for (const ChainInput& in : finer) most += in.tile->vertex_count() + in.witnesses.size();
-    known.reserve(most);
-  }
+  const geo::MercatorRect r = coarse.id.bounds();
+  // The known points where the coarse tile deviates most become its witnesses (strictly inside
+  // its rectangle); the others feed the residual bounds of the triangles holding them.
+  KnownPoints known(c, &acc, r, witness_count);
   std::uint32_t hint = 0;
   double child_sq_area = 0;
   SurfaceDifference total;
@@ -697,27 +771,6 @@ ChainedError chain_error(const tile::TinTile& coarse, std::span<const ChainInput
     total.crossings += d.crossings;
     child_sq_area += d.area * in.tile->rms_error * in.tile->rms_error;
   }
-  // The known points where the coarse tile deviates most become its witnesses (strictly inside
-  // its rectangle); the others feed the residual bounds of the triangles holding them.
-  const geo::MercatorRect r = coarse.id.bounds();
-  auto inside = [&](const tile::Vertex& v) {
-    return v.x > r.min_x && v.x < r.max_x && v.y > r.min_y && v.y < r.max_y;
-  };
-  auto worse = [](const KnownPoint& a, const KnownPoint& b) {
-    const double da = std::abs(a.deviation), db = std::abs(b.deviation);
-    if (da != db) return da > db;
-    if (a.v.x != b.v.x) return a.v.x < b.v.x;
-    return a.v.y < b.v.y;
-  };
-  std::vector<std::uint32_t> order;  // known points that may be witnesses, worst first
-  for (std::uint32_t k = 0; k < known.size(); ++k) {
-    if (inside(known[k].v)) order.push_back(k);
-  }
-  const std::size_t take = std::min(witness_count, order.size());
-  auto by_worse = [&](std::uint32_t a, std::uint32_t b) { return worse(known[a], known[b]); };
-  std::nth_element(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(take), order.end(),
-                   by_worse);
-  order.resize(take);
   // The witnesses in Morton order of their position in the tile (whose parent locates them one
   // after the other, each from the previous one's triangle): short walks.
   auto morton = [&](const tile::Vertex& v) {
@@ -730,27 +783,13 @@ ChainedError chain_error(const tile::TinTile& coarse, std::span<const ChainInput
     for (int b = 15; b >= 0; --b) key = (key << 2) | (((cy >> b) & 1u) << 1) | ((cx >> b) & 1u);
     return key;
   };
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    const auto ka = morton(known[a].v), kb = morton(known[b].v);
-    return ka != kb ? ka < kb : by_worse(a, b);
+  std::vector<KnownPoint>& kept = known.kept();
+  std::sort(kept.begin(), kept.end(), [&](const KnownPoint& a, const KnownPoint& b) {
+    const auto ka = morton(a.v), kb = morton(b.v);
+    return ka != kb ? ka < kb : KnownPoints::worse(a, b);
   });
-  std::vector<std::uint8_t> is_witness(known.size(), 0);
-  for (std::uint32_t k : order) {
-    e.witnesses.push_back(known[k].v);
-    is_witness[k] = 1;
-  }
-  for (std::uint32_t k = 0; k < known.size(); ++k) {
-    const KnownPoint& p = known[k];
-    e.max_known = std::max(e.max_known, std::abs(p.deviation));
-    if (is_witness[k]) continue;
-    if (p.alone) {
-      acc.add(p.triangle, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
-      continue;
-    }
-    c.for_each_containing(p.triangle, {p.v.x, p.v.y}, [&](std::uint32_t j) {
-      acc.add(j, {p.v.x, p.v.y}, p.deviation, 0.0, 0.0);
-    });
-  }
+  for (const KnownPoint& p : kept) e.witnesses.push_back(p.v);
+  e.max_known = known.max_known();
   const double allowance = error_rounding_allowance(coarse);
   e.geometric_error = e.max_known + allowance;
   for (std::size_t i = 0; i < e.bounds.size(); ++i) {
@@ -778,7 +817,7 @@ SurfaceDifference surface_difference(const tile::TinTile& coarse,
   if (coarse.triangles.empty()) return total;
   const WalkMesh c(coarse);
   CoarseBounds acc(c, coarse);
-  std::vector<KnownPoint> known;
+  KnownPoints known(c, nullptr, coarse.id.bounds(), 0);  // (not used here)
   std::uint32_t hint = 0;
   for (const tile::TinTile* fine : fines) {
     DeviationBounds surface(fine->triangles.size());
