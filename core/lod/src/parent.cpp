@@ -425,6 +425,21 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
     if (c) finer_error = std::max(finer_error, c->tile.geometric_error);
   }
   ChainedError e = chain_error(out.tile, chain, witness_count(options));
+  // A parent that keeps its one child's vertices but measures worse than the child is thinned
+  // from its sources instead (the better of the two stays): its corners lie farther out than the
+  // child's, so its Delaunay triangulation can join three nearly collinear vertices of the data's
+  // outline into a flat data triangle where the child had a NODATA fan, and the data's edge
+  // points under that triangle's long side measure its chord (measured: nm_4_6_crop.las's levels
+  // 10-0, 0.198 -> 0.575 m; bench/lod/RESULTS.md 2026-11-28 15:00).
+  if (from_children && e.geometric_error > finer_error) {
+    SourceViews own = sources;
+    own.candidates_from_children = false;
+    auto thinned_again = build_from_sources(parent, children, own, options, stats);
+    if (!thinned_again.ok()) return thinned_again.error();
+    if (thinned_again->tile.geometric_error < std::max(e.geometric_error, finer_error)) {
+      return thinned_again;
+    }
+  }
   // Monotone up the pyramid (a client refines while a tile's error is too large, so a parent's
   // must not promise less than a child's): the chained bound, an upper bound of the parent's error
   // over the data, can come out below a child's (or a source's) looser one; the larger still

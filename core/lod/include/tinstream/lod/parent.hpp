@@ -54,8 +54,10 @@
 // drop stages alone (their error is already below the peers', and the steps cost CPU per point).
 // A parent that would take its one child's vertices as candidates
 // (Sources::candidates_from_children) but keeps fewer than those is thinned from its sources
-// instead. The error is chained and recorded as before, so a smaller budget records the larger
-// error it makes.
+// instead, and so is one whose error with them comes out above its finer tiles' (its farther
+// corners can turn nearly collinear outline vertices into a flat data triangle; the better of
+// the two tiles stays; bench/lod/RESULTS.md 2026-11-28 15:00). The error is chained and recorded as
+// before, so a smaller budget records the larger error it makes.
 //
 // Error (error.hpp): per-triangle bounds chained over the overlay with the sources and their
 // bounds, measured over the finest level's data against every triangle of the parent (NODATA
