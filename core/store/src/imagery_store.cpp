@@ -34,10 +34,8 @@ Status validate_imagery_info(const ImageryInfo& info) {
     return invalid_argument(layer + "levels must satisfy min ≤ max ≤ " +
                             std::to_string(geo::kMaxLevel));
   }
-  for (double v : {info.mercator_bounds.min_x, info.mercator_bounds.min_y,
-                   info.mercator_bounds.max_x, info.mercator_bounds.max_y, info.bounds.west,
-                   info.bounds.south, info.bounds.east, info.bounds.north}) {
-    if (!std::isfinite(v)) return invalid_argument(layer + "non-finite bounds");
+  if (!finite_bounds(info.mercator_bounds, info.bounds)) {
+    return invalid_argument(layer + "non-finite bounds");
   }
   if (!nlohmann::json::accept(info.options_json)) {
     return invalid_argument(layer + "options are not valid JSON");
@@ -63,8 +61,7 @@ Result<ImageryInfo> read_imagery_info(const Query& q, const std::filesystem::pat
   i.projection = *projection;
   i.format = q.text(3);
   i.tile_size = q.u32(4);
-  i.mercator_bounds = {q.f64(5), q.f64(6), q.f64(7), q.f64(8)};
-  i.bounds = {q.f64(9), q.f64(10), q.f64(11), q.f64(12)};
+  read_bounds(q, 5, i.mercator_bounds, i.bounds);
   i.min_level = q.u32(13);
   i.max_level = q.u32(14);
   i.tile_count = q.u64(15);
@@ -268,10 +265,7 @@ Result<std::unique_ptr<ImageryWriter>> TileStore::begin_imagery(const ImageryInf
       "?18, ?19, ?20)",
       [&](Query& q) {
         q.bind(5, geo::to_string(info.projection)).bind(6, info.format).bind(7, info.tile_size);
-        q.bind(8, info.mercator_bounds.min_x).bind(9, info.mercator_bounds.min_y);
-        q.bind(10, info.mercator_bounds.max_x).bind(11, info.mercator_bounds.max_y);
-        q.bind(12, info.bounds.west).bind(13, info.bounds.south);
-        q.bind(14, info.bounds.east).bind(15, info.bounds.north);
+        bind_bounds(q, 8, info.mercator_bounds, info.bounds);
         q.bind(16, info.min_level).bind(17, info.max_level);
         q.bind(18, info.options_json).bind(19, info.attribution).bind(20, now_unix());
       });
@@ -344,10 +338,7 @@ Status ImageryWriter::publish(const ImageryInfo& info) {
       [&](Query& q, std::int64_t tiles) {
         q.bind(2, geo::to_string(info.projection)).bind(3, info.format);
         q.bind(4, info.tile_size);
-        q.bind(5, info.mercator_bounds.min_x).bind(6, info.mercator_bounds.min_y);
-        q.bind(7, info.mercator_bounds.max_x).bind(8, info.mercator_bounds.max_y);
-        q.bind(9, info.bounds.west).bind(10, info.bounds.south);
-        q.bind(11, info.bounds.east).bind(12, info.bounds.north);
+        bind_bounds(q, 5, info.mercator_bounds, info.bounds);
         q.bind(13, info.min_level).bind(14, info.max_level).bind(15, tiles);
         q.bind(16, info.options_json).bind(17, info.attribution).bind(18, now_unix());
       });

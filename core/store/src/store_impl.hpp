@@ -107,6 +107,20 @@ class Query {
   sqlite3_stmt* s_;
 };
 
+// Every versions table stores a layer's bounds as eight adjacent columns, in this order: min_x,
+// min_y, max_x, max_y (Mercator), west, south, east, north (degrees). These bind them to the
+// parameters first … first + 7, read them from the columns first … first + 7, and check them.
+inline void bind_bounds(Query& q, int first, const geo::MercatorRect& m, const geo::LonLatRect& g) {
+  q.bind(first, m.min_x).bind(first + 1, m.min_y).bind(first + 2, m.max_x);
+  q.bind(first + 3, m.max_y).bind(first + 4, g.west).bind(first + 5, g.south);
+  q.bind(first + 6, g.east).bind(first + 7, g.north);
+}
+inline void read_bounds(const Query& q, int first, geo::MercatorRect& m, geo::LonLatRect& g) {
+  m = {q.f64(first), q.f64(first + 1), q.f64(first + 2), q.f64(first + 3)};
+  g = {q.f64(first + 4), q.f64(first + 5), q.f64(first + 6), q.f64(first + 7)};
+}
+bool finite_bounds(const geo::MercatorRect& m, const geo::LonLatRect& g);
+
 std::int64_t now_unix();
 std::string host_name();
 // The start time of a process (clock ticks since boot, /proc/<pid>/stat field 22), or -1 when

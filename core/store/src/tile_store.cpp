@@ -39,11 +39,8 @@ constexpr int kBusyTimeoutMs = 10000;
 constexpr std::size_t kMaxTileBytes = 256u << 20;
 
 bool finite_info(const LayerInfo& i) {
-  for (double v : {i.mercator_bounds.min_x, i.mercator_bounds.min_y, i.mercator_bounds.max_x,
-                   i.mercator_bounds.max_y, i.bounds.west, i.bounds.south, i.bounds.east,
-                   i.bounds.north, i.min_z, i.max_z}) {
-    if (!std::isfinite(v)) return false;
-  }
+  if (!finite_bounds(i.mercator_bounds, i.bounds)) return false;
+  if (!std::isfinite(i.min_z) || !std::isfinite(i.max_z)) return false;
   for (double v : i.level_max_error) {
     if (!std::isfinite(v)) return false;
   }
@@ -96,8 +93,7 @@ Result<LayerInfo> read_info(const Query& q, const std::filesystem::path& path) {
   if (!projection) return corrupt_data(where + projection.error().message);
   i.projection = *projection;
   i.vertical_datum = q.text(3);
-  i.mercator_bounds = {q.f64(4), q.f64(5), q.f64(6), q.f64(7)};
-  i.bounds = {q.f64(8), q.f64(9), q.f64(10), q.f64(11)};
+  read_bounds(q, 4, i.mercator_bounds, i.bounds);
   i.min_level = q.u32(12);
   i.max_level = q.u32(13);
   i.max_points = q.u32(14);
@@ -134,6 +130,13 @@ Result<std::optional<StoredTile>> TileStore::Impl::stored_tile(std::int64_t vers
 }
 
 std::int64_t now_unix() { return static_cast<std::int64_t>(std::time(nullptr)); }
+
+bool finite_bounds(const geo::MercatorRect& m, const geo::LonLatRect& g) {
+  for (double v : {m.min_x, m.min_y, m.max_x, m.max_y, g.west, g.south, g.east, g.north}) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
 
 std::string host_name() {
   char buf[256] = {};
@@ -470,10 +473,7 @@ Result<std::unique_ptr<LayerWriter>> TileStore::begin_layer(const LayerInfo& inf
       "?23, ?24, ?25)",
       [&](Query& q) {
         q.bind(5, geo::to_string(info.projection)).bind(6, info.vertical_datum);
-        q.bind(7, info.mercator_bounds.min_x).bind(8, info.mercator_bounds.min_y);
-        q.bind(9, info.mercator_bounds.max_x).bind(10, info.mercator_bounds.max_y);
-        q.bind(11, info.bounds.west).bind(12, info.bounds.south);
-        q.bind(13, info.bounds.east).bind(14, info.bounds.north);
+        bind_bounds(q, 7, info.mercator_bounds, info.bounds);
         q.bind(15, info.min_level).bind(16, info.max_level).bind(17, info.max_points);
         q.bind(18, info.point_count).bind(19, info.source_points);
         q.bind(20, info.min_z).bind(21, info.max_z).bind(22, errors);
@@ -591,10 +591,7 @@ Status LayerWriter::publish(const LayerInfo& info) {
       "attribution = ?22, created_unix = ?23 WHERE id = ?1 AND status = 'building'",
       [&](Query& q, std::int64_t tiles) {
         q.bind(2, geo::to_string(info.projection)).bind(3, info.vertical_datum);
-        q.bind(4, info.mercator_bounds.min_x).bind(5, info.mercator_bounds.min_y);
-        q.bind(6, info.mercator_bounds.max_x).bind(7, info.mercator_bounds.max_y);
-        q.bind(8, info.bounds.west).bind(9, info.bounds.south);
-        q.bind(10, info.bounds.east).bind(11, info.bounds.north);
+        bind_bounds(q, 4, info.mercator_bounds, info.bounds);
         q.bind(12, info.min_level).bind(13, info.max_level).bind(14, info.max_points);
         q.bind(15, tiles).bind(16, info.point_count).bind(17, info.source_points);
         q.bind(18, info.min_z).bind(19, info.max_z).bind(20, errors);

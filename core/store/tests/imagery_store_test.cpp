@@ -80,7 +80,11 @@ TEST(ImageryStore, PublishMakesTilesVisibleWithContentEtags) {
   auto other = open_store(dir / "s.db", TileStore::Mode::read_only);
   EXPECT_EQ(other.imagery_layer("ortho").error().code, ErrorCode::not_found);
   EXPECT_TRUE(other.imagery_layers()->empty());
-  ASSERT_TRUE((*writer)->publish(imagery_info("ortho", "webp")).ok());
+  ImageryInfo published = imagery_info("ortho", "webp");
+  // Eight different bounds, so that two columns bound in each other's place are seen.
+  published.mercator_bounds = {-0.5, -0.125, 0.375, 0.25};
+  published.bounds = {-80.5, -22.0, 90.0, 33.25};
+  ASSERT_TRUE((*writer)->publish(published).ok());
 
   auto layers = other.imagery_layers();
   ASSERT_TRUE(layers.ok()) << layers.error().message;
@@ -91,6 +95,10 @@ TEST(ImageryStore, PublishMakesTilesVisibleWithContentEtags) {
   EXPECT_EQ((*layers)[0].max_level, 3u);
   EXPECT_EQ((*layers)[0].attribution, "test imagery");
   EXPECT_GT((*layers)[0].created_unix, 0);
+  const geo::MercatorRect& m = (*layers)[0].mercator_bounds;
+  const geo::LonLatRect& g = (*layers)[0].bounds;
+  EXPECT_TRUE(m.min_x == -0.5 && m.min_y == -0.125 && m.max_x == 0.375 && m.max_y == 0.25);
+  EXPECT_TRUE(g.west == -80.5 && g.south == -22.0 && g.east == 90.0 && g.north == 33.25);
   for (const auto& id : kIds) {
     auto t = other.imagery_tile("ortho", id);
     ASSERT_TRUE(t.ok()) << t.error().message;

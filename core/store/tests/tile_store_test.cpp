@@ -127,6 +127,9 @@ TEST(TileStore, LayerMetadataRoundTrips) {
   info.tile_count = 999;  // the store counts for itself
   info.attribution = "© Somebody, CC-BY 4.0 \"quoted\"";
   info.level_max_error = {100.5, 50.25, 0.125};
+  // Eight different bounds, so that two columns bound in each other's place are seen.
+  info.mercator_bounds = {-0.5, -0.125, 0.375, 0.25};
+  info.bounds = {-80.5, -22.0, 90.0, 33.25};
   ASSERT_TRUE((*writer)->publish(info).ok());
 
   auto back = store.layer("meta.Layer-1");
@@ -135,9 +138,13 @@ TEST(TileStore, LayerMetadataRoundTrips) {
   EXPECT_EQ(back->projection, geo::Projection::ellipsoidal);
   EXPECT_EQ(back->vertical_datum, "EGM2008");
   EXPECT_EQ(back->mercator_bounds.min_x, -0.5);
+  EXPECT_EQ(back->mercator_bounds.min_y, -0.125);
+  EXPECT_EQ(back->mercator_bounds.max_x, 0.375);
   EXPECT_EQ(back->mercator_bounds.max_y, 0.25);
+  EXPECT_EQ(back->bounds.west, -80.5);
   EXPECT_EQ(back->bounds.south, -22.0);
   EXPECT_EQ(back->bounds.east, 90.0);
+  EXPECT_EQ(back->bounds.north, 33.25);
   EXPECT_EQ(back->max_level, 4u);
   EXPECT_EQ(back->max_points, 1000u);
   EXPECT_EQ(back->tile_count, tiles.size());
