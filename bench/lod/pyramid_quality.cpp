@@ -15,7 +15,9 @@
 // a tile's vertices closer than 1e-12, and zero-area triangles and repeated (u, v) positions in the
 // quantized-mesh encoding (decoded with the tests' independent decoder), and the finest data points
 // that fall outside a tile's data footprint (under its NODATA fans: what a client drawing the
-// footprint only does not show). --tiles adds one line per
+// footprint only does not show), with how many of them lie farther than one quantized-mesh step
+// (the tile's width / 32767: the thinning's outline tolerance) from the footprint and the farthest
+// in steps. --tiles adds one line per
 // tile. Everything is evaluated by code of this file and the independent decoder, not by the
 // library's error bookkeeping.
 #include <algorithm>
