@@ -15,7 +15,9 @@
 // a tile's vertices closer than 1e-12, and zero-area triangles and repeated (u, v) positions in the
 // quantized-mesh encoding (decoded with the tests' independent decoder), and the finest data points
 // that fall outside a tile's data footprint (under its NODATA fans: what a client drawing the
-// footprint only does not show). --tiles adds one line per
+// footprint only does not show), with how many of them lie farther than one quantized-mesh step
+// (the tile's width / 32767: the thinning's outline tolerance) from the footprint and the farthest
+// in steps. --tiles adds one line per
 // tile. Everything is evaluated by code of this file and the independent decoder, not by the
 // library's error bookkeeping.
 #include <algorithm>
@@ -104,6 +106,25 @@ std::size_t close_pairs(const TinTile& t, double limit) {
   return n;
 }
 
+// The distance from (x, y) to the nearest data triangle of `t` (data[k] set), normalised units;
+// infinity when it has none. Used for the few points outside the footprint only (brute force).
+double footprint_distance(const TinTile& t, const std::vector<bool>& data, double x, double y) {
+  auto segment = [&](const auto& a, const auto& b) {
+    const double dx = b.x - a.x, dy = b.y - a.y, len2 = dx * dx + dy * dy;
+    const double s =
+        len2 > 0 ? std::clamp(((x - a.x) * dx + (y - a.y) * dy) / len2, 0.0, 1.0) : 0.0;
+    return std::hypot(x - (a.x + s * dx), y - (a.y + s * dy));
+  };
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < t.triangles.size(); ++k) {
+    if (!data[k]) continue;
+    const auto &a = t.vertex(t.triangles[k][0]), &b = t.vertex(t.triangles[k][1]),
+               &c = t.vertex(t.triangles[k][2]);
+    best = std::min({best, segment(a, b), segment(b, c), segment(c, a)});
+  }
+  return best;
+}
+
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0;
   const double n = static_cast<double>(v.size());
@@ -149,14 +170,17 @@ int main(int argc, char** argv) {
       "| "
       "per-tile ratio min–max | lowest vertex (m) | QM lowest height (m) | Cesium max (m) | "
       "Cesium p99 (m) | tiles with pairs < 1e-12 | QM zero-area triangles | QM repeated (u,v) | "
-      "data points outside the footprint |\n");
-  std::printf("|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      "data points outside the footprint | of those beyond a QM step | farthest (QM steps) |\n");
+  std::printf(
+      "|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::uint32_t z = finest + 1; z-- > info->min_level;) {
     auto ids = store->tile_ids(argv[2], z);
     double recorded = 0, measured = 0, lowest = std::numeric_limits<double>::infinity();
     double qm_lowest = lowest, ratio_lo = lowest, ratio_hi = 0, cesium_max = 0;
     std::vector<double> cesium_errors;
     std::size_t vertices = 0, pair_tiles = 0, zero_area = 0, repeated = 0, uncovered = 0;
+    std::size_t beyond_step = 0;
+    double farthest = 0;
     for (const auto& id : *ids) {
       const TinTile t = read(id);
       vertices += t.vertex_count();
@@ -180,7 +204,14 @@ int main(int argc, char** argv) {
           double w;
           const double h = here.height(p.x, p.y, &w);
           tile_measured = std::max(tile_measured, std::abs(h - p.z));
-          if (!here.covered(p.x, p.y, data_triangle)) ++uncovered;
+          if (!here.covered(p.x, p.y, data_triangle)) {
+            ++uncovered;
+            // One quantized-mesh step of this tile (its width / 32767): what a client can show.
+            const double steps =
+                footprint_distance(t, data_triangle, p.x, p.y) / (id.bounds().width() / 32767.0);
+            if (steps > 1) ++beyond_step;
+            farthest = std::max(farthest, steps);
+          }
           if (qm) {
             const double e = std::abs(qm_height(*qm, merc, p.x, p.y) - p.z);
             cesium_errors.push_back(e);
@@ -204,11 +235,11 @@ int main(int argc, char** argv) {
     if (ratio_hi > 0) std::snprintf(ratios, sizeof ratios, "%.2f–%.2f", ratio_lo, ratio_hi);
     std::printf(
         "| %u | %zu | %.0f | %.4f | %.4f | %s | %s | %.3f | %.3f | %.4f | %.4f | %zu | %zu | %zu "
-        "| %zu |\n",
+        "| %zu | %zu | %.2f |\n",
         z, ids->size(), double(vertices) / double(ids->size()), recorded, measured,
         z < finest && measured > 0 ? std::to_string(recorded / measured).substr(0, 5).c_str() : "—",
         ratios, lowest, qm_lowest, cesium_max, percentile(cesium_errors, 0.99), pair_tiles,
-        zero_area, repeated, uncovered);
+        zero_area, repeated, uncovered, beyond_step, farthest);
     std::fflush(stdout);
   }
   return 0;

@@ -251,6 +251,55 @@ double footprint_area(const TinTile& t) {
   return 0.5 * twice;
 }
 
+// One thinning of a parent from given candidates (merge's ThinInput) and its error chained
+// through the finer tiles (build_from_sources: the setup once, an attempt or two).
+struct Attempt {
+  const ChildViews& children;
+  const std::vector<const LodTile*>& finer;  // the tiles thinned from and measured against
+  const LodOptions& thin_options;            // the parent's budget and exchange steps
+  std::size_t witnesses;                     // witness_count of the caller's options
+  const TieContext& ties;
+
+  struct Thinned {
+    tile::TinTile tile;  // source_points and the recorded error not yet set
+    ChainedError error;
+    ThinStats stats;
+  };
+
+  // `from_children`: the candidates are the children's (their witnesses join them, else the
+  // finer tiles').
+  Result<Thinned> thin(ThinInput in, bool from_children) const {
+    // The finer tiles' witnesses join the candidates only where their own points exceed the
+    // budget: when they fit, the parent keeps them all (thin_tile drops at most the few corners
+    // it adds), and a witness could only displace a finer vertex whose removal the thinning
+    // judges at the known points alone, not at the finest data under it (measured on one-tile
+    // levels of a 512 x 512 DEM: 1.44x the error of the level below with witnesses,
+    // bench/lod/RESULTS.md).
+    const std::size_t merged = 4 + in.north.size() + in.east.size() + in.south.size() +
+                               in.west.size() + in.interior.size() + in.orphans.size();
+    if (merged > thin_options.max_points) {
+      if (from_children) {
+        for (const auto& c : children.tiles) {
+          if (c) append(in.interior, c->witnesses);
+        }
+      } else {
+        for (const LodTile* t : finer) append(in.interior, t->witnesses);
+      }
+    }
+    Thinned out;
+    auto thinned = thin_tile(in, thin_options, &out.stats, &ties);
+    if (!thinned.ok()) return thinned.error();
+    out.tile = std::move(*thinned);
+    // Error against the finest data (error.hpp), chained through the finer tiles' witnesses and
+    // bounds; the parent's own witnesses come out of it.
+    std::vector<ChainInput> chain;
+    chain.reserve(finer.size());
+    for (const LodTile* t : finer) chain.push_back(t->as_chain_input());
+    out.error = chain_error(out.tile, chain, witnesses);
+    return out;
+  }
+};
+
 }  // namespace
 
 std::size_t coverage_budget(double covered, const LodOptions& options) {
@@ -337,10 +386,11 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
     }
   }
 
-  ThinInput in = merge(parent, children, sources);
   // The parent's budget (parent.hpp, "Budget"): 4 × max_points times the share of the parent
   // that its children's data footprints cover, at least the outline budget, plus the border
-  // points, whose per-side budget stays that of max_points (the neighbours share it).
+  // points, whose per-side budget stays that of max_points (the neighbours share it). The border
+  // comes from the children whatever the candidates are (merge), so one merge sizes it.
+  ThinInput in = merge(parent, children, sources);
   double covered = 0;
   for (const LodTile* c : children.tiles) {
     if (c) covered += footprint_area(c->tile);
@@ -362,35 +412,6 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
   if (coverage_budget(covered, options) <= floor_points && floor_points < options.max_points) {
     thin_options.exchange_steps = floor_points;
   }
-  // A parent that takes its one child's vertices as candidates (Sources::candidates_from_children)
-  // but keeps fewer than they are is thinned from its sources instead: dropping a thinned child's
-  // vertices judges each removal at the known points only (measured: Terrain-RGB's level 13, 15
-  // vertices fewer than its child, 0.60 → 2.06 m, 2.9× Delatin's error; bench/lod/RESULTS.md).
-  bool from_children = sources.candidates_from_children;
-  if (from_children && thin_options.max_points < 4 + in.north.size() + in.east.size() +
-                                                     in.south.size() + in.west.size() +
-                                                     in.interior.size()) {
-    SourceViews own = sources;
-    own.candidates_from_children = false;
-    in = merge(parent, children, own);
-    from_children = false;
-  }
-  // The finer tiles' witnesses join the candidates only where their own points exceed the
-  // budget: when they fit, the parent keeps them all (thin_tile drops at most the few corners it
-  // adds), and a witness could only displace a finer vertex whose removal the thinning judges
-  // at the known points alone, not at the finest data under it (measured on one-tile levels of a
-  // 512 x 512 DEM: 1.44x the error of the level below with witnesses, bench/lod/RESULTS.md).
-  const std::size_t merged = 4 + in.north.size() + in.east.size() + in.south.size() +
-                             in.west.size() + in.interior.size() + in.orphans.size();
-  if (merged > thin_options.max_points) {
-    if (from_children) {
-      for (const auto& c : children.tiles) {
-        if (c) append(in.interior, c->witnesses);
-      }
-    } else {
-      for (const LodTile* t : finer) append(in.interior, t->witnesses);
-    }
-  }
   // Cocircular quadrilaterals (a grid's cells) take the diagonal the finer tiles' vertices
   // favour, else the one a finer tile or child drew (they saw more of the data).
   TieContext ties;
@@ -406,44 +427,52 @@ Result<LodTile> build_from_sources(const geo::TileId& parent, const ChildViews& 
       if (c) ties.drawn.push_back(&c->tile);
     }
   }
-  auto thinned = thin_tile(in, thin_options, stats, &ties);
-  if (!thinned.ok()) return thinned.error();
-  LodTile out;
-  out.tile = std::move(*thinned);
-
-  // Error against the finest data (error.hpp), chained through the finer tiles' witnesses and
-  // bounds; the parent's own witnesses come out of it.
-  std::vector<ChainInput> chain;
-  chain.reserve(finer.size());
+  // The largest error of the finer tiles (and children), which the parent records at least.
   double finer_error = 0;
-  for (const LodTile* t : finer) {
-    out.tile.source_points += t->tile.source_points;
-    chain.push_back(t->as_chain_input());
-    finer_error = std::max(finer_error, t->tile.geometric_error);
-  }
+  for (const LodTile* t : finer) finer_error = std::max(finer_error, t->tile.geometric_error);
   for (const auto& c : children.tiles) {
     if (c) finer_error = std::max(finer_error, c->tile.geometric_error);
   }
-  ChainedError e = chain_error(out.tile, chain, witness_count(options));
+  const Attempt attempt{children, finer, thin_options, witness_count(options), ties};
+
+  // A parent that takes its one child's vertices as candidates (Sources::candidates_from_children)
+  // but keeps fewer than they are is thinned from its sources instead: dropping a thinned child's
+  // vertices judges each removal at the known points only (measured: Terrain-RGB's level 13, 15
+  // vertices fewer than its child, 0.60 → 2.06 m, 2.9× Delatin's error; bench/lod/RESULTS.md).
+  const bool from_children = sources.candidates_from_children &&
+                             thin_options.max_points >= 4 + in.north.size() + in.east.size() +
+                                                            in.south.size() + in.west.size() +
+                                                            in.interior.size();
+  SourceViews own = sources;
+  own.candidates_from_children = false;
+  // (Without candidates_from_children, `in` already holds the sources' candidates.)
+  const bool keep_in = from_children || !sources.candidates_from_children;
+  auto kept = attempt.thin(keep_in ? std::move(in) : merge(parent, children, own), from_children);
+  if (!kept.ok()) return kept.error();
   // A parent that keeps its one child's vertices but measures worse than the child is thinned
   // from its sources instead (the better of the two stays): its corners lie farther out than the
   // child's, so its Delaunay triangulation can join three nearly collinear vertices of the data's
   // outline into a flat data triangle where the child had a NODATA fan, and the data's edge
   // points under that triangle's long side measure its chord (measured: nm_4_6_crop.las's levels
-  // 10-0, 0.198 -> 0.575 m; bench/lod/RESULTS.md 2026-11-28 15:00).
-  if (from_children && e.geometric_error > finer_error) {
-    SourceViews own = sources;
-    own.candidates_from_children = false;
-    auto thinned_again = build_from_sources(parent, children, own, options, stats);
-    if (!thinned_again.ok()) return thinned_again.error();
-    if (thinned_again->tile.geometric_error < std::max(e.geometric_error, finer_error)) {
-      return thinned_again;
+  // 10-0, 0.198 -> 0.575 m; bench/lod/RESULTS.md 2026-11-28 15:00). Only the kept attempt's
+  // thinning counters reach `stats`.
+  if (from_children && kept->error.geometric_error > finer_error) {
+    auto again = attempt.thin(merge(parent, children, own), false);
+    if (!again.ok()) return again.error();
+    if (std::max(again->error.geometric_error, finer_error) <
+        std::max(kept->error.geometric_error, finer_error)) {
+      kept = std::move(again);
     }
   }
+  if (stats) *stats = kept->stats;
+  LodTile out;
+  out.tile = std::move(kept->tile);
+  for (const LodTile* t : finer) out.tile.source_points += t->tile.source_points;
   // Monotone up the pyramid (a client refines while a tile's error is too large, so a parent's
   // must not promise less than a child's): the chained bound, an upper bound of the parent's error
   // over the data, can come out below a child's (or a source's) looser one; the larger still
   // bounds it.
+  ChainedError& e = kept->error;
   out.tile.geometric_error = std::max(e.geometric_error, finer_error);
   out.tile.rms_error = e.rms_error;
   out.bounds = std::move(e.bounds);

@@ -9,6 +9,7 @@
 
 #include "lod_test_support.hpp"
 #include "tinstream/lod/error.hpp"
+#include "tinstream/tile/codec.hpp"
 
 namespace tinstream::lod {
 namespace {
@@ -259,6 +260,63 @@ TEST(Parent, FromGrandchildrenKeepsTheChildrensBorderAndBoundsTheError) {
   wrong_level.depth = 3;
   EXPECT_NE(error_of(wrong_level).find("is not a source of"), std::string::npos)
       << error_of(wrong_level);
+}
+
+// A one-child parent that takes its child's vertices (Sources::candidates_from_children) and
+// measures worse than its finer tiles is thinned again from its sources, and the better tile
+// stays (parent.hpp, "Budget"). The thinning counters (`stats`) describe the kept tile's
+// thinning only. Here the first one stays by construction: the source's points east of its
+// middle weigh 1,000 m (thinning.hpp, weight rule), more of them than the parent's budget, so
+// thinning from the source fills the budget there and leaves the west half flat, while the child
+// (thinned from the same points unweighted) spread its vertices over the hills. The child records
+// 0 m, so that any error of the parent with its vertices sends it to the source.
+TEST(Parent, StatisticsCountOnlyTheKeptAttempt) {
+  const geo::TileId pid{9, 100, 140};
+  const geo::TileId cid = pid.children()[0], gid = cid.children()[0];
+  const TinTile grid = grid_tile(gid, 32, hills);
+  Children kids;
+  {
+    Children one;
+    one.tiles[0] = LodTile{grid, {}, {}, {}};  // unreduced: exact
+    LodOptions child_options;
+    child_options.max_points = 40;
+    auto child = build_parent(cid, one, child_options);
+    ASSERT_TRUE(child.ok()) << child.error().message;
+    kids.tiles[0] = std::move(*child);
+  }
+  kids.tiles[0]->tile.geometric_error = 0;
+  const double middle = 0.5 * (gid.bounds().min_x + gid.bounds().max_x);
+  TinTile weighted = grid;
+  std::size_t heavy = 0;
+  for (tile::Vertex& v : weighted.interior) {
+    if (v.x > middle) v.weight = 1000, ++heavy;
+  }
+  Sources sources;
+  sources.depth = 2;
+  sources.tiles.push_back(LodTile{weighted, {}, {}, {}});
+  LodOptions o;
+  o.max_points = 1024;  // the parent's budget: a quarter of it (the child covers 1/16) + border
+  ASSERT_GT(heavy, o.max_points / 4 + 4 * side_budget(o));
+
+  sources.candidates_from_children = true;
+  ThinStats kept_stats;
+  auto kept = build_from_sources(pid, kids, sources, o, &kept_stats);
+  ASSERT_TRUE(kept.ok()) << kept.error().message;
+  sources.candidates_from_children = false;
+  ThinStats thinned_stats;
+  auto thinned = build_from_sources(pid, kids, sources, o, &thinned_stats);
+  ASSERT_TRUE(thinned.ok()) << thinned.error().message;
+  // The first attempt (the child's vertices) stayed: the re-thinned tile measures worse.
+  ASSERT_LT(kept->tile.geometric_error, thinned->tile.geometric_error);
+  EXPECT_NE(tile::encode(kept->tile), tile::encode(thinned->tile));
+  // Its counters: the child's vertices fit the budget, so no greedy stage ran, and every input
+  // point but duplicates and removed ones is a vertex of the kept tile.
+  EXPECT_EQ(kept_stats.greedy_inserted, 0u);
+  EXPECT_GT(thinned_stats.greedy_inserted, 0u);
+  EXPECT_EQ(kept_stats.input_points - kept_stats.border_removed - kept_stats.interior_removed -
+                kept_stats.duplicates,
+            kept->tile.vertex_count());
+  EXPECT_LT(kept_stats.input_points, thinned_stats.input_points);
 }
 
 TEST(Watertight, DetectsADifferentSharedPoint) {
