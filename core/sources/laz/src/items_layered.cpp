@@ -1,6 +1,7 @@
 // Layered item decoders (LASzip item versions 3 and 4: POINT14, RGB14, RGBNIR14, BYTE14,
 // WAVEPACKET14). Each scanner channel (0-3) has its own context: models and "last" values.
 #include <algorithm>
+#include <utility>
 
 #include "item_coders.hpp"
 #include "items.hpp"
@@ -518,64 +519,85 @@ void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 
 void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
                                  const Point14Context* context, bool one_channel) {
-  // Two bytes' layers per loop (the last alone when the count is odd): two streams, each
-  // decoder in a local. Each loop follows the channel switches on its own copy of the switch
-  // state; all copies end in the same state.
+  // Two bytes' layers per loop, three in the last when the count is odd (one alone only when
+  // it is the only one): two or three streams, each decoder in a local. A loop of one stream is
+  // one chain of dependent symbol decodes with nothing to overlap it. Each loop follows the
+  // channel switches on its own copy of the switch state; all copies end in the same state.
   const ChannelSwitch at_start = channels_;
-  for (std::size_t b = 0; b < count_; b += 2) {
+  auto group = [&]<std::size_t kWidth>(std::size_t b) {
     channels_ = at_start;
     if (one_channel) {
-      decode_pair<true>(out, record_length, n, context, b);
+      decode_group<true, kWidth>(out, record_length, n, context, b);
     } else {
-      decode_pair<false>(out, record_length, n, context, b);
+      decode_group<false, kWidth>(out, record_length, n, context, b);
     }
+  };
+  std::size_t b = 0;
+  for (; b + 3 < count_ || b + 2 == count_; b += 2) group.template operator()<2>(b);
+  if (b + 3 == count_) {
+    group.template operator()<3>(b);
+  } else if (b + 1 == count_) {
+    group.template operator()<1>(b);
   }
 }
 
-// Byte layers b and b + 1 (b alone when it is the last). kOneChannel: no point of the batch
-// switches channel, so the models and the last bytes stay those of the current channel, the
-// bytes kept in locals for the loop.
-template <bool kOneChannel>
-void Byte14Layered::decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                const Point14Context* context, std::size_t b) {
-  const bool pair = b + 1 < count_;
-  const std::size_t b2 = pair ? b + 1 : b;
+namespace {
+
+// f(std::integral_constant<std::size_t, k>) for k = 0 .. kCount - 1, each call inlined: a
+// group's decoders are indexed by constants, so that they stay in registers.
+template <std::size_t kCount, typename F>
+TINSTREAM_LAZ_INLINE void for_each_index(F&& f) {
+  [&]<std::size_t... k>(std::index_sequence<k...>) TINSTREAM_LAZ_LAMBDA {
+    (f(std::integral_constant<std::size_t, k>{}), ...);
+  }
+  (std::make_index_sequence<kCount>{});
+}
+
+}  // namespace
+
+// Byte layers b .. b + kWidth - 1. kOneChannel: no point of the batch switches channel, so the
+// models and the last bytes stay those of the current channel, the bytes kept in locals for
+// the loop.
+template <bool kOneChannel, std::size_t kWidth>
+void Byte14Layered::decode_group(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                 const Point14Context* context, std::size_t b) {
   ChannelSwitch& sw = channels_;
-  ArithmeticDecoder dec = layers_[b].dec, dec2 = layers_[b2].dec;
-  const bool active = layers_[b].active, active2 = pair && layers_[b2].active;
   Context& first = *contexts_[sw.current];
-  SymbolModel* model = &first.diff[b];
-  SymbolModel* model2 = &first.diff[b2];
-  std::uint8_t own[2] = {first.last[b], first.last[b2]};
+  std::array<ArithmeticDecoder, kWidth> dec;
+  std::array<bool, kWidth> active;
+  std::array<SymbolModel*, kWidth> model;
+  std::array<std::uint8_t, kWidth> own;
+  for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+    dec[k] = layers_[b + k].dec;
+    active[k] = layers_[b + k].active;
+    model[k] = &first.diff[b + k];
+    own[k] = first.last[b + k];
+  });
   std::uint8_t* o = out + b;
   for (std::size_t i = 0; i < n; ++i, o += record_length) {
-    std::uint8_t* last = own;
+    std::uint8_t* last = own.data();
     if constexpr (!kOneChannel) {
       const std::uint32_t source = sw.follow(context[i].channel & 3u, version4_,
-                                             [this, b, b2](std::uint32_t ch, std::uint32_t from) {
-                                               open(ch, from, b);
-                                               open(ch, from, b2);
+                                             [this, b](std::uint32_t ch, std::uint32_t from) {
+                                               for (std::size_t k = 0; k < kWidth; ++k) {
+                                                 open(ch, from, b + k);
+                                               }
                                              });
       Context& models = *contexts_[sw.current];
-      model = &models.diff[b];
-      model2 = &models.diff[b2];
+      for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA { model[k] = &models.diff[b + k]; });
       last = contexts_[source]->last.data() + b;
     }
-    if (active) {
-      last[0] = static_cast<std::uint8_t>((dec.decode_symbol(*model) + last[0]) & 0xFF);
-    }
-    if (active2) {
-      last[1] = static_cast<std::uint8_t>((dec2.decode_symbol(*model2) + last[1]) & 0xFF);
-    }
-    o[0] = last[0];
-    if (pair) o[1] = last[1];
+    for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+      if (active[k]) {
+        last[k] = static_cast<std::uint8_t>((dec[k].decode_symbol(*model[k]) + last[k]) & 0xFF);
+      }
+      o[k] = last[k];
+    });
   }
-  if constexpr (kOneChannel) {
-    first.last[b] = own[0];
-    if (pair) first.last[b2] = own[1];
-  }
-  layers_[b].dec = dec;
-  if (pair) layers_[b2].dec = dec2;
+  for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+    if constexpr (kOneChannel) first.last[b + k] = own[k];
+    layers_[b + k].dec = dec[k];
+  });
 }
 
 // ---------------------------------------------------------------------------------------------
