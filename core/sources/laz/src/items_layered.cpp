@@ -76,14 +76,14 @@ struct Point14Layered::Context {
   // a point's fields: each layer's part separately, as the layer's loop reaches that point.
   void reset(const Point14Fields& from) {
     reset_xy(from);
-    reset_z(from.z);
-    reset_classification(from.classification);
+    reset_z(from);
+    reopen<&Point14Fields::classification, &Context::classification>(from);
     reset_flags(from);
-    reset_intensity(from.intensity);
-    reset_scan_angle(from.scan_angle);
-    reset_user_data(from.user_data);
-    reset_source_id(from.source_id);
-    reset_gps_time(from.gps_time);
+    reset_intensity(from);
+    reopen<&Point14Fields::scan_angle, &Context::ic_scan_angle>(from);
+    reopen<&Point14Fields::user_data, &Context::user_data>(from);
+    reopen<&Point14Fields::source_id, &Context::ic_source_id>(from);
+    reset_gps_time(from);
   }
   void reset_xy(const Point14Fields& from) {
     last.x = from.x;
@@ -102,41 +102,34 @@ struct Point14Layered::Context {
     ic_dx.reset();
     ic_dy.reset();
   }
-  void reset_z(std::int32_t z) {
-    last.z = z;
-    last_z.fill(z);
-    ic_z.reset();
+  // One layer's part: its field of `last` taken from `from`, its models as at a chunk's start
+  // (lazily created models start a new generation, the others reset).
+  template <auto kField, auto kModels>
+  void reopen(const Point14Fields& from) {
+    last.*kField = from.*kField;
+    auto& models = this->*kModels;
+    if constexpr (requires { models.next_chunk(); }) {
+      models.next_chunk();
+    } else {
+      models.reset();
+    }
   }
-  void reset_classification(std::uint8_t v) {
-    last.classification = v;
-    classification.next_chunk();
+  void reset_z(const Point14Fields& from) {
+    reopen<&Point14Fields::z, &Context::ic_z>(from);
+    last_z.fill(from.z);
   }
   void reset_flags(const Point14Fields& from) {
     last.class_flags = from.class_flags;
     last.scan_direction = from.scan_direction;
-    last.edge_of_line = from.edge_of_line;
-    flags.next_chunk();
+    reopen<&Point14Fields::edge_of_line, &Context::flags>(from);
   }
-  void reset_intensity(std::uint16_t v) {
-    last.intensity = v;
-    last_intensity.fill(v);
-    ic_intensity.reset();
+  void reset_intensity(const Point14Fields& from) {
+    reopen<&Point14Fields::intensity, &Context::ic_intensity>(from);
+    last_intensity.fill(from.intensity);
   }
-  void reset_scan_angle(std::int16_t v) {
-    last.scan_angle = v;
-    ic_scan_angle.reset();
-  }
-  void reset_user_data(std::uint8_t v) {
-    last.user_data = v;
-    user_data.next_chunk();
-  }
-  void reset_source_id(std::uint16_t v) {
-    last.source_id = v;
-    ic_source_id.reset();
-  }
-  void reset_gps_time(std::uint64_t v) {
-    last.gps_time = v;
-    gps.reset(v);
+  void reset_gps_time(const Point14Fields& from) {
+    last.gps_time = from.gps_time;
+    gps.reset(from.gps_time);
   }
 };
 
@@ -303,7 +296,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   // Each layer's decoder in a local (registers while its loop runs), written back at the end.
   ArithmeticDecoder z_dec = layers_[kLayerZ].dec;
   const bool z_active = layers_[kLayerZ].active;
-  LayerPass z{[](Context& c, const Context& from) { c.reset_z(from.last.z); },
+  LayerPass z{[](Context& c, const Context& from) { c.reset_z(from.last); },
               [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                 if (z_active) {
                   std::int32_t& predicted = c.last_z[pc.returns >> 5];
@@ -315,7 +308,9 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   ArithmeticDecoder class_dec = layers_[kLayerClassification].dec;
   const bool class_active = layers_[kLayerClassification].active;
   LayerPass classification{
-      [](Context& c, const Context& from) { c.reset_classification(from.last.classification); },
+      [](Context& c, const Context& from) {
+        c.reopen<&Point14Fields::classification, &Context::classification>(from.last);
+      },
       [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
         if (class_active) {
           const std::uint32_t ctx =
@@ -346,7 +341,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   ArithmeticDecoder intensity_dec = layers_[kLayerIntensity].dec;
   const bool intensity_active = layers_[kLayerIntensity].active;
   LayerPass intensity{
-      [](Context& c, const Context& from) { c.reset_intensity(from.last.intensity); },
+      [](Context& c, const Context& from) { c.reset_intensity(from.last); },
       [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
         if (intensity_active) {
           const std::uint32_t cpr = (pc.returns >> 1) & 3;
@@ -359,7 +354,9 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
       }};
   ArithmeticDecoder angle_dec = layers_[kLayerScanAngle].dec;
   const bool angle_active = layers_[kLayerScanAngle].active;
-  LayerPass angle{[](Context& c, const Context& from) { c.reset_scan_angle(from.last.scan_angle); },
+  LayerPass angle{[](Context& c, const Context& from) {
+                    c.reopen<&Point14Fields::scan_angle, &Context::ic_scan_angle>(from.last);
+                  },
                   [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                     if (angle_active && (pc.returns & (1u << 3))) {
                       c.last.scan_angle = static_cast<std::int16_t>(scan_angle_from(
@@ -369,18 +366,21 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
                   }};
   ArithmeticDecoder user_dec = layers_[kLayerUserData].dec;
   const bool user_active = layers_[kLayerUserData].active;
-  LayerPass user_data{
-      [](Context& c, const Context& from) { c.reset_user_data(from.last.user_data); },
-      [&](Context& c, Point14Context, std::size_t i) TINSTREAM_LAZ_LAMBDA {
-        if (user_active) {
-          c.last.user_data = static_cast<std::uint8_t>(
-              user_dec.decode_symbol(c.user_data.at(c.last.user_data / 4u)));
-        }
-        out[i * rl + 17] = c.last.user_data;
-      }};
+  LayerPass user_data{[](Context& c, const Context& from) {
+                        c.reopen<&Point14Fields::user_data, &Context::user_data>(from.last);
+                      },
+                      [&](Context& c, Point14Context, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                        if (user_active) {
+                          c.last.user_data = static_cast<std::uint8_t>(
+                              user_dec.decode_symbol(c.user_data.at(c.last.user_data / 4u)));
+                        }
+                        out[i * rl + 17] = c.last.user_data;
+                      }};
   ArithmeticDecoder source_dec = layers_[kLayerPointSource].dec;
   const bool source_active = layers_[kLayerPointSource].active;
-  LayerPass source{[](Context& c, const Context& from) { c.reset_source_id(from.last.source_id); },
+  LayerPass source{[](Context& c, const Context& from) {
+                     c.reopen<&Point14Fields::source_id, &Context::ic_source_id>(from.last);
+                   },
                    [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                      if (source_active && (pc.returns & (1u << 4))) {
                        c.last.source_id = static_cast<std::uint16_t>(
@@ -390,7 +390,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
                    }};
   ArithmeticDecoder gps_dec = layers_[kLayerGpsTime].dec;
   const bool gps_active = layers_[kLayerGpsTime].active;
-  LayerPass gps{[](Context& c, const Context& from) { c.reset_gps_time(from.last.gps_time); },
+  LayerPass gps{[](Context& c, const Context& from) { c.reset_gps_time(from.last); },
                 [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                   if (gps_active && (pc.returns & 1)) c.last.gps_time = c.gps.decode(gps_dec);
                   put64(out + i * rl + 22, c.last.gps_time);
