@@ -43,7 +43,8 @@ SymbolModel::SymbolModel(std::uint32_t symbols) : last_symbol_(symbols - 1), sym
   table_size_ = 1u << bits;
   table_shift_ = kSymbolLengthShift - bits;
   storage_ = std::make_unique<std::uint16_t[]>((symbols + 3) + symbols);
-  slots_ = std::make_unique<std::uint64_t[]>(table_size_ + 2);
+  // + 2 slots past the table (see decode_symbol), + 2 that build_tables() may write and drop.
+  slots_ = std::make_unique<std::uint64_t[]>(table_size_ + 4);
   std::uint16_t* cumulative = storage_.get();
   // Bounds past the last symbol, read by the 4-value loads: above any scaled value, so that
   // decoding never steps past the last symbol (whose decode uses the length instead).
@@ -98,19 +99,32 @@ void SymbolModel::build_tables() {
   // value falls in (and its bounds), marked for a search when the symbol after next starts
   // inside it too. cumulative[symbols_ ..] holds 0xFFFF, so the bounds past the last symbol are
   // those too.
+  //
+  // Symbol s owns the slots from ceil(c[s] / width) up to ceil(c[s + 1] / width). Most symbols
+  // own 0, 1 or 2 slots in no predictable order, so each symbol writes its entry to the first
+  // four slots from its own first one whatever it owns (a later symbol overwrites those that are
+  // not its), and only a wider symbol loops. Its last slot gets the mark when c[s + 2] lies
+  // before that slot's end (a plain store, not a read-modify-write: a symbol that owns no slot
+  // stores to a spare slot past the table instead).
   auto slot_of = [cumulative](std::uint32_t s) {
     return s | (std::uint64_t{cumulative[s]} << 16) | (std::uint64_t{cumulative[s + 1]} << 32) |
            (std::uint64_t{cumulative[s + 2]} << 48);
   };
   std::uint64_t* table = slots_.get();
-  std::uint32_t slot = 0;
-  for (std::uint32_t s = 0; s < symbols_; ++s) {
-    const std::uint32_t end = s < last_symbol_ ? cumulative[s + 1] : kSymbolMaxCount;
-    const std::uint32_t first = slot;
+  const std::uint32_t round_up = (1u << table_shift_) - 1;
+  std::uint32_t slot = 0;  // the first slot of symbol s: ceil(c[s] / width) <= table_size_
+  const std::uint32_t spare = table_size_ + 3;  // where a symbol that owns no slot writes
+  auto fill = [&](std::uint32_t s, std::uint32_t end) TINSTREAM_LAZ_LAMBDA {
+    const std::uint32_t next = (end + round_up) >> table_shift_;
     const std::uint64_t entry = slot_of(s);
-    for (; (slot << table_shift_) < end; ++slot) table[slot] = entry;
-    if (slot != first && cumulative[s + 2] < (slot << table_shift_)) table[slot - 1] |= kSearchSlot;
-  }
+    table[slot] = table[slot + 1] = table[slot + 2] = table[slot + 3] = entry;
+    for (std::uint32_t j = slot + 4; j < next; ++j) table[j] = entry;
+    const std::uint64_t mark = cumulative[s + 2] < (next << table_shift_) ? kSearchSlot : 0;
+    table[next > slot ? next - 1 : spare] = entry | mark;
+    slot = next;
+  };
+  for (std::uint32_t s = 0; s < last_symbol_; ++s) fill(s, cumulative[s + 1]);
+  fill(last_symbol_, kSymbolMaxCount);  // the rest of the table
   // Scaled values just past 2^15 (see decode_symbol) fall in the last symbol.
   table[table_size_] = table[table_size_ + 1] = slot_of(last_symbol_);
 }

@@ -141,7 +141,7 @@ class SymbolModel {
 
   // Used by every decode, first. A slot: symbol (and kSearchSlot) | c[s] << 16 | c[s + 1] << 32
   // | c[s + 2] << 48, bounds past the last symbol 0xFFFF.
-  const std::uint64_t* table_ = nullptr;       // table_size + 2 slots (the last two: last symbol)
+  const std::uint64_t* table_ = nullptr;  // table_size + 2 slots read (the last two: last symbol)
   const std::uint16_t* cumulative_ = nullptr;  // symbols_ entries scaled to 2^15, then 3 bounds
   std::uint16_t* counts_ = nullptr;            // symbols_ entries
   std::uint32_t table_shift_ = 0;              // scaled value >> this = slot

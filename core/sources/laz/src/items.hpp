@@ -516,9 +516,9 @@ class Byte14Layered {
   Context& create(std::uint32_t channel);
   // Opens `channel` from channel `from`'s last byte `byte` (its layer).
   void open(std::uint32_t channel, std::uint32_t from, std::size_t byte);
-  template <bool kOneChannel>
-  void decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                   const Point14Context* context, std::size_t b);
+  template <bool kOneChannel, std::size_t kWidth>
+  void decode_group(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                    const Point14Context* context, std::size_t b);
 
   std::size_t count_;
   bool version4_, wanted_;

@@ -1,6 +1,7 @@
 // Layered item decoders (LASzip item versions 3 and 4: POINT14, RGB14, RGBNIR14, BYTE14,
 // WAVEPACKET14). Each scanner channel (0-3) has its own context: models and "last" values.
 #include <algorithm>
+#include <utility>
 
 #include "item_coders.hpp"
 #include "items.hpp"
@@ -75,14 +76,14 @@ struct Point14Layered::Context {
   // a point's fields: each layer's part separately, as the layer's loop reaches that point.
   void reset(const Point14Fields& from) {
     reset_xy(from);
-    reset_z(from.z);
-    reset_classification(from.classification);
+    reset_z(from);
+    reopen<&Point14Fields::classification, &Context::classification>(from);
     reset_flags(from);
-    reset_intensity(from.intensity);
-    reset_scan_angle(from.scan_angle);
-    reset_user_data(from.user_data);
-    reset_source_id(from.source_id);
-    reset_gps_time(from.gps_time);
+    reset_intensity(from);
+    reopen<&Point14Fields::scan_angle, &Context::ic_scan_angle>(from);
+    reopen<&Point14Fields::user_data, &Context::user_data>(from);
+    reopen<&Point14Fields::source_id, &Context::ic_source_id>(from);
+    reset_gps_time(from);
   }
   void reset_xy(const Point14Fields& from) {
     last.x = from.x;
@@ -101,41 +102,34 @@ struct Point14Layered::Context {
     ic_dx.reset();
     ic_dy.reset();
   }
-  void reset_z(std::int32_t z) {
-    last.z = z;
-    last_z.fill(z);
-    ic_z.reset();
+  // One layer's part: its field of `last` taken from `from`, its models as at a chunk's start
+  // (lazily created models start a new generation, the others reset).
+  template <auto kField, auto kModels>
+  void reopen(const Point14Fields& from) {
+    last.*kField = from.*kField;
+    auto& models = this->*kModels;
+    if constexpr (requires { models.next_chunk(); }) {
+      models.next_chunk();
+    } else {
+      models.reset();
+    }
   }
-  void reset_classification(std::uint8_t v) {
-    last.classification = v;
-    classification.next_chunk();
+  void reset_z(const Point14Fields& from) {
+    reopen<&Point14Fields::z, &Context::ic_z>(from);
+    last_z.fill(from.z);
   }
   void reset_flags(const Point14Fields& from) {
     last.class_flags = from.class_flags;
     last.scan_direction = from.scan_direction;
-    last.edge_of_line = from.edge_of_line;
-    flags.next_chunk();
+    reopen<&Point14Fields::edge_of_line, &Context::flags>(from);
   }
-  void reset_intensity(std::uint16_t v) {
-    last.intensity = v;
-    last_intensity.fill(v);
-    ic_intensity.reset();
+  void reset_intensity(const Point14Fields& from) {
+    reopen<&Point14Fields::intensity, &Context::ic_intensity>(from);
+    last_intensity.fill(from.intensity);
   }
-  void reset_scan_angle(std::int16_t v) {
-    last.scan_angle = v;
-    ic_scan_angle.reset();
-  }
-  void reset_user_data(std::uint8_t v) {
-    last.user_data = v;
-    user_data.next_chunk();
-  }
-  void reset_source_id(std::uint16_t v) {
-    last.source_id = v;
-    ic_source_id.reset();
-  }
-  void reset_gps_time(std::uint64_t v) {
-    last.gps_time = v;
-    gps.reset(v);
+  void reset_gps_time(const Point14Fields& from) {
+    last.gps_time = from.gps_time;
+    gps.reset(from.gps_time);
   }
 };
 
@@ -302,7 +296,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   // Each layer's decoder in a local (registers while its loop runs), written back at the end.
   ArithmeticDecoder z_dec = layers_[kLayerZ].dec;
   const bool z_active = layers_[kLayerZ].active;
-  LayerPass z{[](Context& c, const Context& from) { c.reset_z(from.last.z); },
+  LayerPass z{[](Context& c, const Context& from) { c.reset_z(from.last); },
               [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                 if (z_active) {
                   std::int32_t& predicted = c.last_z[pc.returns >> 5];
@@ -314,7 +308,9 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   ArithmeticDecoder class_dec = layers_[kLayerClassification].dec;
   const bool class_active = layers_[kLayerClassification].active;
   LayerPass classification{
-      [](Context& c, const Context& from) { c.reset_classification(from.last.classification); },
+      [](Context& c, const Context& from) {
+        c.reopen<&Point14Fields::classification, &Context::classification>(from.last);
+      },
       [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
         if (class_active) {
           const std::uint32_t ctx =
@@ -345,7 +341,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
   ArithmeticDecoder intensity_dec = layers_[kLayerIntensity].dec;
   const bool intensity_active = layers_[kLayerIntensity].active;
   LayerPass intensity{
-      [](Context& c, const Context& from) { c.reset_intensity(from.last.intensity); },
+      [](Context& c, const Context& from) { c.reset_intensity(from.last); },
       [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
         if (intensity_active) {
           const std::uint32_t cpr = (pc.returns >> 1) & 3;
@@ -358,7 +354,9 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
       }};
   ArithmeticDecoder angle_dec = layers_[kLayerScanAngle].dec;
   const bool angle_active = layers_[kLayerScanAngle].active;
-  LayerPass angle{[](Context& c, const Context& from) { c.reset_scan_angle(from.last.scan_angle); },
+  LayerPass angle{[](Context& c, const Context& from) {
+                    c.reopen<&Point14Fields::scan_angle, &Context::ic_scan_angle>(from.last);
+                  },
                   [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                     if (angle_active && (pc.returns & (1u << 3))) {
                       c.last.scan_angle = static_cast<std::int16_t>(scan_angle_from(
@@ -368,18 +366,21 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
                   }};
   ArithmeticDecoder user_dec = layers_[kLayerUserData].dec;
   const bool user_active = layers_[kLayerUserData].active;
-  LayerPass user_data{
-      [](Context& c, const Context& from) { c.reset_user_data(from.last.user_data); },
-      [&](Context& c, Point14Context, std::size_t i) TINSTREAM_LAZ_LAMBDA {
-        if (user_active) {
-          c.last.user_data = static_cast<std::uint8_t>(
-              user_dec.decode_symbol(c.user_data.at(c.last.user_data / 4u)));
-        }
-        out[i * rl + 17] = c.last.user_data;
-      }};
+  LayerPass user_data{[](Context& c, const Context& from) {
+                        c.reopen<&Point14Fields::user_data, &Context::user_data>(from.last);
+                      },
+                      [&](Context& c, Point14Context, std::size_t i) TINSTREAM_LAZ_LAMBDA {
+                        if (user_active) {
+                          c.last.user_data = static_cast<std::uint8_t>(
+                              user_dec.decode_symbol(c.user_data.at(c.last.user_data / 4u)));
+                        }
+                        out[i * rl + 17] = c.last.user_data;
+                      }};
   ArithmeticDecoder source_dec = layers_[kLayerPointSource].dec;
   const bool source_active = layers_[kLayerPointSource].active;
-  LayerPass source{[](Context& c, const Context& from) { c.reset_source_id(from.last.source_id); },
+  LayerPass source{[](Context& c, const Context& from) {
+                     c.reopen<&Point14Fields::source_id, &Context::ic_source_id>(from.last);
+                   },
                    [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                      if (source_active && (pc.returns & (1u << 4))) {
                        c.last.source_id = static_cast<std::uint16_t>(
@@ -389,7 +390,7 @@ void Point14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length
                    }};
   ArithmeticDecoder gps_dec = layers_[kLayerGpsTime].dec;
   const bool gps_active = layers_[kLayerGpsTime].active;
-  LayerPass gps{[](Context& c, const Context& from) { c.reset_gps_time(from.last.gps_time); },
+  LayerPass gps{[](Context& c, const Context& from) { c.reset_gps_time(from.last); },
                 [&](Context& c, Point14Context pc, std::size_t i) TINSTREAM_LAZ_LAMBDA {
                   if (gps_active && (pc.returns & 1)) c.last.gps_time = c.gps.decode(gps_dec);
                   put64(out + i * rl + 22, c.last.gps_time);
@@ -518,64 +519,85 @@ void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 
 void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
                                  const Point14Context* context, bool one_channel) {
-  // Two bytes' layers per loop (the last alone when the count is odd): two streams, each
-  // decoder in a local. Each loop follows the channel switches on its own copy of the switch
-  // state; all copies end in the same state.
+  // Two bytes' layers per loop, three in the last when the count is odd (one alone only when
+  // it is the only one): two or three streams, each decoder in a local. A loop of one stream is
+  // one chain of dependent symbol decodes with nothing to overlap it. Each loop follows the
+  // channel switches on its own copy of the switch state; all copies end in the same state.
   const ChannelSwitch at_start = channels_;
-  for (std::size_t b = 0; b < count_; b += 2) {
+  auto group = [&]<std::size_t kWidth>(std::size_t b) {
     channels_ = at_start;
     if (one_channel) {
-      decode_pair<true>(out, record_length, n, context, b);
+      decode_group<true, kWidth>(out, record_length, n, context, b);
     } else {
-      decode_pair<false>(out, record_length, n, context, b);
+      decode_group<false, kWidth>(out, record_length, n, context, b);
     }
+  };
+  std::size_t b = 0;
+  for (; b + 3 < count_ || b + 2 == count_; b += 2) group.template operator()<2>(b);
+  if (b + 3 == count_) {
+    group.template operator()<3>(b);
+  } else if (b + 1 == count_) {
+    group.template operator()<1>(b);
   }
 }
 
-// Byte layers b and b + 1 (b alone when it is the last). kOneChannel: no point of the batch
-// switches channel, so the models and the last bytes stay those of the current channel, the
-// bytes kept in locals for the loop.
-template <bool kOneChannel>
-void Byte14Layered::decode_pair(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                const Point14Context* context, std::size_t b) {
-  const bool pair = b + 1 < count_;
-  const std::size_t b2 = pair ? b + 1 : b;
+namespace {
+
+// f(std::integral_constant<std::size_t, k>) for k = 0 .. kCount - 1, each call inlined: a
+// group's decoders are indexed by constants, so that they stay in registers.
+template <std::size_t kCount, typename F>
+TINSTREAM_LAZ_INLINE void for_each_index(F&& f) {
+  [&]<std::size_t... k>(std::index_sequence<k...>) TINSTREAM_LAZ_LAMBDA {
+    (f(std::integral_constant<std::size_t, k>{}), ...);
+  }
+  (std::make_index_sequence<kCount>{});
+}
+
+}  // namespace
+
+// Byte layers b .. b + kWidth - 1. kOneChannel: no point of the batch switches channel, so the
+// models and the last bytes stay those of the current channel, the bytes kept in locals for
+// the loop.
+template <bool kOneChannel, std::size_t kWidth>
+void Byte14Layered::decode_group(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
+                                 const Point14Context* context, std::size_t b) {
   ChannelSwitch& sw = channels_;
-  ArithmeticDecoder dec = layers_[b].dec, dec2 = layers_[b2].dec;
-  const bool active = layers_[b].active, active2 = pair && layers_[b2].active;
   Context& first = *contexts_[sw.current];
-  SymbolModel* model = &first.diff[b];
-  SymbolModel* model2 = &first.diff[b2];
-  std::uint8_t own[2] = {first.last[b], first.last[b2]};
+  std::array<ArithmeticDecoder, kWidth> dec;
+  std::array<bool, kWidth> active;
+  std::array<SymbolModel*, kWidth> model;
+  std::array<std::uint8_t, kWidth> own;
+  for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+    dec[k] = layers_[b + k].dec;
+    active[k] = layers_[b + k].active;
+    model[k] = &first.diff[b + k];
+    own[k] = first.last[b + k];
+  });
   std::uint8_t* o = out + b;
   for (std::size_t i = 0; i < n; ++i, o += record_length) {
-    std::uint8_t* last = own;
+    std::uint8_t* last = own.data();
     if constexpr (!kOneChannel) {
       const std::uint32_t source = sw.follow(context[i].channel & 3u, version4_,
-                                             [this, b, b2](std::uint32_t ch, std::uint32_t from) {
-                                               open(ch, from, b);
-                                               open(ch, from, b2);
+                                             [this, b](std::uint32_t ch, std::uint32_t from) {
+                                               for (std::size_t k = 0; k < kWidth; ++k) {
+                                                 open(ch, from, b + k);
+                                               }
                                              });
       Context& models = *contexts_[sw.current];
-      model = &models.diff[b];
-      model2 = &models.diff[b2];
+      for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA { model[k] = &models.diff[b + k]; });
       last = contexts_[source]->last.data() + b;
     }
-    if (active) {
-      last[0] = static_cast<std::uint8_t>((dec.decode_symbol(*model) + last[0]) & 0xFF);
-    }
-    if (active2) {
-      last[1] = static_cast<std::uint8_t>((dec2.decode_symbol(*model2) + last[1]) & 0xFF);
-    }
-    o[0] = last[0];
-    if (pair) o[1] = last[1];
+    for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+      if (active[k]) {
+        last[k] = static_cast<std::uint8_t>((dec[k].decode_symbol(*model[k]) + last[k]) & 0xFF);
+      }
+      o[k] = last[k];
+    });
   }
-  if constexpr (kOneChannel) {
-    first.last[b] = own[0];
-    if (pair) first.last[b2] = own[1];
-  }
-  layers_[b].dec = dec;
-  if (pair) layers_[b2].dec = dec2;
+  for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
+    if constexpr (kOneChannel) first.last[b + k] = own[k];
+    layers_[b + k].dec = dec[k];
+  });
 }
 
 // ---------------------------------------------------------------------------------------------
