@@ -526,6 +526,53 @@ TEST(TileLoader, ADownloadWorkerFetchesTheNextTileWhileThePreviousOneDecodes) {
   loader.set_result_callback(nullptr);
 }
 
+TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes) {
+  // One download thread, one decoder. The first result's callback holds the decoder while the
+  // worker fetches two prefetched tiles (negative priorities, the nearer-to-needed -1 before -2)
+  // and both payloads wait for it. Then the view needs the -2 one (a positive priority, as the
+  // streamer submits a needed tile): it must be decoded before the -1 one. With decode jobs that
+  // keep the priority they were fetched with it came last.
+  TempDir dir("loader_decode_raise");
+  testing::write_layer(dir.path / "s.db", testing::default_layer());
+  auto source = open_store_source(dir.path / "s.db");
+  ASSERT_TRUE(source) << source.error().message;
+  auto layers = (*source)->layers({});
+  ASSERT_TRUE(layers) << layers.error().message;
+  TileLoader loader(*source, *layers, nullptr, LoaderOptions{1, 1});
+  std::atomic<int> callbacks{0};
+  std::atomic<bool> release{false};
+  loader.set_result_callback([&] {
+    if (callbacks++ > 0) return;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!release.load() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  const geo::TileId root{10, 530, 350};
+  const TileKey first{TileKind::terrain, 0, root};
+  const TileKey later{TileKind::terrain, 0, root.children()[0]};
+  const TileKey needed_now{TileKind::terrain, 0, root.children()[1]};
+  loader.submit({{first, 3, 1}, {later, -1, 1}, {needed_now, -2, 1}});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (loader.counters().decode_queued < 2 && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(loader.counters().decode_queued, 2u);
+  loader.submit({{needed_now, 5, 1}});  // both in flight: nothing is queued again
+  EXPECT_EQ(loader.counters().queued, 0u);
+  release = true;
+  std::vector<LoadResult> results;
+  while (results.size() < 3 && std::chrono::steady_clock::now() < until) {
+    loader.wait_for_results(std::chrono::milliseconds(50));
+    for (LoadResult& r : loader.take_results()) results.push_back(std::move(r));
+  }
+  ASSERT_EQ(results.size(), 3u);
+  EXPECT_EQ(results[0].key, first);
+  EXPECT_EQ(results[1].key, needed_now);
+  EXPECT_EQ(results[2].key, later);
+  for (const LoadResult& r : results) EXPECT_EQ(r.status, LoadStatus::loaded) << r.error;
+  EXPECT_EQ(loader.counters().requests, 3u);
+  loader.set_result_callback(nullptr);
+}
+
 TEST(TileStreamer, AbsentChildrenAreCoveredByTheirParentsQuadrant) {
   SyntheticLayer layer = testing::default_layer();
   // Leave out the south-east 2×2 block: the level-11 tile 11/1061/701 does not exist.
