@@ -312,6 +312,44 @@ TEST(TileStreamer, PrefetchAsksForTheLevelsBelowAMissingTileAtOnceWithoutWaiting
   }
 }
 
+TEST(TileStreamer, PrefetchGoesDeeperWhileAFrameAsksForFewerTilesThanThereAreDownloadThreads) {
+  // One level of prefetch below the missing root asks for 5 tiles (the root and its 4 children).
+  // With 8 download threads 3 would sit idle through a round trip: prefetch goes on to level 12
+  // in the same frame. With one thread (busy whatever else is asked for) it does not.
+  const geo::LonLat c = block_centre();
+  const Camera close = above(c.lon, c.lat, 1500);  // needs level 12 under the root
+  for (const int threads : {1, 8}) {
+    Fixture fx("streamer_prefetch_deeper");
+    fx.loader->set_threads(threads);
+    StreamerOptions options;
+    options.prefetch_levels = 1;
+    TileStreamer s(*fx.loader, options);
+    CountingUploader gpu;
+    fx.loader->set_paused(true);  // nothing arrives: the first frame's requests stay queued
+    const FrameResult& f = s.update(close, gpu);
+    EXPECT_EQ(f.pending_per_level[10], 1u) << threads;
+    EXPECT_EQ(s.level_counters()[11].requested, 4u) << threads;
+    if (threads == 1) {
+      EXPECT_EQ(s.level_counters()[12].requested, 0u);
+      EXPECT_EQ(f.wanted, 5u);
+    } else {
+      EXPECT_GT(s.level_counters()[12].requested, 0u);
+      EXPECT_GE(f.wanted, 8u);
+    }
+    EXPECT_EQ(f.prefetched, f.wanted - 1) << threads;
+    for (const TileRequest& r : s.requests())
+      if (r.key.tile.z == 12) {
+        EXPECT_LT(r.priority, 0.0) << r.key.tile.to_string();  // ranked after every needed one
+      }
+    fx.loader->set_paused(false);
+    // The view completes on the same tiles: level 12 only.
+    ASSERT_TRUE(run_until_complete(s, *fx.loader, close, gpu)) << threads;
+    EXPECT_EQ(s.last_frame().drawn_per_level[12], s.last_frame().draws.size()) << threads;
+    EXPECT_EQ(s.level_counters()[12].failed + fx.loader->counters().failed, 0u);
+    s.release_all(gpu);
+  }
+}
+
 // Waits (60 s at most) until a worker has a result ready.
 bool wait_for_a_result(TileLoader& loader) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
