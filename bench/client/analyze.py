@@ -11,6 +11,9 @@
   analyze.py rss OUT STORE LAYER SIZE SSE STARTED
       (rss_flight.sh) reads OUT/rss.tsv (seconds, VmRSS kB, VmHWM kB sampled from outside) and
       OUT/flight.jsonl, and prints the RSS over the flight against the tiers' budgets.
+  analyze.py ab AB_JSONL
+      (ab.sh) medians per viewer and thread count of a run-by-run alternating A/B, the 8-vs-1
+      ratio of each viewer, and B − A per round.
 """
 import json
 import math
@@ -245,6 +248,39 @@ def rss(out, store, layer, size, sse, started):
           f'{abs(peak - target) / mb:.0f} MB\n')
 
 
+def ab(path):
+    """ab.sh's runs: medians per viewer and thread count, the 8-vs-1 ratio, per-run pairs."""
+    runs = [json.loads(line) for line in open(path) if line.strip()]
+    threads = sorted({r['threads'] for r in runs}, reverse=True)
+    print('| viewer | threads | runs | median (s) | min (s) | max (s) | load |')
+    print('|---|---|---|---|---|---|---|')
+    med = {}
+    for v in ('A', 'B'):
+        for t in threads:
+            rs = [r for r in runs if r['viewer'] == v and r['threads'] == t]
+            if not rs:
+                continue
+            xs = [r['time_to_complete_s'] for r in rs]
+            loads = [r['load'] for r in rs]
+            med[v, t] = statistics.median(xs)
+            print(f'| {v} | {t} | {len(xs)} | {med[v, t]:.3f} | {min(xs):.3f} | {max(xs):.3f} | '
+                  f'{min(loads):.1f}–{max(loads):.1f} |')
+    print()
+    for v in ('A', 'B'):
+        if (v, 8) in med and (v, 1) in med:
+            print(f'{v}: 8 vs 1 threads {med[v, 1] / med[v, 8]:.2f}× (medians)')
+    for t in threads:
+        a = [r['time_to_complete_s'] for r in runs if r['viewer'] == 'A' and r['threads'] == t]
+        b = [r['time_to_complete_s'] for r in runs if r['viewer'] == 'B' and r['threads'] == t]
+        if a and b:
+            d = [y - x for x, y in zip(a, b)]
+            print(f'{t} threads: B − A per round, median {statistics.median(d) * 1000:+.0f} ms; '
+                  f'B faster in {sum(x < 0 for x in d)} of {len(d)}')
+    print(f'requests per run: {sorted({r["requests"] for r in runs})}; '
+          f'bytes: {sorted({r["bytes"] for r in runs})}; '
+          f'incomplete runs: {sum(1 for r in runs if r.get("complete") is False)}')
+
+
 if __name__ == '__main__':
     if sys.argv[1] == 'cameras':
         cameras(sys.argv[2], sys.argv[3], float(sys.argv[4]), sys.argv[5])
@@ -252,5 +288,7 @@ if __name__ == '__main__':
         report(*sys.argv[2:9])
     elif sys.argv[1] == 'rss':
         rss(*sys.argv[2:8])
+    elif sys.argv[1] == 'ab':
+        ab(sys.argv[2])
     else:
         sys.exit(__doc__)

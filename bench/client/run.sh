@@ -90,28 +90,9 @@ pick_store
 echo "store $store, layer $layer"
 
 # --- server and proxy ---
-pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; wait "$p" 2>/dev/null || true; done; }
-trap cleanup EXIT
-wait_line() {  # FILE PATTERN: until FILE has a line matching PATTERN (30 s at most)
-  for _ in $(seq 300); do grep -q "$2" "$1" 2>/dev/null && return 0; sleep 0.1; done
-  echo "run.sh: no '$2' in $1" >&2; cat "$1" >&2; exit 1
-}
-"$BIN/tinstream-server" --config "$ROOT/config/server.json" --store "$store" --address 127.0.0.1 \
-  --port 0 > "$OUT/server.out" 2> "$OUT/server.log" &
-pids+=($!)
-wait_line "$OUT/server.out" "listening on"
-server_port=$(sed -n 's/^listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$OUT/server.out" | head -1)
-case $PROXY in
-  node) proxy_cmd=(node "$HERE/proxy.mjs") ;;
-  python) proxy_cmd=(python3 "$HERE/proxy.py") ;;
-  *) echo "run.sh: PROXY is node or python, not '$PROXY'" >&2; exit 2 ;;
-esac
-"${proxy_cmd[@]}" --port 0 --upstream "http://127.0.0.1:$server_port" --delay-ms "$DELAY_MS" \
-  --static "$HERE" > "$OUT/proxy.out" 2> "$OUT/proxy.log" &
-pids+=($!)
-wait_line "$OUT/proxy.out" "listening"
-proxy=http://127.0.0.1:$(awk '/listening/ {print $2; exit}' "$OUT/proxy.out")
+# shellcheck source=SCRIPTDIR/serve.sh
+source "$HERE/serve.sh"
+start_server_and_proxy run.sh --static "$HERE"
 curl -fsS "$proxy/layers/$layer" > "$OUT/layer.json"
 echo "server :$server_port, proxy $proxy ($PROXY, +$DELAY_MS ms per request)"
 

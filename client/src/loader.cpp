@@ -80,7 +80,31 @@ void TileLoader::set_threads(int threads) {
 void TileLoader::set_paused(bool paused) { queue_.set_paused(paused); }
 
 void TileLoader::submit(std::vector<TileRequest> wanted) {
+  raise_decode_priorities(wanted);
   counters_.dropped.fetch_add(queue_.replace(std::move(wanted)), std::memory_order_relaxed);
+}
+
+void TileLoader::raise_decode_priorities(const std::vector<TileRequest>& wanted) {
+  // The waiting payloads' keys (at most kMaxDecodeBacklog) under the lock, the search outside it.
+  std::vector<std::pair<TileKey, double>> waiting;
+  {
+    std::lock_guard lock(decode_mutex_);
+    if (decode_jobs_.empty()) return;
+    waiting.reserve(decode_jobs_.size());
+    for (const DecodeJob& job : decode_jobs_) waiting.emplace_back(job.key, job.priority);
+  }
+  bool raised = false;
+  for (const TileRequest& r : wanted)
+    for (auto& [key, priority] : waiting)
+      if (key == r.key && r.priority > priority) {  // (a NaN raises nothing)
+        priority = r.priority;
+        raised = true;
+      }
+  if (!raised) return;
+  std::lock_guard lock(decode_mutex_);
+  for (DecodeJob& job : decode_jobs_)
+    for (const auto& [key, priority] : waiting)
+      if (job.key == key && priority > job.priority) job.priority = priority;
 }
 
 std::vector<LoadResult> TileLoader::take_results() {
@@ -129,6 +153,7 @@ LoaderCounters TileLoader::counters() const {
   {
     std::lock_guard lock(decode_mutex_);
     c.most_decoding = most_decoding_;
+    c.decode_queued = decode_jobs_.size();
   }
   c.queued = queue_.queued();
   c.in_flight = queue_.in_flight();

@@ -20,6 +20,8 @@ namespace {
 constexpr std::size_t kMaxRoots = 4096;
 // Roots are asked for before anything else.
 constexpr double kRootPriority = 1e300;
+// How many levels deeper than prefetch_levels prefetch goes while download threads would idle.
+constexpr int kMaxDeeperPrefetch = 8;
 
 // Whether the two rectangles share interior (touching along an edge does not count).
 bool interiors_meet(const geo::MercatorRect& a, const geo::MercatorRect& b) {
@@ -181,8 +183,11 @@ TileStreamer::Probe TileStreamer::probe(const View& view, std::uint16_t layer,
 void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::TileId& id,
                             int levels) {
   const LayerDescription& l = layers_[layer];
-  if (levels <= 0 || id.z >= l.max_level || id.z >= static_cast<std::uint32_t>(geo::kMaxLevel))
+  if (id.z >= l.max_level || id.z >= static_cast<std::uint32_t>(geo::kMaxLevel)) return;
+  if (levels <= 0) {  // where this frame's prefetch stopped
+    if (options_.prefetch_levels > 0) prefetch_frontier_.emplace_back(layer, id);
     return;
+  }
   // An upper bound of the tile's screen-space error: its level's largest error, seen from the
   // nearest point of the box that holds whatever it will contain.
   const double error = l.level_error(id.z);
@@ -199,6 +204,18 @@ void TileStreamer::prefetch(const View& view, std::uint16_t layer, const geo::Ti
     if (probe(view, layer, child, -1.0 / sse, false).state == State::not_ready)
       prefetch(view, layer, child, levels - 1);
   }
+}
+
+void TileStreamer::deepen_prefetch(const View& view) {
+  const auto threads = static_cast<std::size_t>(std::max(loader_.threads(), 1));
+  for (int level = 0;
+       level < kMaxDeeperPrefetch && wanted_.size() < threads && !prefetch_frontier_.empty();
+       ++level) {
+    std::vector<std::pair<std::uint16_t, geo::TileId>> frontier;
+    frontier.swap(prefetch_frontier_);
+    for (const auto& [layer, id] : frontier) prefetch(view, layer, id, 1);
+  }
+  prefetch_frontier_.clear();
 }
 
 TileStreamer::Refinement TileStreamer::refinement(const View& view, std::uint16_t layer,
@@ -328,6 +345,7 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
   frame_result_ = FrameResult{};
   wanted_.clear();
   uploads_.clear();
+  prefetch_frontier_.clear();
   take_results();
 
   const View view{camera, camera.frustum(), camera.position()};
@@ -343,6 +361,7 @@ const FrameResult& TileStreamer::update(const Camera& camera, GpuUploader& gpu) 
             [](const DrawItem& a, const DrawItem& b) { return a.distance < b.distance; });
   plan_skirts(frame_result_.draws);
   drape();
+  deepen_prefetch(view);
   frame_result_.complete = wanted_.size() == frame_result_.prefetched && uploads_.empty();
   frame_result_.wanted = wanted_.size();
   upload(gpu);

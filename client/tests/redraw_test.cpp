@@ -32,6 +32,18 @@ int frames_over(RedrawScheduler& r, Clock::time_point& now, int steps, Clock::du
   return drawn;
 }
 
+// Ten idle frames 16 ms apart, then a tile lands (a content wake) and the frame drawn for it
+// uploads tiles. Returns whether next() asked for that frame.
+bool draw_an_upload_frame(RedrawScheduler& r, Clock::time_point& now) {
+  frames_over(r, now, 10, milliseconds(16));
+  r.wake(Wake::content);
+  if (!r.next(now).draw) return false;
+  FrameActivity uploaded;
+  uploaded.tiles_changed = true;
+  r.frame_drawn(uploaded, now);
+  return true;
+}
+
 TEST(RedrawScheduler, AnIdleWindowDrawsItsFirstFrameThenNothingAndWaitsWithoutEnd) {
   RedrawScheduler r;
   Clock::time_point now{};
@@ -60,24 +72,14 @@ TEST(RedrawScheduler, ATileLandingDrawsExactlyOneFrame) {
 TEST(RedrawScheduler, AFrameThatUploadedTilesOwesTheNextWhichDrawsThem) {
   RedrawScheduler r(RedrawOptions{2, 0.25, -1});  // no trailing frame (the next test)
   Clock::time_point now{};
-  frames_over(r, now, 10, milliseconds(16));
-  r.wake(Wake::content);
-  ASSERT_TRUE(r.next(now).draw);
-  FrameActivity uploaded;
-  uploaded.tiles_changed = true;
-  r.frame_drawn(uploaded, now);
+  ASSERT_TRUE(draw_an_upload_frame(r, now));
   EXPECT_EQ(frames_over(r, now, 1000, milliseconds(16)), 1);
 }
 
 TEST(RedrawScheduler, OneTrailingFrameFollowsTheLastChangeForTheHeapTrim) {
   RedrawScheduler r(RedrawOptions{2, 0.25, 1.5});
   Clock::time_point now{};
-  frames_over(r, now, 10, milliseconds(16));
-  r.wake(Wake::content);
-  ASSERT_TRUE(r.next(now).draw);
-  FrameActivity uploaded;
-  uploaded.tiles_changed = true;
-  r.frame_drawn(uploaded, now);
+  ASSERT_TRUE(draw_an_upload_frame(r, now));
   const Clock::time_point changed = now;
   ASSERT_TRUE(r.next(now).draw);  // the frame the upload owes, which changes nothing
   r.frame_drawn({}, now);

@@ -312,6 +312,44 @@ TEST(TileStreamer, PrefetchAsksForTheLevelsBelowAMissingTileAtOnceWithoutWaiting
   }
 }
 
+TEST(TileStreamer, PrefetchGoesDeeperWhileAFrameAsksForFewerTilesThanThereAreDownloadThreads) {
+  // One level of prefetch below the missing root asks for 5 tiles (the root and its 4 children).
+  // With 8 download threads 3 would sit idle through a round trip: prefetch goes on to level 12
+  // in the same frame. With one thread (busy whatever else is asked for) it does not.
+  const geo::LonLat c = block_centre();
+  const Camera close = above(c.lon, c.lat, 1500);  // needs level 12 under the root
+  for (const int threads : {1, 8}) {
+    Fixture fx("streamer_prefetch_deeper");
+    fx.loader->set_threads(threads);
+    StreamerOptions options;
+    options.prefetch_levels = 1;
+    TileStreamer s(*fx.loader, options);
+    CountingUploader gpu;
+    fx.loader->set_paused(true);  // nothing arrives: the first frame's requests stay queued
+    const FrameResult& f = s.update(close, gpu);
+    EXPECT_EQ(f.pending_per_level[10], 1u) << threads;
+    EXPECT_EQ(s.level_counters()[11].requested, 4u) << threads;
+    if (threads == 1) {
+      EXPECT_EQ(s.level_counters()[12].requested, 0u);
+      EXPECT_EQ(f.wanted, 5u);
+    } else {
+      EXPECT_GT(s.level_counters()[12].requested, 0u);
+      EXPECT_GE(f.wanted, 8u);
+    }
+    EXPECT_EQ(f.prefetched, f.wanted - 1) << threads;
+    for (const TileRequest& r : s.requests())
+      if (r.key.tile.z == 12) {
+        EXPECT_LT(r.priority, 0.0) << r.key.tile.to_string();  // ranked after every needed one
+      }
+    fx.loader->set_paused(false);
+    // The view completes on the same tiles: level 12 only.
+    ASSERT_TRUE(run_until_complete(s, *fx.loader, close, gpu)) << threads;
+    EXPECT_EQ(s.last_frame().drawn_per_level[12], s.last_frame().draws.size()) << threads;
+    EXPECT_EQ(s.level_counters()[12].failed + fx.loader->counters().failed, 0u);
+    s.release_all(gpu);
+  }
+}
+
 // Waits (60 s at most) until a worker has a result ready.
 bool wait_for_a_result(TileLoader& loader) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
@@ -523,6 +561,53 @@ TEST(TileLoader, ADownloadWorkerFetchesTheNextTileWhileThePreviousOneDecodes) {
   for (const LoadResult& r : results) EXPECT_EQ(r.status, LoadStatus::loaded) << r.error;
   EXPECT_TRUE(fetched_while_held);
   EXPECT_EQ(loader.counters().most_decoding, 1);
+  loader.set_result_callback(nullptr);
+}
+
+TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes) {
+  // One download thread, one decoder. The first result's callback holds the decoder while the
+  // worker fetches two prefetched tiles (negative priorities, the nearer-to-needed -1 before -2)
+  // and both payloads wait for it. Then the view needs the -2 one (a positive priority, as the
+  // streamer submits a needed tile): it must be decoded before the -1 one. With decode jobs that
+  // keep the priority they were fetched with it came last.
+  TempDir dir("loader_decode_raise");
+  testing::write_layer(dir.path / "s.db", testing::default_layer());
+  auto source = open_store_source(dir.path / "s.db");
+  ASSERT_TRUE(source) << source.error().message;
+  auto layers = (*source)->layers({});
+  ASSERT_TRUE(layers) << layers.error().message;
+  TileLoader loader(*source, *layers, nullptr, LoaderOptions{1, 1});
+  std::atomic<int> callbacks{0};
+  std::atomic<bool> release{false};
+  loader.set_result_callback([&] {
+    if (callbacks++ > 0) return;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!release.load() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  const geo::TileId root{10, 530, 350};
+  const TileKey first{TileKind::terrain, 0, root};
+  const TileKey later{TileKind::terrain, 0, root.children()[0]};
+  const TileKey needed_now{TileKind::terrain, 0, root.children()[1]};
+  loader.submit({{first, 3, 1}, {later, -1, 1}, {needed_now, -2, 1}});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (loader.counters().decode_queued < 2 && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(loader.counters().decode_queued, 2u);
+  loader.submit({{needed_now, 5, 1}});  // both in flight: nothing is queued again
+  EXPECT_EQ(loader.counters().queued, 0u);
+  release = true;
+  std::vector<LoadResult> results;
+  while (results.size() < 3 && std::chrono::steady_clock::now() < until) {
+    loader.wait_for_results(std::chrono::milliseconds(50));
+    for (LoadResult& r : loader.take_results()) results.push_back(std::move(r));
+  }
+  ASSERT_EQ(results.size(), 3u);
+  EXPECT_EQ(results[0].key, first);
+  EXPECT_EQ(results[1].key, needed_now);
+  EXPECT_EQ(results[2].key, later);
+  for (const LoadResult& r : results) EXPECT_EQ(r.status, LoadStatus::loaded) << r.error;
+  EXPECT_EQ(loader.counters().requests, 3u);
   loader.set_result_callback(nullptr);
 }
 

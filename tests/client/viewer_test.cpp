@@ -656,26 +656,61 @@ TEST_F(Viewer, BoundingVolumesHoldEveryVertexOfRealTiles) {
   EXPECT_GT(vertices, 100000u);
 }
 
+// Window mode runs under a virtual X server: xvfb-run, from Debian's xvfb.
+constexpr const char* kXvfbRun = "/usr/bin/xvfb-run";
+constexpr const char* kNoXvfbRun =
+    "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+
+bool xvfb_run_installed() { return std::filesystem::exists(kXvfbRun); }
+
+struct WindowRun {
+  int status = -1;  // Child::wait's
+  std::string out, err;
+};
+
+// tinstream-viewer in window mode with `args` under xvfb-run on a screen of `screen` (WxH, 24
+// bits), waited for (up to `limit`).
+WindowRun window_under_xvfb(const std::string& screen, const std::vector<std::string>& args,
+                            std::chrono::milliseconds limit) {
+  testing::Child window(kXvfbRun,
+                        std::vector<std::string>{"-a", "-s", "-screen 0 " + screen + "x24",
+                                                 testing::binary("tinstream-viewer")} +
+                            args,
+                        /*capture_stderr=*/true);
+  WindowRun r;
+  r.status = window.wait(limit);
+  r.out = window.out();
+  r.err = window.err();
+  return r;
+}
+
+// The value under `key` of the last line of `out` that is a JSON object holding it; null if none.
+json last_json_line_with(const std::string& out, const std::string& key) {
+  json value;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    const json j = json::parse(line, nullptr, false);
+    if (!j.is_discarded() && j.is_object() && j.contains(key)) value = j[key];
+  }
+  return value;
+}
+
 TEST_F(Viewer, WindowModeOutWritesTheWindowPanelIncludedUnderXvfb) {
   // Window mode (GLFW, GLX on Mesa) under a virtual X server (xvfb-run, Debian's xvfb): --out
   // writes the window once the view is complete, panel included, and exits 0. Right of the panel
   // it shows what the headless renderer draws for the same camera; at the top left, the panel,
   // which the headless image does not have.
-  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
-  if (!std::filesystem::exists(xvfb))
-    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  if (!xvfb_run_installed()) GTEST_SKIP() << kNoXvfbRun;
   TempDir dir("viewer_window");
   const store::LayerInfo l = layer_info(dem_, "dem");
   const std::vector<std::string> view{"--size",  "960x540",     "--msaa",
                                       "0",       "--no-legend", "--timeout",
                                       "300",     "--camera",    camera_above(l, 30000),
                                       "--store", dem_.string()};
-  testing::Child window(xvfb.string(),
-                        std::vector<std::string>{"-a", "-s", "-screen 0 1280x720x24",
-                                                 testing::binary("tinstream-viewer")} +
-                            view + std::vector<std::string>{"--out", (dir.path / "w.png").string()},
-                        /*capture_stderr=*/true);
-  ASSERT_EQ(window.wait(std::chrono::minutes(10)), 0) << window.err();
+  const WindowRun window = window_under_xvfb(
+      "1280x720", view + std::vector<std::string>{"--out", (dir.path / "w.png").string()},
+      std::chrono::minutes(10));
+  ASSERT_EQ(window.status, 0) << window.err;
   const ViewerRun headless =
       viewer(std::vector<std::string>{"--headless", "--out", (dir.path / "h.png").string()} + view);
   expect_clean(headless);
@@ -713,26 +748,17 @@ TEST_F(Viewer, WindowModeDrawsNothingWhileNothingChangesUnderXvfb) {
   // and then the window stays idle until --close-after; it reports the frames it drew and the
   // time since the last one. Drawing every frame (as before #17's fourth session) leaves no
   // time since the last frame.
-  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
-  if (!std::filesystem::exists(xvfb))
-    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  if (!xvfb_run_installed()) GTEST_SKIP() << kNoXvfbRun;
   const store::LayerInfo l = layer_info(dem_, "dem");
   const double open_s = 12;
-  testing::Child window(
-      xvfb.string(),
-      std::vector<std::string>{"-a", "-s", "-screen 0 1280x720x24",
-                               testing::binary("tinstream-viewer"), "--size", "640x360", "--msaa",
-                               "0", "--camera", camera_above(l, 30000), "--store", dem_.string(),
-                               "--close-after", std::to_string(open_s)},
-      /*capture_stderr=*/true);
-  ASSERT_EQ(window.wait(std::chrono::minutes(5)), 0) << window.err();
-  json run;
-  std::istringstream lines(window.out());
-  for (std::string line; std::getline(lines, line);) {
-    const json j = json::parse(line, nullptr, false);
-    if (!j.is_discarded() && j.contains("window")) run = j["window"];
-  }
-  ASSERT_TRUE(run.is_object()) << "no window line in: " << window.out() << window.err();
+  const WindowRun window =
+      window_under_xvfb("1280x720",
+                        {"--size", "640x360", "--msaa", "0", "--camera", camera_above(l, 30000),
+                         "--store", dem_.string(), "--close-after", std::to_string(open_s)},
+                        std::chrono::minutes(5));
+  ASSERT_EQ(window.status, 0) << window.err;
+  const json run = last_json_line_with(window.out, "window");
+  ASSERT_TRUE(run.is_object()) << "no window line in: " << window.out << window.err;
   EXPECT_TRUE(run["complete"].get<bool>()) << run.dump();
   EXPECT_GE(run["seconds"].get<double>(), open_s) << run.dump();
   EXPECT_GE(run["frames"].get<std::uint64_t>(), 2u) << run.dump();
@@ -776,9 +802,7 @@ TEST_F(Viewer, WindowModeLayoutKeepsPanelAndLegendInsideTheWindowAndApart) {
   // path longer than the panel is wide) wraps inside the panel. The rectangles are checked
   // against the image: outside them the window shows what the headless renderer draws without
   // a legend, inside them it does not.
-  const std::filesystem::path xvfb = "/usr/bin/xvfb-run";
-  if (!std::filesystem::exists(xvfb))
-    GTEST_SKIP() << "xvfb-run is not installed (scripts/install-deps.sh installs xvfb)";
+  if (!xvfb_run_installed()) GTEST_SKIP() << kNoXvfbRun;
   TempDir dir("viewer_layout");
   const std::filesystem::path store =
       dir.path / std::string(90, 'd') / "a_store_path_far_longer_than_the_panel_is_wide.sqlite";
@@ -792,19 +816,12 @@ TEST_F(Viewer, WindowModeLayoutKeepsPanelAndLegendInsideTheWindowAndApart) {
         "--size",  size,           "--msaa",    "0",  "--camera", camera_above(l, 30000),
         "--store", store.string(), "--timeout", "300"};
     const std::filesystem::path shot = dir.path / (size + "_window.png");
-    testing::Child window(xvfb.string(),
-                          std::vector<std::string>{"-a", "-s", "-screen 0 1920x1080x24",
-                                                   testing::binary("tinstream-viewer")} +
-                              view + std::vector<std::string>{"--out", shot.string()},
-                          /*capture_stderr=*/true);
-    ASSERT_EQ(window.wait(std::chrono::minutes(10)), 0) << window.err();
-    json layout;
-    std::istringstream lines(window.out());
-    for (std::string line; std::getline(lines, line);) {
-      const json j = json::parse(line, nullptr, false);
-      if (!j.is_discarded() && j.contains("layout")) layout = j["layout"];
-    }
-    ASSERT_TRUE(layout.is_object()) << "no layout line in: " << window.out();
+    const WindowRun window =
+        window_under_xvfb("1920x1080", view + std::vector<std::string>{"--out", shot.string()},
+                          std::chrono::minutes(10));
+    ASSERT_EQ(window.status, 0) << window.err;
+    const json layout = last_json_line_with(window.out, "layout");
+    ASSERT_TRUE(layout.is_object()) << "no layout line in: " << window.out;
     ASSERT_EQ(layout["window"], json::array({width, height}));
     const Rect screen{0, 0, static_cast<double>(width), static_cast<double>(height)};
     const Rect panel = rect_of(layout["panel"]), legend = rect_of(layout["legend"]);

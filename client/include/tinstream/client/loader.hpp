@@ -13,8 +13,11 @@
 // connection is not idle while a tile decodes (with 30 ms per request, ~12 ms a tile of wall time
 // on a busy 2-core machine; bench/client). At most LoaderOptions::decode_threads decode at once,
 // the most urgent job first; at most kMaxDecodeBacklog payloads wait (a worker waits for room).
+// A waiting job's priority follows the render thread: a prefetched tile (ranked after every needed
+// one) that the view needs by the time its payload waits is decoded as needed.
 // Neither submit() nor take_results() waits on a worker: both hold a lock only for a swap (or,
-// in submit, one hash lookup per request). Workers never touch the RAM or GPU tiers.
+// in submit, one hash lookup per request and a copy of the waiting jobs' keys and priorities).
+// Workers never touch the RAM or GPU tiers.
 // Every worker and decoder runs its jobs inside an exception barrier; a failure becomes a
 // `failed` result. The download thread count can change at run time (set_threads): extra
 // workers are parked, not joined.
@@ -73,10 +76,11 @@ struct LoaderCounters {
   std::uint64_t dropped = 0;  // queued requests dropped because the view moved on
   std::uint64_t queued = 0, in_flight = 0;
   std::array<std::uint32_t, 31> in_flight_levels{};
-  double decode_seconds = 0;       // worker time spent inflating, decoding and building meshes
-  double decode_cpu_seconds = 0;   // the CPU time of it (less when workers wait for a core)
-  double decode_wait_seconds = 0;  // time payloads waited for a decoder
-  int most_decoding = 0;           // the most decodes that ran at once
+  double decode_seconds = 0;        // worker time spent inflating, decoding and building meshes
+  double decode_cpu_seconds = 0;    // the CPU time of it (less when workers wait for a core)
+  double decode_wait_seconds = 0;   // time payloads waited for a decoder
+  int most_decoding = 0;            // the most decodes that ran at once
+  std::uint64_t decode_queued = 0;  // payloads waiting for a decoder now
 };
 
 struct LoaderOptions {
@@ -102,7 +106,9 @@ class TileLoader {
   // Workers finish what is in flight but take nothing new while paused.
   void set_paused(bool paused);
 
-  // Render thread: what the view lacks now, replacing the previous submission.
+  // Render thread: what the view lacks now, replacing the previous submission. A wanted tile
+  // whose payload already waits for a decoder (a prefetched tile the view now needs) is decoded
+  // with the larger of its old and new priorities.
   void submit(std::vector<TileRequest> wanted);
   // Render thread: results finished since the last call (never blocks on a worker).
   std::vector<LoadResult> take_results();
@@ -141,6 +147,8 @@ class TileLoader {
   // failure) is the result.
   std::optional<LoadResult> load(const TileRequest& request,
                                  std::unique_ptr<TileConnection>& connection);
+  // submit(): a waiting decode job's priority rises to its key's priority in `wanted`.
+  void raise_decode_priorities(const std::vector<TileRequest>& wanted);
   void queue_decode(const TileKey& key, std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                     LoadOrigin origin, double priority);
   LoadResult finish_payload(DecodeJob& job);

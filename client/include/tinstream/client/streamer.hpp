@@ -23,6 +23,10 @@
 // each level costs a round trip before the next one is asked for: a close view 14 levels deep took
 // 14 round trips however many download threads there were (bench/client). Prefetched tiles are
 // requested only: not uploaded, and a frame's `complete` does not wait for them.
+// While a frame asks for fewer tiles than the loader has download threads (the top of the
+// pyramid, where a level holds one or two tiles), prefetch goes on a level at a time below where
+// it stopped, up to kMaxDeeperPrefetch more levels, so that no connection sits idle through a
+// round trip. With one download thread it never does (a frame that prefetches wants a tile).
 // Tiles drawn, and those on the path to them, are pinned in the frame and never evicted.
 //
 // The GPU is reached only through GpuUploader (the renderer implements it), so the selection and
@@ -220,6 +224,9 @@ class TileStreamer {
   Probe probe(const View& view, std::uint16_t layer, const geo::TileId& id, double priority,
               bool needed = true);
   void prefetch(const View& view, std::uint16_t layer, const geo::TileId& id, int levels);
+  // The header's deeper prefetch: below prefetch_frontier_ while wanted_ holds fewer tiles than
+  // the loader's download threads.
+  void deepen_prefetch(const View& view);
   Refinement refinement(const View& view, std::uint16_t layer, const geo::TileId& id, double error,
                         double distance) const;
   // Below a tile the view needs that is not drawn this frame (resident but waiting for a sibling,
@@ -282,6 +289,8 @@ class TileStreamer {
   FrameResult frame_result_;
   std::vector<TileRequest> wanted_;
   std::vector<TileRequest> uploads_;
+  // Tiles whose children prefetch() left out for lack of levels (deepen_prefetch's start).
+  std::vector<std::pair<std::uint16_t, geo::TileId>> prefetch_frontier_;
 };
 
 }  // namespace tinstream::client
