@@ -285,14 +285,20 @@ class Exchanger {
                           tri_.z(t[2]));
     }
     // Error at (x, y, z) against the preview; false when it ends up uncovered or at the bound.
+    // (The first plane that contains (x, y) by Plane::contains — the same weights and height as
+    // at(), stopping at the first negative weight —, else the first of largest smallest weight.)
     auto judge = [&](double x, double y, double z) {
       double best_w = -1e300, zs = 0;
       std::size_t which = 0;
-      for (std::size_t k = 0; k < planes.size(); ++k) {
+      bool found = false;
+      for (std::size_t k = 0; k < planes.size() && !found; ++k) {
+        found = planes[k].contains(x, y, &zs);
+        which = k;
+      }
+      for (std::size_t k = 0; k < planes.size() && !found; ++k) {
         double w;
         const double at = planes[k].at(x, y, &w);
         if (w > best_w) best_w = w, zs = at, which = k;
-        if (w >= 0) break;
       }
       err = std::max(err, std::abs(z - zs));
       if (!(err < bound)) return false;
