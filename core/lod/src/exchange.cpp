@@ -63,7 +63,7 @@ class Exchanger {
     err_.assign(x_.size(), 0.0);
     const auto& cv = *in.candidate_vertex;
     for (std::size_t j = 0; j < in.candidates.size(); ++j) {
-      if (cv[j] != kNone && tri_.is_vertex(cv[j])) state_[j] = kVertex;
+      if (cv[j] != kNone && tri_.is_vertex(cv[j])) set_vertex(j, true);
     }
     for (std::size_t i = 0; i < x_.size(); ++i) {
       if (state_[i] == kLocate) pending_.push_back(static_cast<std::uint32_t>(i));
@@ -116,6 +116,18 @@ class Exchanger {
 
   // Whether candidate j is a vertex now.
   bool is_vertex(std::size_t j) const { return state_[j] == kVertex; }
+  // Candidate j becomes a vertex (kVertex) or a point to locate (kLocate), and vertices_ follows.
+  void set_vertex(std::size_t j, bool vertex) {
+    const auto c = static_cast<std::uint32_t>(j);
+    const auto at = std::lower_bound(vertices_.begin(), vertices_.end(), c);
+    if (vertex) {
+      state_[j] = kVertex;
+      if (at == vertices_.end() || *at != c) vertices_.insert(at, c);
+    } else {
+      state_[j] = kLocate;
+      if (at != vertices_.end() && *at == c) vertices_.erase(at);
+    }
+  }
   void touch(std::size_t j) {
     for (const auto& t : touched_) {
       if (t.first == j) return;
@@ -131,7 +143,7 @@ class Exchanger {
     const kernel::InsertResult r = tri_.insert({p.x, p.y, p.z, p.weight});
     if (r.outcome != kernel::InsertOutcome::inserted) return false;
     (*in_.candidate_vertex)[j] = r.vertex;
-    state_[j] = kVertex;
+    set_vertex(j, true);
     refile();
     return true;
   }
@@ -139,7 +151,7 @@ class Exchanger {
     touch(j);
     if (Status s = tri_.remove_vertex((*in_.candidate_vertex)[j]); !s) return s;
     (*in_.candidate_vertex)[j] = kNone;
-    state_[j] = kLocate;
+    set_vertex(j, false);
     pending_.push_back(static_cast<std::uint32_t>(j));
     refile();
     return {};
@@ -158,8 +170,7 @@ class Exchanger {
       ++*work;
       double best = std::numeric_limits<double>::infinity();
       std::size_t out = kNone;
-      for (std::size_t j = 0; j < in_.candidates.size(); ++j) {
-        if (!is_vertex(j)) continue;
+      for (const std::uint32_t j : vertices_) {  // (in candidate order, as a scan of state_)
         if (const auto e = removal_error((*in_.candidate_vertex)[j], best)) best = *e, out = j;
       }
       if (out == kNone) return false;
@@ -174,7 +185,7 @@ class Exchanger {
       if (!was && is_vertex(j)) {
         if (Status s = tri_.remove_vertex((*in_.candidate_vertex)[j]); !s) return s;
         (*in_.candidate_vertex)[j] = kNone;
-        state_[j] = kLocate;
+        set_vertex(j, false);
         pending_.push_back(static_cast<std::uint32_t>(j));
       }
     }
@@ -186,7 +197,7 @@ class Exchanger {
           return Error(ErrorCode::internal, "lod: exchange step: a vertex could not go back");
         }
         (*in_.candidate_vertex)[j] = r.vertex;
-        state_[j] = kVertex;
+        set_vertex(j, true);
       }
     }
     touched_.clear();
@@ -274,14 +285,20 @@ class Exchanger {
                           tri_.z(t[2]));
     }
     // Error at (x, y, z) against the preview; false when it ends up uncovered or at the bound.
+    // (The first plane that contains (x, y) by Plane::contains — the same weights and height as
+    // at(), stopping at the first negative weight —, else the first of largest smallest weight.)
     auto judge = [&](double x, double y, double z) {
       double best_w = -1e300, zs = 0;
       std::size_t which = 0;
-      for (std::size_t k = 0; k < planes.size(); ++k) {
+      bool found = false;
+      for (std::size_t k = 0; k < planes.size() && !found; ++k) {
+        found = planes[k].contains(x, y, &zs);
+        which = k;
+      }
+      for (std::size_t k = 0; k < planes.size() && !found; ++k) {
         double w;
         const double at = planes[k].at(x, y, &w);
         if (w > best_w) best_w = w, zs = at, which = k;
-        if (w >= 0) break;
       }
       err = std::max(err, std::abs(z - zs));
       if (!(err < bound)) return false;
@@ -307,6 +324,9 @@ class Exchanger {
   const ExchangeInput& in_;
   std::vector<double> x_, y_, z_;  // candidates first, then the others
   std::vector<std::uint8_t> state_;
+  // The candidates that are vertices (state_ kVertex), ascending: exchange() tries their removal
+  // without scanning state_ (every candidate of the tile: ~800k at Big Tujunga's level 5).
+  std::vector<std::uint32_t> vertices_;
   std::vector<double> err_;
   std::vector<VertexTriple> cache_;  // by slot: its triangle when last filed (kDead: none)
   std::vector<Plane> planes_;        // by slot: its plane (valid where cache_ is live)

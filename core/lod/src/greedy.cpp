@@ -659,13 +659,12 @@ class GreedyInserter {
   }
 
   // Compacts when the garbage reaches half the live points (the pool's memory stays within
-  // 2.5 × theirs: a parent thinned from 64 sources files up to a million), and before the next
-  // re-filing (which appends at most the live points) could outgrow the pool: a reallocation
-  // would double it, and refile() holds pool indices across its growth.
+  // 2.5 × theirs: a parent thinned from 64 sources files up to a million). That the next
+  // re-filing fits in the pool's capacity is checked by refile() itself, once it knows how many
+  // entries it gathered (until 2026-11-28 here, for the worst case of all live points: most
+  // compactions came from that bound, not from the garbage).
   void compact_if_due() {
-    if (pool_.size() > live_ + live_ / 2 + 4096 || pool_.size() + live_ > pool_.capacity()) {
-      compact();
-    }
+    if (pool_.size() > live_ + live_ / 2 + 4096) compact();
   }
 
   void split_triangle(std::uint32_t t, std::uint32_t p) {
@@ -747,8 +746,12 @@ class GreedyInserter {
     for (const auto& [b, c] : taken_) entries += c;
     if (entries == 0 && lattice_) {  // nothing filed (the usual case on a lattice): rank only
       for (std::uint32_t t : star_) rank_cells(t);
+      taken_.clear();
       return;
     }
+    // The new buckets take at most `entries` more (a reallocation would double the pool; indices
+    // would survive it): compact first, the gathered buckets (taken_) moved along.
+    if (pool_.size() + entries > pool_.capacity()) compact();
     prepare_star(entries);
     const std::uint32_t moved = fans_.empty() ? assign_to_star<false>() : assign_to_star<true>();
     const std::uint32_t end = place_star_buckets();
@@ -758,6 +761,7 @@ class GreedyInserter {
     std::erase_if(free_, [](const auto& seg) { return seg.second == 0; });
     if (free_.size() > 64) free_.erase(free_.begin(), free_.end() - 64);
     free_.insert(free_.end(), taken_.begin(), taken_.end());
+    taken_.clear();  // (garbage now: compact() must not move it)
     live_ += moved;
     for (std::size_t k = 0; k < star_.size(); ++k) {
       // (A fan's best was ranked by FanEdge::rank while its points were assigned, in the order
@@ -847,9 +851,9 @@ class GreedyInserter {
   // left for it, else after everything in the pool (the taken buckets included). The places
   // change nothing but memory traffic: a bucket's points and their order are the same anywhere.
   // star_best_ becomes a pool index, star_count_ the next free entry of each bucket. Returns the
-  // pool's new end. Positions are indices, valid across the pool's growth (which compact_if_due()
-  // keeps within its capacity). (Until 2026-11-28 every bucket went to the end: the pool filled
-  // twice as fast, and the compactions moved 1.6 × the re-filed points on Big Tujunga.)
+  // pool's new end. Positions are indices, valid across the pool's growth (which refile()'s
+  // compaction keeps within its capacity). (Until 2026-11-28 every bucket went to the end: the pool
+  // filled twice as fast, and the compactions moved 1.6 × the re-filed points on Big Tujunga.)
   std::uint32_t place_star_buckets() {
     auto end = static_cast<std::uint32_t>(pool_.size());
     for (std::size_t k = 0; k < star_.size(); ++k) {
@@ -983,9 +987,10 @@ class GreedyInserter {
   }
 
   // Drops the pool's abandoned buckets (a refile appends, it never reuses), in place: the live
-  // buckets move down in the order they lie in the pool, so none is overwritten before it moved,
-  // and each keeps its points' order. (No second buffer: for a parent thinned from 64 sources
-  // the pool holds about a million points.)
+  // buckets, and the buckets taken_ lists (refile() compacts between gathering and reading them),
+  // move down in the order they lie in the pool, so none is overwritten before it moved, and
+  // each keeps its points' order. (No second buffer: for a parent thinned from 64 sources the
+  // pool holds about a million points.)
   void compact() {
     free_.clear();  // (moved over)
     order_.clear();
@@ -993,14 +998,24 @@ class GreedyInserter {
     for (std::uint32_t t = 0; t < triangles; ++t) {
       if (count_[t] != 0) order_.emplace_back(begin_[t], t);
     }
+    for (std::size_t k = 0; k < taken_.size(); ++k) {  // (numbered after the triangles)
+      if (taken_[k].second != 0) {
+        order_.emplace_back(taken_[k].first, triangles + static_cast<std::uint32_t>(k));
+      }
+    }
     std::sort(order_.begin(), order_.end());
     Filed* const pool = pool_.data();
     std::uint32_t at = 0;
     for (const auto& [b, t] : order_) {
-      const std::uint32_t n = count_[t];
+      const bool taken = t >= triangles;
+      const std::uint32_t n = taken ? taken_[t - triangles].second : count_[t];
       if (b != at) std::memmove(pool + at, pool + b, n * sizeof(Filed));
-      begin_[t] = at;
-      if (best_[t] != kNone && !lattice_) best_[t] = at + (best_[t] - b);
+      if (taken) {
+        taken_[t - triangles].first = at;
+      } else {
+        begin_[t] = at;
+        if (best_[t] != kNone && !lattice_) best_[t] = at + (best_[t] - b);
+      }
       at += n;
     }
     pool_.resize(at);

@@ -224,6 +224,17 @@ class InteriorThinner {
   // Index of the set_planes triangle containing (x, y) (largest smallest barycentric weight),
   // and the interpolated z.
   double surface_at(double x, double y, std::size_t* which) const {
+    // The first triangle whose smallest weight is ≥ 0 (Plane::contains: the same arithmetic,
+    // stopping at the first negative weight, and the same height as at()); the full scan below
+    // only when rounding puts (x, y) in none. (Until 2026-11-28 every triangle tried took all
+    // three weights: the same answers.)
+    for (std::size_t k = 0; k < planes_.size(); ++k) {
+      double z;
+      if (planes_[k].contains(x, y, &z)) {
+        if (which) *which = k;
+        return z;
+      }
+    }
     double best_w = -std::numeric_limits<double>::infinity();
     std::size_t best = 0;
     for (std::size_t k = 0; k < planes_.size(); ++k) {
