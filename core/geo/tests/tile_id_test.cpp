@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 #include <set>
 
@@ -164,6 +166,25 @@ TEST(TileId, ContainingAgreesWithExactBounds) {
       ASSERT_TRUE(p.y > r.min_y || t.y + 1 == t.tiles_per_side());
     }
   }
+}
+
+// The edges are exact dyadic numbers: -1 + column · 2^(1 − z), computed here with std::ldexp
+// (the library builds the power of two from its bits), on every level and at both ends, beyond
+// the map's own levels too (halo cells are finer than tiles).
+TEST(TileId, EdgesAreTheExactDyadicValues) {
+  for (std::uint32_t z = 0; z <= 40; ++z) {
+    const std::uint64_t side = std::uint64_t{1} << std::min(z, 31u);
+    for (std::uint64_t c :
+         {std::uint64_t{0}, std::uint64_t{1}, side / 3, side / 2, side - 1, side}) {
+      const auto column = static_cast<std::uint32_t>(std::min<std::uint64_t>(c, 0xFFFFFFFFu));
+      const double step = std::ldexp(static_cast<double>(column), 1 - static_cast<int>(z));
+      ASSERT_EQ(tile_x_edge(z, column), -1.0 + step) << z << " " << column;
+      ASSERT_EQ(tile_y_edge(z, column), 1.0 - step) << z << " " << column;
+    }
+  }
+  EXPECT_EQ(tile_x_edge(1, 1), 0.0);
+  EXPECT_EQ(tile_y_edge(2, 3), -0.5);
+  EXPECT_EQ(tile_x_edge(30, 1), -1.0 + 0x1p-29);
 }
 
 TEST(TileId, ContainingPointsOnEdgesGoEastAndSouth) {
