@@ -319,6 +319,58 @@ TEST(Parent, StatisticsCountOnlyTheKeptAttempt) {
   EXPECT_LT(kept_stats.input_points, thinned_stats.input_points);
 }
 
+// The re-thinning's guard ignores an excess within rounding: a first attempt whose chained error
+// lies a few hundred ulps above the finer tiles' stays, even where thinning from the sources would
+// measure better. Here it does: the child was thinned from a surface with a 50 m bump inside the
+// source's tile (none on its border), so its vertices are off the source's surface.
+TEST(Parent, AnExcessWithinRoundingIsNotThinnedAgain) {
+  const geo::TileId pid{9, 100, 140};
+  const geo::TileId cid = pid.children()[0], gid = cid.children()[0];
+  const TinTile grid = grid_tile(gid, 32, hills);
+  const geo::MercatorRect g = gid.bounds();
+  auto bumped = [&](double x, double y) {
+    const double u = std::sin(M_PI * (x - g.min_x) / (g.max_x - g.min_x));
+    const double v = std::sin(M_PI * (y - g.min_y) / (g.max_y - g.min_y));
+    return hills(x, y) + 50.0 * u * u * v * v;
+  };
+  Children kids;
+  {
+    Children one;
+    one.tiles[0] = LodTile{grid_tile(gid, 32, bumped), {}, {}, {}};
+    LodOptions child_options;
+    child_options.max_points = 40;
+    auto child = build_parent(cid, one, child_options);
+    ASSERT_TRUE(child.ok()) << child.error().message;
+    kids.tiles[0] = std::move(*child);
+  }
+  Sources sources;
+  sources.depth = 2;
+  sources.tiles.push_back(LodTile{grid, {}, {}, {}});
+  sources.candidates_from_children = true;
+  LodOptions o;
+  o.max_points = 1024;
+  auto build_with_child_error = [&](double e) {
+    kids.tiles[0]->tile.geometric_error = e;
+    auto built = build_from_sources(pid, kids, sources, o);
+    EXPECT_TRUE(built.ok()) << built.error().message;
+    return std::move(*built);
+  };
+  // A child recording more than any attempt measures: the first attempt (its vertices) stays.
+  const LodTile first = build_with_child_error(1e9);
+  const std::vector<ChainInput> chain = {sources.tiles.front().as_chain_input()};
+  const double first_error = chain_error(first.tile, chain, witness_count(o)).geometric_error;
+  ASSERT_GT(first_error, 0.0);
+  // A child recording 0: the first attempt exceeds it, the re-thinned tile is better and stays.
+  const LodTile rethinned = build_with_child_error(0);
+  ASSERT_LT(rethinned.tile.geometric_error, first_error);
+  ASSERT_NE(rethinned.tile.interior.size(), first.tile.interior.size());
+  // A child recording the first attempt's error less 1e-13 of it (rounding): the first stays.
+  const LodTile near = build_with_child_error(first_error * (1 - 1e-13));
+  EXPECT_EQ(near.tile.interior.size(), first.tile.interior.size());
+  EXPECT_EQ(near.tile.triangles, first.tile.triangles);
+  EXPECT_DOUBLE_EQ(near.tile.geometric_error, first_error);
+}
+
 TEST(Watertight, DetectsADifferentSharedPoint) {
   const std::uint32_t z = 9, x0 = 100, y0 = 140;
   auto kids = children_block(z, x0, y0, 0.1);
