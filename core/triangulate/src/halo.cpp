@@ -46,7 +46,7 @@ class ConflictSearch {
         std::uint32_t ct = t;
         int ck = exit_edge;
         for (std::size_t i = 0; i < tri_.size(); ++i) {
-          std::tie(ct, ck) = adjacent_hull_edge(ct, ck, forward);
+          std::tie(ct, ck) = next_hull_edge(ct, ck, forward);
           if (kernel::orient2d(at(ct, ck + 1), at(ct, ck + 2), p) > 0) break;
           push(ct);
         }
@@ -98,6 +98,18 @@ class ConflictSearch {
     mark_[t] = stamp_;
     queue_.push_back(t);
   }
+  // adjacent_hull_edge, remembered: the points beyond one hull edge walk the same stretch of the
+  // hull again and again (the turn around a hull vertex took a fifth of the halo's circle rule).
+  std::pair<std::uint32_t, int> next_hull_edge(std::uint32_t t, int k, bool forward) {
+    if (next_hull_.empty()) next_hull_.assign(tri_.size() * 6, kNoNeighbour);
+    std::uint32_t& memo =
+        next_hull_[(std::size_t{t} * 3 + static_cast<std::size_t>(k)) * 2 + (forward ? 1 : 0)];
+    if (memo == kNoNeighbour) {
+      const auto [nt, ne] = adjacent_hull_edge(t, k, forward);
+      memo = nt * 3 + static_cast<std::uint32_t>(ne);
+    }
+    return {memo / 3, static_cast<int>(memo % 3)};
+  }
   // The hull edge after (forward) or before the hull edge opposite corner k of t, counter-
   // clockwise along the hull, found by turning around its end (start) vertex.
   std::pair<std::uint32_t, int> adjacent_hull_edge(std::uint32_t t, int k, bool forward) const {
@@ -120,6 +132,9 @@ class ConflictSearch {
   std::vector<std::uint32_t> mark_;
   std::uint32_t stamp_ = 0, hint_ = 0;
   std::vector<std::uint32_t> queue_;
+  // next_hull_edge's answers, 3·t + edge per (triangle, edge, direction); kNoNeighbour: not yet
+  // asked. Filled on the first walk along the hull.
+  std::vector<std::uint32_t> next_hull_;
 };
 
 }  // namespace
