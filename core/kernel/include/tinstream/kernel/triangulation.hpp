@@ -217,7 +217,6 @@ class Triangulation {
   // src/removal_hole.hpp) in three cases: a vertex on the hull, one splitting a straight
   // constraint, an interior one.
   Status plan_removal(VertexId v, detail::RemovalHole& hole, bool any_order = false) const;
-  Status check_segments_end_straight(VertexId v, const detail::RemovalHole& hole) const;
   TriangleId write_hole(detail::RemovalHole& hole);
   TriangleId write_apex_hole(detail::RemovalHole& hole);
   TriangleId write_hole_general(detail::RemovalHole& hole);
