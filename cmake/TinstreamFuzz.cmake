@@ -36,6 +36,28 @@ function(tinstream_setup_fuzzing)
   add_custom_target(fuzzers)
 endfunction()
 
+# tinstream_fuzz_without_cmp_trace(target [SOURCES file...])
+# Compiles a target of a fuzz build (or only the given sources of it, from the folder that
+# declares the target) without -fsanitize-coverage=trace-cmp: no callback on each of its integer
+# comparisons. Those callbacks only feed the mutator's hints (libFuzzer's table of
+# compared values, and value-profile features, which scripts/fuzz.sh does not turn on); edge
+# coverage, what decides which inputs are kept, is unchanged. For libraries whose comparisons are
+# on computed state (indices, counts), never on input bytes, where the callbacks cost a large share
+# of each execution and guide nothing: docs/SECURITY.md, "Why laz_fuzzer and kernel_fuzzer were
+# slow". A no-op in other builds.
+function(tinstream_fuzz_without_cmp_trace target)
+  cmake_parse_arguments(ARG "" "" "SOURCES" ${ARGN})
+  if(NOT TINSTREAM_FUZZ)
+    return()
+  endif()
+  if(ARG_SOURCES)
+    set_source_files_properties(${ARG_SOURCES} TARGET_DIRECTORY ${target}
+                                PROPERTIES COMPILE_OPTIONS -fno-sanitize-coverage=trace-cmp)
+  else()
+    target_compile_options(${target} PRIVATE -fno-sanitize-coverage=trace-cmp)
+  endif()
+endfunction()
+
 function(tinstream_add_fuzzer name)
   cmake_parse_arguments(ARG "" "MAX_LEN;TIMEOUT;DICT;REGRESSIONS" "SOURCES;DEPS;CORPUS" ${ARGN})
   if(NOT ARG_MAX_LEN)

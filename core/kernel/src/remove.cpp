@@ -421,6 +421,29 @@ void collect_star(const Mesh& mesh, VertexId v, RemovalHole& hole) {
   }
 }
 
+// A segment record ending at v is re-ended at a join vertex (remove_vertex), which keeps it a
+// chain only when its other end lies on the line join_a - join_b. A constraint may end at v and
+// still leave it along one of the spokes, routed through a vertex within rounding of its line
+// (kernel_fuzzer, 2026-11-28: constraint 9-8 routed 9-7-8, then 6-7 through 9; removing 9 made
+// the record 6-8, no chain): then v is the end of a bent constraint, and cannot go.
+Status check_segments_end_straight(const Mesh& mesh,
+                                   const std::vector<std::array<VertexId, 2>>& segments, VertexId v,
+                                   const RemovalHole& hole) {
+  if (hole.join_a == kNone) return {};
+  const XY& a = mesh.xy(hole.join_a);
+  const XY& b = mesh.xy(hole.join_b);
+  for (const auto& seg : segments) {
+    if (seg[0] != v && seg[1] != v) continue;
+    const VertexId other = seg[0] == v ? seg[1] : seg[0];
+    if (orient2d(a, b, mesh.xy(other)) != 0.0) {
+      return invalid_argument(vertex_name(v) + " ends constraint segment " +
+                              std::to_string(seg[0]) + "-" + std::to_string(seg[1]) +
+                              ", which is not on the line of the constraint through it");
+    }
+  }
+  return {};
+}
+
 // The constrained edges at v: none, or exactly two exactly collinear through v (v splits a
 // straight constraint), whose far ends become hole.join_a and hole.join_b. Anything else is an
 // error naming v.
@@ -670,6 +693,7 @@ Status Triangulation::plan_removal(VertexId v, RemovalHole& hole, bool any_order
   collect_star(mesh_, v, hole);
   if (has_constraints_) {
     if (Status s = find_constraint_to_rejoin(mesh_, v, hole); !s) return s;
+    if (Status s = check_segments_end_straight(mesh_, segments_, v, hole); !s) return s;
   }
   // Every finite triangle touches v: the others may all lie on one line.
   if (hole.hull && hole.degree - 2 == num_finite_triangles() && link_is_collinear(mesh_, hole)) {

@@ -71,6 +71,28 @@ TEST(Constraint, ACrossingOnTheEndOfAnotherConstraintGoesThroughThatVertex) {
   expect_valid(t);
 }
 
+TEST(Constraint, TheEndOfAConstraintBentThroughAVertexIsNotRemovedAsAStraightSplit) {
+  // kernel_fuzzer's bent_constraint_end_removed (core/kernel/fuzz/regressions): v lies 3.5e-18
+  // beside the vertex o = (0, 0), on the x axis. Constraint v-p is routed v-o-p (o is within
+  // rounding of its line), then q-o passes exactly through v. v's constrained edges v-q and v-o
+  // are collinear, so its removal was taken for that of a vertex splitting q-o, and the record
+  // v-p became q-p: a segment that is no chain.
+  Triangulation t(Rect{-1, -1, 17, 17});
+  t.insert_bulk(std::vector<Point3>{{12, 12, 0}, {12, 15, 0}, {9, 14, 0}, {2, 14, 0}});
+  const auto q = t.insert({15, 0, 0}).vertex, o = t.insert({0, 0, 0}).vertex;
+  const auto p = t.insert({0, 8, 0}).vertex, far = t.find_vertex(12, 15).value();
+  ASSERT_TRUE(t.insert_constraint(o, far).ok());
+  const auto v = t.insert({3.4685999190063599e-18, 0, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(v, p).ok());
+  ASSERT_TRUE(t.is_constrained_edge(v, o) && t.is_constrained_edge(o, p)) << "v-p bent through o";
+  ASSERT_TRUE(t.insert_constraint(q, o).ok());
+  ASSERT_TRUE(t.is_constrained_edge(q, v)) << "q-o through v";
+  expect_valid(t);
+  EXPECT_EQ(t.removal_preview(v).ok(), false);
+  EXPECT_EQ(t.remove_vertex(v).ok(), false) << "v ends the bent constraint v-p";
+  expect_valid(t);
+}
+
 TEST(Constraint, CrossingConstraintsMeetAtANewInterpolatedVertex) {
   Triangulation t;
   const auto a = t.insert({0, 0, 0}).vertex, c = t.insert({2, 2, 10}).vertex;

@@ -129,6 +129,7 @@ class SymbolModel {
 
  private:
   friend class ArithmeticDecoder;
+  friend struct SymbolModelProbe;  // tests/laz_model_test.cpp
   static constexpr std::uint16_t kSearchSlot = 0x8000;
   static constexpr std::uint32_t kMaxTableSize = 1024;
   // What table_ points at while the tables are not built: every slot a search slot, so that
