@@ -590,9 +590,14 @@ TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes)
   const TileKey later{TileKind::terrain, 0, root.children()[0]};
   const TileKey needed_now{TileKind::terrain, 0, root.children()[1]};
   loader.submit({{first, 3, 1}, {later, -1, 1}, {needed_now, -2, 1}});
+  // Both prefetched payloads wait while the decoder is held in the first result's callback (not
+  // merely two queued: before the decoder takes the first job, the first and the -1 one can be
+  // the two waiting, and the -2 one still downloading, CI's ASan run, 2026-11-28).
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (loader.counters().decode_queued < 2 && std::chrono::steady_clock::now() < until)
+  while ((callbacks.load() == 0 || loader.counters().decode_queued < 2) &&
+         std::chrono::steady_clock::now() < until)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(callbacks.load(), 1);
   EXPECT_EQ(loader.counters().decode_queued, 2u);
   loader.submit({{needed_now, 5, 1}});  // both in flight: nothing is queued again
   EXPECT_EQ(loader.counters().queued, 0u);
