@@ -57,6 +57,9 @@ struct RemovalHole {
   std::size_t ghost_pos = 0;
   // A vertex splitting a straight constraint: the two far ends, re-joined by one constrained edge.
   VertexId join_a = kNone, join_b = kNone;
+  // The segment-record ends at v (2 * record index + end), found while planning: remove_vertex
+  // re-ends exactly these at join_a or join_b (only with join_a set).
+  std::vector<std::size_t> segment_ends;
   // Removing v leaves no triangle (v was the only vertex off a line): the mesh drops to
   // dimension 1 and nothing below is filled.
   bool degenerate = false;

@@ -56,6 +56,7 @@ void RemovalHole::clear() {
   degree = 0;
   ntri = 0;
   join_a = join_b = kNone;
+  segment_ends.clear();
   degenerate = false;
   hull = false;
   ghost_pos = 0;
@@ -426,15 +427,18 @@ void collect_star(const Mesh& mesh, VertexId v, RemovalHole& hole) {
 // still leave it along one of the spokes, routed through a vertex within rounding of its line
 // (kernel_fuzzer, 2026-11-28: constraint 9-8 routed 9-7-8, then 6-7 through 9; removing 9 made
 // the record 6-8, no chain): then v is the end of a bent constraint, and cannot go.
-Status check_segments_end_straight(const Mesh& mesh,
-                                   const std::vector<std::array<VertexId, 2>>& segments, VertexId v,
-                                   const RemovalHole& hole) {
+// The one scan of the records also lists their ends at v in hole.segment_ends, for remove_vertex.
+Status collect_segment_ends(const Mesh& mesh, const std::vector<std::array<VertexId, 2>>& segments,
+                            VertexId v, RemovalHole& hole) {
   if (hole.join_a == kNone) return {};
   const XY& a = mesh.xy(hole.join_a);
   const XY& b = mesh.xy(hole.join_b);
-  for (const auto& seg : segments) {
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const auto& seg = segments[i];
     if (seg[0] != v && seg[1] != v) continue;
-    const VertexId other = seg[0] == v ? seg[1] : seg[0];
+    const std::size_t end = seg[0] == v ? 0 : 1;
+    hole.segment_ends.push_back(2 * i + end);
+    const VertexId other = seg[1 - end];
     if (orient2d(a, b, mesh.xy(other)) != 0.0) {
       return invalid_argument(vertex_name(v) + " ends constraint segment " +
                               std::to_string(seg[0]) + "-" + std::to_string(seg[1]) +
@@ -693,7 +697,7 @@ Status Triangulation::plan_removal(VertexId v, RemovalHole& hole, bool any_order
   collect_star(mesh_, v, hole);
   if (has_constraints_) {
     if (Status s = find_constraint_to_rejoin(mesh_, v, hole); !s) return s;
-    if (Status s = check_segments_end_straight(mesh_, segments_, v, hole); !s) return s;
+    if (Status s = collect_segment_ends(mesh_, segments_, v, hole); !s) return s;
   }
   // Every finite triangle touches v: the others may all lie on one line.
   if (hole.hull && hole.degree - 2 == num_finite_triangles() && link_is_collinear(mesh_, hole)) {
@@ -944,19 +948,21 @@ Status Triangulation::remove_vertex(VertexId v) {
     int i;
     const TriangleId t = find_edge(hole.join_a, hole.join_b, &i);
     if (t != kNone) mesh_.set_edge_constrained(t, i, true);
-    // Segment records ending at v now end at the re-join vertex on the far side of v.
+    // Segment records ending at v (listed by the plan) now end at the re-join vertex on the far
+    // side of v.
     const XY pv = mesh_.xy(v);
-    for (auto& s : segments_) {
-      for (int e = 0; e < 2; ++e) {
-        if (s[static_cast<std::size_t>(e)] != v) continue;
-        const XY& other = mesh_.xy(s[static_cast<std::size_t>(1 - e)]);
-        const XY& pa = mesh_.xy(hole.join_a);
-        const bool a_same_side =
-            (pa.x - pv.x) * (other.x - pv.x) + (pa.y - pv.y) * (other.y - pv.y) > 0.0;
-        s[static_cast<std::size_t>(e)] = a_same_side ? hole.join_b : hole.join_a;
-      }
+    const XY& pa = mesh_.xy(hole.join_a);
+    bool collapsed = false;
+    for (const std::size_t at : hole.segment_ends) {
+      auto& s = segments_[at / 2];
+      const std::size_t e = at % 2;
+      const XY& other = mesh_.xy(s[1 - e]);
+      const bool a_same_side =
+          (pa.x - pv.x) * (other.x - pv.x) + (pa.y - pv.y) * (other.y - pv.y) > 0.0;
+      s[e] = a_same_side ? hole.join_b : hole.join_a;
+      collapsed = collapsed || s[0] == s[1];
     }
-    std::erase_if(segments_, [](const auto& s) { return s[0] == s[1]; });
+    if (collapsed) std::erase_if(segments_, [](const auto& s) { return s[0] == s[1]; });
   }
   return {};
 }

@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
+#include <set>
 
 #include "test_support.hpp"
 #include "tinstream/kernel/triangulation.hpp"
@@ -192,6 +195,31 @@ TEST(Constraint, BadRequestsAreReported) {
 // constraints from one far vertex to two near ones point the same way to within rounding; the
 // checker's greedy walk along the first one reported the second as "not a chain of constrained
 // edges" although it is an edge.
+// Removing v, which splits the straight chain x-a-v-b made of the records x-v and v-b, re-ends
+// each record at the re-join vertex beyond v: x-b and a-b (both still chains; a record re-ended
+// on its own side would only shorten, which check_valid cannot see).
+TEST(Constraint, RecordsEndingAtARemovedSplitVertexAreReEndedBeyondIt) {
+  Triangulation t;
+  t.insert_bulk(std::vector<Point3>{{0, 5, 0}, {9, 5, 0}, {0, -5, 0}, {9, -5, 0}, {4, 2, 0}});
+  const auto x = t.insert({1, 0, 0}).vertex, a = t.insert({3, 0, 0}).vertex;
+  const auto v = t.insert({5, 0, 0}).vertex, b = t.insert({7, 0, 0}).vertex;
+  ASSERT_TRUE(t.insert_constraint(x, v).ok());
+  ASSERT_TRUE(t.insert_constraint(v, b).ok());
+  ASSERT_TRUE(t.is_constrained_edge(x, a) && t.is_constrained_edge(a, v)) << "x-v through a";
+  ASSERT_TRUE(t.remove_vertex(v).ok());
+  std::set<std::array<VertexId, 2>> records;
+  for (auto s : t.constraint_segments()) {
+    if (s[0] > s[1]) std::swap(s[0], s[1]);
+    records.insert(s);
+  }
+  const auto pair = [](VertexId p, VertexId q) {
+    return std::array<VertexId, 2>{std::min(p, q), std::max(p, q)};
+  };
+  EXPECT_EQ(records, (std::set<std::array<VertexId, 2>>{pair(x, b), pair(a, b)}));
+  EXPECT_TRUE(t.is_constrained_edge(a, b));
+  expect_valid(t);
+}
+
 TEST(Constraint, LongConstraintsSharingAFarEndBothPassTheChainCheck) {
   Triangulation t;
   const VertexId origin = t.insert({0, 0, 0, 0}).vertex;
