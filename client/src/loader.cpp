@@ -80,11 +80,17 @@ void TileLoader::set_threads(int threads) {
 void TileLoader::set_paused(bool paused) { queue_.set_paused(paused); }
 
 void TileLoader::submit(std::vector<TileRequest> wanted) {
-  raise_decode_priorities(wanted);
+  // The queue first: it raises the priority of tiles still downloading, which queue_decode reads
+  // under decode_mutex_. A payload queued before the raise below is raised by it, one queued
+  // after it reads the raised priority: none is missed.
+  std::vector<std::pair<TileKey, double>> asked;
+  asked.reserve(wanted.size());
+  for (const TileRequest& r : wanted) asked.emplace_back(r.key, r.priority);
   counters_.dropped.fetch_add(queue_.replace(std::move(wanted)), std::memory_order_relaxed);
+  raise_decode_priorities(asked);
 }
 
-void TileLoader::raise_decode_priorities(const std::vector<TileRequest>& wanted) {
+void TileLoader::raise_decode_priorities(const std::vector<std::pair<TileKey, double>>& wanted) {
   // The waiting payloads' keys (at most kMaxDecodeBacklog) under the lock, the search outside it.
   std::vector<std::pair<TileKey, double>> waiting;
   {
@@ -94,10 +100,10 @@ void TileLoader::raise_decode_priorities(const std::vector<TileRequest>& wanted)
     for (const DecodeJob& job : decode_jobs_) waiting.emplace_back(job.key, job.priority);
   }
   bool raised = false;
-  for (const TileRequest& r : wanted)
+  for (const auto& [wanted_key, wanted_priority] : wanted)
     for (auto& [key, priority] : waiting)
-      if (key == r.key && r.priority > priority) {  // (a NaN raises nothing)
-        priority = r.priority;
+      if (key == wanted_key && wanted_priority > priority) {  // (a NaN raises nothing)
+        priority = wanted_priority;
         raised = true;
       }
   if (!raised) return;
@@ -249,6 +255,8 @@ void TileLoader::queue_decode(const TileKey& key, std::vector<std::uint8_t> byte
     decode_room_.wait(lock,
                       [&] { return decode_closed_ || decode_jobs_.size() < kMaxDecodeBacklog; });
     if (decode_closed_) return;  // shutting down: nobody takes results any more
+    // The view may have come to need the tile while it downloaded (submit()).
+    priority = queue_.in_flight_priority(key, priority);
     decode_jobs_.push_back(DecodeJob{key, priority, std::move(bytes), encoding, origin,
                                      std::chrono::steady_clock::now()});
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <tuple>
+#include <unordered_set>
 
 namespace tinstream::client {
 
@@ -38,7 +39,14 @@ std::size_t RequestQueue::replace(std::vector<TileRequest> wanted) {
   std::vector<TileRequest> old;
   {
     std::lock_guard lock(mutex_);
-    std::erase_if(wanted, [&](const TileRequest& r) { return in_flight_.contains(r.key); });
+    // A tile in flight is not queued again, but the view's present need raises its priority
+    // (for its decode: in_flight_priority).
+    std::erase_if(wanted, [&](const TileRequest& r) {
+      const auto it = in_flight_.find(r.key);
+      if (it == in_flight_.end()) return false;
+      if (r.priority > it->second) it->second = r.priority;  // (a NaN raises nothing)
+      return true;
+    });
     old.swap(queue_);
     queue_ = std::move(wanted);
   }
@@ -54,7 +62,7 @@ std::optional<TileRequest> RequestQueue::pop(std::size_t worker) {
     if (closed_) return std::nullopt;
     TileRequest r = queue_.back();
     queue_.pop_back();
-    if (in_flight_.insert(r.key).second) return r;
+    if (in_flight_.emplace(r.key, r.priority).second) return r;
   }
 }
 
@@ -92,6 +100,12 @@ std::size_t RequestQueue::queued() const {
   return queue_.size();
 }
 
+double RequestQueue::in_flight_priority(const TileKey& key, double priority) const {
+  std::lock_guard lock(mutex_);
+  const auto it = in_flight_.find(key);
+  return it != in_flight_.end() && it->second > priority ? it->second : priority;
+}
+
 std::size_t RequestQueue::in_flight() const {
   std::lock_guard lock(mutex_);
   return in_flight_.size();
@@ -100,7 +114,7 @@ std::size_t RequestQueue::in_flight() const {
 std::array<std::uint32_t, 31> RequestQueue::in_flight_per_level() const {
   std::array<std::uint32_t, 31> levels{};
   std::lock_guard lock(mutex_);
-  for (const TileKey& k : in_flight_) ++levels[k.tile.z];
+  for (const auto& [k, priority] : in_flight_) ++levels[k.tile.z];
   return levels;
 }
 

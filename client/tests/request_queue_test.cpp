@@ -31,6 +31,23 @@ TEST(RequestQueue, PopsLargestErrorFirstThenNearest) {
   EXPECT_EQ(q.in_flight(), 4u);
 }
 
+TEST(RequestQueue, ATileInFlightKeepsTheMostUrgentPriorityAskedForIt) {
+  RequestQueue q;
+  q.replace({{key(4, 1), -2, 1}});
+  ASSERT_TRUE(q.pop(0).has_value());
+  EXPECT_EQ(q.in_flight_priority(key(4, 1), -5), -2);  // the pop's priority
+  EXPECT_EQ(q.in_flight_priority(key(4, 1), 1), 1);    // the caller's, when larger
+  q.replace({{key(4, 1), 7, 1}});                      // the view needs it now
+  EXPECT_EQ(q.queued(), 0u);                           // in flight: not queued again
+  EXPECT_EQ(q.in_flight_priority(key(4, 1), -2), 7);
+  q.replace({{key(4, 1), 3, 1}, {key(4, 1), std::nan(""), 1}});  // less urgent, or NaN: kept
+  EXPECT_EQ(q.in_flight_priority(key(4, 1), -2), 7);
+  const TileKey done[] = {key(4, 1)};
+  q.finish(done);
+  EXPECT_EQ(q.in_flight_priority(key(4, 1), -2), -2);  // no longer in flight
+  EXPECT_EQ(q.in_flight_priority(key(4, 2), 4), 4);    // never was
+}
+
 TEST(RequestQueue, ReplaceDropsWhatIsNoLongerWanted) {
   RequestQueue q;
   q.replace({{key(4, 1), 1, 1}, {key(4, 2), 1, 1}, {key(4, 3), 1, 1}});

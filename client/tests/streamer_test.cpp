@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <bit>
 #include <chrono>
+#include <functional>
 #include <limits>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -489,10 +491,13 @@ TEST(TileLoader, AResultNotYetTakenIsNotRequestedAgain) {
   EXPECT_EQ(fx.loader->counters().requests, 1u);
 }
 
-// A store source whose connections count the fetches they were asked for.
+// A store source whose connections count the fetches they were asked for; a fetch of the tile
+// `gated` (if any) sets `entered` and waits until `open` is set (30 s at most).
 class CountingSource final : public TileSource {
  public:
-  explicit CountingSource(std::shared_ptr<TileSource> inner) : inner_(std::move(inner)) {}
+  explicit CountingSource(std::shared_ptr<TileSource> inner,
+                          std::optional<TileKey> gated = std::nullopt)
+      : inner_(std::move(inner)), gated_(gated) {}
   std::string describe() const override { return inner_->describe(); }
   Result<std::vector<LayerDescription>> layers(const std::vector<std::string>& names) override {
     return inner_->layers(names);
@@ -503,26 +508,34 @@ class CountingSource final : public TileSource {
   Result<std::unique_ptr<TileConnection>> connect() override {
     auto c = inner_->connect();
     if (!c) return c.error();
-    return std::unique_ptr<TileConnection>(std::make_unique<Counted>(std::move(*c), fetches));
+    return std::unique_ptr<TileConnection>(std::make_unique<Counted>(std::move(*c), *this));
   }
   bool remote() const override { return false; }
   std::atomic<int> fetches{0};
+  std::atomic<bool> entered{false}, open{false};
 
  private:
   class Counted final : public TileConnection {
    public:
-    Counted(std::unique_ptr<TileConnection> inner, std::atomic<int>& fetches)
-        : inner_(std::move(inner)), fetches_(fetches) {}
+    Counted(std::unique_ptr<TileConnection> inner, CountingSource& source)
+        : inner_(std::move(inner)), source_(source) {}
     FetchResponse fetch(const FetchRequest& request, const std::atomic<bool>& cancel) override {
-      ++fetches_;
+      ++source_.fetches;
+      if (request.key == source_.gated_) {
+        source_.entered = true;
+        const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+        while (!source_.open.load() && std::chrono::steady_clock::now() < until)
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
       return inner_->fetch(request, cancel);
     }
 
    private:
     std::unique_ptr<TileConnection> inner_;
-    std::atomic<int>& fetches_;
+    CountingSource& source_;
   };
   std::shared_ptr<TileSource> inner_;
+  std::optional<TileKey> gated_;
 };
 
 TEST(TileLoader, ADownloadWorkerFetchesTheNextTileWhileThePreviousOneDecodes) {
@@ -564,6 +577,33 @@ TEST(TileLoader, ADownloadWorkerFetchesTheNextTileWhileThePreviousOneDecodes) {
   loader.set_result_callback(nullptr);
 }
 
+// A result callback that holds the decoder in the first result's callback until `release` (30 s
+// at most); `callbacks` counts the calls.
+std::function<void()> hold_first_result(std::atomic<int>& callbacks, std::atomic<bool>& release) {
+  return [&callbacks, &release] {
+    if (callbacks++ > 0) return;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!release.load() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+}
+
+// Takes the loader's results until as many as `expected` arrived (or `until`): the tiles in that
+// order, each loaded.
+void expect_loaded_in_order(TileLoader& loader, const std::vector<TileKey>& expected,
+                            std::chrono::steady_clock::time_point until) {
+  std::vector<LoadResult> results;
+  while (results.size() < expected.size() && std::chrono::steady_clock::now() < until) {
+    loader.wait_for_results(std::chrono::milliseconds(50));
+    for (LoadResult& r : loader.take_results()) results.push_back(std::move(r));
+  }
+  ASSERT_EQ(results.size(), expected.size());
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    EXPECT_EQ(results[i].key, expected[i]) << "result " << i;
+    EXPECT_EQ(results[i].status, LoadStatus::loaded) << results[i].error;
+  }
+}
+
 TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes) {
   // One download thread, one decoder. The first result's callback holds the decoder while the
   // worker fetches two prefetched tiles (negative priorities, the nearer-to-needed -1 before -2)
@@ -579,12 +619,7 @@ TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes)
   TileLoader loader(*source, *layers, nullptr, LoaderOptions{1, 1});
   std::atomic<int> callbacks{0};
   std::atomic<bool> release{false};
-  loader.set_result_callback([&] {
-    if (callbacks++ > 0) return;
-    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while (!release.load() && std::chrono::steady_clock::now() < until)
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  });
+  loader.set_result_callback(hold_first_result(callbacks, release));
   const geo::TileId root{10, 530, 350};
   const TileKey first{TileKind::terrain, 0, root};
   const TileKey later{TileKind::terrain, 0, root.children()[0]};
@@ -602,17 +637,52 @@ TEST(TileLoader, APrefetchedPayloadTheViewNowNeedsIsDecodedBeforeLessUrgentOnes)
   loader.submit({{needed_now, 5, 1}});  // both in flight: nothing is queued again
   EXPECT_EQ(loader.counters().queued, 0u);
   release = true;
-  std::vector<LoadResult> results;
-  while (results.size() < 3 && std::chrono::steady_clock::now() < until) {
-    loader.wait_for_results(std::chrono::milliseconds(50));
-    for (LoadResult& r : loader.take_results()) results.push_back(std::move(r));
-  }
-  ASSERT_EQ(results.size(), 3u);
-  EXPECT_EQ(results[0].key, first);
-  EXPECT_EQ(results[1].key, needed_now);
-  EXPECT_EQ(results[2].key, later);
-  for (const LoadResult& r : results) EXPECT_EQ(r.status, LoadStatus::loaded) << r.error;
+  expect_loaded_in_order(loader, {first, needed_now, later}, until);
   EXPECT_EQ(loader.counters().requests, 3u);
+  loader.set_result_callback(nullptr);
+}
+
+TEST(TileLoader, APrefetchedTileTheViewNeedsWhileItDownloadsIsDecodedBeforeLessUrgentOnes) {
+  // One download thread, one decoder. The first result's callback holds the decoder; the worker
+  // fetches the prefetched -1 tile (its payload waits) and then the -2 one, whose fetch waits at
+  // the gate. While it downloads the view comes to need it (a positive priority): submit() cannot
+  // raise a payload that is not there yet, so the raise must reach its decode job when the
+  // payload arrives. With the priority it was fetched with it was decoded after the -1 one.
+  TempDir dir("loader_decode_raise_in_flight");
+  testing::write_layer(dir.path / "s.db", testing::default_layer());
+  auto store = open_store_source(dir.path / "s.db");
+  ASSERT_TRUE(store) << store.error().message;
+  const geo::TileId root{10, 530, 350};
+  const TileKey first{TileKind::terrain, 0, root};
+  const TileKey later{TileKind::terrain, 0, root.children()[0]};
+  const TileKey needed_now{TileKind::terrain, 0, root.children()[1]};
+  auto source = std::make_shared<CountingSource>(*store, needed_now);
+  auto layers = source->layers({});
+  ASSERT_TRUE(layers) << layers.error().message;
+  TileLoader loader(source, *layers, nullptr, LoaderOptions{1, 1});
+  std::atomic<int> callbacks{0};
+  std::atomic<bool> release{false};
+  loader.set_result_callback(hold_first_result(callbacks, release));
+  loader.submit({{first, 3, 1}, {later, -1, 1}, {needed_now, -2, 1}});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  // The -2 tile is downloading (its fetch waits at the gate): the worker popped the other two
+  // before it, one at a time. And the decoder is held in the first result's callback (without
+  // this wait, a decoder slower than the worker found all three payloads waiting and took the
+  // raised one first: 2 of 200 runs under load).
+  while ((!source->entered.load() || callbacks.load() == 0) &&
+         std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_TRUE(source->entered.load());
+  ASSERT_EQ(callbacks.load(), 1);
+  loader.submit({{needed_now, 5, 1}});  // in flight: nothing is queued again
+  EXPECT_EQ(loader.counters().queued, 0u);
+  source->open = true;
+  // Both payloads wait for the held decoder.
+  while (loader.counters().decode_queued < 2 && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(loader.counters().decode_queued, 2u);
+  release = true;
+  expect_loaded_in_order(loader, {first, needed_now, later}, until);
   loader.set_result_callback(nullptr);
 }
 

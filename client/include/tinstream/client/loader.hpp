@@ -13,8 +13,9 @@
 // connection is not idle while a tile decodes (with 30 ms per request, ~12 ms a tile of wall time
 // on a busy 2-core machine; bench/client). At most LoaderOptions::decode_threads decode at once,
 // the most urgent job first; at most kMaxDecodeBacklog payloads wait (a worker waits for room).
-// A waiting job's priority follows the render thread: a prefetched tile (ranked after every needed
-// one) that the view needs by the time its payload waits is decoded as needed.
+// A decode job's priority follows the render thread: a prefetched tile (ranked after every needed
+// one) that the view needs by the time its payload waits, or while it still downloads, is decoded
+// as needed.
 // Neither submit() nor take_results() waits on a worker: both hold a lock only for a swap (or,
 // in submit, one hash lookup per request and a copy of the waiting jobs' keys and priorities).
 // Workers never touch the RAM or GPU tiers.
@@ -34,6 +35,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "tinstream/client/disk_cache.hpp"
@@ -107,8 +109,8 @@ class TileLoader {
   void set_paused(bool paused);
 
   // Render thread: what the view lacks now, replacing the previous submission. A wanted tile
-  // whose payload already waits for a decoder (a prefetched tile the view now needs) is decoded
-  // with the larger of its old and new priorities.
+  // whose payload already waits for a decoder or is still downloading (a prefetched tile the view
+  // now needs) is decoded with the larger of its old and new priorities.
   void submit(std::vector<TileRequest> wanted);
   // Render thread: results finished since the last call (never blocks on a worker).
   std::vector<LoadResult> take_results();
@@ -148,7 +150,7 @@ class TileLoader {
   std::optional<LoadResult> load(const TileRequest& request,
                                  std::unique_ptr<TileConnection>& connection);
   // submit(): a waiting decode job's priority rises to its key's priority in `wanted`.
-  void raise_decode_priorities(const std::vector<TileRequest>& wanted);
+  void raise_decode_priorities(const std::vector<std::pair<TileKey, double>>& wanted);
   void queue_decode(const TileKey& key, std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                     LoadOrigin origin, double priority);
   LoadResult finish_payload(DecodeJob& job);

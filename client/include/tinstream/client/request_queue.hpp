@@ -7,7 +7,8 @@
 // descendants, which are only asked for once it is drawn), then the nearest, then the key. A tile
 // popped by one worker is "in flight" until finish(), which the loader calls when the render
 // thread takes the tile's result; pop() never hands out a tile in flight, and replace() leaves
-// it out.
+// it out but raises its in-flight priority to the one wanted now (in_flight_priority: a
+// prefetched tile the view needs while it downloads is decoded as needed).
 //
 // Threads: replace() and finish() from one thread (the render thread), pop() from workers. The lock
 // is held for a swap, a hash lookup per queued request or a pop, never during I/O.
@@ -20,7 +21,7 @@
 #include <mutex>
 #include <optional>
 #include <span>
-#include <unordered_set>
+#include <unordered_map>
 #include <vector>
 
 #include "tinstream/client/tile_key.hpp"
@@ -46,6 +47,9 @@ class RequestQueue {
   std::optional<TileRequest> pop(std::size_t worker);
   // The tiles are no longer in flight (their results reached the render thread).
   void finish(std::span<const TileKey> keys);
+  // The larger of `priority` and the most urgent priority asked for `key` while in flight (its
+  // pop's, raised by later replace() calls that wanted it); `priority` when not in flight.
+  double in_flight_priority(const TileKey& key, double priority) const;
 
   void set_active_workers(std::size_t n);
   void set_paused(bool paused);
@@ -60,9 +64,10 @@ class RequestQueue {
   mutable std::mutex mutex_;
   std::condition_variable ready_;
   std::vector<TileRequest> queue_;  // guarded by mutex_; ascending urgency: the next at the back
-  std::unordered_set<TileKey, TileKeyHash> in_flight_;  // guarded by mutex_
-  std::size_t active_ = 1;                              // guarded by mutex_
-  bool paused_ = false, closed_ = false;                // guarded by mutex_
+  // The tiles in flight, each with the most urgent priority asked for it; guarded by mutex_.
+  std::unordered_map<TileKey, double, TileKeyHash> in_flight_;
+  std::size_t active_ = 1;                // guarded by mutex_
+  bool paused_ = false, closed_ = false;  // guarded by mutex_
 };
 
 }  // namespace tinstream::client
