@@ -6,6 +6,7 @@
 #   FLIGHT_S=60 SAMPLE_S=2 GPU_MB=16 CACHE_MB=16 bench/client/rss_flight.sh
 #   STORE_IN=terrain.sqlite LAYER=alps bench/client/rss_flight.sh
 #   VIEWER_ARGS="--heap-trim-ms -1" bench/client/rss_flight.sh   extra viewer options
+#   REF_N=0 bench/client/rss_flight.sh                  no reference runs (default 3)
 #
 # tinstream-server serves the store on 127.0.0.1 (no delaying proxy: this measures memory, not
 # latency). tinstream-viewer --headless flies analyze.py's flight (FLIGHT_S seconds, default 300,
@@ -62,6 +63,7 @@ python3 "$HERE/analyze.py" cameras "$OUT/layer.json" "$OUT/flight.txt" "$FLIGHT_
 echo "store $store, layer $layer, server $url; flying $FLIGHT_S s, RSS every $SAMPLE_S s"
 
 started=$(date -u +%FT%TZ)
+rm -f "$OUT/flight.jsonl"  # (a rerun into the same OUT: sampling waits for this run's first frame)
 "$BIN/tinstream-viewer" --headless --url "$url" --layer "$layer" --size "$SIZE" --max-sse "$SSE" \
   --threads 8 --gpu-mb "$GPU_MB" --cache-mb "$CACHE_MB" --timeout 120 \
   --camera-path "$OUT/flight.txt" --out "$OUT/flight.png" --stats "$OUT/flight.jsonl" \
@@ -83,6 +85,19 @@ status=0
 wait "$viewer" || status=$?
 pids=("${pids[@]:0:1}")
 [[ $status == 0 ]] || { echo "rss_flight.sh: the viewer exited with $status" >&2; tail "$OUT/viewer.log" >&2; exit 1; }
+# The restated target's reference (RESULTS.md, "RSS target on a software renderer"): REF_N
+# (default 3; 0: none) of the flight's views that drew the most triangles, each a complete view in
+# a fresh viewer with the same options (snapshot mode); its peak RSS less its tiers is what the
+# process holds beside them for a full frame of a loaded view.
+rm -f "$OUT"/ref-*.jsonl "$OUT"/ref-*.time
+k=0
+while read -r cam; do
+  /usr/bin/time -f %M -o "$OUT/ref-$k.time" "$BIN/tinstream-viewer" --headless --url "$url" \
+    --layer "$layer" --size "$SIZE" --max-sse "$SSE" --threads 8 --gpu-mb "$GPU_MB" \
+    --cache-mb "$CACHE_MB" --timeout 60 --camera "$cam" --out "$OUT/ref-$k.png" \
+    --stats "$OUT/ref-$k.jsonl" "${viewer_args[@]}" 2>> "$OUT/viewer.log" || true
+  k=$((k + 1))
+done < <(python3 "$HERE/analyze.py" heaviest "$OUT/flight.jsonl" "$OUT/flight.txt" "${REF_N:-3}")
 python3 "$HERE/analyze.py" rss "$OUT" "$store" "$layer" "$SIZE" "$SSE" "$started" \
   | tee "$OUT/report.md"
 echo "results in $OUT (report.md)"
