@@ -95,7 +95,7 @@ while read -r cam; do
   /usr/bin/time -f %M -o "$OUT/ref-$k.time" "$BIN/tinstream-viewer" --headless --url "$url" \
     --layer "$layer" --size "$SIZE" --max-sse "$SSE" --threads 8 --gpu-mb "$GPU_MB" \
     --cache-mb "$CACHE_MB" --timeout 60 --camera "$cam" --out "$OUT/ref-$k.png" \
-    --stats "$OUT/ref-$k.jsonl" "${viewer_args[@]}" 2>> "$OUT/viewer.log" || true
+    --stats "$OUT/ref-$k.jsonl" "${viewer_args[@]}" < /dev/null 2>> "$OUT/viewer.log" || true
   k=$((k + 1))
 done < <(python3 "$HERE/analyze.py" heaviest "$OUT/flight.jsonl" "$OUT/flight.txt" "${REF_N:-3}")
 python3 "$HERE/analyze.py" rss "$OUT" "$store" "$layer" "$SIZE" "$SSE" "$started" \
