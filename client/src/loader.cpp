@@ -80,37 +80,19 @@ void TileLoader::set_threads(int threads) {
 void TileLoader::set_paused(bool paused) { queue_.set_paused(paused); }
 
 void TileLoader::submit(std::vector<TileRequest> wanted) {
-  // The queue first: it raises the priority of tiles still downloading, which queue_decode reads
-  // under decode_mutex_. A payload queued before the raise below is raised by it, one queued
-  // after it reads the raised priority: none is missed.
-  std::vector<std::pair<TileKey, double>> asked;
-  asked.reserve(wanted.size());
-  for (const TileRequest& r : wanted) asked.emplace_back(r.key, r.priority);
+  // The queue first: it raises the priority of every wanted tile in flight, which is what both a
+  // waiting payload (raised below) and one still downloading (queue_decode) read. A payload queued
+  // before the raise below is raised by it, one queued after it reads the raised priority.
   counters_.dropped.fetch_add(queue_.replace(std::move(wanted)), std::memory_order_relaxed);
-  raise_decode_priorities(asked);
+  raise_decode_priorities();
 }
 
-void TileLoader::raise_decode_priorities(const std::vector<std::pair<TileKey, double>>& wanted) {
-  // The waiting payloads' keys (at most kMaxDecodeBacklog) under the lock, the search outside it.
-  std::vector<std::pair<TileKey, double>> waiting;
-  {
-    std::lock_guard lock(decode_mutex_);
-    if (decode_jobs_.empty()) return;
-    waiting.reserve(decode_jobs_.size());
-    for (const DecodeJob& job : decode_jobs_) waiting.emplace_back(job.key, job.priority);
-  }
-  bool raised = false;
-  for (const auto& [wanted_key, wanted_priority] : wanted)
-    for (auto& [key, priority] : waiting)
-      if (key == wanted_key && wanted_priority > priority) {  // (a NaN raises nothing)
-        priority = wanted_priority;
-        raised = true;
-      }
-  if (!raised) return;
+void TileLoader::raise_decode_priorities() {
+  // A waiting payload's tile is in flight (until its result is taken): at most kMaxDecodeBacklog
+  // lookups in the queue.
   std::lock_guard lock(decode_mutex_);
   for (DecodeJob& job : decode_jobs_)
-    for (const auto& [key, priority] : waiting)
-      if (job.key == key && priority > job.priority) job.priority = priority;
+    job.priority = queue_.in_flight_priority(job.key, job.priority);
 }
 
 std::vector<LoadResult> TileLoader::take_results() {

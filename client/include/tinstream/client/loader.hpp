@@ -17,7 +17,7 @@
 // one) that the view needs by the time its payload waits, or while it still downloads, is decoded
 // as needed.
 // Neither submit() nor take_results() waits on a worker: both hold a lock only for a swap (or,
-// in submit, one hash lookup per request and a copy of the waiting jobs' keys and priorities).
+// in submit, one hash lookup per request and one per waiting payload).
 // Workers never touch the RAM or GPU tiers.
 // Every worker and decoder runs its jobs inside an exception barrier; a failure becomes a
 // `failed` result. The download thread count can change at run time (set_threads): extra
@@ -35,7 +35,6 @@
 #include <optional>
 #include <string>
 #include <thread>
-#include <utility>
 #include <vector>
 
 #include "tinstream/client/disk_cache.hpp"
@@ -149,8 +148,9 @@ class TileLoader {
   // failure) is the result.
   std::optional<LoadResult> load(const TileRequest& request,
                                  std::unique_ptr<TileConnection>& connection);
-  // submit(): a waiting decode job's priority rises to its key's priority in `wanted`.
-  void raise_decode_priorities(const std::vector<std::pair<TileKey, double>>& wanted);
+  // submit(): a waiting decode job's priority rises to its tile's in-flight priority (the most
+  // urgent one asked for it since it was sent: RequestQueue::in_flight_priority).
+  void raise_decode_priorities();
   void queue_decode(const TileKey& key, std::vector<std::uint8_t> bytes, ContentEncoding encoding,
                     LoadOrigin origin, double priority);
   LoadResult finish_payload(DecodeJob& job);
