@@ -402,9 +402,16 @@ struct Point14Context {
   std::uint8_t returns;    // GPS time changed (bit 0), cpr (bits 1-2), scan angle changed (3),
                            // point source changed (4), return level (bits 5-7)
   std::uint8_t z_context;  // the Z integer decoder's context
+  // The context LASzip hands the other items (RGB14, RGBNIR14, BYTE14, WAVEPACKET14): its point
+  // reader starts each point's context at 0, and the POINT14 item sets it to the scanner channel
+  // only where the channel switches (and at the chunk's first point, start()). So a point that
+  // stays on channel 2 is decoded by those items in their context 0; LASzip's writer does the
+  // same (laswritepoint.cpp, lasreadpoint.cpp: `U32 context = 0;` per point). Found with the
+  // LASzip-written four-channel test files (tests/data).
+  std::uint8_t item_context;
 };
 
-// Points per batch: the contexts take 4 bytes a point (4 KiB), and a batch of records of up to
+// Points per batch: the contexts take 5 bytes a point (5 KiB), and a batch of records of up to
 // ~60 bytes stays in the L2 cache while each layer's loop passes over it.
 inline constexpr std::size_t kLayeredBatch = 1024;
 
@@ -421,9 +428,10 @@ class Point14Layered {
   // layer by layer, and keeps the points' contexts for the other items (contexts()).
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n);
   const Point14Context* contexts() const { return batch_.data(); }
-  // Whether the last batch stayed on one scanner channel (no switch at any of its points).
-  bool one_channel() const { return one_channel_; }
-  std::uint32_t channel() const { return current_; }  // scanner channel: the other items' context
+  // Whether the other items stay in one context over the last batch (every point's
+  // item_context is the one before it).
+  bool one_item_context() const { return one_item_context_; }
+  std::uint32_t channel() const { return current_; }  // the chunk's first point's channel
 
  private:
   struct Context;
@@ -435,7 +443,8 @@ class Point14Layered {
   void layer_loop(std::size_t n, Passes&... passes);
 
   std::array<Point14Context, kLayeredBatch> batch_{};
-  bool one_channel_ = true;
+  bool one_item_context_ = true;
+  std::uint32_t item_context_ = 0;  // the other items' context after the last point decoded
   std::array<Layer, kPoint14Layers> layers_;
   std::array<bool, kPoint14Layers> wanted_{};
   std::array<std::unique_ptr<Context>, 4> contexts_;
@@ -479,7 +488,7 @@ class Rgb14Layered {
   void start(const std::uint8_t* raw, std::uint32_t channel);
   // The next n records' item bytes at `out` (record_length apart), point i in context[i].
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context, bool one_channel);
+                    const Point14Context* context, bool one_context);
 
  private:
   struct Context {
@@ -506,7 +515,7 @@ class Byte14Layered {
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context, bool one_channel);
+                    const Point14Context* context, bool one_context);
 
  private:
   struct Context {
@@ -516,7 +525,7 @@ class Byte14Layered {
   Context& create(std::uint32_t channel);
   // Opens `channel` from channel `from`'s last byte `byte` (its layer).
   void open(std::uint32_t channel, std::uint32_t from, std::size_t byte);
-  template <bool kOneChannel, std::size_t kWidth>
+  template <bool kOneContext, std::size_t kWidth>
   void decode_group(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
                     const Point14Context* context, std::size_t b);
 
@@ -536,7 +545,7 @@ class WavePacket14Layered {
   bool wanted(std::size_t) const { return wanted_; }
   void start(const std::uint8_t* raw, std::uint32_t channel);
   void decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                    const Point14Context* context, bool one_channel);
+                    const Point14Context* context, bool one_context);
 
  private:
   void decode(std::uint8_t* out, std::uint32_t channel);

@@ -153,6 +153,7 @@ void Point14Layered::start(const std::uint8_t* raw) {
   first.load(raw);
   in_use_ = {};
   current_ = first.scanner_channel;
+  item_context_ = current_;
   open_context(current_, first);
 }
 
@@ -189,20 +190,22 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
   std::uint32_t current = current_;
   Context* c = contexts_[current].get();
   std::uint8_t* out = records;
-  bool switched = false;
+  std::uint32_t item_context = item_context_;
+  bool one_item_context = true;
   for (std::size_t i = 0; i < n; ++i, out += record_length) {
     Point14Context& pc = batch_[i];
     pc.from = static_cast<std::uint8_t>(current);
     std::uint32_t opens = 0;
+    std::uint32_t point_item_context = 0;  // 0 unless the channel switches here (Point14Context)
     // Which fields changed, in the context of the previous point's return and time change.
     const std::uint32_t lpr = (c->last.return_number == 1 ? 1u : 0u) +
                               (c->last.return_number >= c->last.number_of_returns ? 2u : 0u) +
                               (c->last.gps_time_changed ? 4u : 0u);
     const std::uint32_t changed = xy.decode_symbol(c->changed[lpr]);
     if (changed & (1u << 6)) [[unlikely]] {  // another scanner channel: current + 1..3 (mod 4)
-      switched = true;
       const std::uint32_t step = xy.decode_symbol(c->scanner_step);
       const std::uint32_t channel = (current + step + 1) & 3;
+      point_item_context = channel;
       if (!in_use_[channel]) {
         if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
         contexts_[channel]->reset_xy(c->last);
@@ -265,6 +268,9 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
     put32(out + 4, static_cast<std::uint32_t>(p.y));
     out[14] = static_cast<std::uint8_t>(r | (nr << 4));
     pc.channel = static_cast<std::uint8_t>(current | opens);
+    pc.item_context = static_cast<std::uint8_t>(point_item_context);
+    one_item_context &= point_item_context == item_context;
+    item_context = point_item_context;
     pc.returns = static_cast<std::uint8_t>(g | (cpr << 1) | (changed & (1u << 3)) |
                                            (changed & (1u << 5)) >> 1 | (l << 5));
     pc.z_context = static_cast<std::uint8_t>(single + (k < 18 ? k & ~1u : 18));
@@ -273,7 +279,8 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
   }
   layers_[kLayerXY].dec = xy;
   current_ = current;
-  one_channel_ = !switched;
+  item_context_ = item_context;
+  one_item_context_ = one_item_context;
 }
 
 // One loop over the batch for the given layers (each its own stream: their symbol chains
@@ -448,14 +455,14 @@ void Rgb14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 }
 
 void Rgb14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                const Point14Context* context, bool /*one_channel*/) {
+                                const Point14Context* context, bool /*one_context*/) {
   // RGB and NIR in one loop: two streams, each decoder in a local (registers).
   ArithmeticDecoder rgb_dec = layers_[0].dec, nir_dec = layers_[1].dec;
   const bool rgb_active = layers_[0].active, nir_active = nir_ && layers_[1].active;
   ChannelSwitch sw = channels_;
   for (std::size_t i = 0; i < n; ++i, out += record_length) {
     const std::uint32_t source =
-        sw.follow(context[i].channel & 3u, version4_, [this](std::uint32_t ch, std::uint32_t from) {
+        sw.follow(context[i].item_context, version4_, [this](std::uint32_t ch, std::uint32_t from) {
           open(ch, from, 0);
           open(ch, from, 1);
         });
@@ -518,7 +525,7 @@ void Byte14Layered::start(const std::uint8_t* raw, std::uint32_t channel) {
 }
 
 void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
-                                 const Point14Context* context, bool one_channel) {
+                                 const Point14Context* context, bool one_context) {
   // Two bytes' layers per loop, three in the last when the count is odd (one alone only when
   // it is the only one): two or three streams, each decoder in a local. A loop of one stream is
   // one chain of dependent symbol decodes with nothing to overlap it. Each loop follows the
@@ -526,7 +533,7 @@ void Byte14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length,
   const ChannelSwitch at_start = channels_;
   auto group = [&]<std::size_t kWidth>(std::size_t b) {
     channels_ = at_start;
-    if (one_channel) {
+    if (one_context) {
       decode_group<true, kWidth>(out, record_length, n, context, b);
     } else {
       decode_group<false, kWidth>(out, record_length, n, context, b);
@@ -555,10 +562,10 @@ TINSTREAM_LAZ_INLINE void for_each_index(F&& f) {
 
 }  // namespace
 
-// Byte layers b .. b + kWidth - 1. kOneChannel: no point of the batch switches channel, so the
-// models and the last bytes stay those of the current channel, the bytes kept in locals for
+// Byte layers b .. b + kWidth - 1. kOneContext: no point of the batch switches context, so the
+// models and the last bytes stay those of the current context, the bytes kept in locals for
 // the loop.
-template <bool kOneChannel, std::size_t kWidth>
+template <bool kOneContext, std::size_t kWidth>
 void Byte14Layered::decode_group(std::uint8_t* out, std::uint16_t record_length, std::size_t n,
                                  const Point14Context* context, std::size_t b) {
   ChannelSwitch& sw = channels_;
@@ -576,8 +583,8 @@ void Byte14Layered::decode_group(std::uint8_t* out, std::uint16_t record_length,
   std::uint8_t* o = out + b;
   for (std::size_t i = 0; i < n; ++i, o += record_length) {
     std::uint8_t* last = own.data();
-    if constexpr (!kOneChannel) {
-      const std::uint32_t source = sw.follow(context[i].channel & 3u, version4_,
+    if constexpr (!kOneContext) {
+      const std::uint32_t source = sw.follow(context[i].item_context, version4_,
                                              [this, b](std::uint32_t ch, std::uint32_t from) {
                                                for (std::size_t k = 0; k < kWidth; ++k) {
                                                  open(ch, from, b + k);
@@ -595,7 +602,7 @@ void Byte14Layered::decode_group(std::uint8_t* out, std::uint16_t record_length,
     });
   }
   for_each_index<kWidth>([&](auto k) TINSTREAM_LAZ_LAMBDA {
-    if constexpr (kOneChannel) first.last[b + k] = own[k];
+    if constexpr (kOneContext) first.last[b + k] = own[k];
     layers_[b + k].dec = dec[k];
   });
 }
@@ -616,8 +623,8 @@ void WavePacket14Layered::start(const std::uint8_t* raw, std::uint32_t channel) 
 
 void WavePacket14Layered::decode_batch(std::uint8_t* out, std::uint16_t record_length,
                                        std::size_t n, const Point14Context* context,
-                                       bool /*one_channel*/) {
-  for (std::size_t i = 0; i < n; ++i, out += record_length) decode(out, context[i].channel & 3u);
+                                       bool /*one_context*/) {
+  for (std::size_t i = 0; i < n; ++i, out += record_length) decode(out, context[i].item_context);
 }
 
 void WavePacket14Layered::decode(std::uint8_t* out, std::uint32_t channel) {
@@ -659,7 +666,7 @@ void decode_layered(Point14Layered& point14, std::span<LayeredItem> items,
       std::visit(
           [&](auto& item) {
             item.decode_batch(out + offsets[i + 1], record_length, batch, context,
-                              point14.one_channel());
+                              point14.one_item_context());
           },
           items[i]);
     }
