@@ -186,8 +186,8 @@ TEST(LazDecode, AutzenMatchesItsLasTwin) {
 }
 
 // Files LASzip wrote beside their uncompressed twins (tests/data/README.md): four scanner
-// channels switching mid-chunk and at chunk starts, up to 15 returns, 7 and 1 extra bytes, a
-// pointwise file with 7 extra bytes. Always present (they live in the repository).
+// channels switching mid-chunk and at chunk starts, up to 15 returns, 7, 2 and 1 extra bytes,
+// NIR and waveforms, and a pointwise file with 7 extra bytes. Always present (in the repository).
 const std::filesystem::path kGenerated = TINSTREAM_LAZ_TEST_DATA;
 
 // The first record where two decodes differ, and its first differing byte ("" when equal).
@@ -243,7 +243,7 @@ TEST_P(GeneratedLaz, GeometryAndClassLayersMatchTheTwinAcrossChannelSwitches) {
 
 INSTANTIATE_TEST_SUITE_P(Generated, GeneratedLaz,
                          ::testing::Values("laz_gen_f1_eb7", "laz_gen_f6_eb7_4ch",
-                                           "laz_gen_f7_eb1_4ch"));
+                                           "laz_gen_f10_eb2_4ch", "laz_gen_f7_eb1_4ch"));
 
 }  // namespace
 }  // namespace tinstream::sources

@@ -46,6 +46,7 @@ const Case kCases[] = {
     {"laz_gen_f1_eb7", 2, 1, 7, 1000, 2500, 1, 7},
     {"laz_gen_f6_eb7_4ch", 4, 6, 7, 1000, 2500, 4, 15},
     {"laz_gen_f7_eb1_4ch", 4, 7, 1, 800, 2500, 4, 15},
+    {"laz_gen_f10_eb2_4ch", 4, 10, 2, 900, 2500, 4, 15},
 };
 
 int base_length(int format) {
@@ -58,6 +59,8 @@ int base_length(int format) {
       return 30;
     case 7:
       return 36;
+    case 10:
+      return 67;
     default:
       return -1;
   }
@@ -150,7 +153,23 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
         pt.p.withheld_flag = (flags >> 2) & 1;
         pt.p.scan_angle_rank = static_cast<laszip_I8>(std::lround(head.angle));
       }
-      if (c.format == 7) {
+      if (c.format ==
+          10) {  // NIR and a waveform packet: descriptor, offset, size, location, dx/dy/dz
+        pt.p.rgb[3] = static_cast<laszip_U16>(r == n ? 30000 + rng.below(2000) : rng.below(65536));
+        static std::uint64_t wave_offset = 0;
+        const std::uint8_t descriptor = static_cast<std::uint8_t>(1 + channel % 3);
+        const std::uint32_t size = rng.below(20) == 0 ? 512u : 256u;
+        const float location = static_cast<float>(1000.0 + 3.0 * r + rng.unit());
+        const float d[3] = {static_cast<float>(1e-5 * (channel + 1)),
+                            static_cast<float>(-2e-5 * channel), -1.5e-4f};
+        pt.p.wave_packet[0] = descriptor;
+        std::memcpy(&pt.p.wave_packet[1], &wave_offset, 8);
+        std::memcpy(&pt.p.wave_packet[9], &size, 4);
+        std::memcpy(&pt.p.wave_packet[13], &location, 4);
+        std::memcpy(&pt.p.wave_packet[17], d, 12);
+        wave_offset += size;
+      }
+      if (c.format == 7 || c.format == 10) {
         const int shade = static_cast<int>((z - 110.0) * 2000.0);
         pt.p.rgb[0] = static_cast<laszip_U16>(std::clamp(shade, 0, 65535));
         pt.p.rgb[1] = static_cast<laszip_U16>(std::clamp(shade + rng.below(4000), 0, 65535));
@@ -159,6 +178,9 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
       pt.extra.resize(static_cast<std::size_t>(c.extra_bytes));
       if (c.extra_bytes == 1) {
         pt.extra[0] = static_cast<laszip_U8>(r == n ? 200 + rng.below(20) : rng.below(256));
+      } else if (c.extra_bytes == 2) {
+        pt.extra[0] = static_cast<laszip_U8>(channel * 60 + rng.below(4));
+        pt.extra[1] = static_cast<laszip_U8>(counter >> 4);
       } else {
         pt.extra[0] = 0x2A;                                      // constant
         pt.extra[1] = static_cast<laszip_U8>(counter);           // counter
