@@ -82,7 +82,7 @@ ChunkDecoder::ChunkDecoder(const LaszipVlr& vlr, std::uint16_t record_length,
         pointwise_.emplace_back(std::in_place_type<WavePacket13V1>);
         break;
       case ItemType::point14:
-        point14_ = std::make_unique<Point14Layered>(layers);
+        point14_ = std::make_unique<Point14Layered>(v4, layers);
         break;
       case ItemType::rgb14:
         layered_items_.emplace_back(std::in_place_type<Rgb14Layered>, false, v4, layers);

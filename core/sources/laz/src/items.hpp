@@ -403,11 +403,11 @@ struct Point14Context {
                            // point source changed (4), return level (bits 5-7)
   std::uint8_t z_context;  // the Z integer decoder's context
   // The context LASzip hands the other items (RGB14, RGBNIR14, BYTE14, WAVEPACKET14): its point
-  // reader starts each point's context at 0, and the POINT14 item sets it to the scanner channel
-  // only where the channel switches (and at the chunk's first point, start()). So a point that
-  // stays on channel 2 is decoded by those items in their context 0; LASzip's writer does the
-  // same (laswritepoint.cpp, lasreadpoint.cpp: `U32 context = 0;` per point). Found with the
-  // LASzip-written four-channel test files (tests/data).
+  // reader starts each point's context at 0 (laswritepoint.cpp, lasreadpoint.cpp: `U32 context
+  // = 0;` per point). The POINT14 item v3 sets it to the scanner channel only where the channel
+  // switches (and at the chunk's first point, start()), so a point that stays on channel 2 is
+  // coded by those items in their context 0; v4 sets it to the channel at every point. Found
+  // with the LASzip-written four-channel test files (tests/data).
   std::uint8_t item_context;
 };
 
@@ -417,7 +417,7 @@ inline constexpr std::size_t kLayeredBatch = 1024;
 
 class Point14Layered {
  public:
-  Point14Layered(const LayerSelection& selection);
+  Point14Layered(bool version4, const LayerSelection& selection);
   ~Point14Layered();
   std::size_t layer_count() const { return kPoint14Layers; }
   Layer& layer(std::size_t i) { return layers_[i]; }
@@ -443,6 +443,7 @@ class Point14Layered {
   void layer_loop(std::size_t n, Passes&... passes);
 
   std::array<Point14Context, kLayeredBatch> batch_{};
+  bool version4_;
   bool one_item_context_ = true;
   std::uint32_t item_context_ = 0;  // the other items' context after the last point decoded
   std::array<Layer, kPoint14Layers> layers_;

@@ -133,7 +133,7 @@ struct Point14Layered::Context {
   }
 };
 
-Point14Layered::Point14Layered(const LayerSelection& s) {
+Point14Layered::Point14Layered(bool version4, const LayerSelection& s) : version4_(version4) {
   wanted_ = {true,         s.z,         s.classification, s.flags,   s.intensity,
              s.scan_angle, s.user_data, s.point_source,   s.gps_time};
 }
@@ -196,7 +196,7 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
     Point14Context& pc = batch_[i];
     pc.from = static_cast<std::uint8_t>(current);
     std::uint32_t opens = 0;
-    std::uint32_t point_item_context = 0;  // 0 unless the channel switches here (Point14Context)
+    bool switches = false;
     // Which fields changed, in the context of the previous point's return and time change.
     const std::uint32_t lpr = (c->last.return_number == 1 ? 1u : 0u) +
                               (c->last.return_number >= c->last.number_of_returns ? 2u : 0u) +
@@ -205,7 +205,7 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
     if (changed & (1u << 6)) [[unlikely]] {  // another scanner channel: current + 1..3 (mod 4)
       const std::uint32_t step = xy.decode_symbol(c->scanner_step);
       const std::uint32_t channel = (current + step + 1) & 3;
-      point_item_context = channel;
+      switches = true;
       if (!in_use_[channel]) {
         if (!contexts_[channel]) contexts_[channel] = std::make_unique<Context>();
         contexts_[channel]->reset_xy(c->last);
@@ -268,6 +268,8 @@ TINSTREAM_LAZ_INLINE void Point14Layered::decode_xy(std::uint8_t* records,
     put32(out + 4, static_cast<std::uint32_t>(p.y));
     out[14] = static_cast<std::uint8_t>(r | (nr << 4));
     pc.channel = static_cast<std::uint8_t>(current | opens);
+    // v3: the channel where it switches, else 0; v4: the channel (Point14Context::item_context).
+    const std::uint32_t point_item_context = version4_ || switches ? current : 0;
     pc.item_context = static_cast<std::uint8_t>(point_item_context);
     one_item_context &= point_item_context == item_context;
     item_context = point_item_context;

@@ -187,8 +187,15 @@ TEST(LazDecode, AutzenMatchesItsLasTwin) {
 
 // Files LASzip wrote beside their uncompressed twins (tests/data/README.md): four scanner
 // channels switching mid-chunk and at chunk starts, up to 15 returns, 7, 2 and 1 extra bytes,
-// NIR and waveforms, and a pointwise file with 7 extra bytes. Always present (in the repository).
+// NIR and waveforms, and a pointwise file with 7 extra bytes; two of the layered files again
+// with LASzip's item version 4 (same points, so the v3 file's twin). Always present (in the
+// repository).
 const std::filesystem::path kGenerated = TINSTREAM_LAZ_TEST_DATA;
+
+struct GeneratedFile {
+  const char* laz;
+  const char* twin;  // the .las holding the same records
+};
 
 // The first record where two decodes differ, and its first differing byte ("" when equal).
 std::string first_difference(const Decoded& a, const Decoded& b, std::size_t rl) {
@@ -201,11 +208,12 @@ std::string first_difference(const Decoded& a, const Decoded& b, std::size_t rl)
   return a.bytes.size() == b.bytes.size() ? "" : "lengths differ";
 }
 
-class GeneratedLaz : public ::testing::TestWithParam<const char*> {};
+class GeneratedLaz : public ::testing::TestWithParam<GeneratedFile> {};
 
 TEST_P(GeneratedLaz, RecordsMatchTheLasTwinLaszipWrote) {
-  const std::string name = GetParam();
-  const Decoded las = decode_all(kGenerated / (name + ".las"), {}, 4096, true);
+  const std::string name = GetParam().laz;
+  const Decoded las =
+      decode_all(kGenerated / (std::string(GetParam().twin) + ".las"), {}, 4096, true);
   ASSERT_EQ(las.records, 2500u) << name;
   const std::size_t rl = las.bytes.size() / las.records;
   for (unsigned threads : {1u, 2u}) {
@@ -223,8 +231,9 @@ TEST_P(GeneratedLaz, RecordsMatchTheLasTwinLaszipWrote) {
 // Reading only what a terrain needs (x, y, z, returns, flags and channel, class) across channel
 // switches: those bytes as in the twin.
 TEST_P(GeneratedLaz, GeometryAndClassLayersMatchTheTwinAcrossChannelSwitches) {
-  const std::string name = GetParam();
-  const Decoded las = decode_all(kGenerated / (name + ".las"), {}, 4096, true);
+  const std::string name = GetParam().laz;
+  const Decoded las =
+      decode_all(kGenerated / (std::string(GetParam().twin) + ".las"), {}, 4096, true);
   ASSERT_GT(las.records, 0u);
   const std::size_t rl = las.bytes.size() / las.records;
   RecordOptions partial;
@@ -241,9 +250,17 @@ TEST_P(GeneratedLaz, GeometryAndClassLayersMatchTheTwinAcrossChannelSwitches) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Generated, GeneratedLaz,
-                         ::testing::Values("laz_gen_f1_eb7", "laz_gen_f6_eb7_4ch",
-                                           "laz_gen_f10_eb2_4ch", "laz_gen_f7_eb1_4ch"));
+const GeneratedFile kGeneratedFiles[] = {
+    {"laz_gen_f1_eb7", "laz_gen_f1_eb7"},
+    {"laz_gen_f6_eb7_4ch", "laz_gen_f6_eb7_4ch"},
+    {"laz_gen_f7_eb1_4ch", "laz_gen_f7_eb1_4ch"},
+    {"laz_gen_f10_eb2_4ch", "laz_gen_f10_eb2_4ch"},
+    {"laz_gen_f7_eb1_4ch_v4", "laz_gen_f7_eb1_4ch"},
+    {"laz_gen_f10_eb2_4ch_v4", "laz_gen_f10_eb2_4ch"},
+};
+
+INSTANTIATE_TEST_SUITE_P(Generated, GeneratedLaz, ::testing::ValuesIn(kGeneratedFiles),
+                         [](const auto& test) { return std::string(test.param.laz); });
 
 }  // namespace
 }  // namespace tinstream::sources

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -40,6 +41,10 @@ struct Case {
   int points;
   int channels;     // scanner channels used (1 = legacy formats)
   int max_returns;  // 7 for formats 0-5, up to 15 for 6-10
+  // The item versions LASzip is asked for (0: its default, v2 for formats 0-5, v3 for 6-10).
+  // v4 for LAS 1.4 needs the one-line change of README.md (LASzip's API picks v4 only for LAS
+  // 1.5 headers); the points are those of the v3 file with the same format and extra bytes.
+  int item_version = 0;
 };
 
 const Case kCases[] = {
@@ -47,6 +52,8 @@ const Case kCases[] = {
     {"laz_gen_f6_eb7_4ch", 4, 6, 7, 1000, 2500, 4, 15},
     {"laz_gen_f7_eb1_4ch", 4, 7, 1, 800, 2500, 4, 15},
     {"laz_gen_f10_eb2_4ch", 4, 10, 2, 900, 2500, 4, 15},
+    {"laz_gen_f7_eb1_4ch_v4", 4, 7, 1, 800, 2500, 4, 15, 4},
+    {"laz_gen_f10_eb2_4ch_v4", 4, 10, 2, 900, 2500, 4, 15, 4},
 };
 
 int base_length(int format) {
@@ -91,6 +98,7 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
   std::vector<Point> out;
   int channel = 0;
   std::uint32_t counter = 0;
+  std::uint64_t wave_offset = 0;
   while (static_cast<int>(out.size()) < c.points) {
     // A channel switch every ~12 pulses, and at the start of some chunks.
     const bool chunk_start = out.size() % static_cast<std::size_t>(c.chunk_size) == 0;
@@ -156,7 +164,6 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
       if (c.format ==
           10) {  // NIR and a waveform packet: descriptor, offset, size, location, dx/dy/dz
         pt.p.rgb[3] = static_cast<laszip_U16>(r == n ? 30000 + rng.below(2000) : rng.below(65536));
-        static std::uint64_t wave_offset = 0;
         const std::uint8_t descriptor = static_cast<std::uint8_t>(1 + channel % 3);
         const std::uint32_t size = rng.below(20) == 0 ? 512u : 256u;
         const float location = static_cast<float>(1000.0 + 3.0 * r + rng.unit());
@@ -231,6 +238,11 @@ bool write(const Case& c, const std::vector<Point>& points, const std::string& p
     h->number_of_point_records = static_cast<laszip_U32>(points.size());
     for (int i = 0; i < 5; ++i)
       h->number_of_points_by_return[i] = static_cast<laszip_U32>(by_return[i]);
+  }
+  if (compress && c.item_version) {
+    setenv("LASZIP_REQUEST_VERSION", std::to_string(c.item_version).c_str(), 1);
+  } else {
+    unsetenv("LASZIP_REQUEST_VERSION");
   }
   bool ok =
       check(z, laszip_request_native_extension(z, 1), "native extension") &&
