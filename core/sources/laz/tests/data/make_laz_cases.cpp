@@ -54,6 +54,13 @@ const Case kCases[] = {
     {"laz_gen_f10_eb2_4ch", 4, 10, 2, 900, 2500, 4, 15},
     {"laz_gen_f7_eb1_4ch_v4", 4, 7, 1, 800, 2500, 4, 15, 4},
     {"laz_gen_f10_eb2_4ch_v4", 4, 10, 2, 900, 2500, 4, 15, 4},
+    {"laz_gen_f0_eb1", 2, 0, 1, 500, 1500, 1, 7},
+    {"laz_gen_f2_eb0", 2, 2, 0, 500, 1500, 1, 7},
+    {"laz_gen_f4_eb3", 3, 4, 3, 700, 1500, 1, 7},
+    {"laz_gen_f5_eb0", 3, 5, 0, 700, 1500, 1, 7},
+    {"laz_gen_f8_eb7_4ch", 4, 8, 7, 600, 1500, 4, 15},
+    {"laz_gen_f9_eb0_4ch", 4, 9, 0, 600, 1500, 4, 15},
+    {"laz_gen_f9_eb0_4ch_v4", 4, 9, 0, 600, 1500, 4, 15, 4},
 };
 
 int base_length(int format) {
@@ -62,10 +69,22 @@ int base_length(int format) {
       return 20;
     case 1:
       return 28;
+    case 2:
+      return 26;
+    case 3:
+      return 34;
+    case 4:
+      return 57;
+    case 5:
+      return 63;
     case 6:
       return 30;
     case 7:
       return 36;
+    case 8:
+      return 38;
+    case 9:
+      return 59;
     case 10:
       return 67;
     default:
@@ -161,9 +180,12 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
         pt.p.withheld_flag = (flags >> 2) & 1;
         pt.p.scan_angle_rank = static_cast<laszip_I8>(std::lround(head.angle));
       }
-      if (c.format ==
-          10) {  // NIR and a waveform packet: descriptor, offset, size, location, dx/dy/dz
+      const int f = c.format;
+      if (f == 8 || f == 10) {  // NIR
         pt.p.rgb[3] = static_cast<laszip_U16>(r == n ? 30000 + rng.below(2000) : rng.below(65536));
+      }
+      if (f == 4 || f == 5 || f == 9 || f == 10) {
+        // A waveform packet: descriptor, offset, size, return location, dx/dy/dz.
         const std::uint8_t descriptor = static_cast<std::uint8_t>(1 + channel % 3);
         const std::uint32_t size = rng.below(20) == 0 ? 512u : 256u;
         const float location = static_cast<float>(1000.0 + 3.0 * r + rng.unit());
@@ -176,7 +198,7 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
         std::memcpy(&pt.p.wave_packet[17], d, 12);
         wave_offset += size;
       }
-      if (c.format == 7 || c.format == 10) {
+      if (f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10) {  // RGB
         const int shade = static_cast<int>((z - 110.0) * 2000.0);
         pt.p.rgb[0] = static_cast<laszip_U16>(std::clamp(shade, 0, 65535));
         pt.p.rgb[1] = static_cast<laszip_U16>(std::clamp(shade + rng.below(4000), 0, 65535));
@@ -188,12 +210,14 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
       } else if (c.extra_bytes == 2) {
         pt.extra[0] = static_cast<laszip_U8>(channel * 60 + rng.below(4));
         pt.extra[1] = static_cast<laszip_U8>(counter >> 4);
-      } else {
-        pt.extra[0] = 0x2A;                                      // constant
-        pt.extra[1] = static_cast<laszip_U8>(counter);           // counter
-        pt.extra[2] = static_cast<laszip_U8>(rng.below(256));    // noise
-        const float deviation = static_cast<float>(z - ground);  // a float32 column
-        std::memcpy(&pt.extra[3], &deviation, 4);
+      } else if (c.extra_bytes >= 3) {
+        pt.extra[0] = 0x2A;                                    // constant
+        pt.extra[1] = static_cast<laszip_U8>(counter);         // counter
+        pt.extra[2] = static_cast<laszip_U8>(rng.below(256));  // noise
+        if (c.extra_bytes >= 7) {
+          const float deviation = static_cast<float>(z - ground);  // a float32 column
+          std::memcpy(&pt.extra[3], &deviation, 4);
+        }
       }
       out.push_back(std::move(pt));
       ++counter;
@@ -210,7 +234,7 @@ bool write(const Case& c, const std::vector<Point>& points, const std::string& p
   laszip_get_header_pointer(z, &h);
   h->version_major = 1;
   h->version_minor = static_cast<laszip_U8>(c.version_minor);
-  h->header_size = c.version_minor == 4 ? 375 : 227;
+  h->header_size = c.version_minor == 4 ? 375 : (c.version_minor == 3 ? 235 : 227);
   h->offset_to_point_data = h->header_size;
   h->point_data_format = static_cast<laszip_U8>(c.format);
   h->point_data_record_length = static_cast<laszip_U16>(base_length(c.format) + c.extra_bytes);
