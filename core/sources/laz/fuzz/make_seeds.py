@@ -3,7 +3,8 @@
 byte by byte from the LAS 1.2/1.4 and LAZ layouts (no encoder needed: a chunk's first point is
 stored raw). Their chunk tables are deliberately absent (offset -1 pointing nowhere), so they
 also exercise the table rebuild. The real LAZ files of ../shared/data are the main seeds
-(run.sh); these keep the replay test (Fuzz.laz_fuzzer.Replay) meaningful without them.
+(run.sh); these keep the replay test (Fuzz.laz_fuzzer.Replay) meaningful without them. The
+corpus's seed_*.laz files are LASzip-written, not from here (core/sources/laz/tests/data/README.md).
     python3 core/sources/laz/fuzz/make_seeds.py"""
 import os
 import struct

@@ -61,6 +61,10 @@ const Case kCases[] = {
     {"laz_gen_f8_eb7_4ch", 4, 8, 7, 600, 1500, 4, 15},
     {"laz_gen_f9_eb0_4ch", 4, 9, 0, 600, 1500, 4, 15},
     {"laz_gen_f9_eb0_4ch_v4", 4, 9, 0, 600, 1500, 4, 15, 4},
+    // Small seeds for laz_fuzzer (core/sources/laz/fuzz/corpus): three chunks of 20 points.
+    {"seed_f10_eb2_4ch", 4, 10, 2, 20, 60, 4, 15},
+    {"seed_f10_eb2_4ch_v4", 4, 10, 2, 20, 60, 4, 15, 4},
+    {"seed_f5_eb3", 3, 5, 3, 20, 60, 1, 7},
 };
 
 int base_length(int format) {
