@@ -189,7 +189,8 @@ TEST(LazDecode, AutzenMatchesItsLasTwin) {
 // but 3 (autzen is one), the layered ones with four scanner channels switching mid-chunk and at
 // chunk starts and up to 15 returns, 0, 1, 2, 3 and 7 extra bytes, RGB, NIR, both waveform
 // items; three layered files again with LASzip's item version 4 (same points, so the v3 file's
-// twin). Always present (in the repository).
+// twin); two pointwise files with item version 1, one of them not chunked (compressor 1).
+// Always present (in the repository).
 const std::filesystem::path kGenerated = TINSTREAM_LAZ_TEST_DATA;
 
 struct GeneratedFile {
@@ -263,6 +264,8 @@ const GeneratedFile kGeneratedFiles[] = {
     {"laz_gen_f8_eb7_4ch", "laz_gen_f8_eb7_4ch", 8, 1500},
     {"laz_gen_f9_eb0_4ch", "laz_gen_f9_eb0_4ch", 9, 1500},
     {"laz_gen_f10_eb2_4ch", "laz_gen_f10_eb2_4ch", 10, 2500},
+    {"laz_gen_f3_eb2_v1_nochunks", "laz_gen_f3_eb2_v1_nochunks", 3, 1500},
+    {"laz_gen_f5_eb1_v1", "laz_gen_f5_eb1_v1", 5, 1500},
     {"laz_gen_f7_eb1_4ch_v4", "laz_gen_f7_eb1_4ch", 7, 2500},
     {"laz_gen_f9_eb0_4ch_v4", "laz_gen_f9_eb0_4ch", 9, 1500},
     {"laz_gen_f10_eb2_4ch_v4", "laz_gen_f10_eb2_4ch", 10, 2500},

@@ -44,7 +44,10 @@ struct Case {
   // The item versions LASzip is asked for (0: its default, v2 for formats 0-5, v3 for 6-10).
   // v4 for LAS 1.4 needs the one-line change of README.md (LASzip's API picks v4 only for LAS
   // 1.5 headers); the points are those of the v3 file with the same format and extra bytes.
+  // v1 (formats 0-5: POINT10, GPSTIME11, RGB12, BYTE) needs the same change.
   int item_version = 0;
+  // Chunk size 0: LASzip's compressor 1 (pointwise, no chunks), which its API does not offer
+  // (the second change of README.md); otherwise compressor 2 or 3.
 };
 
 const Case kCases[] = {
@@ -61,6 +64,8 @@ const Case kCases[] = {
     {"laz_gen_f8_eb7_4ch", 4, 8, 7, 600, 1500, 4, 15},
     {"laz_gen_f9_eb0_4ch", 4, 9, 0, 600, 1500, 4, 15},
     {"laz_gen_f9_eb0_4ch_v4", 4, 9, 0, 600, 1500, 4, 15, 4},
+    {"laz_gen_f3_eb2_v1_nochunks", 2, 3, 2, 0, 1500, 1, 7, 1},
+    {"laz_gen_f5_eb1_v1", 3, 5, 1, 500, 1500, 1, 7, 1},
     // Small seeds for laz_fuzzer (core/sources/laz/fuzz/corpus): three chunks of 20 points.
     {"seed_f10_eb2_4ch", 4, 10, 2, 20, 60, 4, 15},
     {"seed_f10_eb2_4ch_v4", 4, 10, 2, 20, 60, 4, 15, 4},
@@ -124,7 +129,8 @@ std::vector<Point> make_points(const Case& c, Rng& rng) {
   std::uint64_t wave_offset = 0;
   while (static_cast<int>(out.size()) < c.points) {
     // A channel switch every ~12 pulses, and at the start of some chunks.
-    const bool chunk_start = out.size() % static_cast<std::size_t>(c.chunk_size) == 0;
+    const bool chunk_start =
+        c.chunk_size > 0 && out.size() % static_cast<std::size_t>(c.chunk_size) == 0;
     if (c.channels > 1 && (rng.below(12) == 0 || (chunk_start && out.size() > 0))) {
       channel = (channel + 1 + rng.below(c.channels - 1)) % c.channels;
     }
@@ -272,9 +278,15 @@ bool write(const Case& c, const std::vector<Point>& points, const std::string& p
   } else {
     unsetenv("LASZIP_REQUEST_VERSION");
   }
+  if (compress && c.chunk_size == 0) {
+    setenv("LASZIP_REQUEST_COMPRESSOR", "1", 1);
+  } else {
+    unsetenv("LASZIP_REQUEST_COMPRESSOR");
+  }
   bool ok =
       check(z, laszip_request_native_extension(z, 1), "native extension") &&
-      check(z, laszip_set_chunk_size(z, static_cast<laszip_U32>(c.chunk_size)), "chunk size") &&
+      (c.chunk_size == 0 ||
+       check(z, laszip_set_chunk_size(z, static_cast<laszip_U32>(c.chunk_size)), "chunk size")) &&
       check(z, laszip_open_writer(z, path.c_str(), compress ? 1 : 0), "open writer");
   laszip_point* p = nullptr;
   laszip_get_point_pointer(z, &p);
