@@ -1,5 +1,7 @@
 // Layered item decoders (LASzip item versions 3 and 4: POINT14, RGB14, RGBNIR14, BYTE14,
-// WAVEPACKET14). Each scanner channel (0-3) has its own context: models and "last" values.
+// WAVEPACKET14). Each of four contexts (0-3) has its own models and "last" values: POINT14's
+// context is the point's scanner channel; the other items' is the one LASzip hands them, which
+// in v3 is 0 except where the channel switches (Point14Context::item_context).
 #include <algorithm>
 #include <utility>
 
