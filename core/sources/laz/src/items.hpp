@@ -431,7 +431,9 @@ class Point14Layered {
   // Whether the other items stay in one context over the last batch (every point's
   // item_context is the one before it).
   bool one_item_context() const { return one_item_context_; }
-  std::uint32_t channel() const { return current_; }  // the chunk's first point's channel
+  // The last decoded point's channel (after start(): the chunk's first point's, which is the
+  // other items' context for their start()).
+  std::uint32_t channel() const { return current_; }
 
  private:
   struct Context;
